@@ -1,0 +1,80 @@
+//! The command line: one file per command; this file only dispatches and maps errors to exit codes.
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+pub mod denoise;
+
+/// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
+#[derive(Debug, Parser)]
+#[command(name = "driftless", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Wavelet-threshold denoise a CSV log (or a built-in synthetic benchmark).
+    Denoise(denoise::Args),
+}
+
+/// A command's failure: the message for stderr and the process exit code.
+#[derive(Debug)]
+pub struct CliError {
+    /// 2 for bad input or configuration, 1 for anything else.
+    pub code: u8,
+    /// One line for the user.
+    pub message: String,
+}
+
+impl CliError {
+    /// Bad input from the user (exit code 2).
+    pub fn input(message: impl Into<String>) -> Self {
+        CliError {
+            code: 2,
+            message: message.into(),
+        }
+    }
+
+    /// A failure that is not the input's fault (exit code 1).
+    pub fn internal(message: impl Into<String>) -> Self {
+        CliError {
+            code: 1,
+            message: message.into(),
+        }
+    }
+}
+
+impl From<crate::io::InputError> for CliError {
+    fn from(e: crate::io::InputError) -> Self {
+        CliError::input(e.to_string())
+    }
+}
+
+impl From<crate::wavelet::WaveletError> for CliError {
+    fn from(e: crate::wavelet::WaveletError) -> Self {
+        CliError::input(e.to_string())
+    }
+}
+
+/// Parse the command line, run the command, and turn its outcome into an exit code.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
+        }
+    };
+    let result = match cli.command {
+        Command::Denoise(args) => denoise::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("driftless: error: {}", e.message);
+            ExitCode::from(e.code)
+        }
+    }
+}

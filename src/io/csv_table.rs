@@ -1,0 +1,335 @@
+//! Numeric CSV tables: read named columns with file/line/column errors, write them back atomically.
+//!
+//! A first row in which every cell is a number is data (the columns are then named `c0`, `c1`, ...);
+//! otherwise it is the header. NaN and Inf cells are errors: a sample is never silently altered.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Rows above which reading shows a progress bar (estimated from the file size).
+const PROGRESS_MIN_BYTES: u64 = 24_000_000;
+
+/// A bad input file, with the position of the fault where there is one.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    /// The file could not be opened or read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// A fault at a place in the file (1-based line and column).
+    #[error("{path}:{line}:{column}: {message}")]
+    At {
+        /// The file.
+        path: String,
+        /// 1-based line.
+        line: u64,
+        /// 1-based column (characters from the start of the line).
+        column: u64,
+        /// What is wrong there.
+        message: String,
+    },
+    /// A fault of the file as a whole.
+    #[error("{path}: {message}")]
+    File {
+        /// The file.
+        path: String,
+        /// What is wrong with it.
+        message: String,
+    },
+}
+
+impl InputError {
+    /// A whole-file error.
+    pub fn file(path: &Path, message: impl Into<String>) -> Self {
+        InputError::File {
+            path: path.display().to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Numeric columns read from a CSV file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// The file it came from.
+    pub path: PathBuf,
+    /// Column names, from the header or `c0`, `c1`, ...
+    pub names: Vec<String>,
+    /// One vector per selected column, all of equal length.
+    pub columns: Vec<Vec<f64>>,
+    /// Whether the file had a header row.
+    pub has_header: bool,
+}
+
+impl Table {
+    /// Number of data rows.
+    pub fn rows(&self) -> usize {
+        self.columns.first().map_or(0, Vec::len)
+    }
+
+    /// The column named `name`.
+    pub fn column(&self, name: &str) -> Option<&[f64]> {
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| self.columns[i].as_slice())
+    }
+}
+
+fn parse_cell(cell: &[u8]) -> Option<f64> {
+    std::str::from_utf8(cell).ok()?.trim().parse::<f64>().ok()
+}
+
+/// 1-based character column of field `i` in a record read without quoting surprises.
+fn field_column(record: &csv::ByteRecord, i: usize) -> u64 {
+    let start = record.range(i).map_or(0, |r| r.start);
+    (start + i + 1) as u64
+}
+
+/// Read the named columns (all numeric columns when `wanted` is empty) of a CSV file.
+pub fn read_table(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
+    let shown = path.display().to_string();
+    let io_err = |source| InputError::Io {
+        path: shown.clone(),
+        source,
+    };
+    let file = File::open(path).map_err(io_err)?;
+    let size = file.metadata().map_err(io_err)?.len();
+    let progress = crate::io::progress::bar(size, PROGRESS_MIN_BYTES, "reading");
+    let reader = BufReader::with_capacity(1 << 20, progress.wrap_read(file));
+    let result = read_from(reader, path, wanted);
+    progress.finish_and_clear();
+    result
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> InputError {
+    let shown = path.display().to_string();
+    let line = e.position().map(|p| p.line());
+    match (e.kind(), line) {
+        (csv::ErrorKind::UnequalLengths { expected_len, len, .. }, Some(line)) => InputError::At {
+            path: shown,
+            line,
+            column: 1,
+            message: format!("this row has {len} fields, the first row has {expected_len}"),
+        },
+        (csv::ErrorKind::Utf8 { .. }, Some(line)) => InputError::At {
+            path: shown,
+            line,
+            column: 1,
+            message: "this row is not valid UTF-8".into(),
+        },
+        _ => InputError::File {
+            path: shown,
+            message: e.to_string(),
+        },
+    }
+}
+
+fn read_from<R: Read>(reader: R, path: &Path, wanted: &[String]) -> Result<Table, InputError> {
+    let shown = path.display().to_string();
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(reader);
+    let mut record = csv::ByteRecord::new();
+    if !rdr
+        .read_byte_record(&mut record)
+        .map_err(|e| csv_error(path, e))?
+    {
+        return Err(InputError::file(path, "the file is empty"));
+    }
+    let has_header = record.iter().any(|c| parse_cell(c).is_none());
+    let names: Vec<String> = if has_header {
+        record
+            .iter()
+            .map(|c| String::from_utf8_lossy(c).trim().to_string())
+            .collect()
+    } else {
+        (0..record.len()).map(|i| format!("c{i}")).collect()
+    };
+    let mut first = record.clone();
+    if has_header
+        && !rdr
+            .read_byte_record(&mut first)
+            .map_err(|e| csv_error(path, e))?
+    {
+        return Err(InputError::file(path, "the file has a header but no data rows"));
+    }
+    let selected: Vec<usize> = if wanted.is_empty() {
+        let numeric: Vec<usize> = (0..first.len())
+            .filter(|&i| parse_cell(&first[i]).is_some())
+            .collect();
+        if numeric.is_empty() {
+            return Err(InputError::file(path, "no numeric column in the first data row"));
+        }
+        numeric
+    } else {
+        wanted
+            .iter()
+            .map(|w| {
+                names.iter().position(|n| n == w).ok_or_else(|| {
+                    InputError::file(
+                        path,
+                        format!("no column named '{w}' (columns: {})", names.join(", ")),
+                    )
+                })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); selected.len()];
+    let mut row = first;
+    loop {
+        let line = row.position().map_or(0, |p| p.line());
+        for (out, &i) in columns.iter_mut().zip(&selected) {
+            let cell = &row[i];
+            let at = |message: String| InputError::At {
+                path: shown.clone(),
+                line,
+                column: field_column(&row, i),
+                message,
+            };
+            match parse_cell(cell) {
+                Some(v) if v.is_finite() => out.push(v),
+                Some(v) => {
+                    return Err(at(format!(
+                        "column '{}': {v} is not a finite sample",
+                        names[i]
+                    )))
+                }
+                None => {
+                    return Err(at(format!(
+                        "column '{}': '{}' is not a number",
+                        names[i],
+                        String::from_utf8_lossy(cell)
+                    )))
+                }
+            }
+        }
+        if !rdr
+            .read_byte_record(&mut row)
+            .map_err(|e| csv_error(path, e))?
+        {
+            break;
+        }
+    }
+    Ok(Table {
+        path: path.to_path_buf(),
+        names: selected.iter().map(|&i| names[i].clone()).collect(),
+        columns,
+        has_header,
+    })
+}
+
+/// Write equal-length columns with a header, at full precision (every value round-trips exactly).
+///
+/// The file appears whole or not at all: it is written to a temporary file beside `path`, then renamed.
+pub fn write_table(path: &Path, names: &[String], columns: &[&[f64]]) -> Result<(), InputError> {
+    let shown = path.display().to_string();
+    let io_err = |source| InputError::Io {
+        path: shown.clone(),
+        source,
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
+    {
+        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+        writeln!(w, "{}", names.join(",")).map_err(io_err)?;
+        let rows = columns.first().map_or(0, |c| c.len());
+        let mut line = String::new();
+        for r in 0..rows {
+            line.clear();
+            for (k, c) in columns.iter().enumerate() {
+                if k > 0 {
+                    line.push(',');
+                }
+                // `{}` on f64 prints the shortest text that parses back to the same value.
+                use std::fmt::Write as _;
+                let _ = write!(line, "{}", c[r]);
+            }
+            line.push('\n');
+            w.write_all(line.as_bytes()).map_err(io_err)?;
+        }
+        w.flush().map_err(io_err)?;
+    }
+    tmp.persist(path).map_err(|e| io_err(e.error))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read_str(text: &str, wanted: &[&str]) -> Result<Table, InputError> {
+        let wanted: Vec<String> = wanted.iter().map(|s| s.to_string()).collect();
+        read_from(text.as_bytes(), Path::new("t.csv"), &wanted)
+    }
+
+    #[test]
+    fn header_and_numeric_columns() {
+        let t = read_str("time,label,x\n0,a,1.5\n1,b,-2e-3\n", &[]).unwrap();
+        assert_eq!(t.names, ["time", "x"]);
+        assert_eq!(t.columns, vec![vec![0.0, 1.0], vec![1.5, -2e-3]]);
+        assert!(t.has_header);
+    }
+
+    #[test]
+    fn headerless_columns_are_numbered() {
+        let t = read_str("1,2\n3,4\n", &[]).unwrap();
+        assert_eq!(t.names, ["c0", "c1"]);
+        assert!(!t.has_header);
+        assert_eq!(t.column("c1"), Some(&[2.0, 4.0][..]));
+    }
+
+    #[test]
+    fn bad_cell_names_line_and_column() {
+        let e = read_str("a,b\n1,2\n3,x\n", &[]).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:3:3: column 'b': 'x' is not a number");
+        let e = read_str("a,b\n1,2\n3,NaN\n", &[]).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:3:3: column 'b': NaN is not a finite sample");
+        let e = read_str("a,b\n1,inf\n", &["b"]).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:2:3: column 'b': inf is not a finite sample");
+    }
+
+    #[test]
+    fn unknown_column_lists_the_valid_ones() {
+        let e = read_str("a,b\n1,2\n", &["z"]).unwrap_err().to_string();
+        assert_eq!(e, "t.csv: no column named 'z' (columns: a, b)");
+    }
+
+    #[test]
+    fn empty_and_header_only_files() {
+        assert_eq!(
+            read_str("", &[]).unwrap_err().to_string(),
+            "t.csv: the file is empty"
+        );
+        assert_eq!(
+            read_str("a,b\n", &[]).unwrap_err().to_string(),
+            "t.csv: the file has a header but no data rows"
+        );
+    }
+
+    #[test]
+    fn ragged_row_is_positioned() {
+        let e = read_str("a,b\n1,2\n3\n", &[]).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:3:1: this row has 1 fields, the first row has 2");
+    }
+
+    #[test]
+    fn write_round_trips_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.csv");
+        let x = [0.1 + 0.2, -1e-300, 123456789.123456789, f64::MIN_POSITIVE];
+        write_table(&p, &["x".into()], &[&x]).unwrap();
+        let t = read_table(&p, &[]).unwrap();
+        assert_eq!(t.columns[0], x);
+    }
+}

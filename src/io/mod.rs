@@ -1,0 +1,9 @@
+//! Files and terminals: CSV tables with positioned errors, atomic output, progress bars, plots.
+//!
+//! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
+
+pub mod csv_table;
+pub mod plot;
+pub mod progress;
+
+pub use csv_table::{read_table, write_table, InputError, Table};

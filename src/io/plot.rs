@@ -1,0 +1,105 @@
+//! SVG charts (plotters): stacked panels of line series, written atomically.
+
+use plotters::prelude::*;
+use std::path::Path;
+
+/// One line on a panel.
+pub struct Series {
+    /// Legend text.
+    pub name: String,
+    /// (x, y) points, in drawing order.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// One chart in a vertical stack.
+pub struct Panel {
+    /// Title above the chart.
+    pub title: String,
+    /// X axis label.
+    pub x_label: String,
+    /// Y axis label.
+    pub y_label: String,
+    /// Lines, drawn in order (later on top).
+    pub series: Vec<Series>,
+}
+
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(160, 160, 160),
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+];
+
+fn bounds(panel: &Panel) -> ((f64, f64), (f64, f64)) {
+    let pts = panel.series.iter().flat_map(|s| s.points.iter());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in pts {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x0 > x1 {
+        return ((0.0, 1.0), (0.0, 1.0));
+    }
+    let pad = ((y1 - y0) * 0.05).max(1e-12);
+    ((x0, x1.max(x0 + 1e-12)), (y0 - pad, y1 + pad))
+}
+
+/// Draw `panels` stacked vertically into an SVG file at `path` (temporary file, then rename).
+pub fn write_panels(path: &Path, panels: &[Panel]) -> Result<(), String> {
+    let mut svg = String::new();
+    {
+        let height = 300 * panels.len().max(1) as u32;
+        let root = SVGBackend::with_string(&mut svg, (1000, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((panels.len().max(1), 1));
+        for (panel, area) in panels.iter().zip(areas.iter()) {
+            let ((x0, x1), (y0, y1)) = bounds(panel);
+            let mut chart = ChartBuilder::on(area)
+                .caption(&panel.title, ("sans-serif", 18))
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(70)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc(&panel.x_label)
+                .y_desc(&panel.y_label)
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for (k, s) in panel.series.iter().enumerate() {
+                let colour = COLOURS[k % COLOURS.len()];
+                chart
+                    .draw_series(LineSeries::new(s.points.iter().copied(), colour))
+                    .map_err(|e| e.to_string())?
+                    .label(&s.name)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    write_atomically(path, svg.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Write `bytes` to `path` through a temporary file in the same directory, so a reader never sees
+/// a partial file.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+    std::io::Write::write_all(&mut tmp, bytes)?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}

@@ -1,0 +1,5 @@
+//! The `driftless` binary: everything lives in the library's `cli` module.
+
+fn main() -> std::process::ExitCode {
+    driftless::cli::main()
+}

@@ -1,0 +1,1 @@
+//! Streaming denoiser (placeholder).

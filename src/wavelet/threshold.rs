@@ -1,0 +1,1 @@
+//! Threshold functions (placeholder).
