@@ -2,6 +2,7 @@
 //!
 //! A first row in which every cell is a number is data (the columns are then named `c0`, `c1`, ...);
 //! otherwise it is the header. NaN and Inf cells are errors: a sample is never silently altered.
+//! Files ending in `.gz` are decompressed on the fly.
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -101,8 +102,12 @@ pub fn read_table(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
     let file = File::open(path).map_err(io_err)?;
     let size = file.metadata().map_err(io_err)?.len();
     let progress = crate::io::progress::bar(size, PROGRESS_MIN_BYTES, "reading");
-    let reader = BufReader::with_capacity(1 << 20, progress.wrap_read(file));
-    let result = read_from(reader, path, wanted);
+    let raw = BufReader::with_capacity(1 << 20, progress.wrap_read(file));
+    let result = if path.extension().is_some_and(|e| e == "gz") {
+        read_from(flate2::bufread::MultiGzDecoder::new(raw), path, wanted)
+    } else {
+        read_from(raw, path, wanted)
+    };
     progress.finish_and_clear();
     result
 }
@@ -321,6 +326,16 @@ mod tests {
     fn ragged_row_is_positioned() {
         let e = read_str("a,b\n1,2\n3\n", &[]).unwrap_err().to_string();
         assert_eq!(e, "t.csv:3:1: this row has 1 fields, the first row has 2");
+    }
+
+    #[test]
+    fn gzip_is_read_transparently() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("g.csv.gz");
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        std::io::Write::write_all(&mut enc, b"x\n1\n2\n").unwrap();
+        std::fs::write(&p, enc.finish().unwrap()).unwrap();
+        assert_eq!(read_table(&p, &[]).unwrap().columns, vec![vec![1.0, 2.0]]);
     }
 
     #[test]
