@@ -87,14 +87,15 @@ mod tests {
         for n in Wavelet::names() {
             let w = Wavelet::by_name(n).unwrap();
             let f = w.filter_len();
-            // Orthonormal: unit energy, sum sqrt(2), orthogonal to even shifts.
+            // Orthonormal: unit energy, sum sqrt(2), orthogonal to even shifts. PyWavelets' own
+            // sym filters hold this only to 1.5e-11 (sym20), so that is the bound.
             let energy: f64 = w.rec_lo().iter().map(|v| v * v).sum();
-            assert!((energy - 1.0).abs() < 1e-12, "{n}: energy {energy}");
+            assert!((energy - 1.0).abs() < 2e-11, "{n}: energy {energy}");
             let sum: f64 = w.dec_lo().iter().sum();
-            assert!((sum - 2f64.sqrt()).abs() < 1e-12, "{n}: sum {sum}");
+            assert!((sum - 2f64.sqrt()).abs() < 2e-11, "{n}: sum {sum}");
             for s in (2..f).step_by(2) {
                 let c: f64 = (0..f - s).map(|k| w.rec_lo()[k] * w.rec_lo()[k + s]).sum();
-                assert!(c.abs() < 1e-12, "{n}: shift {s} correlation {c}");
+                assert!(c.abs() < 2e-11, "{n}: shift {s} correlation {c}");
             }
         }
         assert_eq!(Wavelet::by_name("db6").unwrap().filter_len(), 12);
