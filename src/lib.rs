@@ -11,5 +11,6 @@
 
 pub mod cli;
 pub mod io;
+pub mod quality;
 pub mod synthetic;
 pub mod wavelet;
