@@ -135,16 +135,18 @@ impl ThresholdFn {
     pub fn validate(&self) -> Result<(), WaveletError> {
         let bad = |m: String| Err(WaveletError::BadParameter(m));
         match *self {
-            ThresholdFn::Firm { ratio } if !(ratio > 1.0 && ratio.is_finite()) => {
-                bad(format!("firm ratio must be a finite number > 1, got {ratio}"))
-            }
+            ThresholdFn::Firm { ratio } if !(ratio > 1.0 && ratio.is_finite()) => bad(format!(
+                "firm ratio must be a finite number > 1, got {ratio}"
+            )),
             ThresholdFn::Improved { a, beta, kappa } => {
                 if !(a >= 0.0 && a.is_finite()) {
                     bad(format!("improved a must be finite and >= 0, got {a}"))
                 } else if !(beta > 0.0 && beta.is_finite()) {
                     bad(format!("improved beta must be finite and > 0, got {beta}"))
                 } else if !(kappa > 0.0 && kappa.is_finite()) {
-                    bad(format!("improved kappa must be finite and > 0, got {kappa}"))
+                    bad(format!(
+                        "improved kappa must be finite and > 0, got {kappa}"
+                    ))
                 } else {
                     Ok(())
                 }
@@ -261,9 +263,13 @@ mod tests {
         let e = "medium".parse::<ThresholdFn>().unwrap_err().to_string();
         assert!(e.contains("hard, soft, garrote, firm, improved"), "{e}");
         assert!(ThresholdFn::Firm { ratio: 1.0 }.validate().is_err());
-        assert!(ThresholdFn::Improved { a: -1.0, beta: 1.0, kappa: 1.0 }
-            .validate()
-            .is_err());
+        assert!(ThresholdFn::Improved {
+            a: -1.0,
+            beta: 1.0,
+            kappa: 1.0
+        }
+        .validate()
+        .is_err());
         assert!(ThresholdFn::improved_default().validate().is_ok());
     }
 
