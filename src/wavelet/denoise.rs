@@ -277,25 +277,21 @@ pub struct Comparison {
     pub rms_removed: f64,
 }
 
-/// Denoise `x` with each of hard, soft, garrote, firm and improved (other settings from `cfg`),
-/// scoring against `truth` when given.
+/// Denoise `x` with each of hard, soft, garrote, firm and improved (other settings from `cfg`;
+/// `cfg`'s own function keeps its parameters), scoring against `truth` when given.
 pub fn compare(
     x: &[f64],
     truth: Option<&[f64]>,
     cfg: &DenoiseConfig,
 ) -> Result<Vec<Comparison>, WaveletError> {
-    let functions = [
-        ThresholdFn::Hard,
-        ThresholdFn::Soft,
-        ThresholdFn::Garrote,
-        ThresholdFn::Firm {
-            ratio: ThresholdFn::FIRM_RATIO,
-        },
-        match cfg.threshold {
-            f @ ThresholdFn::Improved { .. } => f,
-            _ => ThresholdFn::improved_default(),
-        },
-    ];
+    // The chosen function keeps its parameters; the others run with their defaults.
+    let functions = ThresholdFn::NAMES.map(|name| {
+        if name == cfg.threshold.name() {
+            cfg.threshold
+        } else {
+            name.parse().expect("NAMES parse")
+        }
+    });
     functions
         .into_iter()
         .map(|function| {
