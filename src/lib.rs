@@ -11,6 +11,10 @@
 
 pub mod cli;
 pub mod io;
+pub mod metrics;
+pub mod pipeline;
 pub mod quality;
+pub mod stages;
 pub mod synthetic;
+pub mod transport;
 pub mod wavelet;

@@ -4,6 +4,8 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 pub mod denoise;
+pub mod run;
+pub mod validate;
 
 /// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
 #[derive(Debug, Parser)]
@@ -14,9 +16,14 @@ pub struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)]
 enum Command {
     /// Wavelet-threshold denoise a CSV log (or a built-in synthetic benchmark).
     Denoise(denoise::Args),
+    /// Run a pipeline (the daemon) until SIGINT/SIGTERM or --duration.
+    Run(run::Args),
+    /// Check a pipeline file as `run` would, without starting anything.
+    Validate(validate::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -69,6 +76,8 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Denoise(args) => denoise::run(args),
+        Command::Run(args) => run::run(args),
+        Command::Validate(args) => validate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
