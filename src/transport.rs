@@ -11,9 +11,9 @@
 //!
 //! # Quality of service
 //! One definition ([`Qos`]) is used for every service the daemon creates: history 0, safe
-//! overflow off, a publisher never blocks ([`BackpressureStrategy::DiscardData`]): a subscriber
-//! whose buffer is full loses the new sample and the loss is counted by the publisher
-//! ([`Output::lost`]). Readers of our services open them without requirements, so they never
+//! overflow off, a publisher never blocks (backpressure strategy `DiscardData`): a subscriber
+//! whose buffer is full loses the new sample (it keeps the older ones it has not read) and the
+//! publisher counts the loss ([`Output::lost`]: subscribers registered minus served). Readers of our services open them without requirements, so they never
 //! conflict with the creator's settings.
 
 use std::fmt::Debug;
@@ -26,12 +26,13 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
-use iceoryx2::port::BackpressureAction;
 use iceoryx2::prelude::*;
 
 /// The iceoryx2 service flavour used everywhere: inter-process, even inside one process
 /// (`local` lost wake-ups at high rates on our machines).
 type Svc = ipc::Service;
+
+type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
 /// Default iceoryx2 prefix of the daemon's files in `/dev/shm` and `/tmp/iceoryx2`.
 pub const DEFAULT_PREFIX: &str = "driftless_";
@@ -401,14 +402,9 @@ impl Transport {
     ) -> Result<Output<T>, TransportError> {
         let service = self.pubsub::<T>(name)?;
         let lost = Arc::new(AtomicU64::new(0));
-        let counter = Arc::clone(&lost);
         let publisher = service
             .publisher_builder()
             .backpressure_strategy(BackpressureStrategy::DiscardData)
-            .set_backpressure_handler(move |_: &iceoryx2::port::BackpressureInfo| {
-                counter.fetch_add(1, Ordering::Relaxed);
-                BackpressureAction::DiscardData
-            })
             .create()
             .map_err(|e| setup("publisher (is another daemon running?)", name, e))?;
         let notifier = if notify {
@@ -428,6 +424,7 @@ impl Transport {
             None
         };
         Ok(Output {
+            service,
             publisher,
             notifier,
             lost,
@@ -531,6 +528,7 @@ fn remove_files_with_prefix(dir: &std::path::Path, prefix: &str) {
 /// The sending side of one service. Sending never blocks: a subscriber with a full buffer
 /// loses the sample, counted in [`Output::lost`].
 pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
+    service: PubSubFactory<T>,
     publisher: Publisher<Svc, T, ()>,
     notifier: Option<Notifier<Svc>>,
     lost: Arc<AtomicU64>,
@@ -554,6 +552,12 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
                 what: "send",
                 reason: format!("{e:?}"),
             })?;
+        // Subscribers registered on the service but not served: their buffers were full.
+        let subscribers = self.service.dynamic_config().number_of_subscribers();
+        if n < subscribers {
+            self.lost
+                .fetch_add((subscribers - n) as u64, Ordering::Relaxed);
+        }
         if let Some(notifier) = &self.notifier {
             // A failed wake-up only delays a reader until its own timeout.
             let _ = notifier.notify();
