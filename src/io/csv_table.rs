@@ -116,7 +116,12 @@ fn csv_error(path: &Path, e: csv::Error) -> InputError {
     let shown = path.display().to_string();
     let line = e.position().map(|p| p.line());
     match (e.kind(), line) {
-        (csv::ErrorKind::UnequalLengths { expected_len, len, .. }, Some(line)) => InputError::At {
+        (
+            csv::ErrorKind::UnequalLengths {
+                expected_len, len, ..
+            },
+            Some(line),
+        ) => InputError::At {
             path: shown,
             line,
             column: 1,
@@ -164,14 +169,20 @@ fn read_from<R: Read>(reader: R, path: &Path, wanted: &[String]) -> Result<Table
             .read_byte_record(&mut first)
             .map_err(|e| csv_error(path, e))?
     {
-        return Err(InputError::file(path, "the file has a header but no data rows"));
+        return Err(InputError::file(
+            path,
+            "the file has a header but no data rows",
+        ));
     }
     let selected: Vec<usize> = if wanted.is_empty() {
         let numeric: Vec<usize> = (0..first.len())
             .filter(|&i| parse_cell(&first[i]).is_some())
             .collect();
         if numeric.is_empty() {
-            return Err(InputError::file(path, "no numeric column in the first data row"));
+            return Err(InputError::file(
+                path,
+                "no numeric column in the first data row",
+            ));
         }
         numeric
     } else {
