@@ -9,11 +9,13 @@
 //! The maths modules ([`wavelet`], ...) are pure: no I/O, no transport, usable as a library.
 //! Layers, from the ground up: maths -> pipeline and stages -> transport -> [`cli`].
 
+pub mod allan;
 pub mod cli;
 pub mod io;
 pub mod metrics;
 pub mod pipeline;
 pub mod quality;
+pub mod sim;
 pub mod stages;
 pub mod synthetic;
 pub mod transport;
