@@ -133,6 +133,8 @@ pub struct SimParams {
     pub profile: String,
     /// Random seed.
     pub seed: u64,
+    /// True motion: none, sines, steps, turn.
+    pub motion: String,
     /// Stop after this many samples (None: run until stopped).
     pub samples: Option<u64>,
 }
@@ -255,6 +257,7 @@ struct RawSim {
     output: Spanned<String>,
     profile: Option<Spanned<String>>,
     seed: Option<Spanned<i64>>,
+    motion: Option<Spanned<String>>,
     samples: Option<Spanned<i64>>,
 }
 
@@ -510,7 +513,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     };
     let mut entries = Vec::new();
     for value in array {
-        entries.push(stage(&src, value, rate_hz, axes)?);
+        entries.push(stage(&src, value, rate_hz, axes, input_units)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
     Ok(Pipeline {
@@ -544,6 +547,7 @@ fn stage<'i>(
     value: Spanned<DeValue<'i>>,
     rate_hz: f64,
     axes: usize,
+    units: Units,
 ) -> Result<Entry, InputError> {
     let start = value.span().start;
     let kind = match value.get_ref() {
@@ -609,21 +613,40 @@ fn stage<'i>(
                 Some(s) => Some(int_in(src, s, "samples", 1, i64::MAX)? as u64),
                 None => None,
             };
-            if !crate::stages::SIM_AVAILABLE {
+            let motion = r
+                .motion
+                .as_ref()
+                .map_or("sines".to_string(), |m| m.get_ref().clone());
+            if let Some(m) = &r.motion {
+                if m.get_ref().parse::<crate::sim::Motion>().is_err() {
+                    return Err(src.span(
+                        m,
+                        format!(
+                            "unknown motion {:?} (valid: none, sines, steps, turn)",
+                            m.get_ref()
+                        ),
+                    ));
+                }
+            }
+            if units != Units::DegPerSec {
                 return Err(src.at(
                     kind_at,
-                    "kind \"ingest.sim\" is not available yet in this build (the simulator lands with the Allan issue); use ingest.csv",
+                    "ingest.sim produces deg/s: set input_units = \"deg/s\"",
                 ));
             }
+            let params = SimParams {
+                profile,
+                seed,
+                motion,
+                samples,
+            };
+            crate::stages::ingest_sim::sim_config(&params, rate_hz, axes)
+                .map_err(|e| src.at(start, format!("ingest.sim: {e}")))?;
             entry(
                 &r.name,
                 None,
                 &r.output,
-                StageKind::IngestSim(SimParams {
-                    profile,
-                    seed,
-                    samples,
-                }),
+                StageKind::IngestSim(params),
             )
         }
         "ingest.csv" => {
@@ -902,6 +925,16 @@ fn wavelet_params(src: &Src<'_>, r: &RawWavelet) -> Result<WaveletParams, InputE
 
 /// Order the stages into one chain ingest -> ... -> publish, or say where it breaks.
 fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>, InputError> {
+    if entries.len() > crate::metrics::MAX_STAGES {
+        return Err(src.at(
+            at,
+            format!(
+                "{} stages: a pipeline has at most {}",
+                entries.len(),
+                crate::metrics::MAX_STAGES
+            ),
+        ));
+    }
     // Unique names and outputs.
     for (i, e) in entries.iter().enumerate() {
         if let Some(prev) = entries[..i].iter().find(|p| p.spec.name == e.spec.name) {

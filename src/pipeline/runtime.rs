@@ -213,7 +213,9 @@ fn build_source(p: &Pipeline, transport: &Transport) -> Result<Box<dyn Source>, 
                 *poll_timeout,
             )?))
         }
-        StageKind::IngestSim(_) => Err(err("ingest.sim is not available in this build".into())),
+        StageKind::IngestSim(sim) => Ok(Box::new(
+            stages::ingest_sim::SimSource::new(sim, p.rate_hz, p.axes).map_err(err)?,
+        )),
         other => Err(err(format!("{} cannot start a chain", other.name()))),
     }
 }

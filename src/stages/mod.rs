@@ -2,7 +2,7 @@
 //!
 //! | kind | file | role |
 //! |---|---|---|
-//! | `ingest.sim` | (with the simulator) | simulated sensor, paced in real time |
+//! | `ingest.sim` | [`ingest_sim`] | simulated sensor, paced in real time |
 //! | `ingest.csv` | [`ingest_csv`] | CSV replay, real time or as fast as possible |
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
@@ -18,11 +18,9 @@ use crate::pipeline::stage::Stage;
 pub mod denoise;
 pub mod ingest_csv;
 pub mod ingest_iceoryx2;
+pub mod ingest_sim;
 pub mod predict;
 pub mod publish;
-
-/// Whether `ingest.sim` is built in (the simulator lands with the Allan-deviation issue).
-pub const SIM_AVAILABLE: bool = false;
 
 /// Build the processing stage for `spec` (not an ingest). Errors are parameter errors that
 /// validation should already have caught.
