@@ -5,6 +5,8 @@ use std::process::ExitCode;
 
 pub mod denoise;
 pub mod run;
+pub mod stats;
+pub mod tap;
 pub mod validate;
 
 /// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
@@ -24,6 +26,10 @@ enum Command {
     Run(run::Args),
     /// Check a pipeline file as `run` would, without starting anything.
     Validate(validate::Args),
+    /// Print the samples of a service, with its rate (like `ros2 topic echo` / `hz`).
+    Tap(tap::Args),
+    /// Show the live statistics of a running pipeline.
+    Stats(stats::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -78,6 +84,8 @@ pub fn main() -> ExitCode {
         Command::Denoise(args) => denoise::run(args),
         Command::Run(args) => run::run(args),
         Command::Validate(args) => validate::run(args),
+        Command::Tap(args) => tap::run(args),
+        Command::Stats(args) => stats::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
