@@ -1,9 +1,11 @@
 //! Latency histograms (hdrhistogram) per stage and end to end, deadline accounting, the
 //! periodic one-line summary, the stats snapshot, the final table and the JSON report.
 //!
-//! The hot loop never touches a histogram: it sends one small [`Record`] per sample on a bounded
-//! crossbeam channel with `try_send` (never blocking; a full channel is counted in
-//! `metric_drops`), and bumps relaxed atomic counters ([`Counters`]). The reporting thread
+//! The hot loop never touches a histogram: it collects one small [`Record`] per sample into a
+//! [`Batch`] and sends full batches (or every 50 ms) on a bounded crossbeam channel with
+//! `try_send` (never blocking; records of a batch that does not fit are counted in
+//! `metric_drops`); it keeps its counters locally and stores them into relaxed atomics
+//! ([`Counters`]) at each batch. The reporting thread
 //! ([`Reporter`]) owns the histograms.
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -30,7 +32,28 @@ pub struct Record {
     pub e2e_ns: u64,
 }
 
-/// Counters the hot loop bumps (relaxed atomics) and the reporter reads.
+/// Records per channel message: the hot loop batches them so the channel costs little.
+pub const BATCH: usize = 32;
+
+/// A batch of records (the first `len` are valid).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Batch {
+    /// Valid records.
+    pub len: usize,
+    /// The records.
+    pub records: [Record; BATCH],
+}
+
+impl Default for Batch {
+    fn default() -> Self {
+        Batch {
+            len: 0,
+            records: [Record::default(); BATCH],
+        }
+    }
+}
+
+/// Counters the hot loop publishes (relaxed atomics) and the reporter reads.
 #[derive(Debug, Default)]
 pub struct Counters {
     /// Samples in, per stage.
@@ -272,6 +295,12 @@ impl Reporter {
         }
     }
 
+    fn record_batch(&mut self, b: &Batch) {
+        for r in &b.records[..b.len.min(BATCH)] {
+            self.record(r);
+        }
+    }
+
     fn record(&mut self, r: &Record) {
         let n = (r.stages_run as usize).min(self.stage_hist.len());
         for (h, &ns) in self.stage_hist.iter_mut().zip(&r.stage_ns).take(n) {
@@ -284,17 +313,17 @@ impl Reporter {
 
     /// Consume records until the sender side is dropped; every interval print the summary
     /// (if enabled) and hand a snapshot to `publish`. Returns the final report.
-    pub fn run(mut self, rx: Receiver<Record>, mut publish: impl FnMut(&StatsSnapshot)) -> Report {
+    pub fn run(mut self, rx: Receiver<Batch>, mut publish: impl FnMut(&StatsSnapshot)) -> Report {
         let mut next = Instant::now() + self.layout.interval;
         let mut last_in = 0u64;
         let mut last_t = Instant::now();
         loop {
             let timeout = next.saturating_duration_since(Instant::now());
             match rx.recv_timeout(timeout) {
-                Ok(r) => {
-                    self.record(&r);
-                    while let Ok(r) = rx.try_recv() {
-                        self.record(&r);
+                Ok(b) => {
+                    self.record_batch(&b);
+                    while let Ok(b) = rx.try_recv() {
+                        self.record_batch(&b);
                     }
                     if Instant::now() < next {
                         continue;

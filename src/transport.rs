@@ -536,7 +536,8 @@ pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
     /// Publish a copy of `value` (zero-copy into shared memory); returns the number of
-    /// subscribers that received it. Allocation-free.
+    /// subscribers that received it. Does not notify: call [`Output::notify`] after it.
+    /// Allocation-free on our side (iceoryx2 0.10 allocates one small `Arc` per loan).
     pub fn send(&self, value: &T) -> Result<usize, TransportError> {
         let sample = self
             .publisher
@@ -558,11 +559,16 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
             self.lost
                 .fetch_add((subscribers - n) as u64, Ordering::Relaxed);
         }
+        Ok(n)
+    }
+
+    /// Wake the readers sleeping on the event service of the same name (if this output was
+    /// created with `notify`). A separate call so the caller can timestamp the publish first.
+    pub fn notify(&self) {
         if let Some(notifier) = &self.notifier {
             // A failed wake-up only delays a reader until its own timeout.
             let _ = notifier.notify();
         }
-        Ok(n)
     }
 
     /// Samples that subscribers could not take so far (their buffers were full).

@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{bounded, Sender};
 
-use crate::metrics::{Counters, Layout, Record, Report, Reporter};
+use crate::metrics::{Batch, Counters, Layout, Record, Report, Reporter, BATCH, MAX_STAGES};
 use crate::pipeline::config::{Pipeline, StageKind};
 use crate::pipeline::guard::Guard;
 use crate::pipeline::stage::{Poll, Source, Stage};
@@ -35,8 +35,8 @@ use crate::transport::{
     StatsSnapshot, Transport, TransportError, FLAG_FLUSHED, FLAG_OUTPUT_REPAIRED,
 };
 
-/// Capacity of the metrics channel (records); at 1 kHz that is a minute of slack.
-const METRICS_CAPACITY: usize = 1 << 16;
+/// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
+const METRICS_CAPACITY: usize = 1 << 12;
 
 /// How a run is started.
 #[derive(Debug, Clone)]
@@ -80,6 +80,16 @@ pub fn node_name(pipeline: &str) -> String {
     format!("driftless-{pipeline}")
 }
 
+/// Counts kept by the hot thread, stored into the shared [`Counters`] at each batch.
+#[derive(Debug, Default)]
+struct Local {
+    stage_in: [u64; MAX_STAGES],
+    stage_out: [u64; MAX_STAGES],
+    misses: u64,
+    repaired: u64,
+    metric_drops: u64,
+}
+
 /// The hops and stages, owned by the hot thread (iceoryx2 ports are not `Send`).
 struct Chain {
     raw_out: Output<RawSample>,
@@ -89,60 +99,64 @@ struct Chain {
     outs: Vec<Output<GyroSample>>,
     ins: Vec<Input<GyroSample>>,
     counters: Arc<Counters>,
-    tx: Sender<Record>,
+    local: Local,
+    batch: Batch,
+    batch_started_ns: u64,
+    tx: Sender<Batch>,
     deadline_ns: u64,
 }
+
+/// Longest a partial batch waits before it is sent (so slow pipelines report promptly).
+const BATCH_MAX_AGE_NS: u64 = 50_000_000;
 
 impl Chain {
     /// The ingest hop, the guard, and the chain after it, for one raw sample.
     fn ingest(&mut self, raw: &RawSample, ingest_ns: u64) -> Result<(), TransportError> {
-        let c = &self.counters;
-        c.stage_in[0].fetch_add(1, Ordering::Relaxed);
+        self.local.stage_in[0] += 1;
         let mut rec = Record::default();
         self.raw_out.send(raw)?;
-        c.stage_out[0].fetch_add(1, Ordering::Relaxed);
+        self.local.stage_out[0] += 1;
         let Some(raw) = self.raw_in.receive()? else {
             return Ok(());
         };
-        let t0 = monotonic_ns();
         let s = self.guard.admit(&raw, ingest_ns);
-        let g = &self.guard.counts;
-        c.invalid.store(g.invalid, Ordering::Relaxed);
-        c.gaps.store(g.gaps, Ordering::Relaxed);
-        c.missing.store(g.missing, Ordering::Relaxed);
-        c.backwards.store(g.backwards, Ordering::Relaxed);
+        let t0 = monotonic_ns();
         rec.stage_ns[0] = (t0.saturating_sub(ingest_ns)).min(u64::from(u32::MAX)) as u32;
         rec.stages_run = 1;
-        self.process_from(0, s, &mut rec)?;
-        self.finish(rec);
+        let end = self.process_from(0, s, &mut rec, t0)?;
+        self.record(rec, end);
         Ok(())
     }
 
-    /// Run stage `k` (index into `stages`, chain position k + 1) and everything after it.
+    /// Run stage `k` (index into `stages`, chain position k + 1) and everything after it;
+    /// `now` is a fresh timestamp. Returns the last timestamp taken.
     fn process_from(
         &mut self,
         mut k: usize,
         mut input: GyroSample,
         rec: &mut Record,
-    ) -> Result<(), TransportError> {
+        mut now: u64,
+    ) -> Result<u64, TransportError> {
         while k < self.stages.len() {
             let pos = k + 1;
-            self.counters.stage_in[pos].fetch_add(1, Ordering::Relaxed);
-            let t0 = monotonic_ns();
+            self.local.stage_in[pos] += 1;
             let out = self.stages[k].process(&input);
             let t1 = monotonic_ns();
-            rec.stage_ns[pos] = (t1 - t0).min(u64::from(u32::MAX)) as u32;
+            rec.stage_ns[pos] = (t1.saturating_sub(now)).min(u64::from(u32::MAX)) as u32;
             rec.stages_run = (pos + 1) as u8;
+            now = t1;
             let Some(out) = out else {
-                return Ok(());
+                return Ok(now);
             };
             match self.publish(k, &out, rec)? {
                 Some(next) => input = next,
-                None => return Ok(()),
+                None => return Ok(now),
             }
+            // The hop is not stage compute time.
+            now = monotonic_ns();
             k += 1;
         }
-        Ok(())
+        Ok(now)
     }
 
     /// Publish stage `k`'s output; returns what the next stage receives (None after the last).
@@ -152,28 +166,68 @@ impl Chain {
         out: &GyroSample,
         rec: &mut Record,
     ) -> Result<Option<GyroSample>, TransportError> {
-        let c = &self.counters;
-        c.stage_out[k + 1].fetch_add(1, Ordering::Relaxed);
+        self.local.stage_out[k + 1] += 1;
         self.outs[k].send(out)?;
         if k + 1 == self.stages.len() {
-            if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
-                c.repaired.fetch_add(1, Ordering::Relaxed);
-            }
+            // Published: the end-to-end clock stops before readers are woken.
             if out.flags & FLAG_FLUSHED == 0 {
                 let e2e = monotonic_ns().saturating_sub(out.ingest_ns).max(1);
                 rec.e2e_ns = e2e;
                 if e2e > self.deadline_ns {
-                    c.deadline_misses.fetch_add(1, Ordering::Relaxed);
+                    self.local.misses += 1;
                 }
             }
+            if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
+                self.local.repaired += 1;
+            }
+            self.outs[k].notify();
             return Ok(None);
         }
         self.ins[k].receive()
     }
 
-    fn finish(&self, rec: Record) {
-        if self.tx.try_send(rec).is_err() {
-            self.counters.metric_drops.fetch_add(1, Ordering::Relaxed);
+    /// Add a record to the batch; send the batch when full or old.
+    fn record(&mut self, rec: Record, now: u64) {
+        if self.batch.len == 0 {
+            self.batch_started_ns = now;
+        }
+        self.batch.records[self.batch.len] = rec;
+        self.batch.len += 1;
+        if self.batch.len == BATCH || now.saturating_sub(self.batch_started_ns) > BATCH_MAX_AGE_NS {
+            self.send_batch();
+        }
+    }
+
+    /// Send the pending batch (never blocking) and store the counters.
+    fn send_batch(&mut self) {
+        if self.batch.len > 0 {
+            if self.tx.try_send(self.batch).is_err() {
+                self.local.metric_drops += self.batch.len as u64;
+            }
+            self.batch.len = 0;
+        }
+        let c = &self.counters;
+        let l = &self.local;
+        for i in 0..MAX_STAGES {
+            c.stage_in[i].store(l.stage_in[i], Ordering::Relaxed);
+            c.stage_out[i].store(l.stage_out[i], Ordering::Relaxed);
+        }
+        c.deadline_misses.store(l.misses, Ordering::Relaxed);
+        c.repaired.store(l.repaired, Ordering::Relaxed);
+        c.metric_drops.store(l.metric_drops, Ordering::Relaxed);
+        let g = &self.guard.counts;
+        c.invalid.store(g.invalid, Ordering::Relaxed);
+        c.gaps.store(g.gaps, Ordering::Relaxed);
+        c.missing.store(g.missing, Ordering::Relaxed);
+        c.backwards.store(g.backwards, Ordering::Relaxed);
+    }
+
+    /// When the source is idle: do not let a partial batch wait.
+    fn idle(&mut self) {
+        if self.batch.len > 0
+            && monotonic_ns().saturating_sub(self.batch_started_ns) > BATCH_MAX_AGE_NS
+        {
+            self.send_batch();
         }
     }
 
@@ -183,10 +237,11 @@ impl Chain {
             while let Some(out) = self.stages[k].flush() {
                 let mut rec = Record::default();
                 if let Some(next) = self.publish(k, &out, &mut rec)? {
-                    self.process_from(k + 1, next, &mut rec)?;
+                    self.process_from(k + 1, next, &mut rec, monotonic_ns())?;
                 }
             }
         }
+        self.send_batch();
         Ok(())
     }
 }
@@ -267,7 +322,7 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     lost.extend(outs.iter().map(Output::lost_counter));
 
     let counters = Arc::new(Counters::default());
-    let (tx, rx) = bounded::<Record>(METRICS_CAPACITY);
+    let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
     let layout = Layout {
         pipeline: p.name.clone(),
         stages: p
@@ -318,6 +373,9 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
         outs,
         ins,
         counters,
+        local: Local::default(),
+        batch: Batch::default(),
+        batch_started_ns: 0,
         tx,
         deadline_ns: p.deadline.as_nanos() as u64,
     };
@@ -340,7 +398,7 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
                     break;
                 }
             }
-            Poll::Idle => {}
+            Poll::Idle => chain.idle(),
             Poll::End => break,
         }
     }
@@ -349,6 +407,7 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
             failure = Some(e);
         }
     }
+    chain.send_batch();
     drop(source);
     drop(chain);
     let report = reporter_thread.join().map_err(|_| RunError::Stage {
