@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{Receiver, RecvTimeoutError};
+use crossbeam_channel::{Receiver, TryRecvError};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 
@@ -31,6 +31,9 @@ pub struct Record {
     /// Ingest of this sample to publish of the output it completed, ns; 0 if none was published.
     pub e2e_ns: u64,
 }
+
+/// How often the reporter drains the channel.
+const POLL: Duration = Duration::from_millis(10);
 
 /// Records per channel message: the hot loop batches them so the channel costs little.
 pub const BATCH: usize = 32;
@@ -317,20 +320,19 @@ impl Reporter {
         let mut next = Instant::now() + self.layout.interval;
         let mut last_in = 0u64;
         let mut last_t = Instant::now();
-        loop {
-            let timeout = next.saturating_duration_since(Instant::now());
-            match rx.recv_timeout(timeout) {
-                Ok(b) => {
-                    self.record_batch(&b);
-                    while let Ok(b) = rx.try_recv() {
-                        self.record_batch(&b);
-                    }
-                    if Instant::now() < next {
-                        continue;
-                    }
+        // Poll rather than block: a blocked receiver would make every `try_send` of the hot
+        // loop a futex wake-up (a system call and a context switch on the other core).
+        'outer: loop {
+            std::thread::sleep(POLL.min(next.saturating_duration_since(Instant::now())));
+            loop {
+                match rx.try_recv() {
+                    Ok(b) => self.record_batch(&b),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => break 'outer,
                 }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if Instant::now() < next {
+                continue;
             }
             let now = Instant::now();
             let samples_in = get(&self.counters.stage_in[0]);
