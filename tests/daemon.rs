@@ -449,3 +449,65 @@ fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
         assert!(prefix.leftovers().is_empty(), "{name}: nothing started");
     }
 }
+
+#[test]
+fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
+    let prefix = Prefix::new("tools");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let text = csv_pipeline("realtime", true, 64)
+        .replace("report_interval_s = 60.0", "report_interval_s = 0.2");
+    let file = dir.write("p.toml", &text);
+    let mut child = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    let tap = std::process::Command::new(common::bin())
+        .args(["tap", "c/corrected", "--prefix", &prefix.0, "--count", "5"])
+        .output()
+        .expect("tap");
+    assert_eq!(tap.status.code(), Some(0));
+    let lines: Vec<String> = String::from_utf8_lossy(&tap.stdout)
+        .lines()
+        .map(String::from)
+        .collect();
+    assert_eq!(lines.len(), 5, "{lines:?}");
+    let seqs: Vec<u64> = lines
+        .iter()
+        .map(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .and_then(|v| v.parse().ok())
+                .expect("seq")
+        })
+        .collect();
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "{seqs:?}");
+    let raw = std::process::Command::new(common::bin())
+        .args(["tap", "c/raw", "--prefix", &prefix.0, "--count", "1"])
+        .output()
+        .expect("tap raw");
+    assert!(String::from_utf8_lossy(&raw.stdout).contains("flags"));
+    let stats = std::process::Command::new(common::bin())
+        .arg("stats")
+        .arg(&file)
+        .args(["--prefix", &prefix.0, "--once"])
+        .output()
+        .expect("stats");
+    let out = String::from_utf8_lossy(&stats.stdout);
+    assert_eq!(
+        stats.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&stats.stderr)
+    );
+    assert!(
+        out.contains("end-to-end") && out.contains("denoise") && out.contains("publish"),
+        "{out}"
+    );
+    let missing = std::process::Command::new(common::bin())
+        .args(["tap", "c/nothing", "--prefix", &prefix.0, "--count", "1"])
+        .output()
+        .expect("tap");
+    assert_eq!(missing.status.code(), Some(2));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+}

@@ -1068,3 +1068,65 @@ fn position(e: &InputError) -> Cow<'static, str> {
         _ => Cow::Borrowed("?"),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEAD: &str = "name = \"t\"\nrate_hz = 500.0\n";
+    const INGEST: &str =
+        "[[stage]]\nname = \"in\"\nkind = \"ingest.iceoryx2\"\ninput = \"s/raw\"\noutput = \"t/raw\"\n";
+    const DENOISE: &str =
+        "[[stage]]\nname = \"dn\"\nkind = \"denoise.none\"\ninput = \"t/raw\"\noutput = \"t/dn\"\n";
+    const PUBLISH: &str =
+        "[[stage]]\nname = \"pub\"\nkind = \"publish\"\ninput = \"t/dn\"\noutput = \"t/out\"\n";
+
+    fn parse_str(text: &str) -> Result<Pipeline, String> {
+        parse(Path::new("p.toml"), text).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn stages_are_ordered_as_a_chain_whatever_the_file_order() {
+        let p = parse_str(&format!("{HEAD}{PUBLISH}{DENOISE}{INGEST}")).unwrap();
+        let names: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["in", "dn", "pub"]);
+        assert_eq!(
+            p.deadline,
+            Duration::from_millis(2),
+            "default: one sample period"
+        );
+        assert_eq!(p.axes, 3);
+        assert_eq!(p.input_units, Units::DegPerSec);
+        assert_eq!(p.iceoryx2.stats_service, "t/stats");
+    }
+
+    #[test]
+    fn a_chain_must_end_at_a_publish() {
+        let e = parse_str(&format!("{HEAD}{INGEST}{DENOISE}")).unwrap_err();
+        assert!(
+            e.starts_with("p.toml:12:10: the chain ends at stage \"dn\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_service_read_twice_is_not_a_chain() {
+        let second = PUBLISH
+            .replace("\"pub\"", "\"pub2\"")
+            .replace("t/out", "t/out2");
+        let e = parse_str(&format!("{HEAD}{INGEST}{DENOISE}{PUBLISH}{second}")).unwrap_err();
+        assert!(e.contains("read by more than one stage"), "{e}");
+    }
+
+    #[test]
+    fn errors_point_at_the_offending_value() {
+        let e = parse_str(&format!(
+            "name = \"t\"\nrate_hz = 500.0\naxes = 4\n{INGEST}{PUBLISH}"
+        ))
+        .unwrap_err();
+        assert!(
+            e.starts_with("p.toml:3:8: axes must be in 1..=3, got 4"),
+            "{e}"
+        );
+    }
+}
