@@ -13,6 +13,7 @@ use driftless::transport::{
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
 
+const SIGINT: i32 = 2;
 const SIGTERM: i32 = 15;
 const SIGKILL: i32 = 9;
 
@@ -507,7 +508,7 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .output()
         .expect("tap");
     assert_eq!(missing.status.code(), Some(2));
-    signal(&child, SIGTERM);
+    signal(&child, SIGINT);
     let (code, err) = finish(child, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");
 }
