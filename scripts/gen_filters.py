@@ -7,6 +7,7 @@ dec_lo = reversed(rec_lo); rec_hi[k] = (-1)^k * rec_lo[F-1-k]; dec_hi = reversed
 Pinned peer: PyWavelets==1.9.0   (pip install PyWavelets==1.9.0; python3 scripts/gen_filters.py)
 """
 import pathlib
+import subprocess
 import numpy as np
 import pywt
 
@@ -33,4 +34,6 @@ for n in NAMES:
 out.append("];")
 path = pathlib.Path(__file__).resolve().parent.parent / "src" / "wavelet" / "filters.rs"
 path.write_text("\n".join(out) + "\n")
+# Keep `cargo fmt --check` clean: the committed file is rustfmt's layout of this output.
+subprocess.run(["rustfmt", "--edition", "2021", str(path)], check=True)
 print(f"wrote {path} ({len(NAMES)} wavelets)")
