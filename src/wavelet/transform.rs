@@ -538,34 +538,87 @@ fn extend(x: &[f64], mode: Mode, f: usize, ev: &mut [f64], od: &mut [f64]) {
 
 /// Analysis filters on an extended signal already split by [`extend`].
 fn dwt_filter(taps: &Taps, ev: &[f64], od: &[f64], ca: &mut [f64], cd: &mut [f64]) {
-    fir2(&taps.lo_e, &taps.lo_o, ev, od, ca);
-    fir2(&taps.hi_e, &taps.hi_o, ev, od, cd);
+    fir2x2(
+        [&taps.lo_e, &taps.lo_o, &taps.hi_e, &taps.hi_o],
+        ev,
+        od,
+        [ca, cd],
+    );
 }
 
-/// Outputs per block: small enough for the block to stay in L1 while every tap streams over it.
+/// Outputs per idwt block (stack buffers of this many samples per parity).
 const BLOCK: usize = 256;
+
+/// Outputs computed together in registers by [`fir2`].
+const LANES: usize = 8;
 
 /// out[o] = sum_s ta[s] * sa[o + s] + tb[s] * sb[o + s].
 ///
-/// Tap-outer, sample-inner: each inner loop is an independent multiply-add per output, which
-/// the compiler vectorises without reassociating any sum.
+/// Outputs go in groups of [`LANES`] whose accumulators stay in registers while the taps stream
+/// by: lane-wise multiply-adds that the compiler vectorises, with each output still summed in tap
+/// order (no reassociation, so every path gives the same bits).
 fn fir2(ta: &[f64], tb: &[f64], sa: &[f64], sb: &[f64], out: &mut [f64]) {
     let taps = ta.len();
-    assert!(
-        tb.len() == taps && sa.len() + 1 >= out.len() + taps && sb.len() + 1 >= out.len() + taps
-    );
-    for (bi, y) in out.chunks_mut(BLOCK).enumerate() {
-        let o0 = bi * BLOCK;
-        let nb = y.len();
-        y.fill(0.0);
+    let n = out.len();
+    assert!(tb.len() == taps && sa.len() + 1 >= n + taps && sb.len() + 1 >= n + taps);
+    let mut groups = out.chunks_exact_mut(LANES);
+    for (g, y) in groups.by_ref().enumerate() {
+        let o0 = g * LANES;
+        let (wa, wb) = (
+            &sa[o0..o0 + LANES + taps - 1],
+            &sb[o0..o0 + LANES + taps - 1],
+        );
+        let mut acc = [0.0f64; LANES];
         for (s, (&a, &b)) in ta.iter().zip(tb).enumerate() {
-            let xa = &sa[o0 + s..o0 + s + nb];
-            let xb = &sb[o0 + s..o0 + s + nb];
-            for ((y, &u), &v) in y.iter_mut().zip(xa).zip(xb) {
-                *y += a * u + b * v;
+            let (xa, xb) = (&wa[s..s + LANES], &wb[s..s + LANES]);
+            for k in 0..LANES {
+                acc[k] += a * xa[k] + b * xb[k];
             }
         }
+        y.copy_from_slice(&acc);
     }
+    let done = n - groups.into_remainder().len();
+    for (o, y) in out.iter_mut().enumerate().skip(done) {
+        let mut acc = 0.0;
+        for (s, (&a, &b)) in ta.iter().zip(tb).enumerate() {
+            acc += a * sa[o + s] + b * sb[o + s];
+        }
+        *y = acc;
+    }
+}
+
+/// Outputs per group in [`fir2x2`] (two accumulator sets: fewer lanes keep them in registers).
+const PAIR_LANES: usize = 4;
+
+/// Two [`fir2`]s over the same sources at once (sharing every load):
+/// `outs[0]` from taps 0 and 1, `outs[1]` from taps 2 and 3. Same bits as two [`fir2`] calls.
+fn fir2x2(t: [&[f64]; 4], sa: &[f64], sb: &[f64], outs: [&mut [f64]; 2]) {
+    let taps = t[0].len();
+    let [out0, out1] = outs;
+    let n = out0.len();
+    assert!(t.iter().all(|v| v.len() == taps) && out1.len() == n);
+    assert!(sa.len() + 1 >= n + taps && sb.len() + 1 >= n + taps);
+    let done = n / PAIR_LANES * PAIR_LANES;
+    for o0 in (0..done).step_by(PAIR_LANES) {
+        let (wa, wb) = (
+            &sa[o0..o0 + PAIR_LANES + taps - 1],
+            &sb[o0..o0 + PAIR_LANES + taps - 1],
+        );
+        let mut acc0 = [0.0f64; PAIR_LANES];
+        let mut acc1 = [0.0f64; PAIR_LANES];
+        for s in 0..taps {
+            let (a0, b0, a1, b1) = (t[0][s], t[1][s], t[2][s], t[3][s]);
+            let (xa, xb) = (&wa[s..s + PAIR_LANES], &wb[s..s + PAIR_LANES]);
+            for k in 0..PAIR_LANES {
+                acc0[k] += a0 * xa[k] + b0 * xb[k];
+                acc1[k] += a1 * xa[k] + b1 * xb[k];
+            }
+        }
+        out0[o0..o0 + PAIR_LANES].copy_from_slice(&acc0);
+        out1[o0..o0 + PAIR_LANES].copy_from_slice(&acc1);
+    }
+    fir2(t[0], t[1], &sa[done..], &sb[done..], &mut out0[done..]);
+    fir2(t[2], t[3], &sa[done..], &sb[done..], &mut out1[done..]);
 }
 
 /// Per output parity p: (parity q of the synthesis taps, offset into the extended coefficients).
