@@ -15,12 +15,15 @@ splitmix64 seeded with the signal length n, sample = (u >> 11) * 2**-53 - 0.5
 
 Every output array ("band") is stored as
     [len, max_abs, dot, idx, val]
-- len, max_abs: its length and largest |value|;
-- dot: sum_i w_i * c_i (math.fsum) with weights w_i from splitmix64 seeded 0xC0FFEE (same sample
-  formula): a checksum over *every* coefficient, so a wrong value anywhere shows;
-- idx, val: stored values. idx is null when the band is stored whole (short bands); otherwise it
-  lists the first and last EDGE indices (where the extension modes differ) plus INTERIOR evenly
-  spread ones.
+- len, max_abs: its length and largest |value| (15 significant digits);
+- dot: sum_i w_i * c_i (math.fsum, 15 significant digits) with weights w_i from splitmix64 seeded
+  0xC0FFEE (same sample formula): a checksum over *every* coefficient, so a wrong value anywhere
+  shows (a per-value error e moves it by |w_i| e; the test allows 1e-12 * max_abs * sum |w_i|);
+- idx, val: exact stored values. idx is null when the band is stored whole (short bands: up to 12
+  values in dwt.json, whole decompositions of up to 64 coefficients in wavedec.json, so idwt and
+  waverec can run on PyWavelets' own coefficients); otherwise the first and last values (edges,
+  where the modes differ) and one in the middle. Checksums keep the files small (~0.5 MB) while
+  still covering every value.
 
 Files:
 - dwt.json: single-level pywt.dwt (cA, cD) and pywt.idwt of those reference coefficients, for
@@ -46,10 +49,6 @@ MASK = (1 << 64) - 1
 MODES = ["zero", "constant", "symmetric", "reflect", "periodic", "smooth", "periodization"]
 WAVELETS = ["haar", "db1", "db2", "db4", "db6", "db10", "db20", "sym2", "sym5", "sym8", "sym10",
             "sym20", "coif1", "coif3", "coif5", "coif17"]
-# Stored values per band (the dot checksum covers the rest); sized to keep the fixtures small.
-FULL = 8       # bands up to this length are stored whole
-EDGE = 2       # otherwise: this many values at each end ...
-INTERIOR = 2   # ... plus this many in between
 WEIGHT_SEED = 0xC0FFEE
 
 
@@ -79,7 +78,8 @@ def signal(n):
 WEIGHTS = splitmix(WEIGHT_SEED, 40000)
 
 
-def band(c, full=FULL, edge=EDGE, interior=INTERIOR):
+def band(c, full, edge, interior):
+    """A band stored whole if len(c) <= full, else `edge` values at each end plus `interior`."""
     c = np.asarray(c, dtype=float)
     n = len(c)
     dot = math.fsum(float(v) for v in WEIGHTS[:n] * c)
@@ -92,7 +92,8 @@ def band(c, full=FULL, edge=EDGE, interior=INTERIOR):
         inner = [e + (2 * k + 1) * (n - 2 * e) // (2 * interior) for k in range(interior)]
         idx = sorted(set(list(range(e)) + inner + list(range(n - e, n))))
         vals = c[idx]
-    return [n, mx, dot, idx, [float(v) for v in vals]]
+    # Summaries to 15 significant digits (far below the 1e-12 tolerance), values exact.
+    return [n, float(f"{mx:.15g}"), float(f"{dot:.15g}"), idx, [float(v) for v in vals]]
 
 
 def reconstructs(rec, x, coeffs, name):
@@ -125,7 +126,7 @@ def dwt_cases():
                 ca, cd = pywt.dwt(x, w, mode)
                 rec = pywt.idwt(ca, cd, w, mode)
                 assert reconstructs(rec, x, [ca, cd], name), (name, mode, n)
-                cases.append([name, mode, n, [band(ca, 4, 1, 1), band(cd, 4, 1, 1)],
+                cases.append([name, mode, n, [band(ca, 12, 1, 1), band(cd, 12, 1, 1)],
                               band(rec, 0, 0, 0)])
     return cases
 
@@ -163,7 +164,9 @@ def wavedec_cases():
                     approx.append(band(cl[0], 0, 0, 0))
                 rec = pywt.waverec(coeffs, w, mode)
                 assert reconstructs(rec, x, coeffs, name), (name, mode, n)
-                cases.append([name, mode, n, [band(c, 4, 1, 1) for c in coeffs], approx,
+                # Small decompositions whole (so waverec can run on PyWavelets' own coefficients).
+                full = 4 if sum(len(c) for c in coeffs) > 64 else 64
+                cases.append([name, mode, n, [band(c, full, 1, 1) for c in coeffs], approx,
                               band(rec, 4, 1, 1)])
     return cases
 

@@ -81,6 +81,8 @@ struct Checker {
     weights: Vec<f64>,
     worst_value: (f64, String),
     worst_dot: (f64, String),
+    /// Worst value error among bands judged against their own max (not the round-off floor).
+    worst_unfloored: (f64, String),
     values_checked: usize,
     bands_checked: usize,
     failures: Vec<String>,
@@ -92,6 +94,7 @@ impl Checker {
             weights: splitmix(0xC0FFEE, 40_000),
             worst_value: (0.0, String::new()),
             worst_dot: (0.0, String::new()),
+            worst_unfloored: (0.0, String::new()),
             values_checked: 0,
             bands_checked: 0,
             failures: Vec::new(),
@@ -131,6 +134,9 @@ impl Checker {
         } else {
             0.0
         };
+        if band.max >= floor && err > self.worst_unfloored.0 {
+            self.worst_unfloored = (err, what.to_string());
+        }
         if err > self.worst_value.0 {
             self.worst_value = (err, what.to_string());
         }
@@ -147,13 +153,15 @@ impl Checker {
     fn finish(self, name: &str) {
         println!(
             "{name}: {} bands, {} stored values; worst value error {:.3e} ({}), worst checksum \
-             error {:.3e} ({})",
+             error {:.3e} ({}); worst value error on bands above the round-off floor {:.3e} ({})",
             self.bands_checked,
             self.values_checked,
             self.worst_value.0,
             self.worst_value.1,
             self.worst_dot.0,
-            self.worst_dot.1
+            self.worst_dot.1,
+            self.worst_unfloored.0,
+            self.worst_unfloored.1
         );
         assert!(
             self.failures.is_empty(),
