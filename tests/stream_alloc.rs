@@ -55,6 +55,11 @@ fn push_and_flush_allocate_nothing() {
         }
         let after = ALLOCATIONS.load(Ordering::Relaxed);
         assert!(sum.is_finite());
-        assert_eq!(after - before, 0, "{} allocations in push/flush", after - before);
+        assert_eq!(
+            after - before,
+            0,
+            "{} allocations in push/flush",
+            after - before
+        );
     }
 }

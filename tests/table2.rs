@@ -21,8 +21,9 @@ fn snr_of(rows: &[(&str, f64)], name: &str) -> f64 {
 
 #[test]
 fn dynamic_regime_improved_beats_soft_and_is_near_the_best() {
-    // The documented table uses seed 1; other seeds check we did not tune to one record.
-    for seed in 1..=5 {
+    // The documented table uses seed 1. The improved function's defaults were chosen on seeds
+    // 1-5, so seeds 6-10 are held out: they check the choice, not just the fit.
+    for seed in [1, 6, 7, 8, 9, 10] {
         let rows = table(Regime::Dynamic, seed);
         let (improved, soft) = (snr_of(&rows, "improved"), snr_of(&rows, "soft"));
         let best = rows.iter().map(|r| r.1).fold(f64::MIN, f64::max);
