@@ -254,7 +254,7 @@ fn thinned(y: &[f64], rate: Option<f64>) -> Vec<(f64, f64)> {
 }
 
 fn plot(
-    path: &PathBuf,
+    path: &Path,
     name: &str,
     raw: &[f64],
     truth: Option<&[f64]>,
