@@ -109,6 +109,13 @@ fn compare_on_the_synthetic_benchmark_prints_table_two() {
     let o = driftless(&["denoise", "--synthetic", "dynamic", "--compare"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
+    let snr_of = |f: &str| -> f64 {
+        let row = out.lines().find(|l| l.trim_start().starts_with(f)).unwrap();
+        row.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    // The synthetic record's input SNR, then every function.
+    assert!((snr_of("raw") - 22.93).abs() < 0.01, "{out}");
+    assert!(snr_of("improved") > snr_of("soft"), "{out}");
     for f in ["hard", "soft", "garrote", "firm", "improved"] {
         let row = out
             .lines()
@@ -263,4 +270,20 @@ fn bad_input_is_refused_with_position_and_no_output() {
             .count(),
         0
     );
+}
+
+#[test]
+fn a_closed_stdout_is_not_a_panic() {
+    use std::io::Read;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(["denoise", "--synthetic", "dynamic", "--compare", "--samples", "400000"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let mut err = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    child.wait().unwrap();
+    assert!(!err.contains("panicked"), "{err}");
 }

@@ -224,12 +224,23 @@ fn print_summary(
     }
 }
 
-fn print_table(name: &str, rows: usize, cfg: &DenoiseConfig, table: &[Comparison]) {
-    println!("column {name}: {rows} samples, {}", describe(cfg));
+fn print_table(
+    name: &str,
+    x: &[f64],
+    truth: Option<&[f64]>,
+    cfg: &DenoiseConfig,
+    table: &[Comparison],
+) {
+    println!("column {name}: {} samples, {}", x.len(), describe(cfg));
     println!(
         "  {:<9} {:>9} {:>13} {:>13}",
         "function", "SNR (dB)", "MSE", "RMS removed"
     );
+    if let Some(t) = truth {
+        // The input itself, so the table shows what denoising bought.
+        let (snr, mse) = (crate::quality::snr_db(t, x), crate::quality::mse(t, x));
+        println!("  {:<9} {snr:>9.2} {mse:>13.6e} {:>13.6e}", "raw", 0.0);
+    }
     for c in table {
         let snr = c.snr_db.map_or("-".into(), |v| format!("{v:.2}"));
         let mse = c.mse.map_or("-".into(), |v| format!("{v:.6e}"));
@@ -315,7 +326,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             println!();
         }
         if args.compare {
-            print_table(name, rows, &cfg, &runs);
+            print_table(name, x, truth, &cfg, &runs);
         } else if args.output.is_none() {
             print_summary(name, rows, &cfg, &runs[0], data.truth_source.as_deref());
         }

@@ -58,6 +58,15 @@ impl From<crate::wavelet::WaveletError> for CliError {
     }
 }
 
+/// Let a closed stdout (`driftless ... | head`) end the process quietly, as it does `cat`, instead
+/// of failing a `println!`. Rust ignores SIGPIPE by default; this restores the Unix default.
+fn restore_default_sigpipe() {
+    // SAFETY: setting a signal's disposition to SIG_DFL at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 /// Parse the command line, run the command, and turn its outcome into an exit code.
 pub fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -68,7 +77,10 @@ pub fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
-        Command::Denoise(args) => denoise::run(args),
+        Command::Denoise(args) => {
+            restore_default_sigpipe();
+            denoise::run(args)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
