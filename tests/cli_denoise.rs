@@ -276,14 +276,26 @@ fn bad_input_is_refused_with_position_and_no_output() {
 fn a_closed_stdout_is_not_a_panic() {
     use std::io::Read;
     let mut child = Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .args(["denoise", "--synthetic", "dynamic", "--compare", "--samples", "400000"])
+        .args([
+            "denoise",
+            "--synthetic",
+            "dynamic",
+            "--compare",
+            "--samples",
+            "400000",
+        ])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     drop(child.stdout.take());
     let mut err = String::new();
-    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
     child.wait().unwrap();
     assert!(!err.contains("panicked"), "{err}");
 }
