@@ -16,8 +16,8 @@ pub struct Args {
     /// Rate log (CSV with a header, or headerless; .gz read transparently).
     pub input: PathBuf,
     /// Sample rate in Hz.
-    #[arg(long, allow_negative_numbers = true)]
-    pub rate: f64,
+    #[arg(long, allow_hyphen_values = true)]
+    pub rate: String,
     /// Column to analyse (repeat for several; default: every numeric column).
     #[arg(long = "column", value_name = "NAME")]
     pub columns: Vec<String>,
@@ -194,10 +194,11 @@ fn format_term(t: &TermFit) -> String {
 
 /// Run `driftless allan`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    if !(args.rate.is_finite() && args.rate > 0.0) {
+    let rate = super::simulate::parse_number("--rate", &args.rate)?;
+    if !(rate.is_finite() && rate > 0.0) {
         return Err(CliError::input(format!(
             "--rate must be a positive number of Hz, not {}",
-            args.rate
+            rate
         )));
     }
     let grid: TauGrid = args
@@ -216,7 +217,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let shown = args.input.display().to_string();
     let mut results = Vec::new();
     for (name, y) in table.names.iter().zip(&table.columns) {
-        let r = analyse(y, args.rate, kind, &grid, unit.to_deg_per_s(), name)
+        let r = analyse(y, rate, kind, &grid, unit.to_deg_per_s(), name)
             .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
         results.push(r);
     }
@@ -253,7 +254,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     .collect();
                 let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit));
                 let (ro, _) = terms_json(&r.read_offs);
-                json!({"name": r.name, "samples": r.samples, "rate": args.rate, "kind": kind.to_string(),
+                json!({"name": r.name, "samples": r.samples, "rate": rate, "kind": kind.to_string(),
                        "unit": unit.to_string(), "ci": chi2::ONE_SIGMA, "points": points,
                        "terms": terms, "not_identified": reasons, "read_offs": ro})
             })
@@ -264,7 +265,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     for r in &results {
         println!(
             "{} ({} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
-            r.name, r.samples, args.rate, chi2::ONE_SIGMA * 100.0
+            r.name, r.samples, rate, chi2::ONE_SIGMA * 100.0
         );
         println!(
             "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10}",
@@ -326,9 +327,23 @@ fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {
                     .collect(),
             });
         }
-        notes.push(format!("{}:", r.name));
+        notes.push(format!(
+            "{} ({:.1}% intervals):",
+            r.name,
+            chi2::ONE_SIGMA * 100.0
+        ));
         for t in &fit.terms {
-            notes.push(format!("  {} {}", t.term, format_term(t)));
+            let (unit, f) = t.term.display();
+            notes.push(match t.estimate {
+                Some(e) => format!(
+                    "  {} = {:.4} {unit} [{:.4}, {:.4}]",
+                    t.term,
+                    e.value * f,
+                    e.lo * f,
+                    e.hi * f
+                ),
+                None => format!("  {}: not identifiable", t.term),
+            });
         }
     }
     LogLogChart {

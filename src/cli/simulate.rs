@@ -13,23 +13,38 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["n", "b", "k", "q", "r"])]
     pub profile: Option<String>,
     /// Angle random walk N, deg/sqrt(h).
-    #[arg(long = "N", id = "n", value_name = "DEG/SQRT(H)")]
-    pub n: Option<f64>,
+    #[arg(
+        long = "N",
+        id = "n",
+        value_name = "DEG/SQRT(H)",
+        allow_hyphen_values = true
+    )]
+    pub n: Option<String>,
     /// Bias instability B, deg/h.
-    #[arg(long = "B", id = "b", value_name = "DEG/H")]
-    pub b: Option<f64>,
+    #[arg(long = "B", id = "b", value_name = "DEG/H", allow_hyphen_values = true)]
+    pub b: Option<String>,
     /// Rate random walk K, deg/h/sqrt(h).
-    #[arg(long = "K", id = "k", value_name = "DEG/H/SQRT(H)")]
-    pub k: Option<f64>,
+    #[arg(
+        long = "K",
+        id = "k",
+        value_name = "DEG/H/SQRT(H)",
+        allow_hyphen_values = true
+    )]
+    pub k: Option<String>,
     /// Quantisation noise Q, deg.
-    #[arg(long = "Q", id = "q", value_name = "DEG")]
-    pub q: Option<f64>,
+    #[arg(long = "Q", id = "q", value_name = "DEG", allow_hyphen_values = true)]
+    pub q: Option<String>,
     /// Rate ramp R, deg/h^2.
-    #[arg(long = "R", id = "r", value_name = "DEG/H^2")]
-    pub r: Option<f64>,
+    #[arg(
+        long = "R",
+        id = "r",
+        value_name = "DEG/H^2",
+        allow_hyphen_values = true
+    )]
+    pub r: Option<String>,
     /// Sample rate in Hz (default: the profile's, else 100).
-    #[arg(long, allow_negative_numbers = true)]
-    pub rate: Option<f64>,
+    #[arg(long, allow_hyphen_values = true)]
+    pub rate: Option<String>,
     /// Length: a number with s, min, h or d (default 3h).
     #[arg(long, default_value = "3h")]
     pub duration: String,
@@ -45,6 +60,17 @@ pub struct Args {
     /// Output CSV.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
+}
+
+/// A number given for `flag`, or a one-line input error.
+pub fn parse_number(flag: &str, s: &str) -> Result<f64, CliError> {
+    s.trim()
+        .parse::<f64>()
+        .map_err(|_| CliError::input(format!("{flag} '{s}' is not a number")))
+}
+
+fn parse_opt(flag: &str, s: &Option<String>) -> Result<Option<f64>, CliError> {
+    s.as_deref().map(|v| parse_number(flag, v)).transpose()
 }
 
 /// Seconds in a duration like `3h`, `90min`, `45s`, `2.5d` or `600` (seconds).
@@ -75,6 +101,22 @@ const AXIS: [&str; 3] = ["x", "y", "z"];
 
 /// Run `driftless simulate`.
 pub fn run(args: Args) -> Result<(), CliError> {
+    let (n, b, k, q, r) = (
+        parse_opt("--N", &args.n)?,
+        parse_opt("--B", &args.b)?,
+        parse_opt("--K", &args.k)?,
+        parse_opt("--Q", &args.q)?,
+        parse_opt("--R", &args.r)?,
+    );
+    for (flag, v) in [("--N", n), ("--B", b), ("--K", k), ("--Q", q), ("--R", r)] {
+        if let Some(v) = v {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(CliError::input(format!(
+                    "{flag} must be a finite number >= 0, not {v}"
+                )));
+            }
+        }
+    }
     let mut cfg = match &args.profile {
         Some(p) => SimConfig::profile(p).map_err(|e| CliError::input(e.to_string()))?,
         None => {
@@ -89,11 +131,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let g = |v: Option<f64>| v.unwrap_or(0.0);
             SimConfig {
                 terms: NoiseTerms {
-                    n: g(args.n) / 60.0,
-                    b: g(args.b) / 3600.0,
-                    k: g(args.k) / 216_000.0,
-                    q: g(args.q),
-                    r: g(args.r) / (3600.0 * 3600.0),
+                    n: g(n) / 60.0,
+                    b: g(b) / 3600.0,
+                    k: g(k) / 216_000.0,
+                    q: g(q),
+                    r: g(r) / (3600.0 * 3600.0),
                     bias: 0.0,
                 },
                 rate_hz: 100.0,
@@ -104,8 +146,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
             }
         }
     };
-    if let Some(r) = args.rate {
-        cfg.rate_hz = r;
+    if let Some(rate) = parse_opt("--rate", &args.rate)? {
+        cfg.rate_hz = rate;
     }
     if let Some(a) = args.axes {
         cfg.axes = a;

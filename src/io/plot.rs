@@ -131,7 +131,7 @@ pub struct LogLogChart {
     pub curves: Vec<(String, Vec<ErrorPoint>)>,
     /// Lines (e.g. fitted terms), drawn dashed-light under the curves.
     pub lines: Vec<Series>,
-    /// Text lines printed in the lower left corner.
+    /// Text lines printed in the upper right (the legend goes lower left).
     pub notes: Vec<String>,
 }
 
@@ -207,7 +207,7 @@ pub fn write_loglog(path: &Path, chart: &LogLogChart) -> Result<(), String> {
             .map_err(|e| e.to_string())?;
         }
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::LowerLeft)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()
@@ -215,7 +215,7 @@ pub fn write_loglog(path: &Path, chart: &LogLogChart) -> Result<(), String> {
         for (i, note) in chart.notes.iter().enumerate() {
             root.draw(&Text::new(
                 note.clone(),
-                (110, 560 - 20 * (chart.notes.len() - i) as i32 + 60),
+                (560, 60 + 18 * i as i32),
                 ("monospace", 14),
             ))
             .map_err(|e| e.to_string())?;
