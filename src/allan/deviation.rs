@@ -5,12 +5,14 @@
 //! Rates y (any unit U, sampled at `rate` Hz) become phase x = [0, cumsum(y - mean(y)) / rate]
 //! (U*s, N+1 values; allantools' `frequency2phase`). With tau = m / rate:
 //!
-//! * OADEV^2(tau) = sum_{i=0}^{n-1} (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 n tau^2), n = N+1-2m
-//!   (allantools `oadev`); ADEV the same at i = 0, m, 2m, ... (allantools `adev`);
-//! * MDEV^2(tau) = sum_{j=0}^{n-1} (sum_{i=j}^{j+m-1} x[i+2m] - 2 x[i+m] + x[i])^2
-//!   / (2 m^2 tau^2 n), n = N+2-3m (allantools `mdev`);
-//! * HDEV (overlapping Hadamard): sum_{i=0}^{n-1} (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2
-//!   / (6 n tau^2), n = N+1-3m (allantools `ohdev`).
+//! ```text
+//! OADEV^2(tau) = sum_{i=0}^{n-1} (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 n tau^2),  n = N+1-2m  (oadev)
+//! ADEV: the same over i = 0, m, 2m, ...                                                    (adev)
+//! MDEV^2(tau)  = sum_{j=0}^{n-1} (sum_{i=j}^{j+m-1} x[i+2m] - 2 x[i+m] + x[i])^2
+//!                / (2 m^2 tau^2 n),  n = N+2-3m                                           (mdev)
+//! HDEV^2(tau)  = sum_{i=0}^{n-1} (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2 / (6 n tau^2),
+//!                n = N+1-3m  (overlapping Hadamard)                                       (ohdev)
+//! ```
 //!
 //! Points with n <= 1 are dropped (allantools `remove_small_ns`). The interval is
 //! [`chi2::confidence_interval`] with Greenhall's EDF ([`edf::edf_greenhall`]) for the noise type
