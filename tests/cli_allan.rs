@@ -305,3 +305,44 @@ fn bad_input_is_one_line_exit_2_and_leaves_no_output() {
     );
     assert!(!sim_out.exists(), "no partial output file");
 }
+
+#[test]
+fn rad_per_s_input_gives_the_same_terms_in_degree_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = simulate(dir.path(), &[]);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut rad = String::from("gyro_x_rads\n");
+    for line in text.lines().skip(1) {
+        let v: f64 = line.split(',').nth(1).unwrap().parse().unwrap();
+        rad.push_str(&format!("{}\n", v.to_radians()));
+    }
+    let rad_path = dir.path().join("rad.csv");
+    std::fs::write(&rad_path, rad).unwrap();
+    let run = |p: &str, units: &str| -> Value {
+        let o = driftless(&["allan", p, "--rate", "100", "--units", units, "--json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let deg = run(&path, "deg/s");
+    let rad = run(rad_path.to_str().unwrap(), "rad/s");
+    let (dc, rc) = (&deg["columns"][0], &rad["columns"][0]);
+    assert_eq!(rc["unit"], "rad/s");
+    let dev_ratio =
+        dc["points"][0]["dev"].as_f64().unwrap() / rc["points"][0]["dev"].as_f64().unwrap();
+    assert!(
+        (dev_ratio - 180.0 / std::f64::consts::PI).abs() < 1e-9,
+        "deviations stay in the input unit"
+    );
+    assert!(dc["terms"]["N"].is_object(), "N identified");
+    for t in ["Q", "N", "B", "K", "R"] {
+        let (a, b) = (&dc["terms"][t], &rc["terms"][t]);
+        assert_eq!(a.is_null(), b.is_null(), "{t}");
+        if let (Some(a), Some(b)) = (a["value"].as_f64(), b["value"].as_f64()) {
+            assert!(
+                ((a - b) / a).abs() < 1e-6,
+                "{t}: {a} deg-based vs {b} from rad/s"
+            );
+            assert_eq!(dc["terms"][t]["unit"], rc["terms"][t]["unit"]);
+        }
+    }
+}

@@ -194,12 +194,11 @@ pub fn pairwise_sum(a: &[f64]) -> f64 {
 pub fn frequency_to_phase(y: &[f64], rate: f64) -> Vec<f64> {
     let dt = 1.0 / rate;
     let mean = pairwise_sum(y) / y.len().max(1) as f64;
-    let mut x = Vec::with_capacity(y.len() + 1);
-    x.push(0.0);
+    let mut x = vec![0.0; y.len() + 1];
     let mut s = 0.0;
-    for &v in y {
+    for (xi, &v) in x[1..].iter_mut().zip(y) {
         s += v - mean;
-        x.push(s * dt);
+        *xi = s * dt;
     }
     x
 }
@@ -480,7 +479,7 @@ pub fn deviations(kind: Kind, x: &[f64], rate: f64, ms: &[usize]) -> Vec<(f64, u
         let handles: Vec<_> = parts.iter().map(|p| scope.spawn(move || work(p))).collect();
         handles
             .into_iter()
-            .map(|h| h.join().unwrap_or_default())
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
     let mut out = vec![(0.0, 0); ms.len()];
