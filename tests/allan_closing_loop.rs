@@ -101,3 +101,62 @@ fn fitted_terms_cover_the_truth_as_often_as_claimed() {
         );
     }
 }
+
+/// Quantisation and rate ramp, which the coverage test leaves out: the simulator's Q and R come
+/// back from the fit within a few percent (and inside their intervals).
+#[test]
+fn quantisation_and_rate_ramp_come_back() {
+    let cases = [
+        (
+            "Q",
+            Term::Q,
+            NoiseTerms {
+                q: 0.01,
+                n: 0.003,
+                ..NoiseTerms::default()
+            },
+            0.01,
+        ),
+        (
+            "R",
+            Term::R,
+            NoiseTerms {
+                n: 0.003,
+                r: 2e-7,
+                ..NoiseTerms::default()
+            },
+            2e-7,
+        ),
+    ];
+    for (name, term, terms, want) in cases {
+        let cfg = SimConfig {
+            terms,
+            rate_hz: 10.0,
+            axes: 1,
+            seed: 5,
+            motion: Motion::None,
+            lsb: None,
+        };
+        let mut sim = Simulator::new(&cfg).unwrap();
+        let y: Vec<f64> = (0..1 << 18)
+            .map(|_| sim.next_sample().measured[0])
+            .collect();
+        let pts = allan(&y, 10.0, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA).unwrap();
+        let fit = fit_terms(&pts, ONE_SIGMA).unwrap();
+        let e = fit
+            .get(term)
+            .estimate
+            .unwrap_or_else(|| panic!("{name} identified"));
+        println!(
+            "{name}: fitted {} [{}, {}], true {want}",
+            e.value, e.lo, e.hi
+        );
+        assert!(
+            ((e.value - want) / want).abs() < 0.05,
+            "{name}: {} vs {want}",
+            e.value
+        );
+        let n = fit.get(Term::N).estimate.expect("N identified").value;
+        assert!(((n - 0.003) / 0.003).abs() < 0.05, "N beside {name}: {n}");
+    }
+}
