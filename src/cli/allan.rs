@@ -109,6 +109,16 @@ fn analyse(
         add_intervals(kind, &mut out, x.len(), ci);
         out
     };
+    let work: f64 = deviation::averaging_factors(grid, x.len(), rate)
+        .iter()
+        .map(|&m| deviation::terms(kind, x.len(), m) as f64)
+        .sum();
+    if work > 2e10 {
+        eprintln!(
+            "driftless: warning: {name}: this grid needs {work:.1e} terms on {} samples and will take long (try --taus log:10)",
+            y.len()
+        );
+    }
     let points = curve(kind, grid, &format!("{name}: {kind}"));
     if points.is_empty() {
         return Err(too_short);
