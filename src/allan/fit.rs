@@ -112,7 +112,7 @@ impl NoiseFit {
 pub enum FitError {
     /// Fewer than three usable points.
     #[error(
-        "the record gives only {0} Allan points: too short to fit noise terms (at least 3 needed)"
+        "the record gives only {0} usable (non-zero) Allan points: too short or too constant to fit noise terms (at least 3 needed)"
     )]
     TooFewPoints(usize),
 }
