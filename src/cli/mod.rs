@@ -3,7 +3,9 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+pub mod allan;
 pub mod denoise;
+pub mod simulate;
 
 /// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
 #[derive(Debug, Parser)]
@@ -17,6 +19,10 @@ pub struct Cli {
 enum Command {
     /// Wavelet-threshold denoise a CSV log (or a built-in synthetic benchmark).
     Denoise(denoise::Args),
+    /// Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
+    Allan(allan::Args),
+    /// Simulate a gyro log with known IEEE Std 952 noise terms.
+    Simulate(simulate::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -76,11 +82,11 @@ pub fn main() -> ExitCode {
             return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
         }
     };
+    restore_default_sigpipe();
     let result = match cli.command {
-        Command::Denoise(args) => {
-            restore_default_sigpipe();
-            denoise::run(args)
-        }
+        Command::Denoise(args) => denoise::run(args),
+        Command::Allan(args) => allan::run(args),
+        Command::Simulate(args) => simulate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
