@@ -91,16 +91,7 @@ fn analyse(
             let devs = deviation::deviations(kind, &x, rate, chunk);
             for (&m, (dev, n)) in chunk.iter().zip(devs) {
                 if n > 1 {
-                    out.push(AllanPoint {
-                        tau: m as f64 / rate,
-                        m,
-                        dev,
-                        n,
-                        alpha: 0,
-                        edf: 0.0,
-                        lo: 0.0,
-                        hi: 0.0,
-                    });
+                    out.push(AllanPoint::bare(m, rate, dev, n));
                 }
             }
             bar.inc(chunk.len() as u64);
