@@ -7,7 +7,7 @@ use crate::synthetic::{self, Regime};
 use crate::wavelet::denoise::{compare, denoise, Comparison, DenoiseConfig, NoiseSigma, Rule};
 use crate::wavelet::threshold::ThresholdFn;
 use crate::wavelet::{Mode, Wavelet};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Points per plotted line at most (longer records are thinned evenly).
 const PLOT_POINTS: usize = 4000;
@@ -147,7 +147,10 @@ fn load(args: &Args) -> Result<Data, CliError> {
             truth_source: Some("the synthetic truth".into()),
         });
     }
-    let input = args.input.as_ref().expect("clap requires input without --synthetic");
+    let input = args
+        .input
+        .as_ref()
+        .expect("clap requires input without --synthetic");
     let table = read_table(input, &args.columns)?;
     let mut truths = vec![None; table.names.len()];
     let mut truth_source = None;
@@ -203,7 +206,13 @@ fn describe(cfg: &DenoiseConfig) -> String {
     )
 }
 
-fn print_summary(name: &str, rows: usize, cfg: &DenoiseConfig, c: &Comparison, truth: Option<&str>) {
+fn print_summary(
+    name: &str,
+    rows: usize,
+    cfg: &DenoiseConfig,
+    c: &Comparison,
+    truth: Option<&str>,
+) {
     println!("column {name}: {rows} samples, {}", describe(cfg));
     println!("  level        sigma       lambda");
     for (j, (s, l)) in c.denoised.sigma.iter().zip(&c.denoised.lambda).enumerate() {
@@ -215,9 +224,23 @@ fn print_summary(name: &str, rows: usize, cfg: &DenoiseConfig, c: &Comparison, t
     }
 }
 
-fn print_table(name: &str, rows: usize, cfg: &DenoiseConfig, table: &[Comparison]) {
-    println!("column {name}: {rows} samples, {}", describe(cfg));
-    println!("  {:<9} {:>9} {:>13} {:>13}", "function", "SNR (dB)", "MSE", "RMS removed");
+fn print_table(
+    name: &str,
+    x: &[f64],
+    truth: Option<&[f64]>,
+    cfg: &DenoiseConfig,
+    table: &[Comparison],
+) {
+    println!("column {name}: {} samples, {}", x.len(), describe(cfg));
+    println!(
+        "  {:<9} {:>9} {:>13} {:>13}",
+        "function", "SNR (dB)", "MSE", "RMS removed"
+    );
+    if let Some(t) = truth {
+        // The input itself, so the table shows what denoising bought.
+        let (snr, mse) = (crate::quality::snr_db(t, x), crate::quality::mse(t, x));
+        println!("  {:<9} {snr:>9.2} {mse:>13.6e} {:>13.6e}", "raw", 0.0);
+    }
     for c in table {
         let snr = c.snr_db.map_or("-".into(), |v| format!("{v:.2}"));
         let mse = c.mse.map_or("-".into(), |v| format!("{v:.6e}"));
@@ -241,7 +264,14 @@ fn thinned(y: &[f64], rate: Option<f64>) -> Vec<(f64, f64)> {
         .collect()
 }
 
-fn plot(path: &PathBuf, name: &str, raw: &[f64], truth: Option<&[f64]>, runs: &[Comparison], rate: Option<f64>) -> Result<(), CliError> {
+fn plot(
+    path: &Path,
+    name: &str,
+    raw: &[f64],
+    truth: Option<&[f64]>,
+    runs: &[Comparison],
+    rate: Option<f64>,
+) -> Result<(), CliError> {
     let x_label = if rate.is_some() { "time (s)" } else { "sample" };
     let panels: Vec<Panel> = runs
         .iter()
@@ -296,7 +326,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             println!();
         }
         if args.compare {
-            print_table(name, rows, &cfg, &runs);
+            print_table(name, x, truth, &cfg, &runs);
         } else if args.output.is_none() {
             print_summary(name, rows, &cfg, &runs[0], data.truth_source.as_deref());
         }

@@ -3,8 +3,10 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+pub mod allan;
 pub mod denoise;
 pub mod run;
+pub mod simulate;
 pub mod stats;
 pub mod tap;
 pub mod validate;
@@ -30,6 +32,10 @@ enum Command {
     Tap(tap::Args),
     /// Show the live statistics of a running pipeline.
     Stats(stats::Args),
+    /// Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
+    Allan(allan::Args),
+    /// Simulate a gyro log with known IEEE Std 952 noise terms.
+    Simulate(simulate::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -71,6 +77,15 @@ impl From<crate::wavelet::WaveletError> for CliError {
     }
 }
 
+/// Let a closed stdout (`driftless ... | head`) end the process quietly, as it does `cat`, instead
+/// of failing a `println!`. Rust ignores SIGPIPE by default; this restores the Unix default.
+fn restore_default_sigpipe() {
+    // SAFETY: setting a signal's disposition to SIG_DFL at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 /// Parse the command line, run the command, and turn its outcome into an exit code.
 pub fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -80,12 +95,15 @@ pub fn main() -> ExitCode {
             return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
         }
     };
+    restore_default_sigpipe();
     let result = match cli.command {
         Command::Denoise(args) => denoise::run(args),
         Command::Run(args) => run::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
+        Command::Allan(args) => allan::run(args),
+        Command::Simulate(args) => simulate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -353,6 +353,30 @@ mod tests {
     }
 
     #[test]
+    fn separation_splits_drift_from_white_noise() {
+        use rand::SeedableRng;
+        use rand_distr::Distribution;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let white = rand_distr::Normal::new(0.0, 0.3).unwrap();
+        let drift: Vec<f64> = (0..20_000)
+            .map(|i| 0.5 + 0.1 * (i as f64 / 3000.0).sin())
+            .collect();
+        let noise: Vec<f64> = (0..drift.len()).map(|_| white.sample(&mut rng)).collect();
+        let x: Vec<f64> = drift.iter().zip(&noise).map(|(d, n)| d + n).collect();
+        let w = Wavelet::by_name("db6").unwrap();
+        let split = separate(&x, &w, Mode::Symmetric, 6).unwrap();
+        for ((d, n), v) in split.drift.iter().zip(&split.noise).zip(&x) {
+            assert!((d + n - v).abs() < 1e-12);
+        }
+        // The low band keeps 1/64 of the white noise's power: its error is ~0.3/8 = 0.04.
+        let err = crate::quality::rms_diff(&split.drift, &drift);
+        assert!(err < 0.06, "drift error {err}");
+        let noise_sd = crate::quality::rms_diff(&split.noise, &vec![0.0; x.len()]);
+        assert!((noise_sd / 0.3 - 1.0).abs() < 0.02, "noise sd {noise_sd}");
+        assert!(separate(&x[..100], &w, Mode::Symmetric, 6).is_err());
+    }
+
+    #[test]
     fn bayes_kills_pure_noise_level() {
         assert!(bayes_lambda(&[0.1, -0.1], 1.0) > 1e6);
         let l = bayes_lambda(&[3.0, -3.0, 3.0, -3.0], 1.0);

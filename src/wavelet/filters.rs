@@ -2,6 +2,8 @@
 //! PyWavelets' reconstruction low-pass filters (`rec_lo`), one per wavelet.
 
 /// (name, rec_lo) for every supported orthogonal wavelet.
+// The values are PyWavelets' doubles to the last bit, not approximations of constants.
+#[allow(clippy::approx_constant, clippy::excessive_precision)]
 pub(crate) const REC_LO: &[(&str, &[f64])] = &[
     ("haar", &[0.7071067811865476, 0.7071067811865476]),
     ("db1", &[0.7071067811865476, 0.7071067811865476]),

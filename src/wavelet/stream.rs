@@ -61,8 +61,9 @@ pub struct StreamConfig {
 impl StreamConfig {
     /// Default window: 1024 samples (20 s at 50 Hz, 1 s at 1 kHz).
     pub const DEFAULT_WINDOW: usize = 1024;
-    /// Default lag in samples (see docs/denoise.md for the SNR it buys).
-    pub const DEFAULT_LAG: usize = 64;
+    /// Default lag: 33 samples, the span of db6's two finest levels, which hold three quarters of
+    /// white noise's power (0.66 s at 50 Hz, 33 ms at 1 kHz; docs/denoise.md tabulates the rest).
+    pub const DEFAULT_LAG: usize = 33;
 
     /// The lag at which the output equals the full stationary-transform denoising:
     /// `(2^level - 1)(F - 1)`, F the filter length.
@@ -72,7 +73,7 @@ impl StreamConfig {
 }
 
 impl Default for StreamConfig {
-    /// db6, 5 levels, the improved threshold, window 1024, lag 64, sigma tracked online.
+    /// db6, 5 levels, the improved threshold, window 1024, lag 33, sigma tracked online.
     fn default() -> Self {
         StreamConfig {
             wavelet: "db6".into(),

@@ -1,0 +1,57 @@
+//! Denoising speed: the streaming denoiser per sample (goal <= 1 us per sample per axis for db6 /
+//! 5 levels) and batch denoising of 18,000 and 10^6 samples (goal >= 3x PyWavelets'
+//! wavedec + threshold + waverec on the same data: `python3 scripts/bench_pywt.py` in the same run).
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use driftless::wavelet::denoise::{denoise, DenoiseConfig};
+use driftless::wavelet::stream::{StreamConfig, StreamingDenoiser};
+use std::hint::black_box;
+
+/// The same signal as scripts/bench_pywt.py.
+fn signal(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| (i as f64 * 0.001).sin() + ((i * 7919) % 1000) as f64 / 1000.0 - 0.5)
+        .collect()
+}
+
+fn streaming(c: &mut Criterion) {
+    let x = signal(100_000);
+    let mut group = c.benchmark_group("stream_db6_L5");
+    group.throughput(Throughput::Elements(x.len() as u64));
+    for lag in [0, StreamConfig::DEFAULT_LAG, 341] {
+        group.bench_with_input(BenchmarkId::new("lag", lag), &lag, |b, &lag| {
+            let mut d = StreamingDenoiser::new(&StreamConfig {
+                lag,
+                ..StreamConfig::default()
+            })
+            .expect("valid settings");
+            b.iter(|| {
+                let mut acc = 0.0;
+                for v in &x {
+                    if let Some(y) = d.push(*v) {
+                        acc += y;
+                    }
+                }
+                black_box(acc)
+            })
+        });
+    }
+    group.finish();
+}
+
+fn batch(c: &mut Criterion) {
+    let cfg = DenoiseConfig::paper();
+    let mut group = c.benchmark_group("batch_db6_L5_improved_universal");
+    group.sample_size(20);
+    for n in [18_000usize, 1_000_000] {
+        let x = signal(n);
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(n), &x, |b, x| {
+            b.iter(|| black_box(denoise(x, &cfg).expect("valid")))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, streaming, batch);
+criterion_main!(benches);

@@ -1,0 +1,301 @@
+//! `driftless denoise` as a user runs it: the real binary on real files.
+
+use driftless::io::read_table;
+use driftless::wavelet::denoise::{denoise, DenoiseConfig};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn driftless(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn write(dir: &Path, name: &str, body: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, body).unwrap();
+    p
+}
+
+fn noisy_csv(dir: &Path, rows: usize) -> PathBuf {
+    let mut body = String::from("time,gyro_x,gyro_y\n");
+    for i in 0..rows {
+        let t = i as f64 / 50.0;
+        let n = ((i * 7919) % 997) as f64 / 997.0 - 0.5;
+        body += &format!("{t},{},{}\n", (t * 0.7).sin() + 0.3 * n, 0.1 - 0.2 * n);
+    }
+    write(dir, "in.csv", &body)
+}
+
+/// Assert a one-line error, exit code 2, and that `needle` is in it.
+fn assert_input_error(o: &Output, needle: &str) {
+    let (out, err) = text(o);
+    assert_eq!(o.status.code(), Some(2), "stdout: {out}\nstderr: {err}");
+    assert!(err.contains(needle), "expected '{needle}' in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn output_round_trips_and_equals_the_library() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noisy_csv(dir.path(), 2000);
+    let out = dir.path().join("out.csv");
+    let o = driftless(&[
+        "denoise",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let written = read_table(&out, &[]).unwrap();
+    let original = read_table(&input, &[]).unwrap();
+    assert_eq!(written.names, ["time", "gyro_x", "gyro_y"]);
+    for (k, x) in original.columns.iter().enumerate() {
+        let want = denoise(x, &DenoiseConfig::paper()).unwrap().signal;
+        assert_eq!(written.columns[k], want, "column {}", written.names[k]);
+    }
+}
+
+#[test]
+fn selected_columns_and_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noisy_csv(dir.path(), 1000);
+    let o = driftless(&["denoise", input.to_str().unwrap(), "--column", "gyro_y"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("column gyro_y: 1000 samples, db6 level 5 symmetric"),
+        "{out}"
+    );
+    assert!(!out.contains("gyro_x"), "{out}");
+    // One line per level and an RMS line.
+    assert_eq!(
+        out.lines()
+            .filter(|l| l.trim_start().starts_with(char::is_numeric))
+            .count(),
+        5
+    );
+    assert!(out.contains("RMS removed"), "{out}");
+}
+
+#[test]
+fn headerless_input_names_columns_c0_c1() {
+    let dir = tempfile::tempdir().unwrap();
+    let body: String = (0..800)
+        .map(|i| format!("{},{}\n", i % 7, (i % 5) as f64 * 0.5))
+        .collect();
+    let input = write(dir.path(), "raw.csv", &body);
+    let out = dir.path().join("o.csv");
+    let o = driftless(&[
+        "denoise",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_eq!(read_table(&out, &[]).unwrap().names, ["c0", "c1"]);
+}
+
+#[test]
+fn compare_on_the_synthetic_benchmark_prints_table_two() {
+    let o = driftless(&["denoise", "--synthetic", "dynamic", "--compare"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let snr_of = |f: &str| -> f64 {
+        let row = out.lines().find(|l| l.trim_start().starts_with(f)).unwrap();
+        row.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    // The synthetic record's input SNR, then every function.
+    assert!((snr_of("raw") - 22.93).abs() < 0.01, "{out}");
+    assert!(snr_of("improved") > snr_of("soft"), "{out}");
+    for f in ["hard", "soft", "garrote", "firm", "improved"] {
+        let row = out
+            .lines()
+            .find(|l| l.trim_start().starts_with(f))
+            .unwrap_or_else(|| panic!("no {f} row in {out}"));
+        let snr: f64 = row.split_whitespace().nth(1).unwrap().parse().unwrap();
+        assert!(snr > 15.0 && snr < 40.0, "{row}");
+    }
+}
+
+#[test]
+fn truth_file_scores_snr() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut noisy = String::from("x\n");
+    let mut truth = String::from("x\n");
+    for i in 0..4000 {
+        let s = (i as f64 * 0.01).sin();
+        let n = ((i * 7919) % 997) as f64 / 997.0 - 0.5;
+        noisy += &format!("{}\n", s + 0.2 * n);
+        truth += &format!("{s}\n");
+    }
+    let input = write(dir.path(), "n.csv", &noisy);
+    let t = write(dir.path(), "t.csv", &truth);
+    let o = driftless(&[
+        "denoise",
+        input.to_str().unwrap(),
+        "--truth",
+        t.to_str().unwrap(),
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("SNR") && out.contains("MSE"), "{out}");
+    // A truth of another length is refused.
+    let short = write(dir.path(), "s.csv", "x\n1\n2\n");
+    let o = driftless(&[
+        "denoise",
+        input.to_str().unwrap(),
+        "--truth",
+        short.to_str().unwrap(),
+    ]);
+    assert_input_error(&o, "2 rows");
+}
+
+#[test]
+fn plot_writes_an_svg() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("fig6.svg");
+    let o = driftless(&[
+        "denoise",
+        "--synthetic",
+        "static",
+        "--compare",
+        "--plot",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let body = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        body.starts_with("<svg") && body.contains("improved threshold"),
+        "{}",
+        &body[..200.min(body.len())]
+    );
+}
+
+#[test]
+fn bad_input_is_refused_with_position_and_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("never.csv");
+    let o_arg = out.to_str().unwrap();
+    let good = noisy_csv(d, 1000);
+    let good = good.to_str().unwrap();
+    let cases: Vec<(Vec<String>, String)> = vec![
+        (
+            vec![d.join("missing.csv").display().to_string()],
+            "missing.csv".into(),
+        ),
+        (
+            vec![write(d, "empty.csv", "").display().to_string()],
+            "the file is empty".into(),
+        ),
+        (
+            vec![good.into(), "--column".into(), "gyro_q".into()],
+            "no column named 'gyro_q' (columns: time, gyro_x, gyro_y)".into(),
+        ),
+        (
+            vec![write(d, "cell.csv", "a,b\n1,2\n3,x2\n")
+                .display()
+                .to_string()],
+            "cell.csv:3:3: column 'b': 'x2' is not a number".into(),
+        ),
+        (
+            vec![write(d, "nan.csv", "a\n1\nNaN\n").display().to_string()],
+            "nan.csv:3:1: column 'a': NaN is not a finite sample".into(),
+        ),
+        (
+            vec![write(d, "short.csv", "a\n1\n2\n3\n").display().to_string()],
+            "level 5 with db6 needs at least 352 samples, got 3".into(),
+        ),
+        (
+            vec![good.into(), "--wavelet".into(), "db42".into()],
+            "db1..db20".into(),
+        ),
+        (
+            vec![good.into(), "--mode".into(), "mirror".into()],
+            "symmetric, reflect".into(),
+        ),
+        (
+            vec![good.into(), "--threshold".into(), "medium".into()],
+            "hard, soft, garrote, firm, improved".into(),
+        ),
+        (
+            vec![good.into(), "--rule".into(), "minimax".into()],
+            "universal, level-universal, sure, bayes".into(),
+        ),
+        (
+            vec![good.into(), "--sigma=-1".into()],
+            "mad, mad-per-level".into(),
+        ),
+        (
+            vec![good.into(), "--beta".into(), "0".into()],
+            "beta".into(),
+        ),
+        (
+            vec![good.into(), "--level".into(), "0".into()],
+            "level".into(),
+        ),
+    ];
+    for (mut args, needle) in cases {
+        args.insert(0, "denoise".into());
+        args.extend(["-o".to_string(), o_arg.to_string()]);
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = driftless(&refs);
+        assert_input_error(&o, &needle);
+        assert_eq!(text(&o).1.lines().count(), 1, "one line: {}", text(&o).1);
+        assert!(!out.exists(), "partial output after {args:?}");
+    }
+    // An unwritable destination: an error, and nothing left behind.
+    let nowhere = d.join("no/such/dir/out.csv");
+    let o = driftless(&["denoise", good, "-o", nowhere.to_str().unwrap()]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(!nowhere.exists());
+    assert_eq!(
+        std::fs::read_dir(d)
+            .unwrap()
+            .filter(|e| e
+                .as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x != "csv"))
+            .count(),
+        0
+    );
+}
+
+#[test]
+fn a_closed_stdout_is_not_a_panic() {
+    use std::io::Read;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args([
+            "denoise",
+            "--synthetic",
+            "dynamic",
+            "--compare",
+            "--samples",
+            "400000",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    child.wait().unwrap();
+    assert!(!err.contains("panicked"), "{err}");
+}
