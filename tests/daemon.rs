@@ -512,3 +512,43 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
     let (code, err) = finish(child, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");
 }
+
+#[test]
+fn a_subscriber_that_dies_never_blocks_the_daemon_and_is_cleaned_up() {
+    let prefix = Prefix::new("dead");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let text = csv_pipeline("realtime", true, 16)
+        .replace("report_interval_s = 60.0", "report_interval_s = 0.1");
+    let file = dir.write("p.toml", &text);
+    let report_path = dir.path("report.json");
+    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    let t0 = Instant::now();
+    let tap = std::process::Command::new(common::bin())
+        .args(["tap", "c/corrected", "--prefix", &prefix.0, "--hz"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("tap");
+    std::thread::sleep(Duration::from_millis(200));
+    signal(&tap, SIGKILL);
+    let _ = finish(tap, Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(500));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    let elapsed_ms = t0.elapsed().as_millis() as u64;
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let r = report(&dir);
+    let n = r["samples_in"].as_u64().unwrap();
+    assert!(
+        n * 10 >= elapsed_ms * 8,
+        "kept its 1 kHz pace: {n} samples in {elapsed_ms} ms"
+    );
+    assert_eq!(r["samples_out"], n);
+    let left = prefix.leftovers();
+    assert!(
+        left.is_empty(),
+        "the dead subscriber's files were removed: {left:?}"
+    );
+}
