@@ -552,3 +552,37 @@ fn a_subscriber_that_dies_never_blocks_the_daemon_and_is_cleaned_up() {
         "the dead subscriber's files were removed: {left:?}"
     );
 }
+
+#[test]
+fn a_driver_service_created_with_other_settings_is_still_read() {
+    let prefix = Prefix::new("drvqos");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+    // The driver starts first and creates its service with a small buffer (8, not 256).
+    let driver = Transport::new(&prefix.0, "driver", qos(8)).expect("node");
+    let sensor = driver
+        .output::<RawSample>("t/sensor", true)
+        .expect("sensor publisher");
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let mut child = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "t/stats", &mut child);
+    for i in 0..5u64 {
+        assert_eq!(
+            sensor
+                .send(&raw(i, i * 1000, [1.0, 2.0, 3.0]))
+                .expect("send"),
+            1
+        );
+        sensor.notify();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let got = collect(&corrected, 5, Duration::from_secs(10));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert_eq!(
+        got.iter().map(|s| s.seq).collect::<Vec<_>>(),
+        [0, 1, 2, 3, 4]
+    );
+}
