@@ -667,6 +667,18 @@ mod tests {
     }
 
     #[test]
+    fn stats_layout_is_the_documented_one() {
+        assert_eq!(std::mem::size_of::<Percentiles>(), 40);
+        assert_eq!(std::mem::size_of::<StageStats>(), 96);
+        assert_eq!(std::mem::offset_of!(StageStats, compute), 56);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, rate_hz), 24);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, end_to_end), 88);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stage_count), 128);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stages), 136);
+        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 904);
+    }
+
+    #[test]
     fn type_names_are_stable() {
         // SAFETY: type_name only returns the static string of the derive attribute.
         unsafe {
