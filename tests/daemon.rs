@@ -586,3 +586,66 @@ fn a_driver_service_created_with_other_settings_is_still_read() {
         [0, 1, 2, 3, 4]
     );
 }
+
+#[test]
+fn the_simulator_ingest_runs_to_its_sample_count_with_the_library_values() {
+    const N: usize = 300;
+    let prefix = Prefix::new("sim");
+    let dir = Dir::new();
+    let text = format!(
+        r#"
+name = "s"
+rate_hz = 2000.0
+input_units = "deg/s"
+report_interval_s = 60.0
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "s/raw"
+profile = "adis16405"
+motion = "sines"
+seed = 7
+samples = {N}
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "s/raw"
+output = "s/denoised"
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "s/denoised"
+output = "s/predicted"
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "s/predicted"
+output = "s/corrected"
+"#
+    );
+    let file = dir.write("p.toml", &text);
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    let corrected = me.input::<GyroSample>("s/corrected").expect("subscriber");
+    let child = start(&file, &prefix, &[]);
+    let got = collect(&corrected, N, Duration::from_secs(10));
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stops by itself after {N} samples: {err}");
+    assert_eq!(got.len(), N);
+    let mut cfg = driftless::sim::SimConfig::profile("adis16405").unwrap();
+    cfg.rate_hz = 2000.0;
+    cfg.axes = 3;
+    cfg.seed = 7;
+    cfg.motion = driftless::sim::Motion::Sines;
+    let mut sim = driftless::sim::Simulator::new(&cfg).unwrap();
+    let scale = std::f64::consts::PI / 180.0;
+    for (k, s) in got.iter().enumerate() {
+        let m = sim.next_sample().measured;
+        assert_eq!(s.seq, k as u64);
+        assert_eq!(s.t_ns, k as u64 * 500_000);
+        assert_eq!(
+            s.rate,
+            [m[0] * scale, m[1] * scale, m[2] * scale],
+            "sample {k}"
+        );
+    }
+}
