@@ -6,4 +6,4 @@ pub mod csv_table;
 pub mod plot;
 pub mod progress;
 
-pub use csv_table::{read_table, write_table, InputError, Table};
+pub use csv_table::{read_table, write_table, InputError, Table, TIME_COLUMNS};
