@@ -21,7 +21,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crossbeam_channel::{bounded, Sender};
 
@@ -414,25 +414,29 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     // After the reporter thread is spawned, so only the hot thread gets these settings.
     schedule_hot_thread(p);
     let stop = &opts.stop;
-    let end = opts.duration.map(|d| Instant::now() + d);
+    // The end of --duration on the clock the ingest stamps samples with (no extra clock read
+    // per sample); a sample already taken from the source is always processed.
+    let end_ns = opts.duration.map_or(u64::MAX, |d| {
+        monotonic_ns().saturating_add(d.as_nanos() as u64)
+    });
     let mut failure = None;
-    loop {
-        if stop.load(Ordering::Relaxed) {
-            break;
-        }
-        if let Some(end) = end {
-            if Instant::now() >= end {
-                break;
-            }
-        }
+    while !stop.load(Ordering::Relaxed) {
         match source.poll(stop) {
             Poll::Sample(raw, ingest_ns) => {
                 if let Err(e) = chain.ingest(&raw, ingest_ns) {
                     failure = Some(e);
                     break;
                 }
+                if ingest_ns >= end_ns {
+                    break;
+                }
             }
-            Poll::Idle => chain.idle(),
+            Poll::Idle => {
+                chain.idle();
+                if monotonic_ns() >= end_ns {
+                    break;
+                }
+            }
             Poll::End => break,
         }
     }
