@@ -4,7 +4,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use driftless::wavelet::denoise::{denoise, DenoiseConfig};
-use driftless::wavelet::stream::{StreamConfig, StreamingDenoiser};
+use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use std::hint::black_box;
 
 /// The same signal as scripts/bench_pywt.py.
@@ -36,6 +36,22 @@ fn streaming(c: &mut Criterion) {
             })
         });
     }
+    group.bench_function("lag/33/fixed_sigma", |b| {
+        let mut d = StreamingDenoiser::new(&StreamConfig {
+            sigma: Sigma::Fixed(0.3),
+            ..StreamConfig::default()
+        })
+        .expect("valid settings");
+        b.iter(|| {
+            let mut acc = 0.0;
+            for v in &x {
+                if let Some(y) = d.push(*v) {
+                    acc += y;
+                }
+            }
+            black_box(acc)
+        })
+    });
     group.finish();
 }
 
