@@ -9,8 +9,10 @@
 //! The maths modules ([`wavelet`], ...) are pure: no I/O, no transport, usable as a library.
 //! Layers, from the ground up: maths -> pipeline and stages -> transport -> [`cli`].
 
+pub mod allan;
 pub mod cli;
 pub mod io;
 pub mod quality;
+pub mod sim;
 pub mod synthetic;
 pub mod wavelet;

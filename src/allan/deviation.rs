@@ -1,0 +1,575 @@
+//! Allan-type deviations of a rate record, allantools 2024.06's conventions for rate
+//! ("frequency") data, on a tau grid, each point with its number of terms and a chi-squared
+//! confidence interval.
+//!
+//! Rates y (any unit U, sampled at `rate` Hz) become phase x = [0, cumsum(y - mean(y)) / rate]
+//! (U*s, N+1 values; allantools' `frequency2phase`). With tau = m / rate:
+//!
+//! * OADEV^2(tau) = sum_{i=0}^{n-1} (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 n tau^2), n = N+1-2m
+//!   (allantools `oadev`); ADEV the same at i = 0, m, 2m, ... (allantools `adev`);
+//! * MDEV^2(tau) = sum_{j=0}^{n-1} (sum_{i=j}^{j+m-1} x[i+2m] - 2 x[i+m] + x[i])^2
+//!   / (2 m^2 tau^2 n), n = N+2-3m (allantools `mdev`);
+//! * HDEV (overlapping Hadamard): sum_{i=0}^{n-1} (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2
+//!   / (6 n tau^2), n = N+1-3m (allantools `ohdev`).
+//!
+//! Points with n <= 1 are dropped (allantools `remove_small_ns`). The interval is
+//! [`chi2::confidence_interval`] with Greenhall's EDF ([`edf::edf_greenhall`]) for the noise type
+//! read from the local slope of the variance curve ([`edf::alpha_from_slope`]).
+
+use super::{chi2, edf};
+use std::fmt;
+use std::str::FromStr;
+
+/// Which deviation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// Overlapping Allan deviation (allantools `oadev`): the default, best confidence.
+    Oadev,
+    /// Non-overlapping Allan deviation (allantools `adev`).
+    Adev,
+    /// Modified Allan deviation (allantools `mdev`): separates white from flicker phase noise.
+    Mdev,
+    /// Overlapping Hadamard deviation (allantools `ohdev`): insensitive to a rate ramp.
+    Hdev,
+}
+
+impl Kind {
+    /// Difference order of the variance (2 for Allan-type, 3 for Hadamard).
+    pub fn order(self) -> u32 {
+        if self == Kind::Hdev {
+            3
+        } else {
+            2
+        }
+    }
+}
+
+impl FromStr for Kind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "oadev" => Ok(Kind::Oadev),
+            "adev" => Ok(Kind::Adev),
+            "mdev" => Ok(Kind::Mdev),
+            "hdev" => Ok(Kind::Hdev),
+            _ => Err(format!("unknown deviation '{s}' (oadev, adev, mdev, hdev)")),
+        }
+    }
+}
+
+impl fmt::Display for Kind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Kind::Oadev => "oadev",
+            Kind::Adev => "adev",
+            Kind::Mdev => "mdev",
+            Kind::Hdev => "hdev",
+        })
+    }
+}
+
+/// The averaging times at which to evaluate, as averaging factors m (tau = m / rate).
+#[derive(Debug, Clone, PartialEq)]
+pub enum TauGrid {
+    /// m = 1, 2, 4, 8, ... (allantools "octave").
+    Octave,
+    /// m = 1, 2, 4, 10, 20, 40, 100, ... (allantools "decade").
+    Decade,
+    /// P points per decade: m = round(10^(j/P)), j = 0, 1, ..., duplicates removed.
+    Log(u32),
+    /// Every m (allantools "all").
+    All,
+    /// Explicit taus in seconds, rounded to m = round(tau * rate) as allantools does.
+    List(Vec<f64>),
+}
+
+impl FromStr for TauGrid {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "octave" => return Ok(TauGrid::Octave),
+            "decade" => return Ok(TauGrid::Decade),
+            "all" => return Ok(TauGrid::All),
+            _ => {}
+        }
+        if let Some(p) = s.strip_prefix("log:") {
+            return match p.parse::<u32>() {
+                Ok(p) if (1..=1000).contains(&p) => Ok(TauGrid::Log(p)),
+                _ => Err(format!(
+                    "'{s}': log:P needs 1 <= P <= 1000 points per decade"
+                )),
+            };
+        }
+        let taus: Result<Vec<f64>, String> = s
+            .split(',')
+            .map(|t| match t.trim().parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+                _ => Err(format!(
+                    "'{t}' is not a tau (octave, decade, log:P, all, or a list of seconds like 0.1,1,10)"
+                )),
+            })
+            .collect();
+        Ok(TauGrid::List(taus?))
+    }
+}
+
+/// One point of a deviation curve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AllanPoint {
+    /// Averaging time (s), m / rate.
+    pub tau: f64,
+    /// Averaging factor.
+    pub m: usize,
+    /// The deviation, in the input's rate unit.
+    pub dev: f64,
+    /// Number of terms in the sum (allantools' `ns`).
+    pub n: usize,
+    /// Noise exponent alpha used for the EDF (see [`edf::alpha_from_slope`]).
+    pub alpha: i32,
+    /// Equivalent degrees of freedom (Greenhall).
+    pub edf: f64,
+    /// Lower end of the confidence interval.
+    pub lo: f64,
+    /// Upper end of the confidence interval.
+    pub hi: f64,
+}
+
+/// Why a deviation could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AllanError {
+    /// The sample rate is not a positive finite number.
+    #[error("the sample rate must be a positive number of Hz, not {0}")]
+    BadRate(f64),
+    /// A sample is NaN or infinite.
+    #[error("sample {0} is not finite")]
+    NonFinite(usize),
+    /// No averaging time of the grid fits in the record.
+    #[error("a record of {samples} samples is too short for any tau of this grid ({kind} needs at least {needed} samples)")]
+    TooShort {
+        /// Samples in the record.
+        samples: usize,
+        /// The deviation asked for.
+        kind: Kind,
+        /// The fewest samples that give one point with m = 1.
+        needed: usize,
+    },
+}
+
+/// numpy's pairwise summation (`np.sum` on a contiguous float64 array), so the mean removed before
+/// integration is bit-identical to allantools'.
+pub fn pairwise_sum(a: &[f64]) -> f64 {
+    let n = a.len();
+    if n < 8 {
+        let mut s = 0.0;
+        for &v in a {
+            s += v;
+        }
+        s
+    } else if n <= 128 {
+        let mut r = [0.0; 8];
+        r.copy_from_slice(&a[..8]);
+        let mut i = 8;
+        while i + 8 <= n {
+            for k in 0..8 {
+                r[k] += a[i + k];
+            }
+            i += 8;
+        }
+        let mut s = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        while i < n {
+            s += a[i];
+            i += 1;
+        }
+        s
+    } else {
+        let mut n2 = n / 2;
+        n2 -= n2 % 8;
+        pairwise_sum(&a[..n2]) + pairwise_sum(&a[n2..])
+    }
+}
+
+/// Rates to phase as allantools does: x = [0, cumsum(y - mean(y)) * (1 / rate)].
+pub fn frequency_to_phase(y: &[f64], rate: f64) -> Vec<f64> {
+    let dt = 1.0 / rate;
+    let mean = pairwise_sum(y) / y.len().max(1) as f64;
+    let mut x = Vec::with_capacity(y.len() + 1);
+    x.push(0.0);
+    let mut s = 0.0;
+    for &v in y {
+        s += v - mean;
+        x.push(s * dt);
+    }
+    x
+}
+
+/// Averaging factors of `grid` for `phase_len` phase samples, as allantools' `tau_generator`:
+/// m = round(tau * rate), 0 < m < phase_len, sorted, duplicates removed. Points whose number of
+/// terms would be <= 1 are removed later.
+pub fn averaging_factors(grid: &TauGrid, phase_len: usize, rate: f64) -> Vec<usize> {
+    let len = phase_len as f64;
+    let mut ms: Vec<usize> = match grid {
+        TauGrid::Octave => {
+            let maxn = len.log2().floor() as u32;
+            (0..=maxn).map(|k| 1usize << k.min(62)).collect()
+        }
+        TauGrid::Decade => {
+            let maxn = len.log10().floor() as i32;
+            (0..=maxn)
+                .flat_map(|k| {
+                    let p = 10f64.powi(k);
+                    [p, 2.0 * p, 4.0 * p]
+                })
+                .map(|m| m.round() as usize)
+                .collect()
+        }
+        TauGrid::Log(p) => {
+            let mut v = Vec::new();
+            let mut j = 0u32;
+            loop {
+                let m = 10f64.powf(f64::from(j) / f64::from(*p)).round();
+                if m >= len {
+                    break;
+                }
+                v.push(m as usize);
+                j += 1;
+            }
+            v
+        }
+        TauGrid::All => (1..phase_len).collect(),
+        TauGrid::List(taus) => taus
+            .iter()
+            .map(|t| (t * rate).round())
+            .filter(|m| *m > 0.0 && *m < len)
+            .map(|m| m as usize)
+            .collect(),
+    };
+    ms.retain(|&m| m > 0 && m < phase_len);
+    ms.sort_unstable();
+    ms.dedup();
+    ms
+}
+
+/// Number of terms of `kind` at averaging factor `m` for `phase_len` phase samples.
+pub fn terms(kind: Kind, phase_len: usize, m: usize) -> usize {
+    let l = phase_len;
+    match kind {
+        Kind::Oadev => l.saturating_sub(2 * m),
+        Kind::Adev => {
+            if l > 2 * m {
+                (l - 1 - 2 * m) / m + 1
+            } else {
+                0
+            }
+        }
+        Kind::Mdev => {
+            if l >= 3 * m {
+                l - 3 * m + 1
+            } else {
+                0
+            }
+        }
+        Kind::Hdev => l.saturating_sub(3 * m),
+    }
+}
+
+/// Sum of squared second differences at lag m over i in [start, end) (overlapping).
+#[inline(always)]
+fn second_diff_sq_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
+    let n = end - start;
+    let a = &x[start..start + n];
+    let b = &x[start + m..start + m + n];
+    let c = &x[start + 2 * m..start + 2 * m + n];
+    let mut acc = [0.0f64; 8];
+    let (ac, ar) = a.split_at(n - n % 8);
+    let (bc, br) = b.split_at(n - n % 8);
+    let (cc, cr) = c.split_at(n - n % 8);
+    for ((a8, b8), c8) in ac
+        .chunks_exact(8)
+        .zip(bc.chunks_exact(8))
+        .zip(cc.chunks_exact(8))
+    {
+        for k in 0..8 {
+            let v = c8[k] - 2.0 * b8[k] + a8[k];
+            acc[k] += v * v;
+        }
+    }
+    let mut tail = 0.0;
+    for ((a1, b1), c1) in ar.iter().zip(br).zip(cr) {
+        let v = c1 - 2.0 * b1 + a1;
+        tail += v * v;
+    }
+    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + tail
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn second_diff_sq_sum_avx2(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
+    second_diff_sq_sum(x, m, start, end)
+}
+
+/// Overlapping second-difference sum, with the AVX2 build of the same code where the CPU has it
+/// (no FMA contraction either way: results are identical).
+fn oadev_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { second_diff_sq_sum_avx2(x, m, start, end) };
+        }
+    }
+    second_diff_sq_sum(x, m, start, end)
+}
+
+/// Block length (phase samples) of the cache-blocked OADEV pass.
+const BLOCK: usize = 1 << 14;
+
+/// OADEV sums for many m in one cache-blocked pass over `x` (blocks of the first stream are reused
+/// across all m while they are in cache). Returns the raw sums of squares per m.
+fn oadev_sums_blocked(x: &[f64], ms: &[usize]) -> Vec<f64> {
+    let mut sums = vec![0.0; ms.len()];
+    let l = x.len();
+    let mut start = 0;
+    while start < l {
+        let end = (start + BLOCK).min(l);
+        for (s, &m) in sums.iter_mut().zip(ms) {
+            let last = l.saturating_sub(2 * m); // i < last
+            if start < last {
+                *s += oadev_sum(x, m, start, end.min(last));
+            }
+        }
+        start = end;
+    }
+    sums
+}
+
+/// The deviation of `kind` at averaging factor `m` from phase `x` (allantools' formulas), and its
+/// number of terms.
+pub fn deviation_at(kind: Kind, x: &[f64], rate: f64, m: usize) -> (f64, usize) {
+    let n = terms(kind, x.len(), m);
+    if n == 0 {
+        return (0.0, 0);
+    }
+    let mf = m as f64;
+    match kind {
+        Kind::Oadev => {
+            let s = oadev_sum(x, m, 0, n);
+            ((s / (2.0 * n as f64)).sqrt() / mf * rate, n)
+        }
+        Kind::Adev => {
+            let mut s = 0.0;
+            let mut i = 0;
+            while i + 2 * m < x.len() {
+                let v = x[i + 2 * m] - 2.0 * x[i + m] + x[i];
+                s += v * v;
+                i += m;
+            }
+            ((s / (2.0 * n as f64)).sqrt() / mf * rate, n)
+        }
+        Kind::Mdev => {
+            let tau = mf / rate;
+            let mut v = 0.0;
+            for i in 0..m {
+                v += x[i + 2 * m] - 2.0 * x[i + m] + x[i];
+            }
+            let mut s = v * v;
+            for j in 0..n - 1 {
+                v += x[j + 3 * m] - 3.0 * x[j + 2 * m] + 3.0 * x[j + m] - x[j];
+                s += v * v;
+            }
+            ((s / (2.0 * mf * mf * tau * tau * n as f64)).sqrt(), n)
+        }
+        Kind::Hdev => {
+            let mut s = 0.0;
+            for i in 0..n {
+                let v = x[i + 3 * m] - 3.0 * x[i + 2 * m] + 3.0 * x[i + m] - x[i];
+                s += v * v;
+            }
+            ((s / 6.0 / n as f64).sqrt() / (mf / rate), n)
+        }
+    }
+}
+
+/// Deviations of `kind` at each m (no intervals): (dev, n) per m. OADEV runs cache-blocked and
+/// spread over the available cores; the result does not depend on the number of threads.
+pub fn deviations(kind: Kind, x: &[f64], rate: f64, ms: &[usize]) -> Vec<(f64, usize)> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(ms.len().max(1));
+    let work = |part: &[usize]| -> Vec<(f64, usize)> {
+        if kind == Kind::Oadev {
+            let sums = oadev_sums_blocked(x, part);
+            part.iter()
+                .zip(sums)
+                .map(|(&m, s)| {
+                    let n = terms(kind, x.len(), m);
+                    let dev = if n == 0 {
+                        0.0
+                    } else {
+                        (s / (2.0 * n as f64)).sqrt() / m as f64 * rate
+                    };
+                    (dev, n)
+                })
+                .collect()
+        } else {
+            part.iter()
+                .map(|&m| deviation_at(kind, x, rate, m))
+                .collect()
+        }
+    };
+    if threads <= 1 || x.len() < 100_000 {
+        return work(ms);
+    }
+    // Deal the m values round-robin so every thread gets a similar mix of lags.
+    let parts: Vec<Vec<usize>> = (0..threads)
+        .map(|t| ms.iter().copied().skip(t).step_by(threads).collect())
+        .collect();
+    let results: Vec<Vec<(f64, usize)>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = parts.iter().map(|p| scope.spawn(move || work(p))).collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_default())
+            .collect()
+    });
+    let mut out = vec![(0.0, 0); ms.len()];
+    for (t, r) in results.into_iter().enumerate() {
+        for (k, v) in r.into_iter().enumerate() {
+            out[t + k * threads] = v;
+        }
+    }
+    out
+}
+
+/// Local log-log slope of the variance at point `j` of `(tau, dev)`, from the neighbours about a
+/// factor 2 away in tau (one-sided at the ends; -1, white rate noise, for a single point).
+fn local_variance_slope(points: &[(f64, f64)], j: usize) -> f64 {
+    let tau = points[j].0;
+    let lo = points[..j]
+        .iter()
+        .rposition(|p| p.0 <= tau / 2.0)
+        .unwrap_or(0);
+    let hi = points[j..]
+        .iter()
+        .position(|p| p.0 >= tau * 2.0)
+        .map_or(points.len() - 1, |k| j + k);
+    if hi == lo || points[lo].1 <= 0.0 || points[hi].1 <= 0.0 {
+        return -1.0;
+    }
+    2.0 * (points[hi].1 / points[lo].1).ln() / (points[hi].0 / points[lo].0).ln()
+}
+
+/// Fill in the noise type, EDF and interval (confidence `ci`, e.g. [`chi2::ONE_SIGMA`]) of
+/// points whose tau, m, dev and n are set, for `phase_len` phase samples.
+pub fn add_intervals(kind: Kind, points: &mut [AllanPoint], phase_len: usize, ci: f64) {
+    let curve: Vec<(f64, f64)> = points.iter().map(|p| (p.tau, p.dev)).collect();
+    for (j, p) in points.iter_mut().enumerate() {
+        let mu = local_variance_slope(&curve, j);
+        p.alpha = edf::alpha_from_slope(mu, kind.order());
+        let overlapping = kind != Kind::Adev;
+        let modified = kind == Kind::Mdev;
+        let e = edf::edf_greenhall(p.alpha, kind.order(), p.m, phase_len, overlapping, modified);
+        p.edf = if e.is_finite() && e > 0.0 { e } else { 1.0 };
+        let (lo, hi) = chi2::confidence_interval(p.dev, p.edf, ci);
+        p.lo = lo;
+        p.hi = hi;
+    }
+}
+
+/// The deviation curve of rate samples `y` at `rate` Hz on `grid`, with confidence `ci`
+/// (two-sided, e.g. [`chi2::ONE_SIGMA`]).
+pub fn allan(
+    y: &[f64],
+    rate: f64,
+    kind: Kind,
+    grid: &TauGrid,
+    ci: f64,
+) -> Result<Vec<AllanPoint>, AllanError> {
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(AllanError::BadRate(rate));
+    }
+    if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+        return Err(AllanError::NonFinite(i));
+    }
+    let needed = match kind {
+        Kind::Oadev | Kind::Adev => 3,
+        Kind::Mdev => 3,
+        Kind::Hdev => 4,
+    };
+    let too_short = AllanError::TooShort {
+        samples: y.len(),
+        kind,
+        needed,
+    };
+    if y.len() < needed {
+        return Err(too_short);
+    }
+    let x = frequency_to_phase(y, rate);
+    let ms = averaging_factors(grid, x.len(), rate);
+    let devs = deviations(kind, &x, rate, &ms);
+    let mut points: Vec<AllanPoint> = ms
+        .iter()
+        .zip(devs)
+        .filter(|(_, (_, n))| *n > 1)
+        .map(|(&m, (dev, n))| AllanPoint {
+            tau: m as f64 / rate,
+            m,
+            dev,
+            n,
+            alpha: 0,
+            edf: 0.0,
+            lo: 0.0,
+            hi: 0.0,
+        })
+        .collect();
+    if points.is_empty() {
+        return Err(too_short);
+    }
+    add_intervals(kind, &mut points, x.len(), ci);
+    Ok(points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairwise_sum_is_exact_on_integers() {
+        let v: Vec<f64> = (0..1000).map(f64::from).collect();
+        assert_eq!(pairwise_sum(&v), 499_500.0);
+    }
+
+    #[test]
+    fn blocked_oadev_equals_direct() {
+        let y: Vec<f64> = (0..50_000).map(|i| ((i * 7919) % 1013) as f64).collect();
+        let x = frequency_to_phase(&y, 10.0);
+        let ms = averaging_factors(&TauGrid::Log(7), x.len(), 10.0);
+        let fast = deviations(Kind::Oadev, &x, 10.0, &ms);
+        for (&m, (d, n)) in ms.iter().zip(fast) {
+            let (d2, n2) = deviation_at(Kind::Oadev, &x, 10.0, m);
+            assert_eq!(n, n2);
+            assert!(d == d2 || ((d - d2) / d2).abs() < 1e-12, "m={m}: {d} vs {d2}");
+        }
+    }
+
+    #[test]
+    fn grids_parse() {
+        assert_eq!("log:5".parse::<TauGrid>(), Ok(TauGrid::Log(5)));
+        assert_eq!(
+            "0.5,2".parse::<TauGrid>(),
+            Ok(TauGrid::List(vec![0.5, 2.0]))
+        );
+        assert!("log:0".parse::<TauGrid>().is_err());
+        assert!("1,x".parse::<TauGrid>().is_err());
+    }
+
+    #[test]
+    fn too_short_and_bad_rate() {
+        assert!(matches!(
+            allan(&[1.0, 2.0], 1.0, Kind::Oadev, &TauGrid::Octave, 0.68),
+            Err(AllanError::TooShort { .. })
+        ));
+        assert_eq!(
+            allan(&[1.0; 10], 0.0, Kind::Oadev, &TauGrid::Octave, 0.68),
+            Err(AllanError::BadRate(0.0))
+        );
+    }
+}

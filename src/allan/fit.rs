@@ -1,0 +1,387 @@
+//! The IEEE Std 952 noise terms from an Allan deviation curve.
+//!
+//! **Fit.** sigma^2(tau) = 3Q^2/tau^2 + N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3 + R^2 tau^2/2 is linear
+//! in theta = (Q^2, N^2, B^2, K^2, R^2) >= 0. [`fit_terms`] solves the weighted non-negative least
+//! squares problem exactly (every support set of the five columns is solved by Householder QR on
+//! the scaled, weighted design; the best feasible one is the NNLS optimum), with weights
+//! 1/Var(sigma_hat^2) = edf / (2 sigma_model^4), iterated to a fixed point from the measured
+//! variances (so noisy points do not pull the weights). Deterministic, no starting guess.
+//!
+//! **Uncertainty.** Cov(theta) = KAPPA * (A^T W A)^-1 on the support. The points of one curve are
+//! correlated (they share the samples), which the plain WLS covariance ignores; [`KAPPA`] is the
+//! variance inflation measured by simulation for octave-spaced OADEV points (docs/allan.md). A
+//! term's interval is chi-squared with Satterthwaite's nu = 2 theta^2 / Var(theta) degrees of
+//! freedom, the same form as a deviation's interval.
+//!
+//! **Not identifiable.** A term is reported as `None` with a reason when the fit drives it to zero
+//! (its slope is absent), or when it never makes up [`MIN_SHARE`] of the model variance at any
+//! tau of the record (what the record shows of it is an extrapolation).
+//!
+//! **Read-offs.** [`read_offs`] gives the classic slope-line values for comparison: the segment
+//! between neighbouring points whose slope is nearest the term's (within 0.2), the line of the
+//! term's slope through its geometric middle, read at tau = sqrt 3 (Q), 1 (N), 3 (K), sqrt 2 (R);
+//! B = the interior minimum / sqrt(2 ln2/pi) = min / 0.6643.
+//!
+//! Everything here is in the base units of [`crate::allan::units::Term::base_unit`]: pass
+//! deviations in deg/s.
+
+use super::chi2;
+use super::deviation::AllanPoint;
+pub use super::units::Term;
+
+/// Variance inflation of the WLS covariance for the correlation between octave OADEV points,
+/// measured by simulation (see the closing-loop test and docs/allan.md).
+pub const KAPPA: f64 = 1.0;
+
+/// A term must make up at least this share of the model variance at some tau to be identified.
+pub const MIN_SHARE: f64 = 0.3;
+
+/// A value with its confidence interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// The value.
+    pub value: f64,
+    /// Lower end of the interval.
+    pub lo: f64,
+    /// Upper end of the interval.
+    pub hi: f64,
+}
+
+/// One term's outcome: an estimate in base units, or the reason there is none.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TermFit {
+    /// Which term.
+    pub term: Term,
+    /// The estimate (base units), `None` when the record cannot identify the term.
+    pub estimate: Option<Estimate>,
+    /// Why there is no estimate.
+    pub reason: Option<String>,
+}
+
+impl TermFit {
+    fn none(term: Term, reason: String) -> Self {
+        TermFit {
+            term,
+            estimate: None,
+            reason: Some(reason),
+        }
+    }
+}
+
+/// The fitted model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NoiseFit {
+    /// Q, N, B, K, R in that order.
+    pub terms: Vec<TermFit>,
+    /// The fitted squares theta = (Q^2, N^2, B^2, K^2, R^2) in base units (zeros included).
+    pub theta: [f64; 5],
+    /// The two-sided confidence level of the intervals.
+    pub ci: f64,
+    /// The tau range (s) of the points fitted.
+    pub tau_range: (f64, f64),
+}
+
+impl NoiseFit {
+    /// The outcome for `term`.
+    pub fn get(&self, term: Term) -> &TermFit {
+        &self.terms[term as usize]
+    }
+
+    /// The model's Allan variance at `tau` ((deg/s)^2).
+    pub fn model_variance(&self, tau: f64) -> f64 {
+        model(&self.theta, tau)
+    }
+}
+
+/// Why no fit was possible.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    /// Fewer than three usable points.
+    #[error(
+        "the record gives only {0} Allan points: too short to fit noise terms (at least 3 needed)"
+    )]
+    TooFewPoints(usize),
+}
+
+fn model(theta: &[f64; 5], tau: f64) -> f64 {
+    Term::ALL
+        .iter()
+        .zip(theta)
+        .map(|(t, th)| t.coefficient(tau) * th)
+        .sum()
+}
+
+/// Least squares min |A x - b| for a tall (rows x cols) matrix by Householder QR. Returns x and
+/// the inverse of R (upper triangular, so (A^T A)^-1 = Rinv Rinv^T), or None if rank-deficient.
+// Matrix code reads best with explicit indices.
+#[allow(clippy::needless_range_loop)]
+fn qr_solve(a: &[Vec<f64>], b: &[f64], cols: usize) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
+    let rows = a.len();
+    if rows < cols {
+        return None;
+    }
+    let mut m: Vec<Vec<f64>> = a.to_vec();
+    let mut rhs = b.to_vec();
+    let mut diag_max: f64 = 0.0;
+    for k in 0..cols {
+        let norm = (k..rows).map(|i| m[i][k] * m[i][k]).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            return None;
+        }
+        let alpha = if m[k][k] > 0.0 { -norm } else { norm };
+        let mut v: Vec<f64> = (k..rows).map(|i| m[i][k]).collect();
+        v[0] -= alpha;
+        let vnorm2: f64 = v.iter().map(|x| x * x).sum();
+        if vnorm2 > 0.0 {
+            for j in k..cols {
+                let dot: f64 = (k..rows).map(|i| v[i - k] * m[i][j]).sum();
+                let f = 2.0 * dot / vnorm2;
+                for i in k..rows {
+                    m[i][j] -= f * v[i - k];
+                }
+            }
+            let dot: f64 = (k..rows).map(|i| v[i - k] * rhs[i]).sum();
+            let f = 2.0 * dot / vnorm2;
+            for i in k..rows {
+                rhs[i] -= f * v[i - k];
+            }
+        }
+        diag_max = diag_max.max(m[k][k].abs());
+    }
+    if (0..cols).any(|k| m[k][k].abs() <= 1e-10 * diag_max) {
+        return None;
+    }
+    // Back-substitution for x and for R^-1.
+    let mut x = vec![0.0; cols];
+    for k in (0..cols).rev() {
+        let s: f64 = (k + 1..cols).map(|j| m[k][j] * x[j]).sum();
+        x[k] = (rhs[k] - s) / m[k][k];
+    }
+    let mut rinv = vec![vec![0.0; cols]; cols];
+    for c in 0..cols {
+        for k in (0..=c).rev() {
+            let e = if k == c { 1.0 } else { 0.0 };
+            let s: f64 = (k + 1..=c).map(|j| m[k][j] * rinv[j][c]).sum();
+            rinv[k][c] = (e - s) / m[k][k];
+        }
+    }
+    Some((x, rinv))
+}
+
+/// Weighted NNLS solution and the covariance of the non-zero entries.
+fn nnls(points: &[AllanPoint], weights: &[f64]) -> Option<([f64; 5], [[f64; 5]; 5])> {
+    let mut best: Option<(f64, [f64; 5], [[f64; 5]; 5])> = None;
+    for mask in 1u32..32 {
+        let support: Vec<usize> = (0..5).filter(|k| mask & (1 << k) != 0).collect();
+        // Scaled, weighted design: row j times sqrt(w_j), column k divided by its norm.
+        let raw: Vec<Vec<f64>> = points
+            .iter()
+            .zip(weights)
+            .map(|(p, w)| {
+                support
+                    .iter()
+                    .map(|&k| Term::ALL[k].coefficient(p.tau) * w.sqrt())
+                    .collect()
+            })
+            .collect();
+        let scale: Vec<f64> = (0..support.len())
+            .map(|c| raw.iter().map(|r| r[c] * r[c]).sum::<f64>().sqrt())
+            .collect();
+        let a: Vec<Vec<f64>> = raw
+            .iter()
+            .map(|r| r.iter().zip(&scale).map(|(v, s)| v / s).collect())
+            .collect();
+        let b: Vec<f64> = points
+            .iter()
+            .zip(weights)
+            .map(|(p, w)| p.dev * p.dev * w.sqrt())
+            .collect();
+        let Some((x, rinv)) = qr_solve(&a, &b, support.len()) else {
+            continue;
+        };
+        if x.iter().any(|&v| v <= 0.0) {
+            continue;
+        }
+        let mut theta = [0.0; 5];
+        for (c, &k) in support.iter().enumerate() {
+            theta[k] = x[c] / scale[c];
+        }
+        let resid: f64 = points
+            .iter()
+            .zip(weights)
+            .map(|(p, w)| w * (p.dev * p.dev - model(&theta, p.tau)).powi(2))
+            .sum();
+        if best.as_ref().is_none_or(|(r, _, _)| resid < *r) {
+            let mut cov = [[0.0; 5]; 5];
+            for (c1, &k1) in support.iter().enumerate() {
+                for (c2, &k2) in support.iter().enumerate() {
+                    let s: f64 = (0..support.len()).map(|j| rinv[c1][j] * rinv[c2][j]).sum();
+                    cov[k1][k2] = s / (scale[c1] * scale[c2]);
+                }
+            }
+            best = Some((resid, theta, cov));
+        }
+    }
+    best.map(|(_, t, c)| (t, c))
+}
+
+/// Fit the IEEE Std 952 terms to Allan deviation points in deg/s (intended: octave-spaced OADEV
+/// with their EDF), with intervals at two-sided confidence `ci`.
+pub fn fit_terms(points: &[AllanPoint], ci: f64) -> Result<NoiseFit, FitError> {
+    let points: Vec<AllanPoint> = points
+        .iter()
+        .copied()
+        .filter(|p| p.dev > 0.0 && p.edf > 0.0 && p.tau > 0.0)
+        .collect();
+    if points.len() < 3 {
+        return Err(FitError::TooFewPoints(points.len()));
+    }
+    let mut var_model: Vec<f64> = points.iter().map(|p| p.dev * p.dev).collect();
+    let mut result = None;
+    for _ in 0..50 {
+        let weights: Vec<f64> = points
+            .iter()
+            .zip(&var_model)
+            .map(|(p, v)| p.edf / (2.0 * v * v))
+            .collect();
+        let Some((theta, cov)) = nnls(&points, &weights) else {
+            break;
+        };
+        let next: Vec<f64> = points
+            .iter()
+            .zip(&var_model)
+            .map(|(p, old)| model(&theta, p.tau).max(old * 1e-6))
+            .collect();
+        let change = next
+            .iter()
+            .zip(&var_model)
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0, f64::max);
+        var_model = next;
+        result = Some((theta, cov));
+        if change < 1e-12 {
+            break;
+        }
+    }
+    let Some((theta, cov)) = result else {
+        return Err(FitError::TooFewPoints(points.len()));
+    };
+    let tau_range = (points[0].tau, points[points.len() - 1].tau);
+    let terms = Term::ALL
+        .iter()
+        .enumerate()
+        .map(|(k, &term)| {
+            let slope = term.slope();
+            if theta[k] <= 0.0 {
+                return TermFit::none(
+                    term,
+                    format!(
+                        "fitted to zero: no slope {slope:+} region between tau {} s and {} s",
+                        tau_range.0, tau_range.1
+                    ),
+                );
+            }
+            let share = points
+                .iter()
+                .map(|p| term.coefficient(p.tau) * theta[k] / model(&theta, p.tau))
+                .fold(0.0, f64::max);
+            if share < MIN_SHARE {
+                return TermFit::none(
+                    term,
+                    format!(
+                        "never dominant (at most {:.0}% of sigma^2 between tau {} s and {} s): the record shows no slope {slope:+} region",
+                        share * 100.0,
+                        tau_range.0,
+                        tau_range.1
+                    ),
+                );
+            }
+            let var = KAPPA * cov[k][k];
+            let nu = 2.0 * theta[k] * theta[k] / var;
+            let value = theta[k].sqrt();
+            let (lo, hi) = chi2::confidence_interval(value, nu, ci);
+            TermFit {
+                term,
+                estimate: Some(Estimate { value, lo, hi }),
+                reason: None,
+            }
+        })
+        .collect();
+    Ok(NoiseFit {
+        terms,
+        theta,
+        ci,
+        tau_range,
+    })
+}
+
+/// The classic slope-line read-offs (base units) from a deviation curve in deg/s, each with the
+/// interval carried over from the points it was read from.
+pub fn read_offs(points: &[AllanPoint]) -> Vec<TermFit> {
+    let b_factor = (2.0 * std::f64::consts::LN_2 / std::f64::consts::PI).sqrt();
+    Term::ALL
+        .iter()
+        .map(|&term| {
+            if points.len() < 3 {
+                return TermFit::none(term, "fewer than 3 points".into());
+            }
+            if term == Term::B {
+                let (j, p) = points
+                    .iter()
+                    .enumerate()
+                    .min_by(|a, b| a.1.dev.total_cmp(&b.1.dev))
+                    .unwrap_or((0, &points[0]));
+                if j == 0 || j + 1 == points.len() {
+                    return TermFit::none(
+                        term,
+                        "the curve has no interior minimum (no flat floor)".into(),
+                    );
+                }
+                return TermFit {
+                    term,
+                    estimate: Some(Estimate {
+                        value: p.dev / b_factor,
+                        lo: p.lo / b_factor,
+                        hi: p.hi / b_factor,
+                    }),
+                    reason: None,
+                };
+            }
+            let target = term.slope();
+            let best = points
+                .windows(2)
+                .map(|w| {
+                    let s = (w[1].dev / w[0].dev).ln() / (w[1].tau / w[0].tau).ln();
+                    ((s - target).abs(), w)
+                })
+                .filter(|(d, _)| d.is_finite() && *d <= 0.2)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let Some((_, w)) = best else {
+                return TermFit::none(
+                    term,
+                    format!("no segment with slope {target:+} (within 0.2)"),
+                );
+            };
+            let tau_m = (w[0].tau * w[1].tau).sqrt();
+            let dev_m = (w[0].dev * w[1].dev).sqrt();
+            let lo_ratio = ((w[0].lo / w[0].dev) * (w[1].lo / w[1].dev)).sqrt();
+            let hi_ratio = ((w[0].hi / w[0].dev) * (w[1].hi / w[1].dev)).sqrt();
+            let tau_read: f64 = match term {
+                Term::Q => 3f64.sqrt(),
+                Term::N => 1.0,
+                Term::K => 3.0,
+                _ => 2f64.sqrt(),
+            };
+            let value = dev_m * (tau_read / tau_m).powf(target);
+            TermFit {
+                term,
+                estimate: Some(Estimate {
+                    value,
+                    lo: value * lo_ratio,
+                    hi: value * hi_ratio,
+                }),
+                reason: None,
+            }
+        })
+        .collect()
+}

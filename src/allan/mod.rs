@@ -1,0 +1,24 @@
+//! Allan analysis of gyro rate records: deviations with confidence intervals, and the IEEE Std 952
+//! noise terms fitted to them.
+//!
+//! Pure maths: no I/O. The conventions follow allantools 2024.06 for rate ("frequency") data, so
+//! results can be checked against it to 1e-9 relative:
+//!
+//! * [`deviation`]: rates to phase, tau grids, OADEV / ADEV / MDEV / overlapping HDEV, the number
+//!   of terms, and the chi-squared confidence interval of each point.
+//! * [`edf`]: Greenhall & Riley's equivalent degrees of freedom (allantools `edf_greenhall`).
+//! * [`chi2`]: the chi-squared quantiles behind the intervals (no external statistics crate).
+//! * [`fit`]: the IEEE Std 952 terms Q, N, B, K, R by a weighted non-negative least-squares fit,
+//!   with intervals, plus the classic slope-line read-offs.
+//! * [`units`]: rate units in, term units out.
+
+pub mod chi2;
+pub mod deviation;
+pub mod edf;
+pub mod fit;
+pub mod units;
+
+pub use deviation::{allan, AllanError, AllanPoint, Kind, TauGrid};
+pub use fit::{fit_terms, read_offs, Estimate, FitError, NoiseFit, TermFit};
+pub use units::RateUnit;
+pub use units::Term;
