@@ -546,7 +546,10 @@ mod tests {
         for (&m, (d, n)) in ms.iter().zip(fast) {
             let (d2, n2) = deviation_at(Kind::Oadev, &x, 10.0, m);
             assert_eq!(n, n2);
-            assert!(d == d2 || ((d - d2) / d2).abs() < 1e-12, "m={m}: {d} vs {d2}");
+            assert!(
+                d == d2 || ((d - d2) / d2).abs() < 1e-12,
+                "m={m}: {d} vs {d2}"
+            );
         }
     }
 
