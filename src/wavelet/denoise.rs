@@ -365,8 +365,8 @@ mod tests {
         let x: Vec<f64> = drift.iter().zip(&noise).map(|(d, n)| d + n).collect();
         let w = Wavelet::by_name("db6").unwrap();
         let split = separate(&x, &w, Mode::Symmetric, 6).unwrap();
-        for i in 0..x.len() {
-            assert!((split.drift[i] + split.noise[i] - x[i]).abs() < 1e-12);
+        for ((d, n), v) in split.drift.iter().zip(&split.noise).zip(&x) {
+            assert!((d + n - v).abs() < 1e-12);
         }
         // The low band keeps 1/64 of the white noise's power: its error is ~0.3/8 = 0.04.
         let err = crate::quality::rms_diff(&split.drift, &drift);
