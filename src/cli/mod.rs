@@ -4,6 +4,8 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 pub mod denoise;
+pub mod eval;
+pub mod train;
 
 /// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
 #[derive(Debug, Parser)]
@@ -17,6 +19,10 @@ pub struct Cli {
 enum Command {
     /// Wavelet-threshold denoise a CSV log (or a built-in synthetic benchmark).
     Denoise(denoise::Args),
+    /// Train the RBF drift model on a static log; prints the baselines and the model's skill.
+    Train(train::Args),
+    /// Evaluate a drift model on a log: the paper's Table 3 (Allan terms before and after).
+    Eval(eval::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -80,6 +86,11 @@ pub fn main() -> ExitCode {
         Command::Denoise(args) => {
             restore_default_sigpipe();
             denoise::run(args)
+        }
+        Command::Train(args) => train::run(args),
+        Command::Eval(args) => {
+            restore_default_sigpipe();
+            eval::run(args)
         }
     };
     match result {

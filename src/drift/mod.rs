@@ -24,6 +24,7 @@ pub mod compensator;
 pub mod lowband;
 pub mod model;
 pub mod rbf;
+pub mod separation;
 pub mod stillness;
 pub mod training;
 
