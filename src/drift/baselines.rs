@@ -77,8 +77,9 @@ pub struct Ar {
 }
 
 impl Ar {
-    /// Least-squares fit on `series` (every row with p predecessors). `None` when the series
-    /// has fewer than `2 p + 2` values or the normal equations are singular.
+    /// Least-squares fit on `series` (every row with p predecessors), with a small ridge only
+    /// when the normal equations are numerically singular. `None` when the series has fewer
+    /// than `2 p + 2` values or no ridge helps (a constant series).
     pub fn fit(series: &[f64], p: usize) -> Option<Ar> {
         if p == 0 || series.len() < 2 * p + 2 {
             return None;
@@ -107,7 +108,20 @@ impl Ar {
                 ata[(j, i)] = ata[(i, j)];
             }
         }
-        let sol = ata.cholesky()?.solve(&atb);
+        // A very smooth series makes the lags nearly collinear: add a ridge only as needed.
+        let mean_diag = (0..p).map(|i| ata[(i, i)]).sum::<f64>() / p as f64;
+        let mut sol = None;
+        for ridge in [0.0, 1e-12, 1e-10, 1e-8, 1e-6] {
+            let mut reg = ata.clone();
+            for i in 0..p {
+                reg[(i, i)] += ridge * mean_diag;
+            }
+            if let Some(ch) = reg.cholesky() {
+                sol = Some(ch.solve(&atb));
+                break;
+            }
+        }
+        let sol = sol?;
         let coef: Vec<f64> = sol.iter().take(p).copied().collect();
         let sum_a: f64 = coef.iter().sum();
         let intercept = sol[p] + m * (1.0 - sum_a);
