@@ -5,7 +5,11 @@ use std::process::ExitCode;
 
 pub mod denoise;
 pub mod eval;
+pub mod run;
+pub mod stats;
+pub mod tap;
 pub mod train;
+pub mod validate;
 
 /// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
 #[derive(Debug, Parser)]
@@ -16,6 +20,7 @@ pub struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)]
 enum Command {
     /// Wavelet-threshold denoise a CSV log (or a built-in synthetic benchmark).
     Denoise(denoise::Args),
@@ -23,6 +28,14 @@ enum Command {
     Train(train::Args),
     /// Evaluate a drift model on a log: the paper's Table 3 (Allan terms before and after).
     Eval(eval::Args),
+    /// Run a pipeline (the daemon) until SIGINT/SIGTERM or --duration.
+    Run(run::Args),
+    /// Check a pipeline file as `run` would, without starting anything.
+    Validate(validate::Args),
+    /// Print the samples of a service, with its rate (like `ros2 topic echo` / `hz`).
+    Tap(tap::Args),
+    /// Show the live statistics of a running pipeline.
+    Stats(stats::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -92,6 +105,11 @@ pub fn main() -> ExitCode {
             restore_default_sigpipe();
             eval::run(args)
         }
+        Command::Denoise(args) => denoise::run(args),
+        Command::Run(args) => run::run(args),
+        Command::Validate(args) => validate::run(args),
+        Command::Tap(args) => tap::run(args),
+        Command::Stats(args) => stats::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

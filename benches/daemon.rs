@@ -1,0 +1,389 @@
+//! The daemon's latency and throughput targets, measured in one run beside the bare iceoryx2
+//! chain of the same hops (no computation), so the overhead shows as a ratio.
+//!
+//! ```text
+//! cargo bench --bench daemon                       # 10^5 samples at 1 kHz (100 s) + the rest
+//! DRIFTLESS_BENCH_SECONDS=20 cargo bench --bench daemon   # shorter
+//! ```
+//!
+//! Runs, in order (each alone on the machine):
+//! 1. bare chain, 1 kHz, one thread, 4 ipc hops, no computation;
+//! 2. `pipelines/demo.toml` at 1 kHz (simulator, db6/5 levels, predictor, publish, 3 axes) with
+//!    this process as a separate-process subscriber (its latency: ingest to receipt), and the
+//!    daemon's CPU use from /proc;
+//! 3. `pipelines/adxrs450.toml` at 50 Hz against its 20 ms deadline;
+//! 4. CSV replay as fast as possible through all stages, and the bare chain as fast as possible.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use driftless::transport::{monotonic_ns, GyroSample, Qos, RawSample, Transport, FLAG_FLUSHED};
+use hdrhistogram::Histogram;
+use serde_json::Value;
+
+fn hist() -> Histogram<u64> {
+    Histogram::new_with_bounds(1, 60_000_000_000, 3).expect("bounds")
+}
+
+fn prefix(tag: &str) -> String {
+    format!("dlbench{}{tag}_", std::process::id())
+}
+
+fn clean(prefix: &str) {
+    for dir in [
+        "/dev/shm",
+        "/tmp/iceoryx2/nodes",
+        "/tmp/iceoryx2/services",
+        "/tmp/iceoryx2",
+    ] {
+        if let Ok(rd) = std::fs::read_dir(dir) {
+            for e in rd.flatten() {
+                if e.file_name().to_string_lossy().starts_with(prefix) {
+                    let _ = std::fs::remove_file(e.path());
+                    let _ = std::fs::remove_dir_all(e.path());
+                }
+            }
+        }
+    }
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// CPU seconds (user + system) of a live process.
+fn cpu_seconds(pid: u32) -> f64 {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return f64::NAN;
+    };
+    let Some(after) = stat.rfind(')') else {
+        return f64::NAN;
+    };
+    let fields: Vec<&str> = stat[after + 2..].split_whitespace().collect();
+    let ticks = |i: usize| {
+        fields
+            .get(i)
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
+    (ticks(11) + ticks(12)) / hz
+}
+
+struct Row {
+    name: String,
+    samples: u64,
+    p50: u64,
+    p99: u64,
+    p999: u64,
+    max: u64,
+    misses: String,
+    lost: String,
+    cpu: String,
+    throughput: String,
+}
+
+fn row_from(name: &str, h: &Histogram<u64>) -> Row {
+    Row {
+        name: name.into(),
+        samples: h.len(),
+        p50: h.value_at_quantile(0.5),
+        p99: h.value_at_quantile(0.99),
+        p999: h.value_at_quantile(0.999),
+        max: h.max(),
+        misses: "-".into(),
+        lost: "-".into(),
+        cpu: "-".into(),
+        throughput: "-".into(),
+    }
+}
+
+fn row_from_report(name: &str, r: &Value) -> Row {
+    let e = &r["end_to_end_ns"];
+    let u = |v: &Value| v.as_u64().unwrap_or(0);
+    Row {
+        name: name.into(),
+        samples: u(&r["samples_out"]),
+        p50: u(&e["p50"]),
+        p99: u(&e["p99"]),
+        p999: u(&e["p999"]),
+        max: u(&e["max"]),
+        misses: u(&r["deadline_misses"]).to_string(),
+        lost: u(&r["lost"]).to_string(),
+        cpu: "-".into(),
+        throughput: "-".into(),
+    }
+}
+
+/// The bare chain: the same four ipc hops in one thread, no computation.
+fn bare_chain(prefix: &str, rate_hz: Option<f64>, n: u64) -> (Histogram<u64>, f64) {
+    let t = Transport::new(prefix, "bare", Qos::default()).expect("node");
+    let raw_out = t.output::<RawSample>("b/raw", false).expect("pub");
+    let raw_in = t.input::<RawSample>("b/raw").expect("sub");
+    let names = ["b/denoised", "b/predicted", "b/corrected"];
+    let outs: Vec<_> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| t.output::<GyroSample>(n, i == 2).expect("pub"))
+        .collect();
+    let ins: Vec<_> = names[..2]
+        .iter()
+        .map(|n| t.input::<GyroSample>(n).expect("sub"))
+        .collect();
+    let mut h = hist();
+    let start = Instant::now();
+    for k in 0..n {
+        if let Some(rate) = rate_hz {
+            let due = start + Duration::from_secs_f64(k as f64 / rate);
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        let t0 = monotonic_ns();
+        let raw = RawSample {
+            seq: k,
+            ..RawSample::default()
+        };
+        raw_out.send(&raw).expect("send");
+        let r = raw_in.receive().expect("recv").expect("sample");
+        let mut g = GyroSample {
+            seq: r.seq,
+            ingest_ns: t0,
+            ..GyroSample::default()
+        };
+        for (i, out) in outs.iter().enumerate() {
+            out.send(&g).expect("send");
+            if let Some(input) = ins.get(i) {
+                g = input.receive().expect("recv").expect("sample");
+            }
+        }
+        h.saturating_record((monotonic_ns() - t0).max(1));
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    (h, n as f64 / elapsed)
+}
+
+fn start_daemon(pipeline: &Path, prefix: &str, report: &Path, extra: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("run")
+        .arg(pipeline)
+        .args(["--prefix", prefix, "--quiet", "--report"])
+        .arg(report)
+        .args(extra)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn driftless")
+}
+
+fn wait_exit(child: &mut Child) {
+    let end = Instant::now() + Duration::from_secs(30);
+    while Instant::now() < end {
+        if let Ok(Some(_)) = child.try_wait() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+fn read_report(path: &Path) -> Value {
+    let text = std::fs::read_to_string(path).expect("report");
+    serde_json::from_str(&text).expect("json")
+}
+
+/// Run a paced pipeline for `secs` with this process subscribed to `service`.
+fn paced(
+    pipeline: &Path,
+    tag: &str,
+    service: &str,
+    secs: f64,
+    dir: &Path,
+) -> (Value, Histogram<u64>, f64, u64) {
+    let p = prefix(tag);
+    clean(&p);
+    let report = dir.join(format!("{tag}.json"));
+    let mut child = start_daemon(pipeline, &p, &report, &[]);
+    let me = Transport::new(&p, "bench-sub", Qos::default()).expect("node");
+    let ready = Instant::now();
+    let input = loop {
+        if let Ok(i) = me.open_input::<GyroSample>(service) {
+            break i;
+        }
+        assert!(
+            ready.elapsed() < Duration::from_secs(10),
+            "daemon not ready"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let waker = me.waker(service).expect("waker");
+    let mut h = hist();
+    let (mut last_seq, mut lost) = (None::<u64>, 0u64);
+    let cpu0 = cpu_seconds(child.id());
+    let t0 = Instant::now();
+    let end = t0 + Duration::from_secs_f64(secs);
+    while Instant::now() < end {
+        let _ = waker.wait(Duration::from_millis(100));
+        while let Ok(Some(s)) = input.receive() {
+            let now = monotonic_ns();
+            if s.flags & FLAG_FLUSHED == 0 {
+                h.saturating_record(now.saturating_sub(s.ingest_ns).max(1));
+            }
+            if let Some(prev) = last_seq {
+                lost += s.seq.saturating_sub(prev + 1);
+            }
+            last_seq = Some(s.seq);
+        }
+    }
+    let cpu = (cpu_seconds(child.id()) - cpu0) / t0.elapsed().as_secs_f64();
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
+    }
+    wait_exit(&mut child);
+    drop(input);
+    drop(waker);
+    drop(me);
+    clean(&p);
+    (read_report(&report), h, cpu, lost)
+}
+
+fn us(ns: u64) -> String {
+    format!("{:.1}", ns as f64 / 1e3)
+}
+
+fn main() {
+    // `cargo bench` passes --bench; `cargo test --benches` runs it too: keep that short.
+    let quick = !std::env::args().any(|a| a == "--bench");
+    let secs: f64 = std::env::var("DRIFTLESS_BENCH_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(if quick { 2.0 } else { 100.0 });
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut rows = Vec::new();
+
+    // 1. Bare chain at 1 kHz.
+    let bare_secs = secs.min(30.0);
+    let p = prefix("bare1k");
+    clean(&p);
+    let (bare_1k, _) = bare_chain(&p, Some(1000.0), (bare_secs * 1000.0) as u64);
+    clean(&p);
+    rows.push(row_from("bare iceoryx2 chain, 4 hops, 1 kHz", &bare_1k));
+
+    // 2. Demo at 1 kHz with a separate-process subscriber.
+    let (demo, sub, cpu, sub_lost) = paced(
+        &root().join("pipelines/demo.toml"),
+        "demo",
+        "demo/corrected",
+        secs,
+        dir.path(),
+    );
+    let mut r = row_from_report("demo pipeline, 1 kHz, end to end (daemon)", &demo);
+    r.cpu = format!("{:.1}%", cpu * 100.0);
+    rows.push(r);
+    let mut r = row_from(
+        "demo, separate-process subscriber (ingest to receipt)",
+        &sub,
+    );
+    r.lost = sub_lost.to_string();
+    rows.push(r);
+
+    // 3. The paper's rate.
+    let (paper, _, cpu50, _) = paced(
+        &root().join("pipelines/adxrs450.toml"),
+        "adxrs",
+        "adxrs450/corrected",
+        (secs / 5.0).max(2.0),
+        dir.path(),
+    );
+    let mut r = row_from_report("adxrs450 pipeline, 50 Hz, 20 ms deadline", &paper);
+    r.cpu = format!("{:.1}%", cpu50 * 100.0);
+    rows.push(r);
+
+    // 4. As fast as possible: CSV replay through all stages, then the bare chain.
+    let csv = root().join("pipelines/data/replay.csv");
+    let text = std::fs::read_to_string(root().join("pipelines/replay.toml"))
+        .expect("replay.toml")
+        .replace(
+            "file = \"data/replay.csv\"",
+            &format!("file = {:?}", csv.display().to_string()),
+        )
+        .replace("pace = \"asap\"", "pace = \"asap\"\nloop = true");
+    let asap_file = dir.path().join("asap.toml");
+    std::fs::write(&asap_file, text).expect("write");
+    let p = prefix("asap");
+    clean(&p);
+    let report = dir.path().join("asap.json");
+    let asap_secs = (secs / 20.0).clamp(1.0, 5.0);
+    let mut child = start_daemon(
+        &asap_file,
+        &p,
+        &report,
+        &["--duration", &format!("{asap_secs}s")],
+    );
+    wait_exit(&mut child);
+    clean(&p);
+    let asap = read_report(&report);
+    let ours_tp =
+        asap["samples_out"].as_f64().unwrap_or(0.0) / asap["duration_s"].as_f64().unwrap_or(1.0);
+    let mut r = row_from_report("replay as fast as possible, all stages", &asap);
+    r.throughput = format!("{:.0}/s", ours_tp);
+    rows.push(r);
+    let p = prefix("bareasap");
+    clean(&p);
+    let (bare_asap, bare_tp) = bare_chain(
+        &p,
+        None,
+        1_000_000.min((bare_secs * 100_000.0) as u64).max(100_000),
+    );
+    clean(&p);
+    let mut r = row_from("bare iceoryx2 chain as fast as possible", &bare_asap);
+    r.throughput = format!("{:.0}/s", bare_tp);
+    rows.push(r);
+
+    println!();
+    println!("| run | samples | p50 us | p99 us | p99.9 us | max us | misses | lost | CPU | throughput |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.name,
+            r.samples,
+            us(r.p50),
+            us(r.p99),
+            us(r.p999),
+            us(r.max),
+            r.misses,
+            r.lost,
+            r.cpu,
+            r.throughput
+        );
+    }
+    let demo_p50 = demo["end_to_end_ns"]["p50"].as_f64().unwrap_or(0.0);
+    println!();
+    println!(
+        "overhead vs the bare chain: 1 kHz p50 x{:.2}; as-fast-as-possible throughput x{:.2} ({:.0} vs {:.0} samples/s)",
+        demo_p50 / bare_1k.value_at_quantile(0.5).max(1) as f64,
+        ours_tp / bare_tp.max(1.0),
+        ours_tp,
+        bare_tp
+    );
+    println!(
+        "targets: 1 kHz p50 <= 10 us: {}; p99.9 <= 50 us: {}; no 1 ms miss: {}; subscriber p99 <= 100 us: {}; CPU <= 5%: {}; 50 Hz no miss: {}; >= 500k samples/s: {}",
+        demo_p50 <= 10_000.0,
+        demo["end_to_end_ns"]["p999"].as_u64().unwrap_or(u64::MAX) <= 50_000,
+        demo["deadline_misses"] == 0,
+        sub.value_at_quantile(0.99) <= 100_000,
+        cpu <= 0.05,
+        paper["deadline_misses"] == 0,
+        ours_tp >= 500_000.0
+    );
+    println!(
+        "algorithmic delay of the demo's denoiser (lag / rate): {} us, reported beside the end-to-end latency",
+        us(demo["algorithmic_delay_ns"].as_u64().unwrap_or(0))
+    );
+}

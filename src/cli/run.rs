@@ -1,0 +1,132 @@
+//! `driftless run PIPELINE [--duration D] [--report FILE]`: the daemon.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Duration;
+
+use crate::cli::CliError;
+use crate::pipeline::config::{self, Pipeline};
+use crate::pipeline::runtime::{self, RunError, RunOptions};
+use crate::transport;
+
+/// Arguments of `driftless run`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Pipeline file (TOML).
+    pub pipeline: PathBuf,
+    /// Stop by itself after this long: "10s", "500ms", "2m" or seconds.
+    #[arg(long, value_parser = parse_duration)]
+    pub duration: Option<Duration>,
+    /// Write the final report as JSON to this file.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX and the pipeline's setting.
+    #[arg(long)]
+    pub prefix: Option<String>,
+    /// No periodic summary line on stderr (the final table is still printed).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Parse "10s", "250ms", "100us", "2m", "1h" or a plain number of seconds.
+pub fn parse_duration(s: &str) -> Result<Duration, String> {
+    let s = s.trim();
+    let (num, scale) = if let Some(v) = s.strip_suffix("ms") {
+        (v, 1e-3)
+    } else if let Some(v) = s.strip_suffix("us") {
+        (v, 1e-6)
+    } else if let Some(v) = s.strip_suffix('s') {
+        (v, 1.0)
+    } else if let Some(v) = s.strip_suffix('m') {
+        (v, 60.0)
+    } else if let Some(v) = s.strip_suffix('h') {
+        (v, 3600.0)
+    } else {
+        (s, 1.0)
+    };
+    let x: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a duration (e.g. 10s, 500ms, 2m)"))?;
+    if !(x.is_finite() && x > 0.0 && x * scale < 1e9) {
+        return Err(format!("{s:?} must be a positive duration"));
+    }
+    Ok(Duration::from_secs_f64(x * scale))
+}
+
+/// The iceoryx2 prefix in force: `--prefix`, else `DRIFTLESS_IOX2_PREFIX`, else the pipeline's.
+pub fn effective_prefix(cli: Option<&str>, pipeline_prefix: &str) -> Result<String, CliError> {
+    let prefix = match cli {
+        Some(p) => p.to_string(),
+        None => std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| pipeline_prefix.into()),
+    };
+    transport::check_prefix(&prefix)
+        .map_err(|e| CliError::input(format!("invalid iceoryx2 prefix {prefix:?}: {e}")))?;
+    Ok(prefix)
+}
+
+fn write_report(path: &Path, report: &crate::metrics::Report) -> Result<(), CliError> {
+    let json = serde_json::to_string_pretty(report)
+        .map_err(|e| CliError::internal(format!("report: {e}")))?;
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)
+        .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    std::io::Write::write_all(&mut tmp, json.as_bytes())
+        .map_err(|e| CliError::internal(format!("{}: {e}", path.display())))?;
+    tmp.persist(path)
+        .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    Ok(())
+}
+
+/// Run a pipeline until SIGINT/SIGTERM, `--duration`, or the end of a finite source.
+pub fn run(args: Args) -> Result<(), CliError> {
+    let pipeline: Pipeline = config::load(&args.pipeline)?;
+    let prefix = effective_prefix(args.prefix.as_deref(), &pipeline.iceoryx2.prefix)?;
+    if let Some(r) = &args.report {
+        if r.is_dir() {
+            return Err(CliError::input(format!(
+                "--report {}: is a directory",
+                r.display()
+            )));
+        }
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop))
+            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
+    }
+    let opts = RunOptions {
+        prefix,
+        duration: args.duration,
+        stop,
+        print_summary: !args.quiet,
+    };
+    let report = runtime::run(&pipeline, &opts).map_err(|e| match e {
+        RunError::AlreadyRunning { .. } => CliError::internal(e.to_string()),
+        other => CliError::internal(other.to_string()),
+    })?;
+    eprint!("{}", report.table());
+    if let Some(path) = &args.report {
+        write_report(path, &report)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations() {
+        assert_eq!(parse_duration("10s"), Ok(Duration::from_secs(10)));
+        assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
+        assert_eq!(parse_duration("2m"), Ok(Duration::from_secs(120)));
+        assert_eq!(parse_duration("1.5"), Ok(Duration::from_millis(1500)));
+        assert!(parse_duration("-1s").is_err());
+        assert!(parse_duration("soon").is_err());
+    }
+}

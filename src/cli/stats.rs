@@ -1,0 +1,72 @@
+//! `driftless stats PIPELINE`: show the live statistics a running daemon publishes.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crate::cli::run::effective_prefix;
+use crate::cli::CliError;
+use crate::pipeline::config;
+use crate::transport::{self, StatsSnapshot, Transport};
+
+/// Arguments of `driftless stats`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Pipeline file of the running daemon (for its stats service and prefix).
+    pub pipeline: PathBuf,
+    /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX and the pipeline's setting.
+    #[arg(long)]
+    pub prefix: Option<String>,
+    /// Print one snapshot and exit.
+    #[arg(long)]
+    pub once: bool,
+}
+
+/// Print every snapshot the daemon publishes until interrupted.
+pub fn run(args: Args) -> Result<(), CliError> {
+    transport::quiet_logging();
+    let p = config::load(&args.pipeline)?;
+    let prefix = effective_prefix(args.prefix.as_deref(), &p.iceoryx2.prefix)?;
+    let node = Transport::new(
+        &prefix,
+        &format!("driftless-stats-{}", std::process::id()),
+        Default::default(),
+    )
+    .map_err(|e| CliError::internal(e.to_string()))?;
+    let not_running = || {
+        CliError::internal(format!(
+            "no statistics from pipeline {:?} on {:?} (prefix {prefix:?}): is it running?",
+            p.name, p.iceoryx2.stats_service
+        ))
+    };
+    let input = node
+        .open_input::<StatsSnapshot>(&p.iceoryx2.stats_service)
+        .map_err(|_| not_running())?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop))
+            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
+    }
+    let patience = p.report_interval * 2 + Duration::from_secs(1);
+    let mut last = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        match input.receive() {
+            Ok(Some(s)) => {
+                print!("{}", crate::metrics::format_snapshot(&p.name, &s));
+                if args.once {
+                    return Ok(());
+                }
+                last = Instant::now();
+            }
+            Ok(None) => {
+                if last.elapsed() > patience {
+                    return Err(not_running());
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(e) => return Err(CliError::internal(e.to_string())),
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,510 @@
+//! Latency histograms (hdrhistogram) per stage and end to end, deadline accounting, the
+//! periodic one-line summary, the stats snapshot, the final table and the JSON report.
+//!
+//! The hot loop never touches a histogram: it collects one small [`Record`] per sample into a
+//! [`Batch`] and sends full batches (or every 50 ms) on a bounded crossbeam channel with
+//! `try_send` (never blocking; records of a batch that does not fit are counted in
+//! `metric_drops`); it keeps its counters locally and stores them into relaxed atomics
+//! ([`Counters`]) at each batch. The reporting thread
+//! ([`Reporter`]) owns the histograms.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, TryRecvError};
+use hdrhistogram::Histogram;
+use serde::Serialize;
+
+use crate::transport::{Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES};
+
+/// Most stages of a pipeline.
+pub const MAX_STAGES: usize = MAX_STATS_STAGES;
+
+/// Timing of one ingested sample through the chain.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Record {
+    /// Compute time of each stage that ran for this sample, ns (saturated at u32::MAX).
+    pub stage_ns: [u32; MAX_STAGES],
+    /// How many stages (from the first) ran.
+    pub stages_run: u8,
+    /// Ingest of this sample to publish of the output it completed, ns; 0 if none was published.
+    pub e2e_ns: u64,
+}
+
+/// How often the reporter drains the channel.
+const POLL: Duration = Duration::from_millis(10);
+
+/// Records per channel message: the hot loop batches them so the channel costs little.
+pub const BATCH: usize = 32;
+
+/// A batch of records (the first `len` are valid).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Batch {
+    /// Valid records.
+    pub len: usize,
+    /// The records.
+    pub records: [Record; BATCH],
+}
+
+impl Default for Batch {
+    fn default() -> Self {
+        Batch {
+            len: 0,
+            records: [Record::default(); BATCH],
+        }
+    }
+}
+
+/// Counters the hot loop publishes (relaxed atomics) and the reporter reads.
+#[derive(Debug, Default)]
+pub struct Counters {
+    /// Samples in, per stage.
+    pub stage_in: [AtomicU64; MAX_STAGES],
+    /// Samples out, per stage.
+    pub stage_out: [AtomicU64; MAX_STAGES],
+    /// End-to-end latencies above the deadline.
+    pub deadline_misses: AtomicU64,
+    /// Records the reporter could not take.
+    pub metric_drops: AtomicU64,
+    /// Non-finite or driver-invalid input samples.
+    pub invalid: AtomicU64,
+    /// Sequence gaps.
+    pub gaps: AtomicU64,
+    /// Sequence numbers missing.
+    pub missing: AtomicU64,
+    /// Timestamps going backwards.
+    pub backwards: AtomicU64,
+    /// Outputs repaired by the publish guard.
+    pub repaired: AtomicU64,
+}
+
+fn get(a: &AtomicU64) -> u64 {
+    a.load(Ordering::Relaxed)
+}
+
+/// Static description of the pipeline for the reports.
+#[derive(Debug, Clone)]
+pub struct Layout {
+    /// Pipeline name.
+    pub pipeline: String,
+    /// Stage names and kinds, chain order.
+    pub stages: Vec<(String, String)>,
+    /// Deadline.
+    pub deadline: Duration,
+    /// Algorithmic delay (sum of lags / rate).
+    pub algorithmic_delay: Duration,
+    /// Summary period.
+    pub interval: Duration,
+    /// Print the summary line on stderr.
+    pub print: bool,
+}
+
+/// Percentiles in a report, ns.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Pct {
+    /// Values recorded.
+    pub count: u64,
+    /// Minimum.
+    pub min: u64,
+    /// Median.
+    pub p50: u64,
+    /// 90th percentile.
+    pub p90: u64,
+    /// 99th percentile.
+    pub p99: u64,
+    /// 99.9th percentile.
+    pub p999: u64,
+    /// Maximum.
+    pub max: u64,
+    /// Mean.
+    pub mean: f64,
+}
+
+impl Pct {
+    fn of(h: &Histogram<u64>) -> Self {
+        if h.is_empty() {
+            return Pct::default();
+        }
+        Pct {
+            count: h.len(),
+            min: h.min(),
+            p50: h.value_at_quantile(0.5),
+            p90: h.value_at_quantile(0.9),
+            p99: h.value_at_quantile(0.99),
+            p999: h.value_at_quantile(0.999),
+            max: h.max(),
+            mean: h.mean(),
+        }
+    }
+
+    fn wire(&self) -> Percentiles {
+        Percentiles {
+            count: self.count,
+            p50: self.p50,
+            p99: self.p99,
+            p999: self.p999,
+            max: self.max,
+        }
+    }
+}
+
+/// One stage in the final report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StageReport {
+    /// Stage name.
+    pub name: String,
+    /// Kind.
+    pub kind: String,
+    /// Samples in.
+    pub samples_in: u64,
+    /// Samples out.
+    pub samples_out: u64,
+    /// Samples subscribers of its output lost (full buffers).
+    pub lost: u64,
+    /// Compute time per sample, ns.
+    pub compute_ns: Pct,
+}
+
+/// Flagged input.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Flagged {
+    /// Non-finite or driver-invalid samples (value held, flagged).
+    pub invalid: u64,
+    /// Sequence gaps.
+    pub gaps: u64,
+    /// Sequence numbers missing in the gaps.
+    pub missing: u64,
+    /// Timestamps that went backwards.
+    pub time_backwards: u64,
+    /// Outputs with a non-finite value replaced by 0.
+    pub repaired_outputs: u64,
+}
+
+/// The final report (`--report FILE` writes it as JSON).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// Pipeline name.
+    pub pipeline: String,
+    /// Wall time run, s.
+    pub duration_s: f64,
+    /// Samples ingested.
+    pub samples_in: u64,
+    /// Samples published by the last stage.
+    pub samples_out: u64,
+    /// Mean ingest rate, Hz.
+    pub rate_hz: f64,
+    /// Deadline, ns.
+    pub deadline_ns: u64,
+    /// Algorithmic delay of the chain, ns (reported beside the end-to-end latency).
+    pub algorithmic_delay_ns: u64,
+    /// Outputs over the deadline.
+    pub deadline_misses: u64,
+    /// Records the reporter could not take (histograms then miss those samples).
+    pub metric_drops: u64,
+    /// Samples lost by subscribers, all services.
+    pub lost: u64,
+    /// Flagged input.
+    pub flagged: Flagged,
+    /// End to end: ingest of the completing sample to publish, ns.
+    pub end_to_end_ns: Pct,
+    /// Per stage.
+    pub stages: Vec<StageReport>,
+}
+
+impl Report {
+    /// The human-readable table printed at exit.
+    pub fn table(&self) -> String {
+        let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
+        let mut s = String::new();
+        s.push_str(&format!(
+            "pipeline {}: {} in, {} out in {:.2} s ({:.0} Hz); deadline {} us, {} missed; \
+             algorithmic delay {} us\n",
+            self.pipeline,
+            self.samples_in,
+            self.samples_out,
+            self.duration_s,
+            self.rate_hz,
+            us(self.deadline_ns),
+            self.deadline_misses,
+            us(self.algorithmic_delay_ns)
+        ));
+        s.push_str(&format!(
+            "{:<14} {:<16} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+            "stage", "kind", "in", "out", "lost", "p50 us", "p99 us", "p99.9 us", "max us"
+        ));
+        for st in &self.stages {
+            s.push_str(&format!(
+                "{:<14} {:<16} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+                st.name,
+                st.kind,
+                st.samples_in,
+                st.samples_out,
+                st.lost,
+                us(st.compute_ns.p50),
+                us(st.compute_ns.p99),
+                us(st.compute_ns.p999),
+                us(st.compute_ns.max)
+            ));
+        }
+        let e = &self.end_to_end_ns;
+        s.push_str(&format!(
+            "{:<14} {:<16} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+            "end-to-end",
+            "",
+            e.count,
+            "",
+            self.lost,
+            us(e.p50),
+            us(e.p99),
+            us(e.p999),
+            us(e.max)
+        ));
+        let f = &self.flagged;
+        s.push_str(&format!(
+            "flagged: {} invalid, {} gaps ({} missing), {} time backwards, {} repaired; metric drops {}\n",
+            f.invalid, f.gaps, f.missing, f.time_backwards, f.repaired_outputs, self.metric_drops
+        ));
+        s
+    }
+}
+
+/// The reporting thread's state: histograms, counters, the periodic summary.
+pub struct Reporter {
+    layout: Layout,
+    counters: Arc<Counters>,
+    lost: Vec<Arc<AtomicU64>>,
+    stage_hist: Vec<Histogram<u64>>,
+    e2e: Histogram<u64>,
+    started: Instant,
+}
+
+fn histogram() -> Histogram<u64> {
+    // 1 ns .. 100 s at 3 significant digits; values above are clamped.
+    Histogram::new_with_bounds(1, 100_000_000_000, 3).expect("constant bounds are valid")
+}
+
+impl Reporter {
+    /// A reporter for `layout`, reading `counters` and the services' loss counters `lost`.
+    pub fn new(layout: Layout, counters: Arc<Counters>, lost: Vec<Arc<AtomicU64>>) -> Self {
+        let n = layout.stages.len();
+        Reporter {
+            layout,
+            counters,
+            lost,
+            stage_hist: (0..n).map(|_| histogram()).collect(),
+            e2e: histogram(),
+            started: Instant::now(),
+        }
+    }
+
+    fn record_batch(&mut self, b: &Batch) {
+        for r in &b.records[..b.len.min(BATCH)] {
+            self.record(r);
+        }
+    }
+
+    fn record(&mut self, r: &Record) {
+        let n = (r.stages_run as usize).min(self.stage_hist.len());
+        for (h, &ns) in self.stage_hist.iter_mut().zip(&r.stage_ns).take(n) {
+            h.saturating_record(u64::from(ns.max(1)));
+        }
+        if r.e2e_ns > 0 {
+            self.e2e.saturating_record(r.e2e_ns);
+        }
+    }
+
+    /// Consume records until the sender side is dropped; every interval print the summary
+    /// (if enabled) and hand a snapshot to `publish`. Returns the final report.
+    pub fn run(mut self, rx: Receiver<Batch>, mut publish: impl FnMut(&StatsSnapshot)) -> Report {
+        let mut next = Instant::now() + self.layout.interval;
+        let mut last_in = 0u64;
+        let mut last_t = Instant::now();
+        // Poll rather than block: a blocked receiver would make every `try_send` of the hot
+        // loop a futex wake-up (a system call and a context switch on the other core).
+        'outer: loop {
+            std::thread::sleep(POLL.min(next.saturating_duration_since(Instant::now())));
+            loop {
+                match rx.try_recv() {
+                    Ok(b) => self.record_batch(&b),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => break 'outer,
+                }
+            }
+            if Instant::now() < next {
+                continue;
+            }
+            let now = Instant::now();
+            let samples_in = get(&self.counters.stage_in[0]);
+            let rate = (samples_in - last_in) as f64 / (now - last_t).as_secs_f64().max(1e-9);
+            last_in = samples_in;
+            last_t = now;
+            let snap = self.snapshot(rate);
+            if self.layout.print {
+                eprintln!("{}", self.summary_line(&snap));
+            }
+            publish(&snap);
+            next = now + self.layout.interval;
+        }
+        let report = self.report();
+        publish(&self.snapshot(report.rate_hz));
+        report
+    }
+
+    fn summary_line(&self, s: &StatsSnapshot) -> String {
+        let us = |ns: u64| ns as f64 / 1e3;
+        format!(
+            "{}: {:.0} Hz, e2e p50 {:.1} us p99 {:.1} us p99.9 {:.1} us max {:.1} us, misses {}, lost {}, flagged {}, drops {}",
+            self.layout.pipeline,
+            s.rate_hz,
+            us(s.end_to_end.p50),
+            us(s.end_to_end.p99),
+            us(s.end_to_end.p999),
+            us(s.end_to_end.max),
+            s.deadline_misses,
+            s.lost,
+            s.flagged,
+            s.metric_drops
+        )
+    }
+
+    fn lost_total(&self) -> u64 {
+        self.lost.iter().map(|l| get(l)).sum()
+    }
+
+    fn flagged(&self) -> Flagged {
+        let c = &self.counters;
+        Flagged {
+            invalid: get(&c.invalid),
+            gaps: get(&c.gaps),
+            missing: get(&c.missing),
+            time_backwards: get(&c.backwards),
+            repaired_outputs: get(&c.repaired),
+        }
+    }
+
+    /// The current snapshot (cumulative histograms, `rate_hz` over the last interval).
+    pub fn snapshot(&self, rate_hz: f64) -> StatsSnapshot {
+        let c = &self.counters;
+        let f = self.flagged();
+        let mut stages = [StageStats::default(); MAX_STATS_STAGES];
+        for (i, ((name, _), h)) in self.layout.stages.iter().zip(&self.stage_hist).enumerate() {
+            let st = &mut stages[i];
+            let bytes = name.as_bytes();
+            let n = bytes.len().min(st.name.len());
+            st.name[..n].copy_from_slice(&bytes[..n]);
+            st.samples_in = get(&c.stage_in[i]);
+            st.samples_out = get(&c.stage_out[i]);
+            st.lost = self.lost.get(i).map_or(0, |l| get(l));
+            st.compute = Pct::of(h).wire();
+        }
+        let last = self.layout.stages.len().saturating_sub(1);
+        StatsSnapshot {
+            uptime_ns: self.started.elapsed().as_nanos() as u64,
+            samples_in: get(&c.stage_in[0]),
+            samples_out: get(&c.stage_out[last]),
+            rate_hz,
+            deadline_misses: get(&c.deadline_misses),
+            lost: self.lost_total(),
+            flagged: f.invalid + f.gaps + f.time_backwards + f.repaired_outputs,
+            gap_samples: f.missing,
+            metric_drops: get(&c.metric_drops),
+            deadline_ns: self.layout.deadline.as_nanos() as u64,
+            algorithmic_delay_ns: self.layout.algorithmic_delay.as_nanos() as u64,
+            end_to_end: Pct::of(&self.e2e).wire(),
+            stage_count: self.layout.stages.len() as u64,
+            stages,
+        }
+    }
+
+    /// The final report.
+    pub fn report(&self) -> Report {
+        let c = &self.counters;
+        let duration = self.started.elapsed().as_secs_f64();
+        let samples_in = get(&c.stage_in[0]);
+        let last = self.layout.stages.len().saturating_sub(1);
+        Report {
+            pipeline: self.layout.pipeline.clone(),
+            duration_s: duration,
+            samples_in,
+            samples_out: get(&c.stage_out[last]),
+            rate_hz: samples_in as f64 / duration.max(1e-9),
+            deadline_ns: self.layout.deadline.as_nanos() as u64,
+            algorithmic_delay_ns: self.layout.algorithmic_delay.as_nanos() as u64,
+            deadline_misses: get(&c.deadline_misses),
+            metric_drops: get(&c.metric_drops),
+            lost: self.lost_total(),
+            flagged: self.flagged(),
+            end_to_end_ns: Pct::of(&self.e2e),
+            stages: self
+                .layout
+                .stages
+                .iter()
+                .enumerate()
+                .map(|(i, (name, kind))| StageReport {
+                    name: name.clone(),
+                    kind: kind.clone(),
+                    samples_in: get(&c.stage_in[i]),
+                    samples_out: get(&c.stage_out[i]),
+                    lost: self.lost.get(i).map_or(0, |l| get(l)),
+                    compute_ns: Pct::of(&self.stage_hist[i]),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Decode a stage name from a snapshot.
+pub fn stage_name(s: &StageStats) -> String {
+    let end = s.name.iter().position(|&b| b == 0).unwrap_or(s.name.len());
+    String::from_utf8_lossy(&s.name[..end]).into_owned()
+}
+
+/// Format a snapshot for `driftless stats`.
+pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
+    let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
+    let mut out = format!(
+        "{name}: up {:.1} s, {} in, {} out, {:.0} Hz; deadline {} us, {} missed; lost {}, flagged {}, gap samples {}, metric drops {}\n",
+        s.uptime_ns as f64 / 1e9,
+        s.samples_in,
+        s.samples_out,
+        s.rate_hz,
+        us(s.deadline_ns),
+        s.deadline_misses,
+        s.lost,
+        s.flagged,
+        s.gap_samples,
+        s.metric_drops
+    );
+    out.push_str(&format!(
+        "{:<14} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+        "stage", "in", "out", "lost", "p50 us", "p99 us", "p99.9 us", "max us"
+    ));
+    let n = (s.stage_count as usize).min(MAX_STATS_STAGES);
+    for st in &s.stages[..n] {
+        out.push_str(&format!(
+            "{:<14} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+            stage_name(st),
+            st.samples_in,
+            st.samples_out,
+            st.lost,
+            us(st.compute.p50),
+            us(st.compute.p99),
+            us(st.compute.p999),
+            us(st.compute.max)
+        ));
+    }
+    let e = &s.end_to_end;
+    out.push_str(&format!(
+        "{:<14} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+        "end-to-end",
+        e.count,
+        "",
+        "",
+        us(e.p50),
+        us(e.p99),
+        us(e.p999),
+        us(e.max)
+    ));
+    out
+}

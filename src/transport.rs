@@ -1,0 +1,649 @@
+//! Everything iceoryx2: the wire types, the quality of service, node set-up, ports.
+//!
+//! This is the only module that imports `iceoryx2`; the rest of the crate sees plain Rust types
+//! ([`RawSample`], [`GyroSample`], [`StatsSnapshot`]) and the small port wrappers below.
+//!
+//! # Wire types
+//! All are `#[repr(C)]`, contain only `u64`/`u32`/`f64`/`u8` fields with no implicit padding,
+//! and carry a stable iceoryx2 type name so that C, C++ or Python subscribers can open the
+//! services with iceoryx2's own bindings. The byte layouts are documented on each type and in
+//! the README.
+//!
+//! # Quality of service
+//! One definition ([`Qos`]) is used for every service the daemon creates: history 0, safe
+//! overflow off, a publisher never blocks (backpressure strategy `DiscardData`): a subscriber
+//! whose buffer is full loses the new sample (it keeps the older ones it has not read) and the
+//! publisher counts the loss ([`Output::lost`]: subscribers registered minus served). Readers of our services open them without requirements, so they never
+//! conflict with the creator's settings.
+
+use std::fmt::Debug;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use iceoryx2::node::NodeView;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+/// The iceoryx2 service flavour used everywhere: inter-process, even inside one process
+/// (`local` lost wake-ups at high rates on our machines).
+type Svc = ipc::Service;
+
+type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
+
+/// Default iceoryx2 prefix of the daemon's files in `/dev/shm` and `/tmp/iceoryx2`.
+pub const DEFAULT_PREFIX: &str = "driftless_";
+
+/// Environment variable that overrides the iceoryx2 prefix (tests give each run its own).
+pub const PREFIX_ENV: &str = "DRIFTLESS_IOX2_PREFIX";
+
+/// Raw-sample flag: the sensor driver marks the sample as invalid.
+pub const RAW_INVALID: u32 = 1;
+
+/// Output flag: a stage is still filling (denoiser window, predictor warm-up).
+pub const FLAG_WARMING_UP: u32 = 1;
+/// Output flag: the input was NaN/Inf or marked invalid; the last valid value was held.
+pub const FLAG_INPUT_INVALID: u32 = 1 << 1;
+/// Output flag: one or more sequence numbers are missing before this sample.
+pub const FLAG_GAP_BEFORE: u32 = 1 << 2;
+/// Output flag: the sensor timestamp went backwards at this sample.
+pub const FLAG_TIME_BACKWARDS: u32 = 1 << 3;
+/// Output flag: emitted while draining at shutdown (a lagged stage's held samples).
+pub const FLAG_FLUSHED: u32 = 1 << 4;
+/// Output flag: a non-finite value was produced by a stage and replaced by 0 before publishing.
+pub const FLAG_OUTPUT_REPAIRED: u32 = 1 << 5;
+
+/// Type name of [`RawSample`] on the wire.
+pub const RAW_TYPE_NAME: &str = "driftless::RawSample";
+/// Type name of [`GyroSample`] on the wire.
+pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample";
+/// Type name of [`StatsSnapshot`] on the wire.
+pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
+
+/// A raw gyro sample as a sensor driver publishes it (48 bytes, 8-byte aligned).
+///
+/// | offset | type | field |
+/// |---:|---|---|
+/// | 0 | u64 | `t_ns` sensor timestamp, ns |
+/// | 8 | u64 | `seq` sequence number |
+/// | 16 | f64[3] | `rate` x, y, z in the pipeline's `input_units` |
+/// | 40 | u32 | `flags` (bit 0: [`RAW_INVALID`]) |
+/// | 44 | u32 | reserved, 0 |
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::RawSample")]
+pub struct RawSample {
+    /// Sensor timestamp in nanoseconds (any epoch, monotonic per sensor).
+    pub t_ns: u64,
+    /// Sequence number, +1 per sample; a jump is a gap.
+    pub seq: u64,
+    /// Angular rate per axis, in the pipeline's input units.
+    pub rate: [f64; 3],
+    /// Validity flags (bit 0: invalid).
+    pub flags: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
+
+/// A processed gyro sample: every hop after the ingest carries one (104 bytes, 8-byte aligned).
+///
+/// | offset | type | field |
+/// |---:|---|---|
+/// | 0 | u64 | `t_ns` sensor timestamp of this sample, ns |
+/// | 8 | u64 | `seq` sequence number, unchanged from the raw sample |
+/// | 16 | u64 | `ingest_ns` CLOCK_MONOTONIC ns when the sample completing this output was ingested |
+/// | 24 | f64[3] | `rate` corrected rate, rad/s (= denoised - drift) |
+/// | 48 | f64[3] | `drift` drift estimate, rad/s |
+/// | 72 | f64[3] | `denoised` denoised rate, rad/s |
+/// | 96 | u32 | `flags` ([`FLAG_WARMING_UP`], [`FLAG_INPUT_INVALID`], ...) |
+/// | 100 | u32 | reserved, 0 |
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::GyroSample")]
+pub struct GyroSample {
+    /// Sensor timestamp of this sample in nanoseconds.
+    pub t_ns: u64,
+    /// Sequence number, passed through every stage unchanged.
+    pub seq: u64,
+    /// CLOCK_MONOTONIC nanoseconds at the ingest of the sample that completed this output
+    /// (see [`monotonic_ns`]); a subscriber on the same host measures its latency from it.
+    pub ingest_ns: u64,
+    /// Corrected angular rate, rad/s.
+    pub rate: [f64; 3],
+    /// Drift estimate removed from `denoised`, rad/s.
+    pub drift: [f64; 3],
+    /// Denoised angular rate, rad/s.
+    pub denoised: [f64; 3],
+    /// Flags, see the `FLAG_*` constants.
+    pub flags: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
+
+/// Latency percentiles of one histogram, in nanoseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::Percentiles")]
+pub struct Percentiles {
+    /// Number of recorded values.
+    pub count: u64,
+    /// Median.
+    pub p50: u64,
+    /// 99th percentile.
+    pub p99: u64,
+    /// 99.9th percentile.
+    pub p999: u64,
+    /// Maximum.
+    pub max: u64,
+}
+
+/// Most stages a [`StatsSnapshot`] describes.
+pub const MAX_STATS_STAGES: usize = 8;
+
+/// One stage in a [`StatsSnapshot`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StageStats")]
+pub struct StageStats {
+    /// Stage name, UTF-8, NUL-padded (truncated to 32 bytes).
+    pub name: [u8; 32],
+    /// Samples that entered the stage.
+    pub samples_in: u64,
+    /// Samples the stage emitted.
+    pub samples_out: u64,
+    /// Samples a subscriber of the stage's output could not take (its buffer was full).
+    pub lost: u64,
+    /// Compute time per sample.
+    pub compute: Percentiles,
+}
+
+/// The daemon's statistics, published on the pipeline's stats service every report interval.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StatsSnapshot")]
+pub struct StatsSnapshot {
+    /// Nanoseconds since the pipeline started.
+    pub uptime_ns: u64,
+    /// Samples ingested.
+    pub samples_in: u64,
+    /// Samples published by the final stage.
+    pub samples_out: u64,
+    /// Ingest rate over the last interval, Hz.
+    pub rate_hz: f64,
+    /// Outputs whose end-to-end latency exceeded the deadline.
+    pub deadline_misses: u64,
+    /// Samples lost by subscribers of any of our services (full buffers).
+    pub lost: u64,
+    /// Samples flagged (invalid input, gap, time backwards).
+    pub flagged: u64,
+    /// Sequence numbers missing in the input.
+    pub gap_samples: u64,
+    /// Per-sample metric records the reporting thread could not take (histograms incomplete).
+    pub metric_drops: u64,
+    /// The deadline, ns.
+    pub deadline_ns: u64,
+    /// Algorithmic delay of the chain (sum of the stages' lags / rate), ns.
+    pub algorithmic_delay_ns: u64,
+    /// End-to-end latency: ingest of the completing sample to publish of the output.
+    pub end_to_end: Percentiles,
+    /// Number of valid entries in `stages`.
+    pub stage_count: u64,
+    /// Per-stage statistics.
+    pub stages: [StageStats; MAX_STATS_STAGES],
+}
+
+/// CLOCK_MONOTONIC in nanoseconds: comparable between processes on one host.
+pub fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC is always available on Linux.
+    unsafe {
+        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+    }
+    (ts.tv_sec as u64)
+        .wrapping_mul(1_000_000_000)
+        .wrapping_add(ts.tv_nsec as u64)
+}
+
+/// A transport failure, with what was being done.
+#[derive(Debug, thiserror::Error)]
+pub enum TransportError {
+    /// A service, port or node name is not acceptable to iceoryx2.
+    #[error("invalid name {name:?}: {reason}")]
+    Name {
+        /// The name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// Setting up a node, service or port failed.
+    #[error("{what} {name:?}: {reason}")]
+    Setup {
+        /// What was being set up.
+        what: &'static str,
+        /// Its name.
+        name: String,
+        /// iceoryx2's error.
+        reason: String,
+    },
+    /// Sending or receiving failed at run time.
+    #[error("{what}: {reason}")]
+    Io {
+        /// What failed.
+        what: &'static str,
+        /// iceoryx2's error.
+        reason: String,
+    },
+}
+
+fn setup(what: &'static str, name: &str, e: impl Debug) -> TransportError {
+    TransportError::Setup {
+        what,
+        name: name.to_string(),
+        reason: format!("{e:?}"),
+    }
+}
+
+/// Quality of service of every service the daemon creates (one definition, see module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Qos {
+    /// Samples a subscriber can hold before it loses new ones.
+    pub buffer_size: usize,
+    /// Subscribers per service (the daemon's own hop takes one).
+    pub max_subscribers: usize,
+}
+
+impl Default for Qos {
+    fn default() -> Self {
+        Qos {
+            buffer_size: 256,
+            max_subscribers: 8,
+        }
+    }
+}
+
+/// Check that `name` is a valid iceoryx2 service name.
+pub fn check_service_name(name: &str) -> Result<(), String> {
+    ServiceName::new(name)
+        .map(|_| ())
+        .map_err(|e| format!("{e:?}"))
+}
+
+/// Check that `prefix` is a valid iceoryx2 prefix (a file name).
+pub fn check_prefix(prefix: &str) -> Result<(), String> {
+    FileName::new(prefix.as_bytes())
+        .map(|_| ())
+        .map_err(|e| format!("{e:?}"))
+}
+
+fn service_name(name: &str) -> Result<ServiceName, TransportError> {
+    ServiceName::new(name).map_err(|e| TransportError::Name {
+        name: name.to_string(),
+        reason: format!("{e:?}"),
+    })
+}
+
+/// The explicit iceoryx2 configuration (never the silently discovered `config/iceoryx2.toml`).
+fn config(prefix: &str) -> Result<Config, TransportError> {
+    let mut cfg = Config::default();
+    cfg.global.prefix = FileName::new(prefix.as_bytes()).map_err(|e| TransportError::Name {
+        name: prefix.to_string(),
+        reason: format!("{e:?}"),
+    })?;
+    Ok(cfg)
+}
+
+/// Quiet iceoryx2's own logging unless `IOX2_LOG_LEVEL` asks for it.
+pub fn quiet_logging() {
+    set_log_level_from_env_or(LogLevel::Fatal);
+}
+
+/// One iceoryx2 node and the ports it creates. Not `Send`: create it in the thread that uses it.
+pub struct Transport {
+    node: Node<Svc>,
+    qos: Qos,
+    prefix: String,
+}
+
+impl Transport {
+    /// Create a node named `node_name` under `prefix`. Creating a node also removes the
+    /// resources of dead nodes (a daemon killed with SIGKILL) of the same prefix.
+    pub fn new(prefix: &str, node_name: &str, qos: Qos) -> Result<Self, TransportError> {
+        let cfg = config(prefix)?;
+        let name = NodeName::new(node_name).map_err(|e| TransportError::Name {
+            name: node_name.to_string(),
+            reason: format!("{e:?}"),
+        })?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&cfg)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Svc>()
+            .map_err(|e| setup("node", node_name, e))?;
+        node.try_cleanup_dead_nodes();
+        Ok(Transport {
+            node,
+            qos,
+            prefix: prefix.to_string(),
+        })
+    }
+
+    /// The prefix this node lives under.
+    pub fn prefix(&self) -> &str {
+        &self.prefix
+    }
+
+    /// Remove the resources of dead nodes of this prefix; returns how many were cleaned.
+    pub fn cleanup_dead_nodes(&self) -> u64 {
+        self.node.try_cleanup_dead_nodes().cleanups
+    }
+
+    /// Number of live nodes named `node_name` under `prefix`, other than the caller's.
+    pub fn live_nodes_named(prefix: &str, node_name: &str) -> Result<usize, TransportError> {
+        let cfg = config(prefix)?;
+        let mut count = 0;
+        Node::<Svc>::list(&cfg, |state| {
+            if let NodeState::Alive(view) = &state {
+                if let Some(details) = view.details() {
+                    if details.name().as_str() == node_name {
+                        count += 1;
+                    }
+                }
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
+        Ok(count)
+    }
+
+    /// Number of nodes (alive or dead) under `prefix`.
+    pub fn node_count(prefix: &str) -> Result<usize, TransportError> {
+        let cfg = config(prefix)?;
+        let mut count = 0;
+        Node::<Svc>::list(&cfg, |_| {
+            count += 1;
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
+        Ok(count)
+    }
+
+    fn pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>,
+        TransportError,
+    > {
+        self.node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .history_size(0)
+            .enable_safe_overflow(false)
+            .subscriber_max_buffer_size(self.qos.buffer_size)
+            .max_subscribers(self.qos.max_subscribers)
+            .max_publishers(1)
+            .open_or_create()
+            .map_err(|e| setup("service", name, e))
+    }
+
+    /// The publishing side of service `name`, with an event service of the same name that is
+    /// notified after every send when `notify` is set (so readers can sleep until data comes).
+    /// Fails if another process already publishes on it (one publisher per service).
+    pub fn output<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+        notify: bool,
+    ) -> Result<Output<T>, TransportError> {
+        let service = self.pubsub::<T>(name)?;
+        let lost = Arc::new(AtomicU64::new(0));
+        let publisher = service
+            .publisher_builder()
+            .backpressure_strategy(BackpressureStrategy::DiscardData)
+            .create()
+            .map_err(|e| setup("publisher (is another daemon running?)", name, e))?;
+        let notifier = if notify {
+            let event = self
+                .node
+                .service_builder(&service_name(name)?)
+                .event()
+                .open_or_create()
+                .map_err(|e| setup("event service", name, e))?;
+            Some(
+                event
+                    .notifier_builder()
+                    .create()
+                    .map_err(|e| setup("notifier", name, e))?,
+            )
+        } else {
+            None
+        };
+        Ok(Output {
+            service,
+            publisher,
+            notifier,
+            lost,
+        })
+    }
+
+    /// A subscriber to service `name`, created with our QoS if it does not exist yet.
+    pub fn input<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<Input<T>, TransportError> {
+        let service = self.pubsub::<T>(name)?;
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(self.qos.buffer_size)
+            .create()
+            .map_err(|e| setup("subscriber", name, e))?;
+        Ok(Input { subscriber })
+    }
+
+    /// A subscriber to an existing service `name` whatever its creator's QoS (for `tap`,
+    /// `stats` and external consumers), with the largest buffer the service allows.
+    pub fn open_input<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<Input<T>, TransportError> {
+        let service = self
+            .node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .open()
+            .map_err(|e| setup("service", name, e))?;
+        let max = service.static_config().subscriber_max_buffer_size();
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(max)
+            .create()
+            .map_err(|e| setup("subscriber", name, e))?;
+        Ok(Input { subscriber })
+    }
+
+    /// A listener on the event service `name` (opened or created), to sleep until a publisher
+    /// announces new data.
+    pub fn waker(&self, name: &str) -> Result<Waker, TransportError> {
+        let event = self
+            .node
+            .service_builder(&service_name(name)?)
+            .event()
+            .open_or_create()
+            .map_err(|e| setup("event service", name, e))?;
+        let listener = event
+            .listener_builder()
+            .create()
+            .map_err(|e| setup("listener", name, e))?;
+        Ok(Waker { listener })
+    }
+
+    /// Whether a publish-subscribe service `name` of type `T` exists under this prefix.
+    pub fn service_exists<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<bool, TransportError> {
+        let sn = service_name(name)?;
+        ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
+            .map_err(|e| setup("service lookup", name, e))
+    }
+}
+
+/// Remove the files iceoryx2 leaves for `prefix` once no node of it is left (the per-prefix
+/// management file in `/dev/shm`). Does nothing while a node of the prefix is alive.
+pub fn remove_prefix_leftovers(prefix: &str) {
+    if Transport::node_count(prefix).map_or(true, |n| n > 0) {
+        return;
+    }
+    for dir in ["/dev/shm", "/tmp/iceoryx2"] {
+        remove_files_with_prefix(std::path::Path::new(dir), prefix);
+    }
+}
+
+fn remove_files_with_prefix(dir: &std::path::Path, prefix: &str) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name();
+        if !name.to_string_lossy().starts_with(prefix) {
+            if path.is_dir() {
+                remove_files_with_prefix(&path, prefix);
+            }
+            continue;
+        }
+        if path.is_dir() {
+            let _ = std::fs::remove_dir_all(&path);
+        } else {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
+}
+
+/// The sending side of one service. Sending never blocks: a subscriber with a full buffer
+/// loses the sample, counted in [`Output::lost`].
+pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
+    service: PubSubFactory<T>,
+    publisher: Publisher<Svc, T, ()>,
+    notifier: Option<Notifier<Svc>>,
+    lost: Arc<AtomicU64>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
+    /// Publish a copy of `value` (zero-copy into shared memory); returns the number of
+    /// subscribers that received it. Does not notify: call [`Output::notify`] after it.
+    /// Allocation-free on our side (iceoryx2 0.10 allocates one small `Arc` per loan).
+    pub fn send(&self, value: &T) -> Result<usize, TransportError> {
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| TransportError::Io {
+                what: "loan",
+                reason: format!("{e:?}"),
+            })?;
+        let n = sample
+            .write_payload(*value)
+            .send()
+            .map_err(|e| TransportError::Io {
+                what: "send",
+                reason: format!("{e:?}"),
+            })?;
+        // Subscribers registered on the service but not served: their buffers were full.
+        let subscribers = self.service.dynamic_config().number_of_subscribers();
+        if n < subscribers {
+            self.lost
+                .fetch_add((subscribers - n) as u64, Ordering::Relaxed);
+        }
+        Ok(n)
+    }
+
+    /// Wake the readers sleeping on the event service of the same name (if this output was
+    /// created with `notify`). A separate call so the caller can timestamp the publish first.
+    pub fn notify(&self) {
+        if let Some(notifier) = &self.notifier {
+            // A failed wake-up only delays a reader until its own timeout.
+            let _ = notifier.notify();
+        }
+    }
+
+    /// Samples that subscribers could not take so far (their buffers were full).
+    pub fn lost(&self) -> u64 {
+        self.lost.load(Ordering::Relaxed)
+    }
+
+    /// A handle on the loss counter, readable from another thread.
+    pub fn lost_counter(&self) -> Arc<AtomicU64> {
+        Arc::clone(&self.lost)
+    }
+}
+
+/// The receiving side of one service.
+pub struct Input<T: Debug + ZeroCopySend + Copy + 'static> {
+    subscriber: Subscriber<Svc, T, ()>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Input<T> {
+    /// The oldest sample not yet taken, copied out of shared memory. Allocation-free.
+    pub fn receive(&self) -> Result<Option<T>, TransportError> {
+        match self.subscriber.receive() {
+            Ok(Some(sample)) => Ok(Some(*sample.payload())),
+            Ok(None) => Ok(None),
+            Err(e) => Err(TransportError::Io {
+                what: "receive",
+                reason: format!("{e:?}"),
+            }),
+        }
+    }
+}
+
+/// Sleeps until a publisher notifies (or a timeout passes).
+pub struct Waker {
+    listener: Listener<Svc>,
+}
+
+impl Waker {
+    /// Wait up to `timeout` for a notification; consumes all pending ones.
+    pub fn wait(&self, timeout: Duration) -> Result<(), TransportError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| TransportError::Io {
+                what: "wait",
+                reason: format!("{e:?}"),
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_layouts_are_the_documented_ones() {
+        assert_eq!(std::mem::size_of::<RawSample>(), 48);
+        assert_eq!(std::mem::align_of::<RawSample>(), 8);
+        assert_eq!(std::mem::offset_of!(RawSample, rate), 16);
+        assert_eq!(std::mem::offset_of!(RawSample, flags), 40);
+        assert_eq!(std::mem::size_of::<GyroSample>(), 104);
+        assert_eq!(std::mem::offset_of!(GyroSample, ingest_ns), 16);
+        assert_eq!(std::mem::offset_of!(GyroSample, rate), 24);
+        assert_eq!(std::mem::offset_of!(GyroSample, drift), 48);
+        assert_eq!(std::mem::offset_of!(GyroSample, denoised), 72);
+        assert_eq!(std::mem::offset_of!(GyroSample, flags), 96);
+    }
+
+    #[test]
+    fn type_names_are_stable() {
+        // SAFETY: type_name only returns the static string of the derive attribute.
+        unsafe {
+            assert_eq!(RawSample::type_name(), RAW_TYPE_NAME);
+            assert_eq!(GyroSample::type_name(), GYRO_TYPE_NAME);
+            assert_eq!(StatsSnapshot::type_name(), STATS_TYPE_NAME);
+        }
+    }
+}

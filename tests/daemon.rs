@@ -1,0 +1,513 @@
+//! The daemon end to end: the real binary, and this test process as a separate subscriber and
+//! sensor driver over iceoryx2. Each test has its own iceoryx2 prefix and cleans up after itself.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::{csv, finish, signal, start, wait_ready, Dir, Prefix};
+use driftless::transport::{
+    GyroSample, Qos, RawSample, Transport, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
+    FLAG_TIME_BACKWARDS, RAW_INVALID,
+};
+use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
+use driftless::wavelet::threshold::ThresholdFn;
+
+const SIGTERM: i32 = 15;
+const SIGKILL: i32 = 9;
+
+/// A pipeline reading raw samples from `t/sensor` (this test publishes them).
+fn external_pipeline(denoise: &str, buffer: usize) -> String {
+    format!(
+        r#"
+name = "t"
+rate_hz = 1000.0
+axes = 3
+input_units = "rad/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {buffer}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.iceoryx2"
+input = "t/sensor"
+output = "t/raw"
+
+[[stage]]
+name = "denoise"
+{denoise}
+input = "t/raw"
+output = "t/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "t/denoised"
+output = "t/predicted"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "t/predicted"
+output = "t/corrected"
+"#
+    )
+}
+
+fn csv_pipeline(pace: &str, looped: bool, buffer: usize) -> String {
+    format!(
+        r#"
+name = "c"
+rate_hz = 1000.0
+input_units = "deg/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {buffer}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "c/raw"
+file = "data.csv"
+time_column = "t"
+pace = "{pace}"
+loop = {looped}
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "c/raw"
+output = "c/denoised"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "c/denoised"
+output = "c/corrected"
+"#
+    )
+}
+
+fn qos(buffer: usize) -> Qos {
+    Qos {
+        buffer_size: buffer,
+        max_subscribers: 8,
+    }
+}
+
+fn raw(seq: u64, t_ns: u64, rate: [f64; 3]) -> RawSample {
+    RawSample {
+        t_ns,
+        seq,
+        rate,
+        flags: 0,
+        reserved: 0,
+    }
+}
+
+/// Receive until `n` samples came or `timeout` passed.
+fn collect(
+    input: &driftless::transport::Input<GyroSample>,
+    n: usize,
+    timeout: Duration,
+) -> Vec<GyroSample> {
+    let mut got = Vec::with_capacity(n);
+    let end = Instant::now() + timeout;
+    while got.len() < n && Instant::now() < end {
+        match input.receive().expect("receive") {
+            Some(s) => got.push(s),
+            None => std::thread::sleep(Duration::from_micros(200)),
+        }
+    }
+    got
+}
+
+fn report(dir: &Dir) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.path("report.json")).expect("report written");
+    serde_json::from_str(&text).expect("report is JSON")
+}
+
+#[test]
+fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
+    const N: usize = 1500;
+    let prefix = Prefix::new("order");
+    let dir = Dir::new();
+    let denoise = "kind = \"denoise.wavelet\"\nwavelet = \"db4\"\nlevel = 4\nthreshold = \"soft\"\nwindow = 256\nlag = 32";
+    let file = dir.write("p.toml", &external_pipeline(denoise, 4096));
+    let report_path = dir.path("report.json");
+
+    // This process: the sensor driver and the navigation subscriber.
+    let me = Transport::new(&prefix.0, "test", qos(4096)).expect("node");
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let sensor = me
+        .output::<RawSample>("t/sensor", true)
+        .expect("sensor publisher");
+
+    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "t/stats", &mut child);
+
+    let input: Vec<[f64; 3]> = (0..N)
+        .map(|i| {
+            let t = i as f64 * 1e-3;
+            [
+                (t * 9.0).sin() + 0.3 * ((i * 7919 % 23) as f64 / 23.0 - 0.5),
+                (t * 2.0).cos(),
+                ((i * 104_729 % 31) as f64 / 31.0) - 0.5,
+            ]
+        })
+        .collect();
+    for (i, r) in input.iter().enumerate() {
+        let delivered = sensor
+            .send(&raw(i as u64, i as u64 * 1_000_000, *r))
+            .expect("send");
+        assert_eq!(delivered, 1, "the daemon subscribes to the sensor service");
+        if i % 64 == 63 {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+    // Everything but the lag comes out while running; the rest at the drain.
+    let mut got = collect(&corrected, N - 32, Duration::from_secs(10));
+    signal(&child, SIGTERM);
+    got.extend(collect(&corrected, 32, Duration::from_secs(10)));
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+
+    assert_eq!(got.len(), N, "all samples arrive");
+    let cfg = StreamConfig {
+        wavelet: "db4".into(),
+        level: 4,
+        threshold: ThresholdFn::Soft,
+        window: 256,
+        lag: 32,
+        sigma: Sigma::Mad,
+    };
+    let mut expected = vec![[0.0; 3]; N];
+    for axis in 0..3 {
+        let mut d = StreamingDenoiser::new(&cfg).unwrap();
+        let mut out = Vec::new();
+        for r in &input {
+            out.extend(d.push(r[axis]));
+        }
+        while let Some(v) = d.flush() {
+            out.push(v);
+        }
+        assert_eq!(out.len(), N);
+        for (e, v) in expected.iter_mut().zip(out) {
+            e[axis] = v;
+        }
+    }
+    for (i, s) in got.iter().enumerate() {
+        assert_eq!(s.seq, i as u64, "in order, exactly once");
+        assert_eq!(s.t_ns, i as u64 * 1_000_000);
+        assert_eq!(
+            s.rate, expected[i],
+            "sample {i} equals the offline computation"
+        );
+        assert_eq!(s.denoised, expected[i]);
+        assert_eq!(s.drift, [0.0; 3]);
+    }
+    let r = report(&dir);
+    assert_eq!(r["samples_in"], N as u64);
+    assert_eq!(r["samples_out"], N as u64);
+    assert_eq!(r["lost"], 0);
+    assert!(r["end_to_end_ns"]["p50"].as_u64().unwrap() > 0);
+    assert_eq!(r["stages"].as_array().unwrap().len(), 4);
+}
+
+#[test]
+fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
+    let prefix = Prefix::new("bad");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+    let report_path = dir.path("report.json");
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let sensor = me
+        .output::<RawSample>("t/sensor", true)
+        .expect("sensor publisher");
+    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "t/stats", &mut child);
+
+    let mut invalid = raw(4, 4_000, [1.0, 1.0, 1.0]);
+    invalid.flags = RAW_INVALID;
+    let samples = [
+        raw(0, 0, [1.0, 2.0, 3.0]),
+        raw(1, 1_000, [f64::NAN, 2.0, 3.0]),
+        raw(2, 2_000, [1.0, f64::INFINITY, 3.0]),
+        raw(3, 1_500, [4.0, 5.0, 6.0]), // time backwards
+        invalid,
+        raw(9, 9_000, [7.0, 8.0, 9.0]), // gap of 4
+    ];
+    for s in &samples {
+        sensor.send(s).expect("send");
+    }
+    let got = collect(&corrected, samples.len(), Duration::from_secs(10));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(
+        code,
+        Some(0),
+        "the daemon kept running and stopped cleanly: {err}"
+    );
+    assert_eq!(got.len(), samples.len());
+    for s in &got {
+        assert!(
+            s.rate.iter().chain(&s.denoised).all(|v| v.is_finite()),
+            "{s:?}"
+        );
+    }
+    assert_eq!(got[0].flags, 0);
+    assert_eq!(got[1].flags, FLAG_INPUT_INVALID);
+    assert_eq!(got[1].rate, [1.0, 2.0, 3.0], "last good value held");
+    assert_eq!(got[2].flags, FLAG_INPUT_INVALID);
+    assert_eq!(got[3].flags, FLAG_TIME_BACKWARDS);
+    assert_eq!(got[3].rate, [4.0, 5.0, 6.0]);
+    assert_eq!(got[4].flags, FLAG_INPUT_INVALID);
+    assert_eq!(got[5].flags, FLAG_GAP_BEFORE);
+    assert_eq!(got[5].seq, 9);
+    let r = report(&dir);
+    assert_eq!(r["flagged"]["invalid"], 3);
+    assert_eq!(r["flagged"]["gaps"], 1);
+    assert_eq!(r["flagged"]["missing"], 4);
+    assert_eq!(r["flagged"]["time_backwards"], 1);
+}
+
+#[test]
+fn sigterm_drains_reports_exits_zero_and_leaves_nothing_behind() {
+    let prefix = Prefix::new("term");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let file = dir.write("p.toml", &csv_pipeline("realtime", true, 64));
+    let report_path = dir.path("report.json");
+    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert!(err.contains("end-to-end"), "final table printed: {err}");
+    let r = report(&dir);
+    let n = r["samples_in"].as_u64().unwrap();
+    assert!(n > 100, "ran at ~1 kHz for 300 ms: {n}");
+    assert_eq!(
+        r["samples_out"], n,
+        "drained: every ingested sample published"
+    );
+    // The probe node of wait_ready is gone too; nothing of this prefix may remain.
+    let left = prefix.leftovers();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn after_sigkill_the_next_start_cleans_up_and_runs() {
+    let prefix = Prefix::new("kill");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let file = dir.write("p.toml", &csv_pipeline("realtime", true, 64));
+    let mut child = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    std::thread::sleep(Duration::from_millis(100));
+    signal(&child, SIGKILL);
+    let _ = finish(child, Duration::from_secs(10));
+    assert!(
+        !prefix.leftovers().is_empty(),
+        "a SIGKILL leaves stale files"
+    );
+
+    let report_path = dir.path("report.json");
+    let child = start(
+        &file,
+        &prefix,
+        &[
+            "--duration",
+            "300ms",
+            "--report",
+            report_path.to_str().unwrap(),
+        ],
+    );
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let r = report(&dir);
+    assert!(r["samples_out"].as_u64().unwrap() > 100);
+    let left = prefix.leftovers();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn a_second_daemon_for_the_same_pipeline_is_refused() {
+    let prefix = Prefix::new("twice");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let file = dir.write("p.toml", &csv_pipeline("realtime", true, 64));
+    let mut first = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut first);
+    let second = start(&file, &prefix, &[]);
+    let (code, err) = finish(second, Duration::from_secs(10));
+    assert_eq!(code, Some(1));
+    assert!(err.contains("already running"), "stderr: {err}");
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first daemon still runs"
+    );
+    signal(&first, SIGTERM);
+    let (code, err) = finish(first, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+}
+
+#[test]
+fn a_stalled_subscriber_never_blocks_the_pipeline_and_its_losses_are_counted() {
+    const N: usize = 3000;
+    let prefix = Prefix::new("stall");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(N));
+    let file = dir.write("p.toml", &csv_pipeline("asap", false, 16));
+    let report_path = dir.path("report.json");
+    // Subscribes and never reads.
+    let me = Transport::new(&prefix.0, "staller", qos(16)).expect("node");
+    let stalled = me.input::<GyroSample>("c/corrected").expect("subscriber");
+    let t0 = Instant::now();
+    let child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert!(t0.elapsed() < Duration::from_secs(10));
+    let r = report(&dir);
+    assert_eq!(r["samples_out"], N as u64, "the pipeline ran through");
+    let publish = &r["stages"][2];
+    assert_eq!(publish["name"], "publish");
+    assert_eq!(
+        publish["lost"],
+        (N - 16) as u64,
+        "what the subscriber lost is counted"
+    );
+    drop(stalled);
+}
+
+#[test]
+fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
+    let prefix = Prefix::new("cfg");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(10));
+    let good = csv_pipeline("asap", false, 16);
+    let cases: Vec<(&str, String, &str)> = vec![
+        ("unknown-key", good.replace("rate_hz = 1000.0", "rate_hz = 1000.0\nrate = 5"), "unknown field `rate`"),
+        ("unknown-kind", good.replace("kind = \"publish\"", "kind = \"publsh\""), "unknown kind"),
+        ("wrong-type", good.replace("rate_hz = 1000.0", "rate_hz = \"fast\""), "invalid type"),
+        ("out-of-range", good.replace("buffer_size = 16", "buffer_size = 0"), "buffer_size must be in"),
+        ("dangling", good.replace("input = \"c/denoised\"", "input = \"c/nowhere\""), "dangling input"),
+        ("duplicate-output", good.replace("output = \"c/corrected\"", "output = \"c/denoised\""), "already the output"),
+        ("stage-key", good.replace("pace = \"asap\"", "pace = \"asap\"\nspeed = 2"), "unknown field `speed`"),
+        ("bad-pace", good.replace("pace = \"asap\"", "pace = \"fast\""), "unknown pace"),
+        ("missing-file", good.replace("data.csv", "none.csv"), "no such file"),
+        ("syntax", good.replace("rate_hz = 1000.0", "rate_hz = = 1"), ""),
+        (
+            "cycle",
+            format!("{good}\n[[stage]]\nname = \"a\"\nkind = \"denoise.none\"\ninput = \"c/x\"\noutput = \"c/y\"\n[[stage]]\nname = \"b\"\nkind = \"denoise.none\"\ninput = \"c/y\"\noutput = \"c/x\"\n"),
+            "cycle",
+        ),
+        (
+            "bad-lag",
+            external_pipeline("kind = \"denoise.wavelet\"\nwavelet = \"db2\"\nlevel = 2\nlag = 99", 16),
+            "lag must be in 0..=9",
+        ),
+        ("rbf", external_pipeline("kind = \"predict.rbf\"", 16), "not available yet"),
+    ];
+    for (name, text, message) in cases {
+        let file = dir.write(&format!("{name}.toml"), &text);
+        for cmd in ["validate", "run"] {
+            let out = std::process::Command::new(common::bin())
+                .arg(cmd)
+                .arg(&file)
+                .args(if cmd == "run" {
+                    vec!["--prefix", prefix.0.as_str()]
+                } else {
+                    vec![]
+                })
+                .output()
+                .expect("run driftless");
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{name} {cmd}: {err}");
+            let shown = format!("{}:", file.display());
+            assert!(err.contains(&shown), "{name}: names the file: {err}");
+            let after = &err[err.find(&shown).unwrap() + shown.len()..];
+            let mut parts = after.splitn(3, ':');
+            let line: u32 = parts
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap_or_else(|_| panic!("{name}: line in {err}"));
+            let col: u32 = parts
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap_or_else(|_| panic!("{name}: column in {err}"));
+            assert!(line >= 1 && col >= 1);
+            assert!(err.contains(message), "{name}: {err}");
+        }
+        assert!(prefix.leftovers().is_empty(), "{name}: nothing started");
+    }
+}
+
+#[test]
+fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
+    let prefix = Prefix::new("tools");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let text = csv_pipeline("realtime", true, 64)
+        .replace("report_interval_s = 60.0", "report_interval_s = 0.2");
+    let file = dir.write("p.toml", &text);
+    let mut child = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    let tap = std::process::Command::new(common::bin())
+        .args(["tap", "c/corrected", "--prefix", &prefix.0, "--count", "5"])
+        .output()
+        .expect("tap");
+    assert_eq!(tap.status.code(), Some(0));
+    let lines: Vec<String> = String::from_utf8_lossy(&tap.stdout)
+        .lines()
+        .map(String::from)
+        .collect();
+    assert_eq!(lines.len(), 5, "{lines:?}");
+    let seqs: Vec<u64> = lines
+        .iter()
+        .map(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .and_then(|v| v.parse().ok())
+                .expect("seq")
+        })
+        .collect();
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "{seqs:?}");
+    let raw = std::process::Command::new(common::bin())
+        .args(["tap", "c/raw", "--prefix", &prefix.0, "--count", "1"])
+        .output()
+        .expect("tap raw");
+    assert!(String::from_utf8_lossy(&raw.stdout).contains("flags"));
+    let stats = std::process::Command::new(common::bin())
+        .arg("stats")
+        .arg(&file)
+        .args(["--prefix", &prefix.0, "--once"])
+        .output()
+        .expect("stats");
+    let out = String::from_utf8_lossy(&stats.stdout);
+    assert_eq!(
+        stats.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&stats.stderr)
+    );
+    assert!(
+        out.contains("end-to-end") && out.contains("denoise") && out.contains("publish"),
+        "{out}"
+    );
+    let missing = std::process::Command::new(common::bin())
+        .args(["tap", "c/nothing", "--prefix", &prefix.0, "--count", "1"])
+        .output()
+        .expect("tap");
+    assert_eq!(missing.status.code(), Some(2));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+}

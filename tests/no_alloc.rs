@@ -1,0 +1,159 @@
+//! No heap allocation per sample on the hot path: the hot loop runs on the calling thread, so
+//! count that thread's allocations for a short and a long run of the same pipeline; set-up costs
+//! the same in both, so any per-sample allocation shows up as a difference of thousands.
+//!
+//! One exception is not ours: iceoryx2 0.10's `Publisher::loan_uninit` allocates a small
+//! reference-counted state per loaned sample (`ChunkMutSharedState`). The test measures that
+//! cost per send on a bare service first and allows exactly that much per hop; any allocation
+//! of our own per sample makes it fail.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+
+use common::{csv, Dir, Prefix};
+use driftless::pipeline::config;
+use driftless::pipeline::runtime::{run, RunOptions};
+
+struct Counting;
+
+static ALLOCS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static COUNTED: Cell<bool> = const { Cell::new(false) };
+}
+
+fn counted() -> bool {
+    COUNTED.try_with(Cell::get).unwrap_or(false)
+}
+
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if counted() {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if counted() {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn pipeline(rows: usize, dir: &Dir, name: &str) -> config::Pipeline {
+    dir.write(&format!("{name}.csv"), &csv(rows));
+    let text = format!(
+        r#"
+name = "{name}"
+rate_hz = 1000.0
+report_interval_s = 600.0
+[iceoryx2]
+buffer_size = 64
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "{name}/raw"
+file = "{name}.csv"
+pace = "asap"
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+input = "{name}/raw"
+output = "{name}/denoised"
+wavelet = "db6"
+level = 5
+lag = 64
+window = 512
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "{name}/denoised"
+output = "{name}/predicted"
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "{name}/predicted"
+output = "{name}/corrected"
+"#
+    );
+    let file = dir.write(&format!("{name}.toml"), &text);
+    config::load(&file).expect("valid pipeline")
+}
+
+fn allocations_for(rows: usize, tag: &str) -> (u64, u64) {
+    let dir = Dir::new();
+    let prefix = Prefix::new(tag);
+    let p = pipeline(rows, &dir, tag);
+    let opts = RunOptions {
+        prefix: prefix.0.clone(),
+        duration: None,
+        stop: Arc::new(AtomicBool::new(false)),
+        print_summary: false,
+    };
+    let before = ALLOCS.load(Ordering::Relaxed);
+    COUNTED.with(|c| c.set(true));
+    let report = run(&p, &opts);
+    COUNTED.with(|c| c.set(false));
+    let after = ALLOCS.load(Ordering::Relaxed);
+    let report = report.expect("run");
+    assert_eq!(report.samples_out, rows as u64);
+    (after - before, report.samples_out)
+}
+
+/// Allocations of one iceoryx2 send (+ receive) on a bare service.
+fn iceoryx2_allocations_per_send() -> u64 {
+    use driftless::transport::{GyroSample, Qos, Transport};
+    let prefix = Prefix::new("alloccal");
+    let t = Transport::new(&prefix.0, "cal", Qos::default()).expect("node");
+    let out = t.output::<GyroSample>("cal/x", false).expect("publisher");
+    let input = t.input::<GyroSample>("cal/x").expect("subscriber");
+    let s = GyroSample::default();
+    out.send(&s).expect("send");
+    input.receive().expect("receive");
+    const N: u64 = 1000;
+    let before = ALLOCS.load(Ordering::Relaxed);
+    COUNTED.with(|c| c.set(true));
+    for _ in 0..N {
+        out.send(&s).expect("send");
+        input.receive().expect("receive");
+    }
+    COUNTED.with(|c| c.set(false));
+    let per = (ALLOCS.load(Ordering::Relaxed) - before) / N;
+    assert!(
+        per <= 1,
+        "iceoryx2 allocates {per} times per send: more than measured before"
+    );
+    per
+}
+
+#[test]
+fn the_hot_loop_does_not_allocate_per_sample() {
+    const HOPS: u64 = 4;
+    let per_send = iceoryx2_allocations_per_send();
+    let (short, n_short) = allocations_for(1_000, "allocshort");
+    let (long, n_long) = allocations_for(21_000, "alloclong");
+    let extra_samples = n_long - n_short;
+    let extra_allocs = long.saturating_sub(short);
+    eprintln!(
+        "allocations: {short} for {n_short} samples, {long} for {n_long}; iceoryx2: {per_send} per send"
+    );
+    let allowed = per_send * HOPS * extra_samples + 50;
+    assert!(
+        extra_allocs <= allowed,
+        "{extra_allocs} more allocations for {extra_samples} more samples \
+         (iceoryx2's own loans account for {})",
+        per_send * HOPS * extra_samples
+    );
+}
