@@ -105,7 +105,6 @@ pub fn main() -> ExitCode {
             restore_default_sigpipe();
             eval::run(args)
         }
-        Command::Denoise(args) => denoise::run(args),
         Command::Run(args) => run::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
