@@ -382,7 +382,10 @@ fn print_report(r: &Report) {
     }
     // The fit can leave a term unidentified; deviations at fixed taus always compare.
     for target in [1.0, 10.0, 100.0] {
-        let Some(&(tau, raw)) = nearest(&r.table[0].oadev, target) else {
+        // Only taus the record reaches (within a factor of 2 of the target).
+        let Some(&(tau, raw)) = nearest(&r.table[0].oadev, target)
+            .filter(|p| (p.0 / target).ln().abs() <= std::f64::consts::LN_2)
+        else {
             continue;
         };
         print!("{:<20}", format!("OADEV at {tau:.3} s"));

@@ -242,8 +242,8 @@ impl Rbf {
                 d2 += d * d;
             }
             let e = d2 * h;
-            // Beyond ~ -40 the term is below 1e-17 of w: skip the exp.
-            if e > -40.0 {
+            // Beyond -30 the term is below 1e-13 of w (normalised units): skip the exp.
+            if e > -30.0 {
                 y += w * e.exp();
             }
         }
