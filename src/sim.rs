@@ -11,7 +11,7 @@
 //! * **quantisation** (Q): the difference of a white angle error e_k, uniform with standard
 //!   deviation Q, over dt: (e_k - e_{k-1}) / dt, so sigma^2(tau) = 3 Q^2 / tau^2.
 //! * **bias instability** (B): flicker rate noise approximated by a sum of first-order
-//!   Gauss-Markov processes with time constants T_i = 4 dt * 2^i up to [`GM_MAX_TIME_CONSTANT`]
+//!   Gauss-Markov processes with time constants T_i = dt * 2^i / 2 up to [`GM_MAX_TIME_CONSTANT`]
 //!   (at most [`GM_MAX`] of them), each stationary with variance B^2 ln 2 / pi. With one process per
 //!   octave, sum_i 2 s^2 T_i / (1 + (2 pi f T_i)^2) ~ s^2 / (2 f ln 2), which is the IEEE 952 flicker
 //!   PSD B^2 / (2 pi f) (two-sided) when s^2 = B^2 ln 2 / pi; the Allan floor is then
@@ -232,14 +232,18 @@ impl SimConfig {
     }
 }
 
-/// The x-axis terms fitted to the real ADIS16405 log (see [`SimConfig::profile`]).
+/// The x-axis terms fitted to the real ADIS16405 log (see [`SimConfig::profile`] and
+/// docs/allan.md): `driftless allan adis16405-imu1-static-100hz.csv.gz --rate 100 --column
+/// gyro_x_degps --json` gives N = 2.3054 deg/sqrt(h) [2.2393, 2.3777] and B = 33.771 deg/h
+/// [31.058, 37.346] (68.3%); Q, K and R are not identifiable in that record (fitted to zero). The
+/// bias is the x axis' mean, 0.4017 deg/s.
 const ADIS16405_TERMS: NoiseTerms = NoiseTerms {
     q: 0.0,
-    n: 0.0,
-    b: 0.0,
+    n: 2.305_411_529_935_742_7 / 60.0,
+    b: 33.771_031_140_469_994 / 3600.0,
     k: 0.0,
     r: 0.0,
-    bias: 0.0,
+    bias: 0.4017,
 };
 
 /// One sample of every axis (only the first `axes` entries are used), deg/s.
@@ -288,7 +292,7 @@ impl Simulator {
         let mut gm_count = 0;
         let gm_sd = t.b * (LN_2 / PI).sqrt();
         if t.b > 0.0 {
-            let mut tc = 4.0 * dt;
+            let mut tc = 0.5 * dt;
             while gm_count < GM_MAX && tc <= GM_MAX_TIME_CONSTANT {
                 let phi = (-dt / tc).exp();
                 gm_phi[gm_count] = phi;

@@ -5,12 +5,14 @@
 //! Rates y (any unit U, sampled at `rate` Hz) become phase x = [0, cumsum(y - mean(y)) / rate]
 //! (U*s, N+1 values; allantools' `frequency2phase`). With tau = m / rate:
 //!
-//! * OADEV^2(tau) = sum_{i=0}^{n-1} (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 n tau^2), n = N+1-2m
-//!   (allantools `oadev`); ADEV the same at i = 0, m, 2m, ... (allantools `adev`);
-//! * MDEV^2(tau) = sum_{j=0}^{n-1} (sum_{i=j}^{j+m-1} x[i+2m] - 2 x[i+m] + x[i])^2
-//!   / (2 m^2 tau^2 n), n = N+2-3m (allantools `mdev`);
-//! * HDEV (overlapping Hadamard): sum_{i=0}^{n-1} (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2
-//!   / (6 n tau^2), n = N+1-3m (allantools `ohdev`).
+//! ```text
+//! OADEV^2(tau) = sum_{i=0}^{n-1} (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 n tau^2),  n = N+1-2m  (oadev)
+//! ADEV: the same over i = 0, m, 2m, ...                                                    (adev)
+//! MDEV^2(tau)  = sum_{j=0}^{n-1} (sum_{i=j}^{j+m-1} x[i+2m] - 2 x[i+m] + x[i])^2
+//!                / (2 m^2 tau^2 n),  n = N+2-3m                                           (mdev)
+//! HDEV^2(tau)  = sum_{i=0}^{n-1} (x[i+3m] - 3 x[i+2m] + 3 x[i+m] - x[i])^2 / (6 n tau^2),
+//!                n = N+1-3m  (overlapping Hadamard)                                       (ohdev)
+//! ```
 //!
 //! Points with n <= 1 are dropped (allantools `remove_small_ns`). The interval is
 //! [`chi2::confidence_interval`] with Greenhall's EDF ([`edf::edf_greenhall`]) for the noise type
@@ -192,12 +194,11 @@ pub fn pairwise_sum(a: &[f64]) -> f64 {
 pub fn frequency_to_phase(y: &[f64], rate: f64) -> Vec<f64> {
     let dt = 1.0 / rate;
     let mean = pairwise_sum(y) / y.len().max(1) as f64;
-    let mut x = Vec::with_capacity(y.len() + 1);
-    x.push(0.0);
+    let mut x = vec![0.0; y.len() + 1];
     let mut s = 0.0;
-    for &v in y {
+    for (xi, &v) in x[1..].iter_mut().zip(y) {
         s += v - mean;
-        x.push(s * dt);
+        *xi = s * dt;
     }
     x
 }
@@ -272,52 +273,103 @@ pub fn terms(kind: Kind, phase_len: usize, m: usize) -> usize {
     }
 }
 
-/// Sum of squared second differences at lag m over i in [start, end) (overlapping).
-#[inline(always)]
-fn second_diff_sq_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
+/// Lanes of partial sums in the OADEV kernel: element i of a run adds to partial i % LANES, in
+/// every build (portable or AVX2), so the result does not depend on the CPU.
+const LANES: usize = 16;
+
+fn reduce(p: &[f64; LANES], tail: f64) -> f64 {
+    let mut q = *p;
+    let mut w = LANES / 2;
+    while w > 0 {
+        for k in 0..w {
+            q[k] += q[k + w];
+        }
+        w /= 2;
+    }
+    q[0] + tail
+}
+
+fn tail_sum(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
+    let mut tail = 0.0;
+    for ((a1, b1), c1) in a.iter().zip(b).zip(c) {
+        let v = c1 - 2.0 * b1 + a1;
+        tail += v * v;
+    }
+    tail
+}
+
+/// sum_i (c_i - 2 b_i + a_i)^2, portable build.
+fn second_diff_sq_sum_portable(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
+    let n = a.len().min(b.len()).min(c.len());
+    let full = n - n % LANES;
+    let mut p = [0.0f64; LANES];
+    for ((a16, b16), c16) in a[..full]
+        .chunks_exact(LANES)
+        .zip(b[..full].chunks_exact(LANES))
+        .zip(c[..full].chunks_exact(LANES))
+    {
+        for k in 0..LANES {
+            let v = c16[k] - 2.0 * b16[k] + a16[k];
+            p[k] += v * v;
+        }
+    }
+    reduce(&p, tail_sum(&a[full..n], &b[full..n], &c[full..n]))
+}
+
+/// sum_i (c_i - 2 b_i + a_i)^2 with AVX2: four 4-lane accumulators, the same partial sums and
+/// operation order (no FMA) as the portable build.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn second_diff_sq_sum_avx2(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
+    use std::arch::x86_64::*;
+    let n = a.len().min(b.len()).min(c.len());
+    let full = n - n % LANES;
+    let (pa, pb, pc) = (a.as_ptr(), b.as_ptr(), c.as_ptr());
+    let two = _mm256_set1_pd(2.0);
+    let mut acc = [_mm256_setzero_pd(); 4];
+    let mut i = 0;
+    while i < full {
+        for (q, slot) in acc.iter_mut().enumerate() {
+            let o = i + 4 * q;
+            // SAFETY: o + 4 <= full <= n, the length of all three slices.
+            let (va, vb, vc) = unsafe {
+                (
+                    _mm256_loadu_pd(pa.add(o)),
+                    _mm256_loadu_pd(pb.add(o)),
+                    _mm256_loadu_pd(pc.add(o)),
+                )
+            };
+            let v = _mm256_add_pd(_mm256_sub_pd(vc, _mm256_mul_pd(two, vb)), va);
+            *slot = _mm256_add_pd(*slot, _mm256_mul_pd(v, v));
+        }
+        i += LANES;
+    }
+    let mut p = [0.0f64; LANES];
+    for (q, v) in acc.iter().enumerate() {
+        // SAFETY: p has room for 4 lanes at 4 q (q < 4).
+        unsafe { _mm256_storeu_pd(p.as_mut_ptr().add(4 * q), *v) };
+    }
+    reduce(&p, tail_sum(&a[full..n], &b[full..n], &c[full..n]))
+}
+
+/// Overlapping second-difference sum over i in [start, end): sum (x[i+2m] - 2 x[i+m] + x[i])^2,
+/// with the AVX2 build where the CPU has it (identical results either way).
+fn oadev_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
     let n = end - start;
     let a = &x[start..start + n];
     let b = &x[start + m..start + m + n];
     let c = &x[start + 2 * m..start + 2 * m + n];
-    let mut acc = [0.0f64; 8];
-    let (ac, ar) = a.split_at(n - n % 8);
-    let (bc, br) = b.split_at(n - n % 8);
-    let (cc, cr) = c.split_at(n - n % 8);
-    for ((a8, b8), c8) in ac
-        .chunks_exact(8)
-        .zip(bc.chunks_exact(8))
-        .zip(cc.chunks_exact(8))
-    {
-        for k in 0..8 {
-            let v = c8[k] - 2.0 * b8[k] + a8[k];
-            acc[k] += v * v;
-        }
-    }
-    let mut tail = 0.0;
-    for ((a1, b1), c1) in ar.iter().zip(br).zip(cr) {
-        let v = c1 - 2.0 * b1 + a1;
-        tail += v * v;
-    }
-    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + tail
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn second_diff_sq_sum_avx2(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
-    second_diff_sq_sum(x, m, start, end)
-}
-
-/// Overlapping second-difference sum, with the AVX2 build of the same code where the CPU has it
-/// (no FMA contraction either way: results are identical).
-fn oadev_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { second_diff_sq_sum_avx2(x, m, start, end) };
+            return unsafe { second_diff_sq_sum_avx2(a, b, c) };
         }
     }
-    second_diff_sq_sum(x, m, start, end)
+    second_diff_sq_sum_portable(a, b, c)
 }
 
 /// Block length (phase samples) of the cache-blocked OADEV pass.
@@ -427,7 +479,7 @@ pub fn deviations(kind: Kind, x: &[f64], rate: f64, ms: &[usize]) -> Vec<(f64, u
         let handles: Vec<_> = parts.iter().map(|p| scope.spawn(move || work(p))).collect();
         handles
             .into_iter()
-            .map(|h| h.join().unwrap_or_default())
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
     let mut out = vec![(0.0, 0); ms.len()];
@@ -550,6 +602,19 @@ mod tests {
                 d == d2 || ((d - d2) / d2).abs() < 1e-12,
                 "m={m}: {d} vs {d2}"
             );
+        }
+    }
+
+    #[test]
+    fn simd_and_portable_kernels_agree_bit_for_bit() {
+        let x: Vec<f64> = (0..1000)
+            .map(|i| ((i * 7919) % 1013) as f64 * 1e-3)
+            .collect();
+        for m in [1, 3, 17, 100] {
+            let n = x.len() - 2 * m;
+            let (a, b, c) = (&x[..n], &x[m..m + n], &x[2 * m..2 * m + n]);
+            let portable = second_diff_sq_sum_portable(a, b, c);
+            assert_eq!(oadev_sum(&x, m, 0, n), portable);
         }
     }
 

@@ -3,9 +3,11 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+pub mod allan;
 pub mod denoise;
 pub mod eval;
 pub mod run;
+pub mod simulate;
 pub mod stats;
 pub mod tap;
 pub mod train;
@@ -36,6 +38,10 @@ enum Command {
     Tap(tap::Args),
     /// Show the live statistics of a running pipeline.
     Stats(stats::Args),
+    /// Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
+    Allan(allan::Args),
+    /// Simulate a gyro log with known IEEE Std 952 noise terms.
+    Simulate(simulate::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code.
@@ -109,6 +115,8 @@ pub fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
+        Command::Allan(args) => allan::run(args),
+        Command::Simulate(args) => simulate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,4 +1,5 @@
-//! SVG charts (plotters): stacked panels of line series, written atomically.
+//! SVG charts (plotters): stacked panels of line series, and log-log charts with error bars,
+//! written atomically.
 
 use plotters::prelude::*;
 use std::path::Path;
@@ -102,4 +103,124 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     std::io::Write::write_all(&mut tmp, bytes)?;
     tmp.persist(path).map_err(|e| e.error)?;
     Ok(())
+}
+
+/// A point with a vertical error bar.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErrorPoint {
+    /// Abscissa.
+    pub x: f64,
+    /// Ordinate.
+    pub y: f64,
+    /// Lower end of the bar.
+    pub lo: f64,
+    /// Upper end of the bar.
+    pub hi: f64,
+}
+
+/// A log-log chart: measured curves with error bars, model lines, and notes in a corner (like the
+/// Allan plot of a gyro data sheet).
+pub struct LogLogChart {
+    /// Title above the chart.
+    pub title: String,
+    /// X axis label.
+    pub x_label: String,
+    /// Y axis label.
+    pub y_label: String,
+    /// Measured curves: legend text and points.
+    pub curves: Vec<(String, Vec<ErrorPoint>)>,
+    /// Lines (e.g. fitted terms), drawn dashed-light under the curves.
+    pub lines: Vec<Series>,
+    /// Text lines printed in the upper right (the legend goes lower left).
+    pub notes: Vec<String>,
+}
+
+fn log_bounds(chart: &LogLogChart) -> ((f64, f64), (f64, f64)) {
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for p in chart.curves.iter().flat_map(|c| c.1.iter()) {
+        if p.x > 0.0 {
+            x0 = x0.min(p.x);
+            x1 = x1.max(p.x);
+        }
+        for v in [p.y, p.lo, p.hi] {
+            if v > 0.0 && v.is_finite() {
+                y0 = y0.min(v);
+                y1 = y1.max(v);
+            }
+        }
+    }
+    if x0 > x1 || y0 > y1 {
+        return ((1.0, 10.0), (1.0, 10.0));
+    }
+    ((x0 / 1.5, x1 * 1.5), (y0 / 2.0, y1 * 2.0))
+}
+
+/// Draw a log-log chart into an SVG file at `path` (temporary file, then rename). Line points
+/// outside the measured range are clipped to it.
+pub fn write_loglog(path: &Path, chart: &LogLogChart) -> Result<(), String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1000, 700)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let ((x0, x1), (y0, y1)) = log_bounds(chart);
+        let mut c = ChartBuilder::on(&root)
+            .caption(&chart.title, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(|e| e.to_string())?;
+        c.configure_mesh()
+            .x_desc(&chart.x_label)
+            .y_desc(&chart.y_label)
+            .y_label_formatter(&|v| format!("{v:.1e}"))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let inside = |&(x, y): &(f64, f64)| x >= x0 && x <= x1 && y >= y0 && y <= y1;
+        for (k, s) in chart.lines.iter().enumerate() {
+            let colour = COLOURS[(k + 2) % COLOURS.len()];
+            let pts: Vec<(f64, f64)> = s.points.iter().copied().filter(inside).collect();
+            c.draw_series(LineSeries::new(pts, colour.stroke_width(1)))
+                .map_err(|e| e.to_string())?
+                .label(&s.name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+        }
+        for (k, (name, pts)) in chart.curves.iter().enumerate() {
+            let colour = COLOURS[(k + 1) % COLOURS.len()];
+            let bars: Vec<PathElement<(f64, f64)>> = pts
+                .iter()
+                .filter(|p| p.lo > 0.0 && p.hi.is_finite())
+                .map(|p| PathElement::new(vec![(p.x, p.lo.max(y0)), (p.x, p.hi.min(y1))], colour))
+                .collect();
+            c.draw_series(bars).map_err(|e| e.to_string())?;
+            c.draw_series(LineSeries::new(
+                pts.iter().map(|p| (p.x, p.y)),
+                colour.stroke_width(2),
+            ))
+            .map_err(|e| e.to_string())?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            c.draw_series(
+                pts.iter()
+                    .map(|p| Circle::new((p.x, p.y), 3, colour.filled())),
+            )
+            .map_err(|e| e.to_string())?;
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::LowerLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, note) in chart.notes.iter().enumerate() {
+            root.draw(&Text::new(
+                note.clone(),
+                (560, 60 + 18 * i as i32),
+                ("monospace", 14),
+            ))
+            .map_err(|e| e.to_string())?;
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    write_atomically(path, svg.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -1,0 +1,400 @@
+//! `driftless allan`: Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
+
+use super::CliError;
+use crate::allan::deviation::{self, add_intervals, AllanPoint};
+use crate::allan::{
+    chi2, fit_terms, read_offs, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit,
+};
+use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
+use crate::io::{progress, read_table, write_table};
+use serde_json::{json, Map, Value};
+use std::path::PathBuf;
+
+/// Arguments of `driftless allan`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Rate log (CSV with a header, or headerless; .gz read transparently).
+    pub input: PathBuf,
+    /// Sample rate in Hz.
+    #[arg(long, allow_hyphen_values = true)]
+    pub rate: String,
+    /// Column to analyse (repeat for several; default: every numeric column but a time column
+    /// named t, t_s, time, time_s or timestamp).
+    #[arg(long = "column", value_name = "NAME")]
+    pub columns: Vec<String>,
+    /// Tau grid: octave, decade, log:P (P per decade), all, or a list of seconds (0.1,1,10).
+    #[arg(long, default_value = "octave")]
+    pub taus: String,
+    /// Deviation: oadev, adev, mdev or hdev (overlapping Hadamard).
+    #[arg(long, default_value = "oadev")]
+    pub kind: String,
+    /// Unit of the samples: deg/s or rad/s (terms are always reported in degree units).
+    #[arg(long, default_value = "deg/s")]
+    pub units: String,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a log-log SVG plot with error bars and the fitted terms.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+    /// Write the tau table as CSV.
+    #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
+    pub output: Option<PathBuf>,
+}
+
+/// Column names taken for time stamps, not rates, when no --column is given.
+pub const TIME_COLUMNS: [&str; 5] = ["t", "t_s", "time", "time_s", "timestamp"];
+
+/// The analysis of one column.
+struct ColumnResult {
+    name: String,
+    samples: usize,
+    points: Vec<AllanPoint>,
+    fit: Result<NoiseFit, FitError>,
+    read_offs: Vec<TermFit>,
+}
+
+/// Samples above which the deviations show a progress bar.
+const PROGRESS_MIN_SAMPLES: u64 = 2_000_000;
+
+fn analyse(
+    y: &[f64],
+    rate: f64,
+    kind: Kind,
+    grid: &TauGrid,
+    to_deg: f64,
+    name: &str,
+) -> Result<ColumnResult, crate::allan::AllanError> {
+    let ci = chi2::ONE_SIGMA;
+    let too_short = crate::allan::AllanError::TooShort {
+        samples: y.len(),
+        kind,
+        needed: if kind == Kind::Hdev { 4 } else { 3 },
+    };
+    if y.len() < 3 {
+        return Err(too_short);
+    }
+    let x = deviation::frequency_to_phase(y, rate);
+    let curve = |kind: Kind, grid: &TauGrid, msg: &str| {
+        let ms = deviation::averaging_factors(grid, x.len(), rate);
+        let bar = progress::bar(
+            ms.len() as u64,
+            if y.len() as u64 >= PROGRESS_MIN_SAMPLES {
+                0
+            } else {
+                u64::MAX
+            },
+            msg,
+        );
+        let mut out = Vec::with_capacity(ms.len());
+        for chunk in ms.chunks(8) {
+            let devs = deviation::deviations(kind, &x, rate, chunk);
+            for (&m, (dev, n)) in chunk.iter().zip(devs) {
+                if n > 1 {
+                    out.push(AllanPoint {
+                        tau: m as f64 / rate,
+                        m,
+                        dev,
+                        n,
+                        alpha: 0,
+                        edf: 0.0,
+                        lo: 0.0,
+                        hi: 0.0,
+                    });
+                }
+            }
+            bar.inc(chunk.len() as u64);
+        }
+        bar.finish_and_clear();
+        add_intervals(kind, &mut out, x.len(), ci);
+        out
+    };
+    let work: f64 = deviation::averaging_factors(grid, x.len(), rate)
+        .iter()
+        .map(|&m| deviation::terms(kind, x.len(), m) as f64)
+        .sum();
+    if work > 2e10 {
+        eprintln!(
+            "driftless: warning: {name}: this grid needs {work:.1e} terms on {} samples and will take long (try --taus log:10)",
+            y.len()
+        );
+    }
+    let points = curve(kind, grid, &format!("{name}: {kind}"));
+    if points.is_empty() {
+        return Err(too_short);
+    }
+    let octave = if kind == Kind::Oadev && *grid == TauGrid::Octave {
+        points.clone()
+    } else {
+        curve(
+            Kind::Oadev,
+            &TauGrid::Octave,
+            &format!("{name}: octave oadev for the fit"),
+        )
+    };
+    let in_deg: Vec<AllanPoint> = octave
+        .iter()
+        .map(|p| AllanPoint {
+            dev: p.dev * to_deg,
+            lo: p.lo * to_deg,
+            hi: p.hi * to_deg,
+            ..*p
+        })
+        .collect();
+    Ok(ColumnResult {
+        name: name.to_string(),
+        samples: y.len(),
+        points,
+        fit: fit_terms(&in_deg, ci),
+        read_offs: read_offs(&in_deg),
+    })
+}
+
+fn term_json(t: &TermFit) -> Value {
+    match t.estimate {
+        Some(e) => {
+            let (unit, f) = t.term.display();
+            json!({"value": e.value * f, "unit": unit, "lo": e.lo * f, "hi": e.hi * f})
+        }
+        None => Value::Null,
+    }
+}
+
+fn terms_json(terms: &[TermFit]) -> (Value, Value) {
+    let mut values = Map::new();
+    let mut reasons = Map::new();
+    for t in terms {
+        values.insert(t.term.name().into(), term_json(t));
+        if let Some(r) = &t.reason {
+            reasons.insert(t.term.name().into(), Value::String(r.clone()));
+        }
+    }
+    (Value::Object(values), Value::Object(reasons))
+}
+
+fn fit_terms_or_reason(fit: &Result<NoiseFit, FitError>) -> Vec<TermFit> {
+    match fit {
+        Ok(f) => f.terms.clone(),
+        Err(e) => Term::ALL
+            .iter()
+            .map(|&term| TermFit {
+                term,
+                estimate: None,
+                reason: Some(e.to_string()),
+            })
+            .collect(),
+    }
+}
+
+fn format_term(t: &TermFit) -> String {
+    match (t.estimate, &t.reason) {
+        (Some(e), _) => {
+            let (unit, f) = t.term.display();
+            let mut s = format!(
+                "{:.4e} {unit}  [{:.4e}, {:.4e}]",
+                e.value * f,
+                e.lo * f,
+                e.hi * f
+            );
+            if let Some((alt, g)) = t.term.alternate() {
+                s.push_str(&format!("  = {:.4e} {alt}", e.value * g));
+            }
+            s
+        }
+        (None, Some(r)) => format!("not identifiable: {r}"),
+        (None, None) => "not identifiable".into(),
+    }
+}
+
+/// Run `driftless allan`.
+pub fn run(args: Args) -> Result<(), CliError> {
+    let rate = super::simulate::parse_number("--rate", &args.rate)?;
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(CliError::input(format!(
+            "--rate must be a positive number of Hz, not {}",
+            rate
+        )));
+    }
+    let grid: TauGrid = args
+        .taus
+        .parse()
+        .map_err(|e| CliError::input(format!("--taus: {e}")))?;
+    let kind: Kind = args
+        .kind
+        .parse()
+        .map_err(|e| CliError::input(format!("--kind: {e}")))?;
+    let unit: RateUnit = args
+        .units
+        .parse()
+        .map_err(|e| CliError::input(format!("--units: {e}")))?;
+    let table = read_table(&args.input, &args.columns)?;
+    let shown = args.input.display().to_string();
+    let mut results = Vec::new();
+    // Without --column, a time column (as `driftless simulate` writes) is not a rate: skip it.
+    let skip_time = args.columns.is_empty()
+        && table
+            .names
+            .iter()
+            .any(|n| !TIME_COLUMNS.contains(&n.as_str()));
+    for (name, y) in table.names.iter().zip(&table.columns) {
+        if skip_time && TIME_COLUMNS.contains(&name.as_str()) {
+            continue;
+        }
+        let r = analyse(y, rate, kind, &grid, unit.to_deg_per_s(), name)
+            .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
+        results.push(r);
+    }
+    // Every column has the same grid (it depends only on the length), so one tau column serves.
+    if let Some(out) = &args.output {
+        let mut names = vec!["tau_s".to_string()];
+        let mut cols: Vec<Vec<f64>> = vec![results[0].points.iter().map(|p| p.tau).collect()];
+        for r in &results {
+            for (suffix, f) in [
+                ("dev", (|p: &AllanPoint| p.dev) as fn(&AllanPoint) -> f64),
+                ("lo", |p| p.lo),
+                ("hi", |p| p.hi),
+                ("n", |p| p.n as f64),
+                ("edf", |p| p.edf),
+            ] {
+                names.push(format!("{}_{suffix}", r.name));
+                cols.push(r.points.iter().map(f).collect());
+            }
+        }
+        let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+        write_table(out, &names, &refs)?;
+    }
+    if let Some(path) = &args.plot {
+        plot::write_loglog(path, &chart(&results, kind, unit)).map_err(CliError::input)?;
+    }
+    if args.json {
+        let columns: Vec<Value> = results
+            .iter()
+            .map(|r| {
+                let points: Vec<Value> = r
+                    .points
+                    .iter()
+                    .map(|p| json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi, "edf": p.edf, "alpha": p.alpha}))
+                    .collect();
+                let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit));
+                let (ro, _) = terms_json(&r.read_offs);
+                json!({"name": r.name, "samples": r.samples, "rate": rate, "kind": kind.to_string(),
+                       "unit": unit.to_string(), "ci": chi2::ONE_SIGMA, "points": points,
+                       "terms": terms, "not_identified": reasons, "read_offs": ro})
+            })
+            .collect();
+        println!("{}", json!({ "columns": columns }));
+        return Ok(());
+    }
+    for r in &results {
+        println!(
+            "{} ({} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
+            r.name, r.samples, rate, chi2::ONE_SIGMA * 100.0
+        );
+        println!(
+            "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10}",
+            "tau (s)", "dev", "lo", "hi", "n", "edf"
+        );
+        for p in &r.points {
+            println!(
+                "{:>12.6} {:>14.6e} {:>14.6e} {:>14.6e} {:>10} {:>10.1}",
+                p.tau, p.dev, p.lo, p.hi, p.n, p.edf
+            );
+        }
+        let fitted = fit_terms_or_reason(&r.fit);
+        match &r.fit {
+            Ok(f) => println!(
+                "IEEE 952 terms (weighted NNLS fit of octave OADEV, tau {} s to {} s) | slope read-off:",
+                f.tau_range.0, f.tau_range.1
+            ),
+            Err(_) => println!("IEEE 952 terms | slope read-off:"),
+        }
+        for (t, ro) in fitted.iter().zip(&r.read_offs) {
+            println!("  {}  {}  | {}", t.term, format_term(t), format_term(ro));
+        }
+        println!();
+    }
+    Ok(())
+}
+
+fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {
+    let to_deg = unit.to_deg_per_s();
+    let mut lines = Vec::new();
+    let mut notes = Vec::new();
+    for r in results {
+        let Ok(fit) = &r.fit else { continue };
+        let (t0, t1) = (r.points[0].tau, r.points[r.points.len() - 1].tau);
+        let taus: Vec<f64> = (0..=100)
+            .map(|i| t0 * (t1 / t0).powf(f64::from(i) / 100.0))
+            .collect();
+        lines.push(Series {
+            name: format!("{}: fitted model", r.name),
+            points: taus
+                .iter()
+                .map(|&t| (t, fit.model_variance(t).sqrt() / to_deg))
+                .collect(),
+        });
+        for (k, t) in fit.terms.iter().enumerate() {
+            if t.estimate.is_none() || results.len() > 1 {
+                continue;
+            }
+            lines.push(Series {
+                name: format!("{} line (slope {:+})", t.term, t.term.slope()),
+                points: taus
+                    .iter()
+                    .map(|&tau| {
+                        (
+                            tau,
+                            (t.term.coefficient(tau) * fit.theta[k]).sqrt() / to_deg,
+                        )
+                    })
+                    .collect(),
+            });
+        }
+        notes.push(format!(
+            "{} ({:.1}% intervals):",
+            r.name,
+            chi2::ONE_SIGMA * 100.0
+        ));
+        for t in &fit.terms {
+            let (unit, f) = t.term.display();
+            notes.push(match t.estimate {
+                Some(e) => format!(
+                    "  {} = {:.4} {unit} [{:.4}, {:.4}]",
+                    t.term,
+                    e.value * f,
+                    e.lo * f,
+                    e.hi * f
+                ),
+                None => format!("  {}: not identifiable", t.term),
+            });
+        }
+    }
+    LogLogChart {
+        title: format!(
+            "{} with {:.1}% intervals and IEEE 952 terms",
+            kind.to_string().to_uppercase(),
+            chi2::ONE_SIGMA * 100.0
+        ),
+        x_label: "tau (s)".into(),
+        y_label: format!("{kind} ({unit})"),
+        curves: results
+            .iter()
+            .map(|r| {
+                (
+                    r.name.clone(),
+                    r.points
+                        .iter()
+                        .map(|p| ErrorPoint {
+                            x: p.tau,
+                            y: p.dev,
+                            lo: p.lo,
+                            hi: p.hi,
+                        })
+                        .collect(),
+                )
+            })
+            .collect(),
+        lines,
+        notes,
+    }
+}

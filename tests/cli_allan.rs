@@ -1,0 +1,348 @@
+//! `driftless allan` and `driftless simulate` through the real binary: output shapes, errors,
+//! exit codes, and no partial output files.
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn driftless(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Exit code 2 and a single `driftless: error:` line containing `needle`.
+fn assert_input_error(o: &Output, needle: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(err.starts_with("driftless: error: "), "{err}");
+    assert!(err.contains(needle), "'{needle}' not in: {err}");
+}
+
+fn simulate(dir: &Path, extra: &[&str]) -> String {
+    let out = dir.join("sim.csv");
+    let out_s = out.to_str().unwrap().to_string();
+    let mut args = vec![
+        "simulate",
+        "--N",
+        "1.5",
+        "--B",
+        "20",
+        "--rate",
+        "100",
+        "--duration",
+        "300s",
+        "--seed",
+        "7",
+        "-o",
+        &out_s,
+    ];
+    args.extend_from_slice(extra);
+    let o = driftless(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    out_s
+}
+
+#[test]
+fn simulate_writes_a_deterministic_headed_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = simulate(dir.path(), &[]);
+    let first = std::fs::read_to_string(&path).unwrap();
+    let mut lines = first.lines();
+    assert_eq!(lines.next(), Some("t_s,gyro_x_degps"));
+    assert_eq!(lines.count(), 30_000);
+    simulate(dir.path(), &[]);
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        first,
+        "same seed, same file"
+    );
+
+    let path = simulate(dir.path(), &["--axes", "3", "--motion", "turn"]);
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.starts_with(
+        "t_s,gyro_x_degps,gyro_y_degps,gyro_z_degps,truth_x_degps,truth_y_degps,truth_z_degps\n"
+    ));
+
+    let out = dir.path().join("p.csv");
+    let o = driftless(&[
+        "simulate",
+        "--profile",
+        "adis16405",
+        "--duration",
+        "2s",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(text.lines().count(), 201);
+    assert!(text.starts_with("t_s,gyro_x_degps,gyro_y_degps,gyro_z_degps\n"));
+}
+
+#[test]
+fn allan_json_has_the_documented_shape() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = simulate(dir.path(), &[]);
+    let o = driftless(&[
+        "allan",
+        &path,
+        "--rate",
+        "100",
+        "--column",
+        "gyro_x_degps",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    let cols = v["columns"].as_array().unwrap();
+    assert_eq!(cols.len(), 1);
+    let c = &cols[0];
+    assert_eq!(c["name"], "gyro_x_degps");
+    let points = c["points"].as_array().unwrap();
+    assert_eq!(points.len(), 14); // octave m = 1 .. 8192 of 30000 samples
+    for p in points {
+        for key in ["tau", "dev", "lo", "hi"] {
+            assert!(p[key].as_f64().unwrap() > 0.0, "{key}");
+        }
+        assert!(p["n"].as_u64().unwrap() > 1);
+        assert!(p["lo"].as_f64() < p["dev"].as_f64() && p["dev"].as_f64() < p["hi"].as_f64());
+    }
+    let terms = c["terms"].as_object().unwrap();
+    assert_eq!(terms.keys().collect::<Vec<_>>(), ["B", "K", "N", "Q", "R"]);
+    for (name, t) in terms {
+        if t.is_null() {
+            assert!(c["not_identified"][name].is_string(), "{name} has a reason");
+            continue;
+        }
+        for key in ["value", "lo", "hi"] {
+            assert!(t[key].is_f64(), "{name}.{key}");
+        }
+        assert!(t["unit"].is_string());
+    }
+    // The simulated N (1.5 deg/sqrt(h)) is found with its unit.
+    let n = &terms["N"];
+    assert_eq!(n["unit"], "deg/sqrt(h)");
+    let value = n["value"].as_f64().unwrap();
+    assert!((value - 1.5).abs() < 0.1, "N = {value}");
+}
+
+#[test]
+fn allan_writes_table_and_plot_and_prints_tables() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = simulate(dir.path(), &["--axes", "2"]);
+    let csv = dir.path().join("out.csv");
+    let svg = dir.path().join("allan.svg");
+    let o = driftless(&[
+        "allan",
+        &path,
+        "--rate",
+        "100",
+        "--column",
+        "gyro_x_degps",
+        "--column",
+        "gyro_y_degps",
+        "--taus",
+        "log:5",
+        "--kind",
+        "mdev",
+        "-o",
+        csv.to_str().unwrap(),
+        "--plot",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("mdev in deg/s"), "{stdout}");
+    assert!(stdout.contains("IEEE 952 terms"), "{stdout}");
+    let table = std::fs::read_to_string(&csv).unwrap();
+    assert!(table.starts_with("tau_s,gyro_x_degps_dev,gyro_x_degps_lo,gyro_x_degps_hi,gyro_x_degps_n,gyro_x_degps_edf,gyro_y_degps_dev,"));
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        plot.starts_with("<svg") && plot.contains("N = "),
+        "plot with the terms"
+    );
+}
+
+#[test]
+fn bad_input_is_one_line_exit_2_and_leaves_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out.csv");
+    let out_s = out.to_str().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let missing = d.join("missing.csv");
+    assert_input_error(
+        &driftless(&[
+            "allan",
+            missing.to_str().unwrap(),
+            "--rate",
+            "10",
+            "-o",
+            out_s,
+        ]),
+        "missing.csv",
+    );
+    let empty = write("empty.csv", "");
+    assert_input_error(
+        &driftless(&["allan", &empty, "--rate", "10", "-o", out_s]),
+        "the file is empty",
+    );
+    let bad = write("bad.csv", "x,y\n1,2\n3,oops\n5,6\n");
+    assert_input_error(
+        &driftless(&["allan", &bad, "--rate", "10", "-o", out_s]),
+        "bad.csv:3:3: column 'y'",
+    );
+    let nan = write("nan.csv", "x\n1\nNaN\n3\n");
+    assert_input_error(
+        &driftless(&["allan", &nan, "--rate", "10", "-o", out_s]),
+        "nan.csv:3:1",
+    );
+    let inf = write("inf.csv", "x\n1\n2\n-inf\n");
+    assert_input_error(
+        &driftless(&["allan", &inf, "--rate", "10", "-o", out_s]),
+        "inf.csv:4:1",
+    );
+    let ok = write("ok.csv", "x\n1\n2\n3\n4\n5\n");
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "0", "-o", out_s]),
+        "--rate",
+    );
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "-5", "-o", out_s]),
+        "--rate",
+    );
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "fast", "-o", out_s]),
+        "--rate 'fast' is not a number",
+    );
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "10", "--taus", "log:x", "-o", out_s]),
+        "--taus",
+    );
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "10", "--kind", "tdev", "-o", out_s]),
+        "--kind",
+    );
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "10", "--units", "rpm", "-o", out_s]),
+        "--units",
+    );
+    assert_input_error(
+        &driftless(&["allan", &ok, "--rate", "10", "--column", "z", "-o", out_s]),
+        "no column named 'z'",
+    );
+    let short = write("short.csv", "x\n1\n2\n");
+    assert_input_error(
+        &driftless(&["allan", &short, "--rate", "10", "-o", out_s]),
+        "too short",
+    );
+    // A tau list none of whose taus fits the record.
+    assert_input_error(
+        &driftless(&[
+            "allan", &ok, "--rate", "10", "--taus", "100,200", "-o", out_s,
+        ]),
+        "too short",
+    );
+    assert!(!out.exists(), "no partial output file");
+
+    let sim_out = d.join("sim.csv");
+    let so = sim_out.to_str().unwrap();
+    assert_input_error(
+        &driftless(&["simulate", "--profile", "nope", "-o", so]),
+        "unknown profile",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--duration", "1s", "-o", so]),
+        "--profile",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--N", "1", "--axes", "4", "-o", so]),
+        "axes",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--N", "1", "--rate", "0", "-o", so]),
+        "rate",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--N", "-1", "-o", so]),
+        "--N must be a finite number >= 0, not -1",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--B", "lots", "-o", so]),
+        "--B 'lots' is not a number",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--N", "1", "--duration", "soon", "-o", so]),
+        "--duration",
+    );
+    assert_input_error(
+        &driftless(&["simulate", "--N", "1", "--motion", "spin", "-o", so]),
+        "unknown motion",
+    );
+    let nodir = d.join("no/such/dir/sim.csv");
+    assert_input_error(
+        &driftless(&[
+            "simulate",
+            "--N",
+            "1",
+            "--duration",
+            "1s",
+            "-o",
+            nodir.to_str().unwrap(),
+        ]),
+        "no/such/dir",
+    );
+    assert!(!sim_out.exists(), "no partial output file");
+}
+
+#[test]
+fn rad_per_s_input_gives_the_same_terms_in_degree_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = simulate(dir.path(), &[]);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut rad = String::from("gyro_x_rads\n");
+    for line in text.lines().skip(1) {
+        let v: f64 = line.split(',').nth(1).unwrap().parse().unwrap();
+        rad.push_str(&format!("{}\n", v.to_radians()));
+    }
+    let rad_path = dir.path().join("rad.csv");
+    std::fs::write(&rad_path, rad).unwrap();
+    let run = |p: &str, units: &str| -> Value {
+        let o = driftless(&["allan", p, "--rate", "100", "--units", units, "--json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let deg = run(&path, "deg/s");
+    let rad = run(rad_path.to_str().unwrap(), "rad/s");
+    let (dc, rc) = (&deg["columns"][0], &rad["columns"][0]);
+    assert_eq!(rc["unit"], "rad/s");
+    let dev_ratio =
+        dc["points"][0]["dev"].as_f64().unwrap() / rc["points"][0]["dev"].as_f64().unwrap();
+    assert!(
+        (dev_ratio - 180.0 / std::f64::consts::PI).abs() < 1e-9,
+        "deviations stay in the input unit"
+    );
+    assert!(dc["terms"]["N"].is_object(), "N identified");
+    for t in ["Q", "N", "B", "K", "R"] {
+        let (a, b) = (&dc["terms"][t], &rc["terms"][t]);
+        assert_eq!(a.is_null(), b.is_null(), "{t}");
+        if let (Some(a), Some(b)) = (a["value"].as_f64(), b["value"].as_f64()) {
+            assert!(
+                ((a - b) / a).abs() < 1e-6,
+                "{t}: {a} deg-based vs {b} from rad/s"
+            );
+            assert_eq!(dc["terms"][t]["unit"], rc["terms"][t]["unit"]);
+        }
+    }
+}
