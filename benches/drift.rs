@@ -18,7 +18,9 @@ fn drift() -> (Vec<f64>, Vec<f64>) {
     let mut cfg = SimConfig::profile("adxrs450").expect("built-in profile");
     cfg.seed = 1;
     let mut sim = Simulator::new(&cfg).expect("valid profile");
-    let x: Vec<f64> = (0..100_000).map(|_| sim.next_sample().measured[0]).collect();
+    let x: Vec<f64> = (0..100_000)
+        .map(|_| sim.next_sample().measured[0])
+        .collect();
     let d = DenoiseSettings {
         wavelet: "db6".into(),
         level: 5,
@@ -38,7 +40,9 @@ fn training(c: &mut Criterion) {
     let (_, drift) = drift();
     let series = &drift[1000..100_000];
     let mut group = c.benchmark_group("train_99000_q40");
-    group.sample_size(10).measurement_time(Duration::from_secs(8));
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(8));
     for method in [CentreMethod::Kmeans, CentreMethod::Ols] {
         let cfg = TrainConfig {
             method,

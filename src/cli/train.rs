@@ -24,7 +24,7 @@ pub struct Args {
     /// Sample rate of the log, Hz.
     #[arg(long)]
     rate: f64,
-    /// Column to train on (default: the first numeric column).
+    /// Column to train on (default: the first numeric column that is not time: t, t_s, time, ...).
     #[arg(long)]
     column: Option<String>,
     /// Units of the rate: deg/s or rad/s.
@@ -112,7 +112,8 @@ pub struct Column {
     pub values: Vec<f64>,
 }
 
-/// Read one column (the first numeric one when `column` is None) and refuse non-finite values.
+/// Read one column (without `column`: the first numeric one that is not a time column, as
+/// `driftless simulate` writes) and refuse non-finite values.
 pub fn read_column(path: &Path, column: Option<&str>) -> Result<Column, CliError> {
     let wanted: Vec<String> = column.map(|c| vec![c.to_string()]).unwrap_or_default();
     let mut table = read_table(path, &wanted)?;
@@ -122,8 +123,18 @@ pub fn read_column(path: &Path, column: Option<&str>) -> Result<Column, CliError
             path.display()
         )));
     }
-    let name = table.names[0].clone();
-    let values = std::mem::take(&mut table.columns[0]);
+    // Without --column: the first numeric column that is not a time stamp.
+    let i = if column.is_some() {
+        0
+    } else {
+        table
+            .names
+            .iter()
+            .position(|n| !super::allan::TIME_COLUMNS.contains(&n.as_str()))
+            .ok_or_else(|| CliError::input(format!("{}: no rate column", path.display())))?
+    };
+    let name = table.names[i].clone();
+    let values = std::mem::take(&mut table.columns[i]);
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
         return Err(CliError::input(format!(
             "{}: column {name}, sample {i} (data row {}) is {}: the drift model needs finite rates",
