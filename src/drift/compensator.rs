@@ -1,14 +1,14 @@
 //! Live drift compensation, one sample at a time, that never subtracts real rotation.
 //!
-//! For each denoised rate sample x[t]:
+//! For each denoised rate sample `x[t]`:
 //!
-//! 1. the predictor gives the drift d[t] from its p inputs (values up to t - 1);
+//! 1. the predictor gives the drift `d[t]` from its p inputs (values up to t - 1);
 //! 2. the low band ([`LowBand`]) of x is updated, and the stillness detector
-//!    ([`StillnessDetector`]) judges the window ending at t, with d[t] as its reference;
+//!    ([`StillnessDetector`]) judges the window ending at t, with `d[t]` as its reference;
 //! 3. **still**: the measured low band at t becomes the newest input (the model is re-anchored
-//!    on measured drift); **moving**: d[t] itself becomes the newest input, so the model runs on
+//!    on measured drift); **moving**: `d[t]` itself becomes the newest input, so the model runs on
 //!    its own predictions and the rotation in the low band never enters it;
-//! 4. the output is x[t] - d[t], with the mode.
+//! 4. the output is `x[t] - d[t]`, with the mode.
 //!
 //! While moving, each free-running step is limited to `max_step` (from the training drift), so
 //! a model outside its training range cannot run away during a long turn. Until the detector
