@@ -12,16 +12,9 @@ const SAMPLES: usize = 10_000_000;
 
 /// splitmix64, value = (u >> 11) * 2^-53 - 0.5 (white noise), as the Python side.
 fn data() -> Vec<f64> {
-    let mut state: u64 = 42;
-    (0..SAMPLES)
-        .map(|_| {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            (z >> 11) as f64 * 2f64.powi(-53) - 0.5
-        })
+    driftless::synthetic::SplitMix64(42)
+        .take(SAMPLES)
+        .map(|u| u - 0.5)
         .collect()
 }
 

@@ -131,3 +131,21 @@ mod tests {
         assert!(spread < 0.14, "static truth moves too much: {spread}");
     }
 }
+
+/// splitmix64 (Steele, Lea & Flood 2014) as uniform doubles `(u >> 11) * 2^-53` in [0, 1), seeded
+/// by its state: the exact integer generator that our fixture scripts (`scripts/gen_*.py`)
+/// reimplement, so that reference inputs are regenerated bit for bit instead of stored.
+#[derive(Debug, Clone)]
+pub struct SplitMix64(pub u64);
+
+impl Iterator for SplitMix64 {
+    type Item = f64;
+    fn next(&mut self) -> Option<f64> {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        Some((z >> 11) as f64 * 2f64.powi(-53))
+    }
+}

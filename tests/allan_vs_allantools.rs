@@ -17,19 +17,6 @@ fn fixture(name: &str) -> Value {
     v
 }
 
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 * 2f64.powi(-53)
-    }
-}
-
 fn nbs14_1000() -> Vec<f64> {
     let mut n = vec![1_234_567_890u64];
     for _ in 0..999 {
@@ -47,26 +34,28 @@ fn dataset(name: &str) -> Vec<f64> {
         ],
         "nbs14_1000" => nbs14_1000(),
         "white_4096" => {
-            let mut g = SplitMix64(1);
-            (0..4096).map(|_| g.next() - 0.5).collect()
+            let mut g = driftless::synthetic::SplitMix64(1);
+            (0..4096)
+                .map(|_| g.next().expect("endless") - 0.5)
+                .collect()
         }
         "random_walk_3000" => {
-            let mut g = SplitMix64(2);
+            let mut g = driftless::synthetic::SplitMix64(2);
             let mut s = 0.0;
             (0..3000)
                 .map(|_| {
-                    s += g.next() - 0.5;
+                    s += g.next().expect("endless") - 0.5;
                     s
                 })
                 .collect()
         }
         "gyro_like_20000" => {
-            let mut g = SplitMix64(3);
+            let mut g = driftless::synthetic::SplitMix64(3);
             let mut rw = 0.0;
             (0..20000)
                 .map(|k| {
-                    let a = g.next();
-                    let b = g.next();
+                    let a = g.next().expect("endless");
+                    let b = g.next().expect("endless");
                     rw += b - 0.5;
                     ((a - 0.5) * 2.0 + rw * 0.01) + (1e-4 * k as f64 + 3.0)
                 })

@@ -6,29 +6,8 @@ use driftless::drift::compensator::{Compensator, Mode};
 use driftless::drift::stillness::StillnessConfig;
 use driftless::drift::training::{train, TrainConfig};
 use driftless::drift::LowBand;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "support/alloc_counter.rs"]
+mod alloc_counter;
 
 #[test]
 fn push_allocates_nothing_in_any_mode() {
@@ -43,21 +22,22 @@ fn push_allocates_nothing_in_any_mode() {
         settle: 50,
     };
     let mut c = Compensator::new(model, LowBand::new("db6", 5).unwrap(), still, 1e-3).unwrap();
-    let mut modes = [0usize; 3];
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    for t in 0..3000 {
-        let x = 0.3 + if (1000..2000).contains(&t) { 5.0 } else { 0.0 };
-        let s = c.push(x);
-        modes[match s.mode {
-            Mode::Warming => 0,
-            Mode::Still => 1,
-            Mode::Moving => 2,
-        }] += 1;
-    }
-    let after = ALLOCATIONS.load(Ordering::Relaxed);
+    let (allocations, modes) = alloc_counter::allocations_during(|| {
+        let mut modes = [0usize; 3];
+        for t in 0..3000 {
+            let x = 0.3 + if (1000..2000).contains(&t) { 5.0 } else { 0.0 };
+            let s = c.push(x);
+            modes[match s.mode {
+                Mode::Warming => 0,
+                Mode::Still => 1,
+                Mode::Moving => 2,
+            }] += 1;
+        }
+        modes
+    });
     assert!(
         modes.iter().all(|&m| m > 0),
         "every mode exercised: {modes:?}"
     );
-    assert_eq!(after - before, 0, "allocations during push");
+    assert_eq!(allocations, 0, "allocations during push");
 }

@@ -20,16 +20,9 @@ const ROUNDOFF_FLOOR: f64 = 1e-3;
 
 /// splitmix64 seeded with `seed`, sample = (u >> 11) * 2^-53 - 0.5: the generator's twin.
 fn splitmix(seed: u64, n: usize) -> Vec<f64> {
-    let mut state = seed;
-    (0..n)
-        .map(|_| {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            (z >> 11) as f64 * 2f64.powi(-53) - 0.5
-        })
+    driftless::synthetic::SplitMix64(seed)
+        .take(n)
+        .map(|u| u - 0.5)
         .collect()
 }
 

@@ -3,29 +3,8 @@
 
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "support/alloc_counter.rs"]
+mod alloc_counter;
 
 #[test]
 fn push_and_flush_allocate_nothing() {
@@ -41,25 +20,21 @@ fn push_and_flush_allocate_nothing() {
             ..StreamConfig::default()
         })
         .unwrap();
-        let mut sum = 0.0;
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
-        // Several windows' worth, so the noise tracker's window fills and slides.
-        for i in 0..5000 {
-            let x = (i as f64 * 0.01).sin() + ((i * 7919) % 101) as f64 * 1e-3;
-            if let Some(y) = d.push(if i == 2500 { f64::NAN } else { x }) {
+        let (allocations, sum) = alloc_counter::allocations_during(|| {
+            let mut sum = 0.0;
+            // Several windows' worth, so the noise tracker's window fills and slides.
+            for i in 0..5000 {
+                let x = (i as f64 * 0.01).sin() + ((i * 7919) % 101) as f64 * 1e-3;
+                if let Some(y) = d.push(if i == 2500 { f64::NAN } else { x }) {
+                    sum += y;
+                }
+            }
+            while let Some(y) = d.flush() {
                 sum += y;
             }
-        }
-        while let Some(y) = d.flush() {
-            sum += y;
-        }
-        let after = ALLOCATIONS.load(Ordering::Relaxed);
+            sum
+        });
         assert!(sum.is_finite());
-        assert_eq!(
-            after - before,
-            0,
-            "{} allocations in push/flush",
-            after - before
-        );
+        assert_eq!(allocations, 0, "allocations in push/flush");
     }
 }

@@ -136,6 +136,23 @@ pub struct AllanPoint {
     pub hi: f64,
 }
 
+impl AllanPoint {
+    /// A point from its averaging factor, deviation and term count, before intervals are added
+    /// (see [`add_intervals`]).
+    pub fn bare(m: usize, rate: f64, dev: f64, n: usize) -> Self {
+        AllanPoint {
+            tau: m as f64 / rate,
+            m,
+            dev,
+            n,
+            alpha: 0,
+            edf: 0.0,
+            lo: 0.0,
+            hi: 0.0,
+        }
+    }
+}
+
 /// Why a deviation could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AllanError {
@@ -561,16 +578,7 @@ pub fn allan(
         .iter()
         .zip(devs)
         .filter(|(_, (_, n))| *n > 1)
-        .map(|(&m, (dev, n))| AllanPoint {
-            tau: m as f64 / rate,
-            m,
-            dev,
-            n,
-            alpha: 0,
-            edf: 0.0,
-            lo: 0.0,
-            hi: 0.0,
-        })
+        .map(|(&m, (dev, n))| AllanPoint::bare(m, rate, dev, n))
         .collect();
     if points.is_empty() {
         return Err(too_short);

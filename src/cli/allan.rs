@@ -42,9 +42,6 @@ pub struct Args {
     pub output: Option<PathBuf>,
 }
 
-/// Column names taken for time stamps, not rates, when no --column is given.
-pub const TIME_COLUMNS: [&str; 5] = ["t", "t_s", "time", "time_s", "timestamp"];
-
 /// The analysis of one column.
 struct ColumnResult {
     name: String,
@@ -91,16 +88,7 @@ fn analyse(
             let devs = deviation::deviations(kind, &x, rate, chunk);
             for (&m, (dev, n)) in chunk.iter().zip(devs) {
                 if n > 1 {
-                    out.push(AllanPoint {
-                        tau: m as f64 / rate,
-                        m,
-                        dev,
-                        n,
-                        alpha: 0,
-                        edf: 0.0,
-                        lo: 0.0,
-                        hi: 0.0,
-                    });
+                    out.push(AllanPoint::bare(m, rate, dev, n));
                 }
             }
             bar.inc(chunk.len() as u64);
@@ -230,16 +218,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let table = read_table(&args.input, &args.columns)?;
     let shown = args.input.display().to_string();
     let mut results = Vec::new();
-    // Without --column, a time column (as `driftless simulate` writes) is not a rate: skip it.
-    let skip_time = args.columns.is_empty()
-        && table
-            .names
-            .iter()
-            .any(|n| !TIME_COLUMNS.contains(&n.as_str()));
     for (name, y) in table.names.iter().zip(&table.columns) {
-        if skip_time && TIME_COLUMNS.contains(&name.as_str()) {
-            continue;
-        }
         let r = analyse(y, rate, kind, &grid, unit.to_deg_per_s(), name)
             .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
         results.push(r);

@@ -18,7 +18,8 @@ pub struct Args {
     /// Input CSV (with or without a header). Not needed with --synthetic.
     #[arg(required_unless_present = "synthetic")]
     input: Option<PathBuf>,
-    /// Column to denoise, by name (repeatable; default: every numeric column; c0, c1, ... without header).
+    /// Column to denoise, by name (repeatable; default: every numeric column but a time column such
+    /// as t_s; c0, c1, ... without a header).
     #[arg(long = "column")]
     columns: Vec<String>,
     /// Wavelet: haar, db1..db20, sym2..sym20, coif1..coif17.

@@ -101,16 +101,11 @@ pub fn main() -> ExitCode {
             return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
         }
     };
+    restore_default_sigpipe();
     let result = match cli.command {
-        Command::Denoise(args) => {
-            restore_default_sigpipe();
-            denoise::run(args)
-        }
+        Command::Denoise(args) => denoise::run(args),
         Command::Train(args) => train::run(args),
-        Command::Eval(args) => {
-            restore_default_sigpipe();
-            eval::run(args)
-        }
+        Command::Eval(args) => eval::run(args),
         Command::Run(args) => run::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),

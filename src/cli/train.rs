@@ -123,18 +123,9 @@ pub fn read_column(path: &Path, column: Option<&str>) -> Result<Column, CliError
             path.display()
         )));
     }
-    // Without --column: the first numeric column that is not a time stamp.
-    let i = if column.is_some() {
-        0
-    } else {
-        table
-            .names
-            .iter()
-            .position(|n| !super::allan::TIME_COLUMNS.contains(&n.as_str()))
-            .ok_or_else(|| CliError::input(format!("{}: no rate column", path.display())))?
-    };
-    let name = table.names[i].clone();
-    let values = std::mem::take(&mut table.columns[i]);
+    // Without --column, read_table has already left out time columns.
+    let name = table.names[0].clone();
+    let values = std::mem::take(&mut table.columns[0]);
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
         return Err(CliError::input(format!(
             "{}: column {name}, sample {i} (data row {}) is {}: the drift model needs finite rates",

@@ -11,6 +11,9 @@ use std::path::{Path, PathBuf};
 /// Rows above which reading shows a progress bar (estimated from the file size).
 const PROGRESS_MIN_BYTES: u64 = 24_000_000;
 
+/// Column names taken for time stamps, not signals: left out when no column is named.
+pub const TIME_COLUMNS: [&str; 5] = ["t", "t_s", "time", "time_s", "timestamp"];
+
 /// A bad input file, with the position of the fault where there is one.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
@@ -92,7 +95,8 @@ fn field_column(record: &csv::ByteRecord, i: usize) -> u64 {
     (start + i + 1) as u64
 }
 
-/// Read the named columns (all numeric columns when `wanted` is empty) of a CSV file.
+/// Read the named columns of a CSV file; when `wanted` is empty, every numeric column but a time
+/// column ([`TIME_COLUMNS`]).
 pub fn read_table(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
     let shown = path.display().to_string();
     let io_err = |source| InputError::Io {
@@ -184,7 +188,17 @@ fn read_from<R: Read>(reader: R, path: &Path, wanted: &[String]) -> Result<Table
                 "no numeric column in the first data row",
             ));
         }
-        numeric
+        // A time column (as `driftless simulate` writes) is not a signal, unless it is all there is.
+        let signals: Vec<usize> = numeric
+            .iter()
+            .copied()
+            .filter(|&i| !TIME_COLUMNS.contains(&names[i].as_str()))
+            .collect();
+        if signals.is_empty() {
+            numeric
+        } else {
+            signals
+        }
     } else {
         wanted
             .iter()
@@ -291,10 +305,20 @@ mod tests {
 
     #[test]
     fn header_and_numeric_columns() {
-        let t = read_str("time,label,x\n0,a,1.5\n1,b,-2e-3\n", &[]).unwrap();
-        assert_eq!(t.names, ["time", "x"]);
+        let t = read_str("step,label,x\n0,a,1.5\n1,b,-2e-3\n", &[]).unwrap();
+        assert_eq!(t.names, ["step", "x"]);
         assert_eq!(t.columns, vec![vec![0.0, 1.0], vec![1.5, -2e-3]]);
         assert!(t.has_header);
+    }
+
+    #[test]
+    fn time_column_is_left_out_unless_named_or_alone() {
+        let t = read_str("t_s,gyro_x\n0,1.5\n0.02,2\n", &[]).unwrap();
+        assert_eq!(t.names, ["gyro_x"]);
+        let t = read_str("t_s,gyro_x\n0,1.5\n", &["t_s"]).unwrap();
+        assert_eq!(t.names, ["t_s"]);
+        let t = read_str("time\n0\n1\n", &[]).unwrap();
+        assert_eq!(t.names, ["time"]);
     }
 
     #[test]

@@ -7,4 +7,4 @@ pub mod model_file;
 pub mod plot;
 pub mod progress;
 
-pub use csv_table::{read_table, write_table, InputError, Table};
+pub use csv_table::{read_table, write_table, InputError, Table, TIME_COLUMNS};
