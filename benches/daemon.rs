@@ -256,6 +256,16 @@ fn us(ns: u64) -> String {
     format!("{:.1}", ns as f64 / 1e3)
 }
 
+/// Put this thread (the bare chain and the subscriber) on SCHED_FIFO like the demo's hot thread,
+/// so the comparison is fair; returns whether it worked.
+fn realtime(priority: i32) -> bool {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: a valid sched_param; 0 is the calling thread.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 }
+}
+
 fn main() {
     // `cargo bench` passes --bench; `cargo test --benches` runs it too: keep that short.
     let quick = !std::env::args().any(|a| a == "--bench");
@@ -265,6 +275,15 @@ fn main() {
         .unwrap_or(if quick { 2.0 } else { 100.0 });
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rows = Vec::new();
+    let rt = realtime(50);
+    println!(
+        "bench thread (bare chain, subscriber): {}",
+        if rt {
+            "SCHED_FIFO 50"
+        } else {
+            "default scheduling (SCHED_FIFO not permitted)"
+        }
+    );
 
     // 1. Bare chain at 1 kHz.
     let bare_secs = secs.min(30.0);

@@ -50,7 +50,17 @@ fn options() -> Result<Options, String> {
 }
 
 fn main() -> std::process::ExitCode {
-    match run() {
+    let o = match options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("nav_subscriber: {e}");
+            return std::process::ExitCode::from(2);
+        }
+    };
+    let result = run(&o);
+    // The last process of a prefix removes its management file.
+    transport::remove_prefix_leftovers(&o.prefix);
+    match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("nav_subscriber: {e}");
@@ -59,8 +69,7 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn run() -> Result<(), String> {
-    let o = options()?;
+fn run(o: &Options) -> Result<(), String> {
     transport::quiet_logging();
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {

@@ -451,6 +451,35 @@ impl Transport {
         Ok(Input { subscriber })
     }
 
+    /// A subscriber to a service another process publishes (a sensor driver): opened without
+    /// requirements if it exists (whatever QoS its creator chose; the buffer is the smaller of
+    /// ours and the service's maximum), created with our QoS otherwise.
+    pub fn external_input<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<Input<T>, TransportError> {
+        let sn = service_name(name)?;
+        let exists =
+            ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
+                .map_err(|e| setup("service lookup", name, e))?;
+        if !exists {
+            return self.input(name);
+        }
+        let service = self
+            .node
+            .service_builder(&sn)
+            .publish_subscribe::<T>()
+            .open()
+            .map_err(|e| setup("service", name, e))?;
+        let max = service.static_config().subscriber_max_buffer_size();
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(self.qos.buffer_size.min(max))
+            .create()
+            .map_err(|e| setup("subscriber", name, e))?;
+        Ok(Input { subscriber })
+    }
+
     /// A subscriber to an existing service `name` whatever its creator's QoS (for `tap`,
     /// `stats` and external consumers), with the largest buffer the service allows.
     pub fn open_input<T: Debug + ZeroCopySend + Copy + 'static>(
@@ -641,6 +670,18 @@ mod tests {
         assert_eq!(std::mem::offset_of!(GyroSample, drift), 48);
         assert_eq!(std::mem::offset_of!(GyroSample, denoised), 72);
         assert_eq!(std::mem::offset_of!(GyroSample, flags), 96);
+    }
+
+    #[test]
+    fn stats_layout_is_the_documented_one() {
+        assert_eq!(std::mem::size_of::<Percentiles>(), 40);
+        assert_eq!(std::mem::size_of::<StageStats>(), 96);
+        assert_eq!(std::mem::offset_of!(StageStats, compute), 56);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, rate_hz), 24);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, end_to_end), 88);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stage_count), 128);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stages), 136);
+        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 904);
     }
 
     #[test]

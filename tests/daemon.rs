@@ -13,6 +13,7 @@ use driftless::transport::{
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
 
+const SIGINT: i32 = 2;
 const SIGTERM: i32 = 15;
 const SIGKILL: i32 = 9;
 
@@ -507,9 +508,146 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .output()
         .expect("tap");
     assert_eq!(missing.status.code(), Some(2));
+    signal(&child, SIGINT);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+}
+
+#[test]
+fn a_subscriber_that_dies_never_blocks_the_daemon_and_is_cleaned_up() {
+    let prefix = Prefix::new("dead");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let text = csv_pipeline("realtime", true, 16)
+        .replace("report_interval_s = 60.0", "report_interval_s = 0.1");
+    let file = dir.write("p.toml", &text);
+    let report_path = dir.path("report.json");
+    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    let t0 = Instant::now();
+    let tap = std::process::Command::new(common::bin())
+        .args(["tap", "c/corrected", "--prefix", &prefix.0, "--hz"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("tap");
+    std::thread::sleep(Duration::from_millis(200));
+    signal(&tap, SIGKILL);
+    let _ = finish(tap, Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(500));
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    let elapsed_ms = t0.elapsed().as_millis() as u64;
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let r = report(&dir);
+    let n = r["samples_in"].as_u64().unwrap();
+    assert!(
+        n * 10 >= elapsed_ms * 8,
+        "kept its 1 kHz pace: {n} samples in {elapsed_ms} ms"
+    );
+    assert_eq!(r["samples_out"], n);
+    let left = prefix.leftovers();
+    assert!(
+        left.is_empty(),
+        "the dead subscriber's files were removed: {left:?}"
+    );
+}
+
+#[test]
+fn a_driver_service_created_with_other_settings_is_still_read() {
+    let prefix = Prefix::new("drvqos");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+    // The driver starts first and creates its service with a small buffer (8, not 256).
+    let driver = Transport::new(&prefix.0, "driver", qos(8)).expect("node");
+    let sensor = driver
+        .output::<RawSample>("t/sensor", true)
+        .expect("sensor publisher");
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let mut child = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "t/stats", &mut child);
+    for i in 0..5u64 {
+        assert_eq!(
+            sensor
+                .send(&raw(i, i * 1000, [1.0, 2.0, 3.0]))
+                .expect("send"),
+            1
+        );
+        sensor.notify();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let got = collect(&corrected, 5, Duration::from_secs(10));
     signal(&child, SIGTERM);
     let (code, err) = finish(child, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");
+    assert_eq!(
+        got.iter().map(|s| s.seq).collect::<Vec<_>>(),
+        [0, 1, 2, 3, 4]
+    );
+}
+
+#[test]
+fn the_simulator_ingest_runs_to_its_sample_count_with_the_library_values() {
+    const N: usize = 300;
+    let prefix = Prefix::new("sim");
+    let dir = Dir::new();
+    let text = format!(
+        r#"
+name = "s"
+rate_hz = 2000.0
+input_units = "deg/s"
+report_interval_s = 60.0
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "s/raw"
+profile = "adis16405"
+motion = "sines"
+seed = 7
+samples = {N}
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "s/raw"
+output = "s/denoised"
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "s/denoised"
+output = "s/predicted"
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "s/predicted"
+output = "s/corrected"
+"#
+    );
+    let file = dir.write("p.toml", &text);
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    let corrected = me.input::<GyroSample>("s/corrected").expect("subscriber");
+    let child = start(&file, &prefix, &[]);
+    let got = collect(&corrected, N, Duration::from_secs(10));
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stops by itself after {N} samples: {err}");
+    assert_eq!(got.len(), N);
+    let mut cfg = driftless::sim::SimConfig::profile("adis16405").unwrap();
+    cfg.rate_hz = 2000.0;
+    cfg.axes = 3;
+    cfg.seed = 7;
+    cfg.motion = driftless::sim::Motion::Sines;
+    let mut sim = driftless::sim::Simulator::new(&cfg).unwrap();
+    let scale = std::f64::consts::PI / 180.0;
+    for (k, s) in got.iter().enumerate() {
+        let m = sim.next_sample().measured;
+        assert_eq!(s.seq, k as u64);
+        assert_eq!(s.t_ns, k as u64 * 500_000);
+        assert_eq!(
+            s.rate,
+            [m[0] * scale, m[1] * scale, m[2] * scale],
+            "sample {k}"
+        );
+    }
 }
 
 /// A one-axis 100 Hz gyro with a 0.5 deg/s turn-on bias, and its true rate.

@@ -9,48 +9,15 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use common::{csv, Dir, Prefix};
 use driftless::pipeline::config;
 use driftless::pipeline::runtime::{run, RunOptions};
 
-struct Counting;
-
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-
-thread_local! {
-    static COUNTED: Cell<bool> = const { Cell::new(false) };
-}
-
-fn counted() -> bool {
-    COUNTED.try_with(Cell::get).unwrap_or(false)
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if counted() {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if counted() {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "support/alloc_counter.rs"]
+mod alloc_counter;
 
 fn pipeline(rows: usize, dir: &Dir, name: &str) -> config::Pipeline {
     dir.write(&format!("{name}.csv"), &csv(rows));
@@ -102,14 +69,10 @@ fn allocations_for(rows: usize, tag: &str) -> (u64, u64) {
         stop: Arc::new(AtomicBool::new(false)),
         print_summary: false,
     };
-    let before = ALLOCS.load(Ordering::Relaxed);
-    COUNTED.with(|c| c.set(true));
-    let report = run(&p, &opts);
-    COUNTED.with(|c| c.set(false));
-    let after = ALLOCS.load(Ordering::Relaxed);
+    let (allocations, report) = alloc_counter::allocations_during(|| run(&p, &opts));
     let report = report.expect("run");
     assert_eq!(report.samples_out, rows as u64);
-    (after - before, report.samples_out)
+    (allocations as u64, report.samples_out)
 }
 
 /// Allocations of one iceoryx2 send (+ receive) on a bare service.
@@ -123,14 +86,13 @@ fn iceoryx2_allocations_per_send() -> u64 {
     out.send(&s).expect("send");
     input.receive().expect("receive");
     const N: u64 = 1000;
-    let before = ALLOCS.load(Ordering::Relaxed);
-    COUNTED.with(|c| c.set(true));
-    for _ in 0..N {
-        out.send(&s).expect("send");
-        input.receive().expect("receive");
-    }
-    COUNTED.with(|c| c.set(false));
-    let per = (ALLOCS.load(Ordering::Relaxed) - before) / N;
+    let (allocations, ()) = alloc_counter::allocations_during(|| {
+        for _ in 0..N {
+            out.send(&s).expect("send");
+            input.receive().expect("receive");
+        }
+    });
+    let per = allocations as u64 / N;
     assert!(
         per <= 1,
         "iceoryx2 allocates {per} times per send: more than measured before"

@@ -93,6 +93,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 r.display()
             )));
         }
+        let parent = r.parent().filter(|d| !d.as_os_str().is_empty());
+        if parent.is_some_and(|d| !d.is_dir()) {
+            return Err(CliError::input(format!(
+                "--report {}: no such directory",
+                r.display()
+            )));
+        }
     }
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {

@@ -28,8 +28,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
     let p = config::load(&args.pipeline)?;
     let prefix = effective_prefix(args.prefix.as_deref(), &p.iceoryx2.prefix)?;
+    let result = watch(&args, &p, &prefix);
+    // The last process of a prefix removes its management file.
+    transport::remove_prefix_leftovers(&prefix);
+    result
+}
+
+fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError> {
     let node = Transport::new(
-        &prefix,
+        prefix,
         &format!("driftless-stats-{}", std::process::id()),
         Default::default(),
     )

@@ -71,8 +71,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
     transport::check_service_name(&args.service)
         .map_err(|e| CliError::input(format!("invalid service name {:?}: {e}", args.service)))?;
     let prefix = effective_prefix(args.prefix.as_deref(), transport::DEFAULT_PREFIX)?;
+    let result = tap(&args, &prefix);
+    // The last process of a prefix removes its management file.
+    transport::remove_prefix_leftovers(&prefix);
+    result
+}
+
+fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     let node = Transport::new(
-        &prefix,
+        prefix,
         &format!("driftless-tap-{}", std::process::id()),
         Default::default(),
     )

@@ -7,6 +7,8 @@
 //! axes = 3                   # 1..=3
 //! input_units = "deg/s"      # "deg/s" or "rad/s"; published rates are always rad/s
 //! report_interval_s = 2.0    # stderr summary and stats service period
+//! realtime_priority = 50     # optional: SCHED_FIFO priority of the hot thread (1..=99)
+//! cpu = 1                    # optional: pin the hot thread to this CPU
 //!
 //! [iceoryx2]
 //! prefix = "driftless_"      # file prefix in /dev/shm (env DRIFTLESS_IOX2_PREFIX overrides)
@@ -83,6 +85,10 @@ pub struct Pipeline {
     pub input_units: Units,
     /// Period of the stderr summary and stats snapshot.
     pub report_interval: Duration,
+    /// SCHED_FIFO priority of the hot thread (None: the default scheduler).
+    pub realtime_priority: Option<i32>,
+    /// CPU the hot thread is pinned to (None: not pinned).
+    pub cpu: Option<usize>,
     /// iceoryx2 settings.
     pub iceoryx2: Iceoryx2Settings,
     /// The stages, in chain order.
@@ -264,6 +270,8 @@ struct RawTop {
     axes: Option<Spanned<i64>>,
     input_units: Option<Spanned<String>>,
     report_interval_s: Option<Spanned<f64>>,
+    realtime_priority: Option<Spanned<i64>>,
+    cpu: Option<Spanned<i64>>,
     iceoryx2: Option<RawIox>,
 }
 
@@ -517,6 +525,14 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         Some(r) => Duration::from_secs_f64(positive(&src, r, "report_interval_s", 3600.0)?),
         None => Duration::from_secs(2),
     };
+    let realtime_priority = match &raw.realtime_priority {
+        Some(p) => Some(int_in(&src, p, "realtime_priority", 1, 99)? as i32),
+        None => None,
+    };
+    let cpu = match &raw.cpu {
+        Some(c) => Some(int_in(&src, c, "cpu", 0, 1023)?),
+        None => None,
+    };
     let iox = raw.iceoryx2.unwrap_or(RawIox {
         prefix: None,
         buffer_size: None,
@@ -570,6 +586,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         axes,
         input_units,
         report_interval,
+        realtime_priority,
+        cpu,
         iceoryx2: Iceoryx2Settings {
             prefix,
             buffer_size,

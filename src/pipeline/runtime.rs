@@ -290,6 +290,38 @@ pub fn run(p: &Pipeline, opts: &RunOptions) -> Result<Report, RunError> {
     result
 }
 
+/// Apply the pipeline's scheduling settings to the calling (hot) thread; failures (no
+/// permission, no such CPU) are warnings: the pipeline still runs.
+fn schedule_hot_thread(p: &Pipeline) {
+    if let Some(cpu) = p.cpu {
+        // SAFETY: a zeroed cpu_set_t is valid; CPU_SET stays in bounds (cpu < 1024 = CPU_SETSIZE).
+        let rc = unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            libc::CPU_SET(cpu, &mut set);
+            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
+        };
+        if rc != 0 {
+            eprintln!(
+                "driftless: warning: cannot pin the hot thread to CPU {cpu}: {}",
+                std::io::Error::last_os_error()
+            );
+        }
+    }
+    if let Some(priority) = p.realtime_priority {
+        let param = libc::sched_param {
+            sched_priority: priority,
+        };
+        // SAFETY: `param` is a valid sched_param; 0 means the calling thread.
+        let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+        if rc != 0 {
+            eprintln!(
+                "driftless: warning: cannot set SCHED_FIFO priority {priority}: {} (needs CAP_SYS_NICE or an rtprio limit)",
+                std::io::Error::last_os_error()
+            );
+        }
+    }
+}
+
 fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunError> {
     let qos = Qos {
         buffer_size: p.iceoryx2.buffer_size,
@@ -379,6 +411,8 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
         tx,
         deadline_ns: p.deadline.as_nanos() as u64,
     };
+    // After the reporter thread is spawned, so only the hot thread gets these settings.
+    schedule_hot_thread(p);
     let stop = &opts.stop;
     let end = opts.duration.map(|d| Instant::now() + d);
     let mut failure = None;

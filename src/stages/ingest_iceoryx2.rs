@@ -24,7 +24,7 @@ impl ExternalRaw {
         timeout: Duration,
     ) -> Result<Self, TransportError> {
         Ok(ExternalRaw {
-            input: transport.input::<RawSample>(service)?,
+            input: transport.external_input::<RawSample>(service)?,
             waker: transport.waker(service)?,
             timeout,
         })
