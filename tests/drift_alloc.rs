@@ -41,3 +41,75 @@ fn push_allocates_nothing_in_any_mode() {
     );
     assert_eq!(allocations, 0, "allocations during push");
 }
+
+/// The `predict.rbf` stage as the daemon builds it from a pipeline file: `process` allocates
+/// nothing per sample either.
+#[test]
+fn the_predict_rbf_stage_allocates_nothing_per_sample() {
+    use driftless::pipeline::config;
+    use driftless::transport::GyroSample;
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("log.csv");
+    let model = dir.path().join("m.json");
+    let bin = env!("CARGO_BIN_EXE_driftless");
+    let ok = |c: &mut Command| assert!(c.output().unwrap().status.success(), "{c:?}");
+    ok(Command::new(bin)
+        .args([
+            "simulate",
+            "--profile",
+            "adxrs450",
+            "--duration",
+            "400s",
+            "-o",
+        ])
+        .arg(&log));
+    ok(Command::new(bin)
+        .arg("train")
+        .arg(&log)
+        .args(["--rate", "50", "--train", "15000", "--test", "2000", "-o"])
+        .arg(&model));
+    let text = r#"
+name = "a"
+rate_hz = 50.0
+axes = 1
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "a/raw"
+file = "log.csv"
+columns = ["gyro_x_degps"]
+[[stage]]
+name = "predict"
+kind = "predict.rbf"
+model = "m.json"
+input = "a/raw"
+output = "a/predicted"
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "a/predicted"
+output = "a/corrected"
+"#;
+    let file = dir.path().join("p.toml");
+    std::fs::write(&file, text).unwrap();
+    let p = config::load(&file).expect("valid pipeline");
+    let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
+    let mut stage = driftless::stages::build(spec, &p).expect("stage");
+    let (allocations, n) = alloc_counter::allocations_during(|| {
+        let mut n = 0;
+        for t in 0..5000u64 {
+            let mut s = GyroSample {
+                seq: t,
+                ..GyroSample::default()
+            };
+            s.denoised[0] = 0.01 + if (2000..3000).contains(&t) { 0.2 } else { 0.0 };
+            if stage.process(&s).is_some() {
+                n += 1;
+            }
+        }
+        n
+    });
+    assert_eq!(n, 5000);
+    assert_eq!(allocations, 0, "allocations in predict.rbf process");
+}
