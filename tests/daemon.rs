@@ -817,7 +817,11 @@ fn predict_rbf_removes_the_bias_keeps_a_constant_turn_and_refuses_bad_models() {
         .output()
         .unwrap();
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
-    assert!(String::from_utf8_lossy(&v.stdout).contains("predict.rbf"));
+    let shown = String::from_utf8_lossy(&v.stdout);
+    assert!(
+        shown.contains("predict.rbf") && shown.contains("axis 0: model"),
+        "{shown}"
+    );
     let me = Transport::new(&prefix.0, "nav", qos(N)).expect("node");
     let corrected = me.input::<GyroSample>("r/corrected").expect("subscriber");
     let child = start(&file, &prefix, &[]);
