@@ -23,14 +23,13 @@ fn sim_log(dir: &Path, name: &str, n: usize, seed: u64) -> PathBuf {
     path
 }
 
-/// `driftless train` at 50 Hz on 12,000 + 2,000 samples unless `extra` sets --train.
+/// `driftless train` at 50 Hz on 12,000 + 2,000 samples unless `extra` sets --rate or --train.
 fn train(input: &Path, out: &Path, extra: &[&str]) -> Output {
     let mut c = bin();
-    c.arg("train")
-        .arg(input)
-        .args(["--rate", "50", "-o"])
-        .arg(out)
-        .args(extra);
+    c.arg("train").arg(input).arg("-o").arg(out).args(extra);
+    if !extra.contains(&"--rate") {
+        c.args(["--rate", "50"]);
+    }
     if !extra.contains(&"--train") {
         c.args(["--train", "12000", "--test", "2000"]);
     }
@@ -296,6 +295,21 @@ fn bad_input_is_refused_with_exit_code_2() {
         &train(&log, &out, &["--method", "magic"]),
         "unknown centre method",
     );
+    for (args, want) in [
+        (&["--lags", "0"][..], "lags must be 1 to 32"),
+        (&["--centres", "0"], "centres must be at least 1"),
+        (&["--rate", "0"], "--rate must be a positive"),
+        (
+            &["--still-window", "1e9"],
+            "more than the 12000 training samples",
+        ),
+        (&["--horizon=-1"], "--horizon must be a positive"),
+        (&["--drift-level", "30"], "low-band level must be 1 to 12"),
+        (&["--lag", "100000"], "lag"),
+        (&["--units", "furlongs/s"], "--units 'furlongs/s'"),
+    ] {
+        assert_input_error(&train(&log, &out, args), want);
+    }
     assert_input_error(
         &train(&log, &out, &["--inputs", "relative", "--target", "next"]),
         "relative inputs need",

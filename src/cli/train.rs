@@ -163,8 +163,24 @@ pub fn run(args: Args) -> Result<(), CliError> {
             UNITS.join(", ")
         )));
     }
+    for (name, v) in [
+        ("horizon", args.horizon),
+        ("still-window", args.still_window),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(CliError::input(format!(
+                "--{name} must be a positive number of seconds, not {v}"
+            )));
+        }
+    }
     let horizon = (args.horizon * args.rate).round().max(1.0) as usize;
     let still_window = (args.still_window * args.rate).round().max(2.0) as usize;
+    if still_window > args.train {
+        return Err(CliError::input(format!(
+            "--still-window {} s is {still_window} samples, more than the {} training samples",
+            args.still_window, args.train
+        )));
+    }
     if !(args.still_margin.is_finite() && args.still_margin >= 1.0) {
         return Err(CliError::input("--still-margin must be >= 1"));
     }
