@@ -11,7 +11,7 @@
 //! PyWavelets stores it puts the energy at the end of the filter and delays db6 / level 5 by 298
 //! samples; its reverse (`rec_lo`) has the same magnitude response and delays it by 43. The drift
 //! estimate is subtracted from the current rate, so its lag turns into added noise near the band
-//! edge (on the real ADIS16405 log, OADEV at 1.28 s: 1.40 x raw with 298 samples of lag, 0.97 x
+//! edge (on the real ADIS16405 log, OADEV at 1.28 s: 1.40 x raw with 298 samples of lag, 0.96 x
 //! with 43): we use the reverse. Cost: `J F` multiply-adds per sample, no allocation after
 //! construction.
 
