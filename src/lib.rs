@@ -11,6 +11,7 @@
 
 pub mod allan;
 pub mod cli;
+pub mod drift;
 pub mod io;
 pub mod metrics;
 pub mod pipeline;

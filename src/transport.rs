@@ -55,6 +55,12 @@ pub const FLAG_TIME_BACKWARDS: u32 = 1 << 3;
 pub const FLAG_FLUSHED: u32 = 1 << 4;
 /// Output flag: a non-finite value was produced by a stage and replaced by 0 before publishing.
 pub const FLAG_OUTPUT_REPAIRED: u32 = 1 << 5;
+/// Output flag (`predict.rbf`): every axis judged still; the drift model was re-anchored on the
+/// measured drift.
+pub const FLAG_STILL: u32 = 1 << 6;
+/// Output flag (`predict.rbf`): an axis judged moving; its drift model runs on its own
+/// predictions, so the rotation is not subtracted.
+pub const FLAG_MOVING: u32 = 1 << 7;
 
 /// Type name of [`RawSample`] on the wire.
 pub const RAW_TYPE_NAME: &str = "driftless::RawSample";

@@ -413,7 +413,7 @@ fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
             external_pipeline("kind = \"denoise.wavelet\"\nwavelet = \"db2\"\nlevel = 2\nlag = 99", 16),
             "lag must be in 0..=9",
         ),
-        ("rbf", external_pipeline("kind = \"predict.rbf\"", 16), "not available yet"),
+        ("rbf", external_pipeline("kind = \"predict.rbf\"", 16), "predict.rbf needs `model`"),
     ];
     for (name, text, message) in cases {
         let file = dir.write(&format!("{name}.toml"), &text);
@@ -648,4 +648,211 @@ output = "s/corrected"
             "sample {k}"
         );
     }
+}
+
+/// A one-axis 100 Hz gyro with a 0.5 deg/s turn-on bias, and its true rate.
+fn gyro_csv(seed: u64, n: usize, truth: impl Fn(f64) -> f64) -> (String, Vec<f64>) {
+    use driftless::sim::{Motion, NoiseTerms, SimConfig, Simulator};
+    let mut sim = Simulator::new(&SimConfig {
+        terms: NoiseTerms {
+            q: 0.0,
+            n: 0.005,
+            b: 0.005,
+            k: 2e-4,
+            r: 0.0,
+            bias: 0.5,
+        },
+        rate_hz: 100.0,
+        axes: 1,
+        seed,
+        motion: Motion::None,
+        lsb: None,
+    })
+    .unwrap();
+    let mut text = String::from("x\n");
+    let mut truths = Vec::with_capacity(n);
+    for _ in 0..n {
+        let s = sim.next_sample();
+        let t = truth(s.t);
+        text.push_str(&format!("{}\n", s.measured[0] + t));
+        truths.push(t);
+    }
+    (text, truths)
+}
+
+fn rbf_pipeline(model_keys: &str, axes: usize, units: &str, rate: f64, n: usize) -> String {
+    format!(
+        r#"
+name = "r"
+rate_hz = {rate:?}
+axes = {axes}
+input_units = "{units}"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {n}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "r/raw"
+file = "motion.csv"
+pace = "asap"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+wavelet = "db6"
+level = 5
+threshold = "improved"
+window = 1024
+lag = 33
+input = "r/raw"
+output = "r/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.rbf"
+{model_keys}
+input = "r/denoised"
+output = "r/predicted"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "r/predicted"
+output = "r/corrected"
+"#
+    )
+}
+
+#[test]
+fn predict_rbf_removes_the_bias_keeps_a_constant_turn_and_refuses_bad_models() {
+    use driftless::transport::{FLAG_MOVING, FLAG_STILL};
+    const N: usize = 9000;
+    let prefix = Prefix::new("rbf");
+    let dir = Dir::new();
+    // Train on a static log of the same gyro model (another seed).
+    let (still, _) = gyro_csv(1, 30_000, |_| 0.0);
+    let static_csv = dir.write("static.csv", &still);
+    let model = dir.path("m.json");
+    let o = std::process::Command::new(common::bin())
+        .arg("train")
+        .arg(&static_csv)
+        .args(["--rate", "100", "--train", "25000", "--test", "2000", "-o"])
+        .arg(&model)
+        .output()
+        .expect("train");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Still 40 s, a constant 10 deg/s turn for 30 s, still 20 s.
+    let turn = |t: f64| if (40.0..70.0).contains(&t) { 10.0 } else { 0.0 };
+    let (motion, truth) = gyro_csv(2, N, turn);
+    dir.write("motion.csv", &motion);
+
+    // Bad models: the daemon refuses to start and says why (validate says the same).
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "missing",
+            rbf_pipeline("model = \"none.json\"", 1, "deg/s", 100.0, N),
+            "No such file",
+        ),
+        (
+            "rate",
+            rbf_pipeline("model = \"m.json\"", 1, "deg/s", 50.0, N),
+            "trained at 100 Hz but the pipeline runs at 50 Hz",
+        ),
+        (
+            "units",
+            rbf_pipeline("model = \"m.json\"", 1, "rad/s", 100.0, N),
+            "is in deg/s but the pipeline's input_units are rad/s",
+        ),
+        (
+            "axes",
+            rbf_pipeline("models = [\"m.json\", \"m.json\"]", 1, "deg/s", 100.0, N),
+            "lists 2 model(s) but the pipeline has 1 axes",
+        ),
+        (
+            "corrupt",
+            rbf_pipeline("model = \"static.csv\"", 1, "deg/s", 100.0, N),
+            "not a valid driftless model",
+        ),
+        (
+            "threshold",
+            rbf_pipeline("model = \"m.json\"\nvar_exit = 1e9", 1, "deg/s", 100.0, N),
+            "exit thresholds must not exceed",
+        ),
+    ];
+    for (name, text, message) in cases {
+        let file = dir.write(&format!("{name}.toml"), &text);
+        for cmd in ["validate", "run"] {
+            let out = std::process::Command::new(common::bin())
+                .arg(cmd)
+                .arg(&file)
+                .args(
+                    ["--prefix", prefix.0.as_str()]
+                        .iter()
+                        .take(if cmd == "run" { 2 } else { 0 }),
+                )
+                .output()
+                .expect("run driftless");
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{name} {cmd}: {err}");
+            assert!(err.contains(message), "{name} {cmd}: {err}");
+            assert!(
+                err.contains(&format!("{}:", file.display())),
+                "{name}: names the file: {err}"
+            );
+        }
+        assert!(prefix.leftovers().is_empty(), "{name}: nothing started");
+    }
+
+    // The good model: run the replay through the daemon and read the corrected service.
+    let file = dir.write(
+        "p.toml",
+        &rbf_pipeline("model = \"m.json\"", 1, "deg/s", 100.0, N),
+    );
+    let v = std::process::Command::new(common::bin())
+        .arg("validate")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+    let shown = String::from_utf8_lossy(&v.stdout);
+    assert!(
+        shown.contains("predict.rbf") && shown.contains("axis 0: model"),
+        "{shown}"
+    );
+    let me = Transport::new(&prefix.0, "nav", qos(N)).expect("node");
+    let corrected = me.input::<GyroSample>("r/corrected").expect("subscriber");
+    let child = start(&file, &prefix, &[]);
+    let got = collect(&corrected, N, Duration::from_secs(20));
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert_eq!(got.len(), N);
+    let deg = 180.0 / std::f64::consts::PI;
+    let window = |a: f64, b: f64| (a * 100.0) as usize..(b * 100.0) as usize;
+    let mean_err = |r: std::ops::Range<usize>, f: &dyn Fn(&GyroSample) -> f64| {
+        let n = r.len() as f64;
+        r.map(|i| f(&got[i]) - truth[i]).sum::<f64>() / n
+    };
+    // Still, after settling: the 0.5 deg/s bias is gone from the published rate.
+    let den = mean_err(window(30.0, 40.0), &|s| s.denoised[0] * deg);
+    let pub_ = mean_err(window(30.0, 40.0), &|s| s.rate[0] * deg);
+    assert!(
+        den > 0.4 && pub_.abs() < 0.05,
+        "still: denoised {den}, published {pub_}"
+    );
+    assert!(got[window(30.0, 40.0)]
+        .iter()
+        .all(|s| s.flags & FLAG_STILL != 0));
+    // The constant turn is flagged moving and kept: the published rate stays on the truth.
+    assert!(got[window(40.5, 70.0)]
+        .iter()
+        .all(|s| s.flags & FLAG_MOVING != 0));
+    let turn_err = mean_err(window(45.0, 70.0), &|s| s.rate[0] * deg);
+    assert!(turn_err.abs() < 0.05, "constant turn eaten: {turn_err}");
+    // And still again afterwards.
+    assert!(got[window(80.0, 90.0)]
+        .iter()
+        .all(|s| s.flags & FLAG_STILL != 0));
 }

@@ -5,10 +5,12 @@ use std::process::ExitCode;
 
 pub mod allan;
 pub mod denoise;
+pub mod eval;
 pub mod run;
 pub mod simulate;
 pub mod stats;
 pub mod tap;
+pub mod train;
 pub mod validate;
 
 /// driftless: real-time MEMS gyro rate cleaning, and the offline tools to characterise a gyro.
@@ -24,6 +26,10 @@ pub struct Cli {
 enum Command {
     /// Wavelet-threshold denoise a CSV log (or a built-in synthetic benchmark).
     Denoise(denoise::Args),
+    /// Train the RBF drift model on a static log; prints the baselines and the model's skill.
+    Train(train::Args),
+    /// Evaluate a drift model on a log: the paper's Table 3 (Allan terms before and after).
+    Eval(eval::Args),
     /// Run a pipeline (the daemon) until SIGINT/SIGTERM or --duration.
     Run(run::Args),
     /// Check a pipeline file as `run` would, without starting anything.
@@ -98,6 +104,8 @@ pub fn main() -> ExitCode {
     restore_default_sigpipe();
     let result = match cli.command {
         Command::Denoise(args) => denoise::run(args),
+        Command::Train(args) => train::run(args),
+        Command::Eval(args) => eval::run(args),
         Command::Run(args) => run::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),

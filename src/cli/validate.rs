@@ -32,6 +32,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
             s.input.as_deref().unwrap_or("-"),
             s.output
         );
+        if let config::StageKind::PredictRbf(r) = &s.kind {
+            for (axis, (path, m)) in r.paths.iter().zip(&r.models).enumerate() {
+                println!(
+                    "    axis {axis}: model {} ({} Hz, {}, {} lags, {} centres, trained on {} [{}])",
+                    path.display(),
+                    m.rate_hz,
+                    m.units,
+                    m.network.lags,
+                    m.network.centre_count(),
+                    m.provenance.file,
+                    m.provenance.column
+                );
+            }
+        }
     }
     println!("  stats on {}", p.iceoryx2.stats_service);
     Ok(())

@@ -170,6 +170,31 @@ pub struct WaveletParams {
     pub sigma: Option<f64>,
 }
 
+/// `predict.rbf` parameters: the drift models, loaded and checked against the pipeline at
+/// validation, one per axis (a shared model is repeated).
+///
+/// ```toml
+/// [[stage]]
+/// name = "predict"
+/// kind = "predict.rbf"
+/// input = "demo/denoised"
+/// output = "demo/predicted"
+/// model = "models/adis-x.json"    # one model for every axis, or
+/// # models = ["x.json", "y.json", "z.json"]   # one per axis
+/// # Stillness overrides (default: the model's calibrated thresholds), in input_units:
+/// # still_window = 50, settle = 342, var_enter = 1e-4, var_exit = 5e-5,
+/// # mean_enter = 0.02, mean_exit = 0.01
+/// ```
+#[derive(Debug, Clone)]
+pub struct RbfParams {
+    /// Model file of each axis.
+    pub paths: Vec<PathBuf>,
+    /// The model of each axis.
+    pub models: Vec<crate::drift::DriftModel>,
+    /// The stillness thresholds of each axis (the model's, with the overrides applied).
+    pub stillness: Vec<crate::drift::StillnessConfig>,
+}
+
 /// A stage kind and its parameters.
 #[derive(Debug, Clone)]
 pub enum StageKind {
@@ -188,6 +213,8 @@ pub enum StageKind {
     DenoiseNone,
     /// `predict.none`: no drift removed.
     PredictNone,
+    /// `predict.rbf`: the RBF drift model with live stillness-gated compensation.
+    PredictRbf(RbfParams),
     /// `publish`: the final, public service.
     Publish {
         /// Notify the event service of the same name after each sample.
@@ -213,6 +240,7 @@ impl StageKind {
             StageKind::DenoiseWavelet(_) => "denoise.wavelet",
             StageKind::DenoiseNone => "denoise.none",
             StageKind::PredictNone => "predict.none",
+            StageKind::PredictRbf(_) => "predict.rbf",
             StageKind::Publish { .. } => "publish",
         }
     }
@@ -330,6 +358,24 @@ struct RawPassThrough {
     kind: Spanned<String>,
     input: Spanned<String>,
     output: Spanned<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRbf {
+    name: Spanned<String>,
+    #[allow(dead_code)]
+    kind: Spanned<String>,
+    input: Spanned<String>,
+    output: Spanned<String>,
+    model: Option<Spanned<String>>,
+    models: Option<Spanned<Vec<Spanned<String>>>>,
+    still_window: Option<Spanned<i64>>,
+    settle: Option<Spanned<i64>>,
+    var_enter: Option<Spanned<f64>>,
+    var_exit: Option<Spanned<f64>>,
+    mean_enter: Option<Spanned<f64>>,
+    mean_exit: Option<Spanned<f64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -660,12 +706,7 @@ fn stage<'i>(
             };
             crate::stages::ingest_sim::sim_config(&params, rate_hz, axes)
                 .map_err(|e| src.at(start, format!("ingest.sim: {e}")))?;
-            entry(
-                &r.name,
-                None,
-                &r.output,
-                StageKind::IngestSim(params),
-            )
+            entry(&r.name, None, &r.output, StageKind::IngestSim(params))
         }
         "ingest.csv" => {
             let r: RawCsv = de(src, value)?;
@@ -675,7 +716,9 @@ fn stage<'i>(
         "ingest.iceoryx2" => {
             let r: RawIceoryx2 = de(src, value)?;
             let poll_timeout = match &r.poll_timeout_us {
-                Some(p) => Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64),
+                Some(p) => {
+                    Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64)
+                }
                 None => Duration::from_millis(1),
             };
             entry(
@@ -706,10 +749,16 @@ fn stage<'i>(
             };
             entry(&r.name, Some(&r.input), &r.output, k)
         }
-        "predict.rbf" => Err(src.at(
-            kind_at,
-            "kind \"predict.rbf\" is not available yet (it comes with the drift-model issue); use predict.none",
-        )),
+        "predict.rbf" => {
+            let r: RawRbf = de(src, value)?;
+            let params = rbf_params(src, &r, start, rate_hz, axes, units)?;
+            entry(
+                &r.name,
+                Some(&r.input),
+                &r.output,
+                StageKind::PredictRbf(params),
+            )
+        }
         "publish" => {
             let r: RawPublish = de(src, value)?;
             entry(
@@ -726,6 +775,115 @@ fn stage<'i>(
             format!("unknown kind {other:?} (valid: {})", KINDS.join(", ")),
         )),
     }
+}
+
+/// A path in the pipeline file, relative to the file's folder.
+fn resolve(src: &Src<'_>, rel: &str) -> PathBuf {
+    let rel = Path::new(rel);
+    if rel.is_absolute() {
+        rel.to_path_buf()
+    } else {
+        src.path
+            .parent()
+            .map_or_else(|| rel.to_path_buf(), |d| d.join(rel))
+    }
+}
+
+/// Load every model of a `predict.rbf` stage and check it against the pipeline: it loads, its
+/// rate and units are the pipeline's, and there is one per axis (or one shared).
+fn rbf_params(
+    src: &Src<'_>,
+    r: &RawRbf,
+    start: usize,
+    rate_hz: f64,
+    axes: usize,
+    units: Units,
+) -> Result<RbfParams, InputError> {
+    let files: Vec<&Spanned<String>> = match (&r.model, &r.models) {
+        (Some(m), None) => vec![m; axes],
+        (None, Some(list)) => {
+            if list.get_ref().len() != axes {
+                return Err(src.span(
+                    list,
+                    format!(
+                        "`models` lists {} model(s) but the pipeline has {axes} axes (one per axis, or a shared `model`)",
+                        list.get_ref().len()
+                    ),
+                ));
+            }
+            list.get_ref().iter().collect()
+        }
+        (Some(m), Some(_)) => {
+            return Err(src.span(
+                m,
+                "give `model` (shared) or `models` (one per axis), not both",
+            ))
+        }
+        (None, None) => {
+            return Err(src.at(
+                start,
+                "predict.rbf needs `model` (one model for every axis) or `models` (one per axis)",
+            ))
+        }
+    };
+    let unit_name = match units {
+        Units::DegPerSec => "deg/s",
+        Units::RadPerSec => "rad/s",
+    };
+    let mut paths = Vec::with_capacity(axes);
+    let mut models = Vec::with_capacity(axes);
+    let mut stillness = Vec::with_capacity(axes);
+    for f in files {
+        let path = resolve(src, f.get_ref());
+        let m = crate::io::model_file::read_model(&path).map_err(|e| src.span(f, e))?;
+        if (m.rate_hz - rate_hz).abs() > 1e-9 * rate_hz {
+            return Err(src.span(
+                f,
+                format!(
+                    "model {} was trained at {} Hz but the pipeline runs at {rate_hz} Hz",
+                    path.display(),
+                    m.rate_hz
+                ),
+            ));
+        }
+        if m.units != unit_name {
+            return Err(src.span(
+                f,
+                format!(
+                    "model {} is in {} but the pipeline's input_units are {unit_name}",
+                    path.display(),
+                    m.units
+                ),
+            ));
+        }
+        let mut s = m.stillness;
+        if let Some(w) = &r.still_window {
+            s.window = int_in(src, w, "still_window", 2, 1_000_000)?;
+        }
+        if let Some(v) = &r.settle {
+            s.settle = int_in(src, v, "settle", 0, 100_000_000)?;
+        }
+        for (field, value) in [
+            (&mut s.var_enter, &r.var_enter),
+            (&mut s.var_exit, &r.var_exit),
+            (&mut s.mean_enter, &r.mean_enter),
+            (&mut s.mean_exit, &r.mean_exit),
+        ] {
+            if let Some(v) = value {
+                *field = positive(src, v, "stillness threshold", f64::MAX)?;
+            }
+        }
+        s.check()
+            .map_err(|e| src.at(start, format!("predict.rbf: {e}")))?;
+        paths.push(path);
+        models.push(m);
+        stillness.push(s);
+    }
+    Ok(RbfParams {
+        paths,
+        models,
+        stillness,
+    })
 }
 
 fn csv_params(

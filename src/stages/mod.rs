@@ -6,7 +6,7 @@
 //! | `ingest.csv` | [`ingest_csv`] | CSV replay, real time or as fast as possible |
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
-//! | `predict.none` | [`predict`] | drift estimate 0 (`predict.rbf` comes with the drift model) |
+//! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |
 //! | `publish` | [`publish`] | the final guard before the public service |
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -29,6 +29,7 @@ pub fn build(spec: &StageSpec, pipeline: &Pipeline) -> Result<Box<dyn Stage>, St
         StageKind::DenoiseWavelet(p) => Ok(Box::new(denoise::Wavelet::new(p, pipeline.axes)?)),
         StageKind::DenoiseNone => Ok(Box::new(denoise::PassThrough)),
         StageKind::PredictNone => Ok(Box::new(predict::NoDrift)),
+        StageKind::PredictRbf(p) => Ok(Box::new(predict::RbfDrift::new(p, pipeline)?)),
         StageKind::Publish { .. } => Ok(Box::new(publish::Publish)),
         other => Err(format!(
             "{} is an ingest, not a processing stage",

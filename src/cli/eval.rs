@@ -1,0 +1,418 @@
+//! `driftless eval`: run the daemon's stages offline on a log (streaming denoiser, then the live
+//! compensator with the model, and with the AR and persistence baselines in its place), and
+//! print the paper's Table 3: the Allan terms of the raw, denoised and compensated rates.
+
+use super::train::{check_rate, read_column};
+use super::CliError;
+use crate::allan::{self, chi2, Kind, TauGrid, Term};
+use crate::drift::baselines::{self, Mean, Persistence, Predictor, Score};
+use crate::drift::compensator::{Compensator, Mode};
+use crate::drift::model::DriftModel;
+use crate::drift::separation::separate_causal;
+use crate::io::model_file::{read_model, sha256_file};
+use crate::io::plot::{write_panels, Panel, Series};
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// The paper's Table 3 ratios (compensated / raw) for Q, N, B.
+pub const PAPER_RATIOS: [(Term, f64); 3] = [(Term::Q, 0.46), (Term::N, 0.69), (Term::B, 0.61)];
+
+/// Points per plotted line at most.
+const PLOT_POINTS: usize = 4000;
+
+/// Arguments of `driftless eval`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Gyro log (CSV, optionally .gz).
+    input: PathBuf,
+    /// Model file from `driftless train`.
+    #[arg(long)]
+    model: PathBuf,
+    /// Column (default: the model's axis).
+    #[arg(long)]
+    column: Option<String>,
+    /// Sample rate of the log, Hz (must be the model's; default: the model's).
+    #[arg(long)]
+    rate: Option<f64>,
+    /// Units of the log (must be the model's; default: the model's).
+    #[arg(long)]
+    units: Option<String>,
+    /// First sample scored (default: after the model's training range when the file is the
+    /// model's training file, else 0). The stages run from sample 0 either way.
+    #[arg(long)]
+    from: Option<usize>,
+    /// Last sample scored, exclusive (default: the end).
+    #[arg(long)]
+    to: Option<usize>,
+    /// Draw the paper's Figures 9-11 into this SVG.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Print the results as JSON instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One signal's Allan terms (base units; None: the fit failed).
+#[derive(Debug, Clone, Serialize)]
+pub struct Terms {
+    /// Signal name.
+    pub signal: String,
+    /// Q, N, B, K from the IEEE 952 fit (sqrt of the fitted squares; 0 when absent).
+    pub values: [f64; 4],
+    /// Whether the fit identified each term (its share of the variance is large enough).
+    pub identified: [bool; 4],
+    /// Fraction of samples in still, moving and warming-up mode (compensated signals).
+    pub modes: Option<[f64; 3]>,
+    /// The octave OADEV curve the terms were fitted to: (tau s, deviation).
+    pub oadev: Vec<(f64, f64)>,
+}
+
+/// The whole evaluation.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// Input file.
+    pub file: String,
+    /// Column.
+    pub column: String,
+    /// Rate, Hz.
+    pub rate_hz: f64,
+    /// Units.
+    pub units: String,
+    /// Scored range.
+    pub from: usize,
+    /// Scored range end (exclusive).
+    pub to: usize,
+    /// Whether the file is the model's training file.
+    pub training_file: bool,
+    /// Whether the scored range overlaps the model's training range.
+    pub in_sample: bool,
+    /// Allan terms: raw, denoised, compensated by RBF, AR, persistence.
+    pub table: Vec<Terms>,
+    /// One-step and free-running drift prediction scores on the scored range.
+    pub prediction: Vec<Score>,
+}
+
+const TERMS: [Term; 4] = [Term::Q, Term::N, Term::B, Term::K];
+
+fn allan_terms(signal: &str, y: &[f64], rate: f64) -> Result<Terms, CliError> {
+    let pts = allan::allan(y, rate, Kind::Oadev, &TauGrid::Octave, chi2::ONE_SIGMA)
+        .map_err(|e| CliError::input(format!("Allan deviation of {signal}: {e}")))?;
+    let fit = allan::fit_terms(&pts, chi2::ONE_SIGMA)
+        .map_err(|e| CliError::input(format!("IEEE 952 fit of {signal}: {e}")))?;
+    let mut values = [0.0; 4];
+    let mut identified = [false; 4];
+    for (i, t) in TERMS.iter().enumerate() {
+        values[i] = fit.theta[*t as usize].max(0.0).sqrt();
+        identified[i] = fit.get(*t).estimate.is_some();
+    }
+    Ok(Terms {
+        signal: signal.into(),
+        values,
+        identified,
+        modes: None,
+        oadev: pts.iter().map(|p| (p.tau, p.dev)).collect(),
+    })
+}
+
+/// One compensator's output over a record: rate, drift subtracted, mode.
+type Compensated = (Vec<f64>, Vec<f64>, Vec<Mode>);
+
+fn compensate<P: Predictor>(
+    p: P,
+    m: &DriftModel,
+    denoised: &[f64],
+) -> Result<Compensated, CliError> {
+    let lb = m.lowband().map_err(CliError::input)?;
+    let mut c = Compensator::new(p, lb, m.stillness, m.max_step).map_err(CliError::input)?;
+    let mut rate = Vec::with_capacity(denoised.len());
+    let mut drift = Vec::with_capacity(denoised.len());
+    let mut modes = Vec::with_capacity(denoised.len());
+    for &x in denoised {
+        let s = c.push(x);
+        rate.push(s.rate);
+        drift.push(s.drift);
+        modes.push(s.mode);
+    }
+    Ok((rate, drift, modes))
+}
+
+fn mode_fractions(modes: &[Mode]) -> [f64; 3] {
+    let n = modes.len().max(1) as f64;
+    let count = |m: Mode| modes.iter().filter(|&&v| v == m).count() as f64 / n;
+    [
+        count(Mode::Still),
+        count(Mode::Moving),
+        count(Mode::Warming),
+    ]
+}
+
+fn units_of(units: &str) -> (&'static str, [String; 4]) {
+    let a = if units == "rad/s" { "rad" } else { "deg" };
+    (
+        a,
+        [
+            a.to_string(),
+            format!("{a}/sqrt(s)"),
+            format!("{a}/s"),
+            format!("{a}/s/sqrt(s)"),
+        ],
+    )
+}
+
+fn thin(x0: f64, dt: f64, y: &[f64]) -> Vec<(f64, f64)> {
+    let step = (y.len() / PLOT_POINTS).max(1);
+    y.iter()
+        .enumerate()
+        .step_by(step)
+        .map(|(i, v)| (x0 + i as f64 * dt, *v))
+        .collect()
+}
+
+/// Run `driftless eval`.
+pub fn run(args: Args) -> Result<(), CliError> {
+    let model = read_model(&args.model).map_err(CliError::input)?;
+    let rate = model.rate_hz;
+    if let Some(r) = args.rate {
+        check_rate(r)?;
+        if (r - rate).abs() > 1e-9 * rate {
+            return Err(CliError::input(format!(
+                "the log is at {r} Hz but model {} was trained at {rate} Hz",
+                args.model.display()
+            )));
+        }
+    }
+    if let Some(u) = &args.units {
+        if *u != model.units {
+            return Err(CliError::input(format!(
+                "the log is in {u} but model {} is in {}",
+                args.model.display(),
+                model.units
+            )));
+        }
+    }
+    let column = args.column.clone().unwrap_or_else(|| model.axis.clone());
+    let col = read_column(&args.input, Some(&column))?;
+    let n = col.values.len();
+    let hash = sha256_file(&args.input).map_err(CliError::input)?;
+    let training_file = hash == model.provenance.sha256 && column == model.provenance.column;
+    let held_out = model.provenance.train_start + model.provenance.train_len;
+    let from = args
+        .from
+        .unwrap_or(if training_file { held_out } else { 0 });
+    let to = args.to.unwrap_or(n).min(n);
+    let min_len = 16usize;
+    if to < from + min_len {
+        return Err(CliError::input(format!(
+            "samples {from}..{to} of {} ({n} samples) are too few to evaluate (need at least \
+             {min_len}; the model's training range ends at {held_out})",
+            args.input.display()
+        )));
+    }
+    if training_file && from < held_out {
+        eprintln!(
+            "driftless: warning: samples {from}..{held_out} were used to train the model: \
+             scores there are in-sample"
+        );
+    }
+    // The daemon's stages, offline: streaming denoiser, then the compensator.
+    let sep = separate_causal(
+        &col.values,
+        &model.separation.denoise,
+        &model.separation.lowband,
+    )
+    .map_err(CliError::input)?;
+    let net = &model.network;
+    let ar = &model.baselines.ar;
+    let (rbf_rate, rbf_drift, rbf_modes) = compensate(net, &model, &sep.denoised)?;
+    let (ar_rate, _, ar_modes) = compensate(ar, &model, &sep.denoised)?;
+    let (p_rate, _, p_modes) = compensate(Persistence, &model, &sep.denoised)?;
+    let r = from..to;
+    let mut table = vec![
+        allan_terms("raw", &col.values[r.clone()], rate)?,
+        allan_terms("denoised", &sep.denoised[r.clone()], rate)?,
+    ];
+    for (name, y, modes) in [
+        ("compensated (RBF)", &rbf_rate, &rbf_modes),
+        ("compensated (AR)", &ar_rate, &ar_modes),
+        ("compensated (persistence)", &p_rate, &p_modes),
+    ] {
+        let mut t = allan_terms(name, &y[r.clone()], rate)?;
+        t.modes = Some(mode_fractions(&modes[r.clone()]));
+        table.push(t);
+    }
+    let horizon = rate.round().max(1.0) as usize;
+    let prediction: Vec<Score> = [
+        ("persistence", &Persistence as &dyn Predictor),
+        ("mean", &Mean(model.baselines.mean)),
+        (&format!("AR({})", ar.coef.len()), ar),
+        (&format!("RBF({} centres)", net.centre_count()), net),
+    ]
+    .iter()
+    .map(|(name, p)| baselines::score(name, *p, &sep.drift, from, to, horizon))
+    .collect();
+    let report = Report {
+        file: args.input.display().to_string(),
+        column: col.name.clone(),
+        rate_hz: rate,
+        units: model.units.clone(),
+        from,
+        to,
+        training_file,
+        in_sample: training_file && from < held_out,
+        table,
+        prediction,
+    };
+    if let Some(path) = &args.plot {
+        let dt = 1.0 / rate;
+        let t0 = from as f64 * dt;
+        let mut allan_series = Vec::new();
+        for (name, y) in [("raw", &col.values), ("compensated (RBF)", &rbf_rate)] {
+            let pts = allan::allan(&y[r.clone()], rate, Kind::Oadev, &TauGrid::Octave, 0.683)
+                .map_err(|e| CliError::input(e.to_string()))?;
+            allan_series.push(Series {
+                name: format!("{name}: log10 OADEV"),
+                points: pts
+                    .iter()
+                    .filter(|p| p.dev > 0.0)
+                    .map(|p| (p.tau.log10(), p.dev.log10()))
+                    .collect(),
+            });
+        }
+        // Figure 9 as the paper: the last 1,000 predictions, where the two lines can be told apart.
+        let f9 = to.saturating_sub(1000).max(from)..to;
+        let t9 = f9.start as f64 * dt;
+        let panels = [
+            Panel {
+                title: format!(
+                    "Figure 9: RBF drift prediction against the measured drift (last {} samples)",
+                    f9.len()
+                ),
+                x_label: "time (s)".into(),
+                y_label: model.units.clone(),
+                series: vec![
+                    Series {
+                        name: "measured drift (causal low band)".into(),
+                        points: thin(t9, dt, &sep.drift[f9.clone()]),
+                    },
+                    Series {
+                        name: "RBF prediction".into(),
+                        points: thin(t9, dt, &rbf_drift[f9.clone()]),
+                    },
+                ],
+            },
+            Panel {
+                title: "Figure 10: raw and compensated rate".into(),
+                x_label: "time (s)".into(),
+                y_label: model.units.clone(),
+                series: vec![
+                    Series {
+                        name: "raw".into(),
+                        points: thin(t0, dt, &col.values[r.clone()]),
+                    },
+                    Series {
+                        name: "compensated (RBF)".into(),
+                        points: thin(t0, dt, &rbf_rate[r.clone()]),
+                    },
+                ],
+            },
+            Panel {
+                title: "Figure 11: Allan deviation, raw and compensated".into(),
+                x_label: "log10 tau (s)".into(),
+                y_label: format!("log10 OADEV ({})", model.units),
+                series: allan_series,
+            },
+        ];
+        write_panels(path, &panels).map_err(CliError::internal)?;
+    }
+    if args.json {
+        let text =
+            serde_json::to_string_pretty(&report).map_err(|e| CliError::internal(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print_report(&report);
+        if let Some(p) = &args.plot {
+            println!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// The curve point whose tau is nearest `target` on a log scale.
+fn nearest(curve: &[(f64, f64)], target: f64) -> Option<&(f64, f64)> {
+    curve.iter().min_by(|a, b| {
+        let da = (a.0 / target).ln().abs();
+        let db = (b.0 / target).ln().abs();
+        da.total_cmp(&db)
+    })
+}
+
+fn print_report(r: &Report) {
+    println!(
+        "{}: column {}, {} Hz, samples {}..{}{}",
+        r.file,
+        r.column,
+        r.rate_hz,
+        r.from,
+        r.to,
+        match (r.training_file, r.in_sample) {
+            (true, false) => " (held out from the model's training file)",
+            (true, true) => " (overlapping the model's training range: in-sample)",
+            _ => "",
+        }
+    );
+    println!("Table 3: Allan terms (IEEE 952 fit to octave OADEV), ratio to raw in brackets; * = not identified by the fit");
+    let (_, units) = units_of(&r.units);
+    print!("{:<5} {:<14}", "term", "unit");
+    for t in &r.table {
+        print!(" {:>27}", t.signal);
+    }
+    println!(" {:>12}", "paper ratio");
+    for (i, term) in TERMS.iter().enumerate() {
+        print!("{:<5} {:<14}", term.name(), units[i]);
+        let raw = r.table[0].values[i];
+        for (j, t) in r.table.iter().enumerate() {
+            let v = t.values[i];
+            let mark = if t.identified[i] { ' ' } else { '*' };
+            if j == 0 {
+                print!(" {:>26.4e}{mark}", v);
+            } else {
+                let ratio = if raw > 0.0 { v / raw } else { f64::NAN };
+                print!(" {:>17.4e}{mark}({:>6.3})", v, ratio);
+            }
+        }
+        let paper = PAPER_RATIOS
+            .iter()
+            .find(|(t, _)| t == term)
+            .map_or("-".to_string(), |(_, v)| format!("{v:.2}"));
+        println!(" {paper:>12}");
+    }
+    // The fit can leave a term unidentified; deviations at fixed taus always compare.
+    for target in [1.0, 10.0, 100.0] {
+        // Only taus the record reaches (within a factor of 2 of the target).
+        let Some(&(tau, raw)) = nearest(&r.table[0].oadev, target)
+            .filter(|p| (p.0 / target).ln().abs() <= std::f64::consts::LN_2)
+        else {
+            continue;
+        };
+        print!("{:<20}", format!("OADEV at {tau:.3} s"));
+        for (j, t) in r.table.iter().enumerate() {
+            let v = nearest(&t.oadev, target).map_or(f64::NAN, |p| p.1);
+            if j == 0 {
+                print!(" {:>26.4e} ", v);
+            } else {
+                print!(" {:>17.4e} ({:>6.3})", v, v / raw);
+            }
+        }
+        println!();
+    }
+    print!("{:<20}", "mode still/moving/warming");
+    for t in &r.table {
+        match t.modes {
+            Some([s, m, w]) => print!(" {:>27}", format!("{s:.3}/{m:.3}/{w:.3}")),
+            None => print!(" {:>27}", "-"),
+        }
+    }
+    println!();
+    println!("drift prediction on the same samples (measured drift as inputs):");
+    super::train::print_scores(&r.prediction, &r.units, 1.0);
+}

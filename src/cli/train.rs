@@ -1,0 +1,351 @@
+//! `driftless train`: separate the drift of a static log causally, train the RBF network on the
+//! first part, score it and the baselines on the held-out part, and write the model file.
+
+use super::CliError;
+use crate::drift::baselines::{self, Ar, Mean, Persistence, Score};
+use crate::drift::model::{
+    Baselines, DenoiseSettings, DriftModel, LowbandSettings, Provenance, Separation, FORMAT, UNITS,
+    VERSION,
+};
+use crate::drift::rbf::{InputForm, Target};
+use crate::drift::separation::{separate_causal, train_end};
+use crate::drift::stillness::StillnessConfig;
+use crate::drift::training::{self, AdamConfig, CentreMethod, TrainConfig};
+use crate::drift::Predictor;
+use crate::io::model_file::{sha256_file, write_model};
+use crate::io::read_table;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `driftless train`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Static gyro log (CSV, optionally .gz).
+    input: PathBuf,
+    /// Sample rate of the log, Hz.
+    #[arg(long)]
+    rate: f64,
+    /// Column to train on (default: the first numeric column that is not time: t, t_s, time, ...).
+    #[arg(long)]
+    column: Option<String>,
+    /// Units of the rate: deg/s or rad/s.
+    #[arg(long, default_value = "deg/s")]
+    units: String,
+    /// Lagged drift values fed to the network (p).
+    #[arg(long, default_value_t = 4)]
+    lags: usize,
+    /// RBF centres (q).
+    #[arg(long, default_value_t = 40)]
+    centres: usize,
+    /// First sample of the training range.
+    #[arg(long, default_value_t = 0)]
+    start: usize,
+    /// Training samples.
+    #[arg(long, default_value_t = 99_000)]
+    train: usize,
+    /// Held-out samples right after the training ones, for the scores.
+    #[arg(long, default_value_t = 1_000)]
+    test: usize,
+    /// Centre placement: kmeans (k-means++) or ols (forward selection, as MATLAB newrb).
+    #[arg(long, default_value = "kmeans")]
+    method: String,
+    /// Network output: increment (next minus last) or next (the value, as the paper).
+    #[arg(long, default_value = "increment")]
+    target: String,
+    /// Features: levels (the lags, as the paper) or relative (lags minus the newest).
+    #[arg(long, default_value = "levels")]
+    inputs: String,
+    /// Leave out the linear terms (the paper's pure Gaussian network).
+    #[arg(long)]
+    no_linear: bool,
+    /// Width = this x distance to the nearest other centre.
+    #[arg(long, default_value_t = 1.0)]
+    width_scale: f64,
+    /// Ridge of the output least squares, relative to the normal matrix's mean diagonal.
+    #[arg(long, default_value_t = 1e-8)]
+    ridge: f64,
+    /// Adam refinement epochs (0: none).
+    #[arg(long, default_value_t = 0)]
+    adam_epochs: usize,
+    /// Adam step size.
+    #[arg(long, default_value_t = 0.002)]
+    learning_rate: f64,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Denoiser wavelet (the daemon's denoise stage should match).
+    #[arg(long, default_value = "db6")]
+    wavelet: String,
+    /// Denoiser levels.
+    #[arg(long, default_value_t = 5)]
+    level: usize,
+    /// Denoiser threshold function.
+    #[arg(long, default_value = "improved")]
+    threshold: String,
+    /// Denoiser noise window, samples.
+    #[arg(long, default_value_t = 1024)]
+    window: usize,
+    /// Denoiser lag, samples.
+    #[arg(long, default_value_t = 33)]
+    lag: usize,
+    /// Level of the low band that defines the drift (same wavelet).
+    #[arg(long, default_value_t = 5)]
+    drift_level: usize,
+    /// Free-running horizon for the multi-step error, seconds.
+    #[arg(long, default_value_t = 1.0)]
+    horizon: f64,
+    /// Stillness window, seconds.
+    #[arg(long, default_value_t = 0.5)]
+    still_window: f64,
+    /// Stillness thresholds = this x the largest statistics on the training log (exit), 2x (enter).
+    #[arg(long, default_value_t = 1.5)]
+    still_margin: f64,
+    /// Output model file (JSON).
+    #[arg(short = 'o', long = "output")]
+    output: PathBuf,
+}
+
+/// One rate column of a log, checked for NaN.
+pub struct Column {
+    /// Its name.
+    pub name: String,
+    /// Its values.
+    pub values: Vec<f64>,
+}
+
+/// Read one column (without `column`: the first numeric one that is not a time column, as
+/// `driftless simulate` writes) and refuse non-finite values.
+pub fn read_column(path: &Path, column: Option<&str>) -> Result<Column, CliError> {
+    let wanted: Vec<String> = column.map(|c| vec![c.to_string()]).unwrap_or_default();
+    let mut table = read_table(path, &wanted)?;
+    if table.columns.is_empty() {
+        return Err(CliError::input(format!(
+            "{}: no numeric column",
+            path.display()
+        )));
+    }
+    // Without --column, read_table has already left out time columns.
+    let name = table.names[0].clone();
+    let values = std::mem::take(&mut table.columns[0]);
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(CliError::input(format!(
+            "{}: column {name}, sample {i} (data row {}) is {}: the drift model needs finite rates",
+            path.display(),
+            i + 1,
+            values[i]
+        )));
+    }
+    Ok(Column { name, values })
+}
+
+fn parse<T: std::str::FromStr<Err = String>>(what: &str, s: &str) -> Result<T, CliError> {
+    s.parse::<T>()
+        .map_err(|e| CliError::input(format!("--{what}: {e}")))
+}
+
+/// Check a sample rate.
+pub fn check_rate(rate: f64) -> Result<(), CliError> {
+    if rate.is_finite() && rate > 0.0 {
+        Ok(())
+    } else {
+        Err(CliError::input(format!(
+            "--rate must be a positive number of Hz, not {rate}"
+        )))
+    }
+}
+
+/// Run `driftless train`.
+pub fn run(args: Args) -> Result<(), CliError> {
+    check_rate(args.rate)?;
+    if !UNITS.contains(&args.units.as_str()) {
+        return Err(CliError::input(format!(
+            "--units '{}' (valid: {})",
+            args.units,
+            UNITS.join(", ")
+        )));
+    }
+    for (name, v) in [
+        ("horizon", args.horizon),
+        ("still-window", args.still_window),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(CliError::input(format!(
+                "--{name} must be a positive number of seconds, not {v}"
+            )));
+        }
+    }
+    let horizon = (args.horizon * args.rate).round().max(1.0) as usize;
+    let still_window = (args.still_window * args.rate).round().max(2.0) as usize;
+    if still_window > args.train {
+        return Err(CliError::input(format!(
+            "--still-window {} s is {still_window} samples, more than the {} training samples",
+            args.still_window, args.train
+        )));
+    }
+    if !(args.still_margin.is_finite() && args.still_margin >= 1.0) {
+        return Err(CliError::input("--still-margin must be >= 1"));
+    }
+    let cfg = TrainConfig {
+        lags: args.lags,
+        centres: args.centres,
+        method: parse::<CentreMethod>("method", &args.method)?,
+        inputs: parse::<InputForm>("inputs", &args.inputs)?,
+        target: parse::<Target>("target", &args.target)?,
+        linear: !args.no_linear,
+        width_scale: args.width_scale,
+        ridge: args.ridge,
+        adam: (args.adam_epochs > 0).then_some(AdamConfig {
+            epochs: args.adam_epochs,
+            learning_rate: args.learning_rate,
+            ..AdamConfig::default()
+        }),
+        seed: args.seed,
+        ..TrainConfig::default()
+    };
+    let denoise = DenoiseSettings {
+        wavelet: args.wavelet.clone(),
+        level: args.level,
+        threshold: args.threshold.clone(),
+        window: args.window,
+        lag: args.lag,
+    };
+    let lowband = LowbandSettings {
+        wavelet: args.wavelet.clone(),
+        level: args.drift_level,
+    };
+    let col = read_column(&args.input, args.column.as_deref())?;
+    let n = col.values.len();
+    let end = args.start + args.train + args.test;
+    if end > n {
+        return Err(CliError::input(format!(
+            "{} has {n} samples; --start {} --train {} --test {} needs {end}",
+            args.input.display(),
+            args.start,
+            args.train,
+            args.test
+        )));
+    }
+    if args.test == 0 {
+        return Err(CliError::input("--test must be at least 1"));
+    }
+    let bar = crate::io::progress::bar(1000, 0, "training");
+    // Separation: causal, over the training and test ranges only.
+    let x = &col.values[args.start..end];
+    let sep = separate_causal(x, &denoise, &lowband).map_err(CliError::input)?;
+    bar.set_position(100);
+    let warm = sep.warm_up;
+    let t_end = train_end(args.train, &denoise);
+    let needed = warm + training::samples_needed(cfg.lags, cfg.centres) + denoise.lag;
+    if args.train < needed {
+        return Err(CliError::input(format!(
+            "--train {} is too little data for {} lags and {} centres after the {warm}-sample \
+             warm-up and the {}-sample denoiser lag (need at least {needed})",
+            args.train, cfg.lags, cfg.centres, denoise.lag
+        )));
+    }
+    let train_drift = &sep.drift[warm..t_end];
+    let model_net = training::train(train_drift, &cfg, &mut |f| {
+        bar.set_position(100 + (f * 900.0) as u64)
+    })
+    .map_err(|e| CliError::input(e.to_string()))?;
+    bar.finish_and_clear();
+    let ar = Ar::fit(train_drift, cfg.lags).ok_or_else(|| {
+        CliError::input("the training drift is constant: AR baseline has no solution")
+    })?;
+    let mean = train_drift.iter().sum::<f64>() / train_drift.len() as f64;
+    let (t0, t1) = (args.train, args.train + args.test);
+    let scores: Vec<Score> = [
+        ("persistence", &Persistence as &dyn Predictor),
+        ("mean", &Mean(mean)),
+        (&format!("AR({})", cfg.lags), &ar),
+        (&format!("RBF({} centres)", cfg.centres), &model_net),
+    ]
+    .iter()
+    .map(|(name, p)| baselines::score(name, *p, &sep.drift, t0, t1, horizon))
+    .collect();
+    let max_step = 2.0
+        * train_drift
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f64::max)
+            .max(1e-12);
+    let stillness = StillnessConfig::calibrate(
+        &sep.denoised[..t_end],
+        &sep.drift[..t_end],
+        still_window,
+        crate::drift::LowBand::new(&lowband.wavelet, lowband.level)
+            .map_err(|e| CliError::input(e.to_string()))?
+            .span(),
+        args.still_margin,
+    );
+    let model = DriftModel {
+        format: FORMAT.into(),
+        version: VERSION,
+        rate_hz: args.rate,
+        axis: col.name.clone(),
+        units: args.units.clone(),
+        separation: Separation { denoise, lowband },
+        stillness,
+        max_step,
+        network: model_net,
+        baselines: Baselines { ar, mean },
+        training: cfg.clone(),
+        scores: scores.clone(),
+        provenance: Provenance {
+            file: args.input.display().to_string(),
+            sha256: sha256_file(&args.input).map_err(CliError::input)?,
+            column: col.name.clone(),
+            train_start: args.start,
+            train_len: args.train,
+            test_len: args.test,
+            seed: args.seed,
+            driftless: env!("CARGO_PKG_VERSION").into(),
+        },
+    };
+    model.check().map_err(CliError::internal)?;
+    write_model(&args.output, &model).map_err(CliError::internal)?;
+    println!(
+        "{}: column {}, {} Hz; trained on samples {}..{} (drift {}..{} after warm-up and lag), \
+         held out {}..{}",
+        args.input.display(),
+        col.name,
+        args.rate,
+        args.start,
+        args.start + args.train,
+        args.start + warm,
+        args.start + t_end,
+        args.start + t0,
+        args.start + t1
+    );
+    print_scores(&scores, &args.units, args.horizon);
+    let rbf = &scores[3];
+    let ar_s = &scores[2];
+    println!(
+        "model skill vs persistence: {:+.4}; vs AR({}): {}",
+        rbf.skill,
+        cfg.lags,
+        if rbf.rmse < ar_s.rmse {
+            "better"
+        } else {
+            "NOT better (AR is at least as good on this data)"
+        }
+    );
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
+
+/// The baselines table.
+pub fn print_scores(scores: &[Score], units: &str, horizon_s: f64) {
+    println!(
+        "{:<18} {:>14} {:>10} {:>22}",
+        "predictor",
+        format!("rmse ({units})"),
+        "skill",
+        format!("free-run rmse ({horizon_s} s)")
+    );
+    for s in scores {
+        println!(
+            "{:<18} {:>14.4e} {:>10.4} {:>22.4e}",
+            s.name, s.rmse, s.skill, s.free_rmse
+        );
+    }
+}
