@@ -69,15 +69,7 @@ pub fn effective_prefix(cli: Option<&str>, pipeline_prefix: &str) -> Result<Stri
 fn write_report(path: &Path, report: &crate::metrics::Report) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| CliError::internal(format!("report: {e}")))?;
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
-    std::io::Write::write_all(&mut tmp, json.as_bytes())
-        .map_err(|e| CliError::internal(format!("{}: {e}", path.display())))?;
-    tmp.persist(path)
+    crate::io::atomic::write_atomically(path, json.as_bytes())
         .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     Ok(())
 }

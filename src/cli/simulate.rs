@@ -1,6 +1,7 @@
 //! `driftless simulate`: a gyro log with known IEEE Std 952 noise terms (and optional true motion).
 
 use super::CliError;
+use crate::io::atomic::AtomicFile;
 use crate::io::progress;
 use crate::sim::{Motion, NoiseTerms, SimConfig, Simulator};
 use std::io::{BufWriter, Write};
@@ -163,13 +164,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
     let out = &args.output;
     let io_err = |e: std::io::Error| CliError::input(format!("{}: {e}", out.display()));
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let tmp = tempfile::NamedTempFile::new_in(&dir).map_err(io_err)?;
+    let file = AtomicFile::create(out).map_err(io_err)?;
     {
-        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+        let mut w = BufWriter::with_capacity(1 << 20, file.file());
         let truth = cfg.motion != Motion::None;
         let mut header = vec!["t_s".to_string()];
         header.extend((0..cfg.axes).map(|a| format!("gyro_{}_degps", AXIS[a])));
@@ -201,7 +198,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         bar.finish_and_clear();
         w.flush().map_err(io_err)?;
     }
-    tmp.persist(out).map_err(|e| io_err(e.error))?;
+    file.commit().map_err(io_err)?;
     eprintln!(
         "driftless: wrote {} samples x {} axes at {} Hz ({} s) to {}",
         samples,

@@ -265,13 +265,9 @@ pub fn write_table(path: &Path, names: &[String], columns: &[&[f64]]) -> Result<
         path: shown.clone(),
         source,
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
+    let out = super::atomic::AtomicFile::create(path).map_err(io_err)?;
     {
-        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+        let mut w = BufWriter::with_capacity(1 << 20, out.file());
         writeln!(w, "{}", names.join(",")).map_err(io_err)?;
         let rows = columns.first().map_or(0, |c| c.len());
         let mut line = String::new();
@@ -290,8 +286,7 @@ pub fn write_table(path: &Path, names: &[String], columns: &[&[f64]]) -> Result<
         }
         w.flush().map_err(io_err)?;
     }
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
-    Ok(())
+    out.commit().map_err(io_err)
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
+pub mod atomic;
 pub mod csv_table;
 pub mod model_file;
 pub mod plot;

@@ -17,7 +17,7 @@ pub fn read_model(path: &Path) -> Result<DriftModel, String> {
 pub fn write_model(path: &Path, model: &DriftModel) -> Result<(), String> {
     let mut text = model.to_json();
     text.push('\n');
-    super::plot::write_atomically(path, text.as_bytes())
+    super::atomic::write_atomically(path, text.as_bytes())
         .map_err(|e| format!("{}: {e}", path.display()))
 }
 

@@ -89,20 +89,8 @@ pub fn write_panels(path: &Path, panels: &[Panel]) -> Result<(), String> {
         }
         root.present().map_err(|e| e.to_string())?;
     }
-    write_atomically(path, svg.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-/// Write `bytes` to `path` through a temporary file in the same directory, so a reader never sees
-/// a partial file.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
-    std::io::Write::write_all(&mut tmp, bytes)?;
-    tmp.persist(path).map_err(|e| e.error)?;
-    Ok(())
+    super::atomic::write_atomically(path, svg.as_bytes())
+        .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// A point with a vertical error bar.
@@ -222,5 +210,6 @@ pub fn write_loglog(path: &Path, chart: &LogLogChart) -> Result<(), String> {
         }
         root.present().map_err(|e| e.to_string())?;
     }
-    write_atomically(path, svg.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))
+    super::atomic::write_atomically(path, svg.as_bytes())
+        .map_err(|e| format!("{}: {e}", path.display()))
 }
