@@ -36,8 +36,12 @@ pub enum WaveletError {
     /// No threshold rule of that name.
     #[error("unknown threshold rule '{0}' (valid: universal, level-universal, sure, bayes, or a fixed number)")]
     UnknownRule(String),
-    /// The signal is too short for the requested decomposition level.
-    #[error("level {level} with {wavelet} needs at least {needed} samples, got {got}")]
+    /// The signal is too short for the requested decomposition level (`needed` saturates at
+    /// `usize::MAX` for levels no record could reach).
+    #[error(
+        "level {level} with {wavelet} needs at least {} samples, got {got}",
+        if *needed == usize::MAX { format!("2^{level}") } else { needed.to_string() }
+    )]
     TooShort {
         /// Requested level.
         level: usize,
