@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates pipelines/models/demo-adis16405-1khz.json, the drift model of pipelines/demo.toml:
+# Regenerates pipelines/models/demo-drift-1khz.json, the drift model of pipelines/demo.toml:
 # trained on a *simulated* static ADIS16405 log (this tool's fit of the real sensor) at the demo's
 # 1 kHz, so that the repository holds no sensor data. Deterministic: same seeds, same file (the
 # model's provenance names the simulated log and its SHA-256).
@@ -10,4 +10,4 @@ mkdir -p "$(dirname "$log")"
 cargo run --release --quiet -- simulate --profile adis16405 --rate 1000 --duration 200s \
     --axes 1 --seed 7 -o "$log"
 cargo run --release --quiet -- train "$log" --rate 1000 --seed 7 \
-    -o pipelines/models/demo-adis16405-1khz.json
+    -o pipelines/models/demo-drift-1khz.json
