@@ -8,6 +8,7 @@
 //! ([`Counters`]) at each batch. The reporting thread
 //! ([`Reporter`]) owns the histograms.
 
+use std::io::Write as _;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -341,7 +342,8 @@ impl Reporter {
             last_t = now;
             let snap = self.snapshot(rate);
             if self.layout.print {
-                eprintln!("{}", self.summary_line(&snap));
+                // A closed stderr must not stop the reporter (the daemon keeps serving).
+                let _ = writeln!(std::io::stderr(), "{}", self.summary_line(&snap));
             }
             publish(&snap);
             next = now + self.layout.interval;

@@ -303,6 +303,40 @@ fn sigterm_drains_reports_exits_zero_and_leaves_nothing_behind() {
 }
 
 #[test]
+fn a_closed_stderr_never_stops_the_daemon() {
+    // `driftless run ... 2>&1 | head -1`: the summary lines and the final table go nowhere,
+    // but the daemon keeps serving, drains, writes its report and cleans up.
+    let prefix = Prefix::new("stderr");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(400));
+    let text = csv_pipeline("realtime", false, 64)
+        .replace("report_interval_s = 60.0", "report_interval_s = 0.05");
+    let file = dir.write("p.toml", &text);
+    let report_path = dir.path("report.json");
+    let mut child = std::process::Command::new(common::bin())
+        .arg("run")
+        .arg(&file)
+        .args([
+            "--prefix",
+            &prefix.0,
+            "--report",
+            report_path.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn driftless");
+    drop(child.stderr.take());
+    let status = child.wait().expect("wait");
+    assert_eq!(status.code(), Some(0));
+    let r = report(&dir);
+    assert_eq!(r["samples_in"], 400);
+    assert_eq!(r["samples_out"], 400);
+    let left = prefix.leftovers();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
 fn after_sigkill_the_next_start_cleans_up_and_runs() {
     let prefix = Prefix::new("kill");
     let dir = Dir::new();

@@ -101,7 +101,14 @@ pub fn main() -> ExitCode {
             return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
         }
     };
-    restore_default_sigpipe();
+    // Offline filters end quietly on a closed stdout; the daemon, tap and stats hold iceoryx2
+    // ports, so they keep SIGPIPE ignored and handle a closed stream themselves (clean-up runs).
+    if !matches!(
+        cli.command,
+        Command::Run(_) | Command::Tap(_) | Command::Stats(_)
+    ) {
+        restore_default_sigpipe();
+    }
     let result = match cli.command {
         Command::Denoise(args) => denoise::run(args),
         Command::Train(args) => train::run(args),

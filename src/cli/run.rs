@@ -1,5 +1,6 @@
 //! `driftless run PIPELINE [--duration D] [--report FILE]`: the daemon.
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -108,7 +109,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         RunError::AlreadyRunning { .. } => CliError::internal(e.to_string()),
         other => CliError::internal(other.to_string()),
     })?;
-    eprint!("{}", report.table());
+    // Best effort: the report file below must be written even if stderr is gone.
+    let _ = write!(std::io::stderr(), "{}", report.table());
     if let Some(path) = &args.report {
         write_report(path, &report)?;
     }

@@ -60,7 +60,11 @@ fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError
     while !stop.load(Ordering::Relaxed) {
         match input.receive() {
             Ok(Some(s)) => {
-                print!("{}", crate::metrics::format_snapshot(&p.name, &s));
+                let text = crate::metrics::format_snapshot(&p.name, &s);
+                // A closed stdout (`| head`) ends the command cleanly, ports dropped.
+                if std::io::Write::write_all(&mut std::io::stdout(), text.as_bytes()).is_err() {
+                    return Ok(());
+                }
                 if args.once {
                     return Ok(());
                 }

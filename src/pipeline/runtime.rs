@@ -19,6 +19,7 @@
 //! writes its final report, all ports and the node are dropped, and the prefix's leftover files
 //! are removed when no other node of the prefix is alive.
 
+use std::io::Write as _;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -301,7 +302,8 @@ fn schedule_hot_thread(p: &Pipeline) {
             libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
         };
         if rc != 0 {
-            eprintln!(
+            let _ = writeln!(
+                std::io::stderr(),
                 "driftless: warning: cannot pin the hot thread to CPU {cpu}: {}",
                 std::io::Error::last_os_error()
             );
@@ -314,7 +316,8 @@ fn schedule_hot_thread(p: &Pipeline) {
         // SAFETY: `param` is a valid sched_param; 0 means the calling thread.
         let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
         if rc != 0 {
-            eprintln!(
+            let _ = writeln!(
+                std::io::stderr(),
                 "driftless: warning: cannot set SCHED_FIFO priority {priority}: {} (needs CAP_SYS_NICE or an rtprio limit)",
                 std::io::Error::last_os_error()
             );
@@ -380,7 +383,10 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
                     .map(|o| (t, o))
             });
             if let Err(e) = &stats {
-                eprintln!("driftless: warning: no stats service: {e}");
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "driftless: warning: no stats service: {e}"
+                );
             }
             let report = reporter.run(rx, |snap| {
                 if let Ok((t, out)) = &stats {
