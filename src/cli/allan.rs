@@ -51,8 +51,15 @@ struct ColumnResult {
     read_offs: Vec<TermFit>,
 }
 
-/// Samples above which the deviations show a progress bar.
-const PROGRESS_MIN_SAMPLES: u64 = 2_000_000;
+/// Terms a curve sums from which it shows a progress bar (about half a second here).
+const PROGRESS_MIN_TERMS: f64 = 1e9;
+
+/// Terms summed over the averaging factors `ms` of a record of `phase_len` phase points.
+fn work(kind: Kind, phase_len: usize, ms: &[usize]) -> f64 {
+    ms.iter()
+        .map(|&m| deviation::terms(kind, phase_len, m) as f64)
+        .sum()
+}
 
 fn analyse(
     y: &[f64],
@@ -74,15 +81,8 @@ fn analyse(
     let x = deviation::frequency_to_phase(y, rate);
     let curve = |kind: Kind, grid: &TauGrid, msg: &str| {
         let ms = deviation::averaging_factors(grid, x.len(), rate);
-        let bar = progress::bar(
-            ms.len() as u64,
-            if y.len() as u64 >= PROGRESS_MIN_SAMPLES {
-                0
-            } else {
-                u64::MAX
-            },
-            msg,
-        );
+        let long = work(kind, x.len(), &ms) >= PROGRESS_MIN_TERMS;
+        let bar = progress::bar(ms.len() as u64, if long { 0 } else { u64::MAX }, msg);
         let mut out = Vec::with_capacity(ms.len());
         for chunk in ms.chunks(8) {
             let devs = deviation::deviations(kind, &x, rate, chunk);
@@ -97,10 +97,11 @@ fn analyse(
         add_intervals(kind, &mut out, x.len(), ci);
         out
     };
-    let work: f64 = deviation::averaging_factors(grid, x.len(), rate)
-        .iter()
-        .map(|&m| deviation::terms(kind, x.len(), m) as f64)
-        .sum();
+    let work = work(
+        kind,
+        x.len(),
+        &deviation::averaging_factors(grid, x.len(), rate),
+    );
     if work > 2e10 {
         eprintln!(
             "driftless: warning: {name}: this grid needs {work:.1e} terms on {} samples and will take long (try --taus log:10)",
