@@ -376,8 +376,13 @@ fn print_report(r: &Report) {
             if j == 0 {
                 print!(" {:>26.4e}{mark}", v);
             } else {
-                let ratio = if raw > 0.0 { v / raw } else { f64::NAN };
-                print!(" {:>17.4e}{mark}({:>6.3})", v, ratio);
+                // No ratio to an unidentified (zero) raw term.
+                let ratio = if raw > 0.0 {
+                    format!("{:>6.3}", v / raw)
+                } else {
+                    format!("{:>6}", "-")
+                };
+                print!(" {:>17.4e}{mark}({ratio})", v);
             }
         }
         let paper = PAPER_RATIOS
