@@ -32,6 +32,9 @@
 use super::threshold::ThresholdFn;
 use super::{Wavelet, WaveletError};
 
+/// Deepest level the streaming denoiser takes (db6 at level 12 spans 45,046 samples).
+pub const MAX_LEVEL: usize = 12;
+
 /// The noise sigma of the streaming denoiser.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Sigma {
@@ -253,9 +256,9 @@ impl StreamingDenoiser {
     /// Build a denoiser; fails on an unknown wavelet or an out-of-range setting.
     pub fn new(cfg: &StreamConfig) -> Result<Self, WaveletError> {
         let wavelet = Wavelet::by_name(&cfg.wavelet)?;
-        if !(1..=12).contains(&cfg.level) {
+        if !(1..=MAX_LEVEL).contains(&cfg.level) {
             return Err(WaveletError::BadParameter(format!(
-                "level must be 1 to 12, got {}",
+                "level must be 1 to {MAX_LEVEL}, got {}",
                 cfg.level
             )));
         }
@@ -378,39 +381,26 @@ impl StreamingDenoiser {
         self.pushed += 1;
         self.input.push(x);
         let mut a = x;
-        let mut finest = 0.0;
-        for (j, level) in self.levels.iter_mut().enumerate() {
+        let mut details = [0.0; MAX_LEVEL];
+        for (level, detail) in self.levels.iter_mut().zip(&mut details) {
             level.input.push(a);
-            let (mut next, mut detail) = (0.0, 0.0);
+            let mut next = 0.0;
             for (k, (h, g)) in self.lo.iter().zip(&self.hi).enumerate() {
                 let v = level.input.ago(k * level.stride);
                 next += h * v;
-                detail += g * v;
+                *detail += g * v;
             }
-            if j == 0 {
-                finest = detail;
-            }
-            // Stash the raw detail; thresholded below once this sample's lambda is known.
-            level.removed.push(detail);
             a = next;
         }
         self.lambda = match self.sigma {
             Sigma::Fixed(s) => s * self.universal,
             Sigma::Mad => {
-                self.noise.push(finest);
+                self.noise.push(details[0]);
                 self.noise.median() / super::denoise::MAD_TO_SIGMA * self.universal
             }
         };
-        for level in &mut self.levels {
-            let d = level.removed.ago(0);
-            let e = d - self.threshold.apply(d, self.lambda);
-            let p = if level.removed.pos == 0 {
-                level.removed.cap - 1
-            } else {
-                level.removed.pos - 1
-            };
-            level.removed.buf[p] = e;
-            level.removed.buf[p + level.removed.cap] = e;
+        for (level, &d) in self.levels.iter_mut().zip(&details) {
+            level.removed.push(d - self.threshold.apply(d, self.lambda));
         }
         (self.pushed > self.lag as u64).then(|| self.output(self.lag))
     }
