@@ -556,10 +556,9 @@ fn run_segment(
             }
         }
         chain.idle();
-        if let Err(e) = waker.wait(poll_timeout) {
-            failure = Some(e);
-            break;
-        }
+        // An error here is a signal interrupting the wait (SIGTERM may land on this thread):
+        // the flags above decide when to stop, the next round reads the input again.
+        let _ = waker.wait(poll_timeout);
     }
     if failure.is_none() {
         if let Err(e) = chain.drain() {

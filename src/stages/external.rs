@@ -77,7 +77,10 @@ pub fn relay(
                 output.notify();
                 n += 1;
             }
-            None => waker.wait(opts.poll_timeout)?,
+            // An error is a signal interrupting the wait: the loop condition decides.
+            None => {
+                let _ = waker.wait(opts.poll_timeout);
+            }
         }
     }
     drop((input, waker, output));
