@@ -1,8 +1,9 @@
 //! No heap allocation per sample in the segments of a pipeline with an `external` stage: the
 //! segment after it runs on its own thread, so this test binary counts the allocations of the
-//! whole process (every thread: the hot thread, the later segment, the reporter, and the
-//! in-process reference external stage) for a short and a long run of the same pipeline. Set-up
-//! costs the same in both, so any per-sample allocation shows up as a difference of thousands.
+//! whole process, and of the hot thread and the in-process reference external stage apart (the
+//! rest is the later segment's thread and the reporter), for a short and a long run of the same
+//! pipeline. Set-up costs the same in both, so any per-sample allocation shows up as a
+//! difference of thousands.
 //!
 //! As in `no_alloc.rs`, iceoryx2 0.10's `Publisher::loan_uninit` allocates a small state per
 //! loaned sample: that cost is measured on a bare service and allowed per send.
