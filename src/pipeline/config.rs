@@ -25,6 +25,8 @@
 //!
 //! Every error names the file, line and column (from toml's spans); unknown keys are errors;
 //! the stages must form one chain from an ingest to a publish, without cycles or dangling inputs.
+//! An `external` stage (run by another process) is a link of the chain like any other; it may
+//! not directly follow the ingest, end the chain, or follow another external stage.
 
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};

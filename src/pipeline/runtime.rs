@@ -10,6 +10,13 @@
 //! subscribe to any hop. The publish stage also notifies an event service of the same name so
 //! that external readers can sleep until data arrives.
 //!
+//! # External stages
+//! An `external` stage runs in another process. The chain splits into segments there: segment 1
+//! (the ingest up to the stage feeding the first external stage) runs on the hot thread; each
+//! later segment runs on its own thread (ports created in it), sleeping on the event service of
+//! the external stage's output with a timeout, then running its stages in-thread. Crossing the
+//! process boundary costs wake-ups (~25 us each on 2 cores): inherent, and documented.
+//!
 //! The hot loop does not allocate: timings go to the reporting thread in fixed-size records over
 //! a bounded crossbeam channel (`try_send`; a full channel is counted, never waited on).
 //!
@@ -17,7 +24,9 @@
 //! A stop flag (set by SIGINT/SIGTERM, `--duration`, or the end of a finite source) ends the
 //! ingest; the lagged stages are then flushed through the rest of the chain, the reporter
 //! writes its final report, all ports and the node are dropped, and the prefix's leftover files
-//! are removed when no other node of the prefix is alive.
+//! are removed when no other node of the prefix is alive. A later segment keeps reading until
+//! the segment before it has finished and its input has been quiet for [`EXTERNAL_GRACE`], then
+//! flushes its own lagged stages.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
