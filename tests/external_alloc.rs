@@ -125,6 +125,7 @@ fn allocations_for(rows: usize, tag: &str) -> Counts {
             ..Qos::default()
         },
         poll_timeout: Duration::from_millis(10),
+        delay: Duration::ZERO,
     };
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let relay_stop = Arc::new(AtomicBool::new(false));

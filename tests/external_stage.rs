@@ -73,6 +73,7 @@ fn start_relay(
     prefix: &Prefix,
     buffer: usize,
     count: Option<usize>,
+    delay_us: u64,
 ) -> (Child, BufReader<ChildStderr>) {
     let mut cmd = Command::new(common::bin());
     cmd.args(["relay", "--input", "t/denoised", "--output", "t/filtered"])
@@ -82,7 +83,8 @@ fn start_relay(
             "--offset",
             &OFFSET.to_string(),
         ])
-        .args(["--prefix", &prefix.0, "--buffer-size", &buffer.to_string()]);
+        .args(["--prefix", &prefix.0, "--buffer-size", &buffer.to_string()])
+        .args(["--delay-us", &delay_us.to_string()]);
     if let Some(n) = count {
         cmd.args(["--count", &n.to_string()]);
     }
@@ -151,7 +153,7 @@ fn every_sample_crosses_the_external_stage_once_in_order_with_the_offline_values
     let file = dir.write("p.toml", &pipeline(FROM_TEST, denoise, 4096));
     let report_path = dir.path("report.json");
 
-    let (relay, mut relay_err) = start_relay(&prefix, 4096, Some(N));
+    let (relay, mut relay_err) = start_relay(&prefix, 4096, Some(N), 0);
     let me = Transport::new(&prefix.0, "test", qos(4096)).expect("node");
     let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
     let sensor = me
@@ -188,9 +190,13 @@ fn every_sample_crosses_the_external_stage_once_in_order_with_the_offline_values
     assert_eq!(got.len(), N - LAG, "all but the lag arrive while running");
     signal(&child, SIGTERM);
     // The drained samples cross the external process too.
-    got.extend(collect(&corrected, LAG + 1, Duration::from_secs(5)));
+    got.extend(collect(&corrected, LAG, Duration::from_secs(5)));
     let (code, err) = finish(child, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");
+    // Nothing more once the daemon is gone (no sample twice).
+    while let Some(s) = corrected.receive().expect("receive") {
+        got.push(s);
+    }
     assert_eq!(wait_exit(relay, Duration::from_secs(5)), Some(0));
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut relay_err, &mut rest).unwrap();
@@ -295,7 +301,9 @@ fn sigterm_drains_through_the_external_stage_exits_zero_and_leaves_nothing() {
         ),
     );
     let report_path = dir.path("report.json");
-    let (relay, _relay_err) = start_relay(&prefix, 256, None);
+    // A slow external stage (0.5 ms per sample at 1 kHz): the samples flushed at shutdown
+    // reach the last segment milliseconds after the hot thread has finished.
+    let (relay, _relay_err) = start_relay(&prefix, 256, None, 500);
     let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
     wait_ready(&prefix, "t/stats", &mut child);
     std::thread::sleep(Duration::from_millis(400));

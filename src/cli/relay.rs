@@ -30,6 +30,9 @@ pub struct Args {
     /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX (default driftless_).
     #[arg(long)]
     pub prefix: Option<String>,
+    /// Sleep this many microseconds before relaying each sample (plays a slow stage).
+    #[arg(long, default_value_t = 0)]
+    pub delay_us: u64,
     /// Subscriber buffer of services this process creates (use the pipeline's buffer_size).
     #[arg(long, default_value_t = 256)]
     pub buffer_size: usize,
@@ -66,6 +69,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             ..Qos::default()
         },
         poll_timeout: Duration::from_millis(10),
+        delay: Duration::from_micros(args.delay_us),
     };
     let n = relay(&opts, &stop, || eprintln!("relay: ready"))
         .map_err(|e| CliError::internal(e.to_string()))?;

@@ -1367,6 +1367,22 @@ mod tests {
     }
 
     #[test]
+    fn an_external_stage_is_a_link_of_the_chain() {
+        let ext = "[[stage]]\nname = \"ext\"\nkind = \"external\"\ninput = \"t/dn\"\noutput = \"t/ext\"\n";
+        let publish = PUBLISH.replace("input = \"t/dn\"", "input = \"t/ext\"");
+        let p = parse_str(&format!("{HEAD}{publish}{ext}{DENOISE}{INGEST}")).unwrap();
+        let names: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["in", "dn", "ext", "pub"]);
+        assert!(matches!(
+            p.stages[2].kind,
+            StageKind::External { poll_timeout } if poll_timeout == Duration::from_millis(1)
+        ));
+        // Without the external declaration the publish stage's input dangles.
+        let e = parse_str(&format!("{HEAD}{publish}{DENOISE}{INGEST}")).unwrap_err();
+        assert!(e.contains("dangling input \"t/ext\""), "{e}");
+    }
+
+    #[test]
     fn errors_point_at_the_offending_value() {
         let e = parse_str(&format!(
             "name = \"t\"\nrate_hz = 500.0\naxes = 4\n{INGEST}{PUBLISH}"

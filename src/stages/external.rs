@@ -43,6 +43,8 @@ pub struct RelayOptions {
     pub qos: Qos,
     /// Safety-net timeout of each wait (the daemon notifies after each sample).
     pub poll_timeout: Duration,
+    /// Sleep this long before relaying each sample: plays a slow external stage (tests).
+    pub delay: Duration,
 }
 
 /// The transform of the reference external process: `x * scale + offset` on every axis of
@@ -73,6 +75,9 @@ pub fn relay(
     while !stop.load(Ordering::Relaxed) && opts.count.is_none_or(|c| n < c) {
         match input.receive()? {
             Some(s) => {
+                if !opts.delay.is_zero() {
+                    std::thread::sleep(opts.delay);
+                }
                 output.send(&transform(&s, opts.scale, opts.offset))?;
                 output.notify();
                 n += 1;
