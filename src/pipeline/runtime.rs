@@ -721,7 +721,19 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
         .map_err(|e| RunError::Stage {
             stage: "reporter".into(),
             message: e.to_string(),
-        })?;
+        });
+    let reporter_thread = match reporter_thread {
+        Ok(h) => h,
+        Err(e) => {
+            // Let the later segments end before giving up.
+            done[0].store(true, Ordering::Release);
+            drop(chain);
+            for h in segment_threads {
+                let _ = h.join();
+            }
+            return Err(e);
+        }
+    };
 
     // After the reporter thread is spawned, so only the hot thread gets these settings.
     schedule_hot_thread(p);
