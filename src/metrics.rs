@@ -27,7 +27,10 @@ pub const MAX_STAGES: usize = MAX_STATS_STAGES;
 pub struct Record {
     /// Compute time of each stage that ran for this sample, ns (saturated at u32::MAX).
     pub stage_ns: [u32; MAX_STAGES],
-    /// How many stages (from the first) ran.
+    /// Chain position of the first stage this record times (0, or the first stage after an
+    /// `external` stage for records of a later segment).
+    pub first: u8,
+    /// Chain position + 1 of the last stage that ran (stages `first..stages_run` are timed).
     pub stages_run: u8,
     /// Ingest of this sample to publish of the output it completed, ns; 0 if none was published.
     pub e2e_ns: u64,
@@ -307,7 +310,11 @@ impl Reporter {
 
     fn record(&mut self, r: &Record) {
         let n = (r.stages_run as usize).min(self.stage_hist.len());
-        for (h, &ns) in self.stage_hist.iter_mut().zip(&r.stage_ns).take(n) {
+        let first = (r.first as usize).min(n);
+        for (h, &ns) in self.stage_hist[first..n]
+            .iter_mut()
+            .zip(&r.stage_ns[first..n])
+        {
             h.saturating_record(u64::from(ns.max(1)));
         }
         if r.e2e_ns > 0 {

@@ -407,6 +407,35 @@ impl Transport {
         notify: bool,
     ) -> Result<Output<T>, TransportError> {
         let service = self.pubsub::<T>(name)?;
+        self.output_on(service, name, notify)
+    }
+
+    /// Like [`Transport::output`] for a service another process may have created first (the
+    /// input of an `external` stage, or an external stage's own output): opened without
+    /// requirements if it exists, created with our QoS otherwise.
+    pub fn external_output<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+        notify: bool,
+    ) -> Result<Output<T>, TransportError> {
+        if !self.service_exists::<T>(name)? {
+            return self.output(name, notify);
+        }
+        let service = self
+            .node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .open()
+            .map_err(|e| setup("service", name, e))?;
+        self.output_on(service, name, notify)
+    }
+
+    fn output_on<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        service: PubSubFactory<T>,
+        name: &str,
+        notify: bool,
+    ) -> Result<Output<T>, TransportError> {
         let lost = Arc::new(AtomicU64::new(0));
         let publisher = service
             .publisher_builder()

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 pub mod allan;
 pub mod denoise;
 pub mod eval;
+pub mod relay;
 pub mod run;
 pub mod simulate;
 pub mod stats;
@@ -38,6 +39,9 @@ enum Command {
     Tap(tap::Args),
     /// Show the live statistics of a running pipeline.
     Stats(stats::Args),
+    /// Run a reference `external` stage in this process: read a GyroSample service, scale and
+    /// offset the rates, publish (and notify) another.
+    Relay(relay::Args),
     /// Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
     Allan(allan::Args),
     /// Simulate a gyro log with known IEEE Std 952 noise terms.
@@ -117,6 +121,7 @@ pub fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
+        Command::Relay(args) => relay::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
     };

@@ -32,6 +32,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
             s.input.as_deref().unwrap_or("-"),
             s.output
         );
+        if let config::StageKind::External { .. } = &s.kind {
+            println!(
+                "    runs in another process: it reads {} and must publish {} (and notify it)",
+                s.input.as_deref().unwrap_or("-"),
+                s.output
+            );
+        }
         if let config::StageKind::PredictRbf(r) = &s.kind {
             for (axis, (path, m)) in r.paths.iter().zip(&r.models).enumerate() {
                 println!(

@@ -25,6 +25,8 @@
 //!
 //! Every error names the file, line and column (from toml's spans); unknown keys are errors;
 //! the stages must form one chain from an ingest to a publish, without cycles or dangling inputs.
+//! An `external` stage (run by another process) is a link of the chain like any other; it may
+//! not directly follow the ingest, end the chain, or follow another external stage.
 
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
@@ -215,6 +217,13 @@ pub enum StageKind {
     PredictNone,
     /// `predict.rbf`: the RBF drift model with live stillness-gated compensation.
     PredictRbf(RbfParams),
+    /// `external`: a stage that runs in another process: it reads `input` and publishes
+    /// `output` (both [`crate::transport::GyroSample`]); the daemon only links to it.
+    External {
+        /// How long the segment after it sleeps waiting for a sample before checking for
+        /// shutdown (a safety net: the external process should notify after each sample).
+        poll_timeout: Duration,
+    },
     /// `publish`: the final, public service.
     Publish {
         /// Notify the event service of the same name after each sample.
@@ -241,6 +250,7 @@ impl StageKind {
             StageKind::DenoiseNone => "denoise.none",
             StageKind::PredictNone => "predict.none",
             StageKind::PredictRbf(_) => "predict.rbf",
+            StageKind::External { .. } => "external",
             StageKind::Publish { .. } => "publish",
         }
     }
@@ -255,6 +265,7 @@ pub const KINDS: &[&str] = &[
     "denoise.none",
     "predict.none",
     "predict.rbf",
+    "external",
     "publish",
 ];
 
@@ -376,6 +387,17 @@ struct RawRbf {
     var_exit: Option<Spanned<f64>>,
     mean_enter: Option<Spanned<f64>>,
     mean_exit: Option<Spanned<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawExternal {
+    name: Spanned<String>,
+    #[allow(dead_code)]
+    kind: Spanned<String>,
+    input: Spanned<String>,
+    output: Spanned<String>,
+    poll_timeout_us: Option<Spanned<i64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -757,6 +779,21 @@ fn stage<'i>(
                 Some(&r.input),
                 &r.output,
                 StageKind::PredictRbf(params),
+            )
+        }
+        "external" => {
+            let r: RawExternal = de(src, value)?;
+            let poll_timeout = match &r.poll_timeout_us {
+                Some(p) => {
+                    Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64)
+                }
+                None => Duration::from_millis(1),
+            };
+            entry(
+                &r.name,
+                Some(&r.input),
+                &r.output,
+                StageKind::External { poll_timeout },
             )
         }
         "publish" => {
@@ -1157,7 +1194,7 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
             return Err(src.at(
                 e.input_at,
                 format!(
-                    "dangling input {input:?}: no stage of this pipeline publishes it (only ingest.iceoryx2 reads a service of another process)"
+                    "dangling input {input:?}: no stage of this pipeline publishes it (a service of another process is read by ingest.iceoryx2 at the head of the chain, or declared by an `external` stage)"
                 ),
             ));
         }
@@ -1208,6 +1245,41 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
                 entries[stray].spec.name, ingest.spec.name
             ),
         ));
+    }
+    let is_external = |i: usize| matches!(entries[i].spec.kind, StageKind::External { .. });
+    for (pos, &i) in order.iter().enumerate() {
+        if !is_external(i) {
+            continue;
+        }
+        if pos == 1 {
+            return Err(src.at(
+                entries[i].input_at,
+                format!(
+                    "external stage {:?} cannot be the first stage after the ingest: it would read the raw service {:?}; put a daemon stage (e.g. denoise.none) before it",
+                    entries[i].spec.name,
+                    entries[i].spec.input.as_deref().unwrap_or("")
+                ),
+            ));
+        }
+        if pos == order.len() - 1 {
+            return Err(src.at(
+                entries[i].output_at,
+                format!(
+                    "external stage {:?} cannot be the last stage: the chain ends at a publish stage the daemon runs",
+                    entries[i].spec.name
+                ),
+            ));
+        }
+        if is_external(order[pos - 1]) {
+            return Err(src.at(
+                entries[i].input_at,
+                format!(
+                    "external stage {:?} follows external stage {:?}: merge them into one external process or put a daemon stage between",
+                    entries[i].spec.name,
+                    entries[order[pos - 1]].spec.name
+                ),
+            ));
+        }
     }
     let last = &entries[*order.last().unwrap_or(&0)];
     if !matches!(last.spec.kind, StageKind::Publish { .. }) {
@@ -1292,6 +1364,22 @@ mod tests {
             .replace("t/out", "t/out2");
         let e = parse_str(&format!("{HEAD}{INGEST}{DENOISE}{PUBLISH}{second}")).unwrap_err();
         assert!(e.contains("read by more than one stage"), "{e}");
+    }
+
+    #[test]
+    fn an_external_stage_is_a_link_of_the_chain() {
+        let ext = "[[stage]]\nname = \"ext\"\nkind = \"external\"\ninput = \"t/dn\"\noutput = \"t/ext\"\n";
+        let publish = PUBLISH.replace("input = \"t/dn\"", "input = \"t/ext\"");
+        let p = parse_str(&format!("{HEAD}{publish}{ext}{DENOISE}{INGEST}")).unwrap();
+        let names: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["in", "dn", "ext", "pub"]);
+        assert!(matches!(
+            p.stages[2].kind,
+            StageKind::External { poll_timeout } if poll_timeout == Duration::from_millis(1)
+        ));
+        // Without the external declaration the publish stage's input dangles.
+        let e = parse_str(&format!("{HEAD}{publish}{DENOISE}{INGEST}")).unwrap_err();
+        assert!(e.contains("dangling input \"t/ext\""), "{e}");
     }
 
     #[test]

@@ -10,6 +10,13 @@
 //! subscribe to any hop. The publish stage also notifies an event service of the same name so
 //! that external readers can sleep until data arrives.
 //!
+//! # External stages
+//! An `external` stage runs in another process. The chain splits into segments there: segment 1
+//! (the ingest up to the stage feeding the first external stage) runs on the hot thread; each
+//! later segment runs on its own thread (ports created in it), sleeping on the event service of
+//! the external stage's output with a timeout, then running its stages in-thread. Crossing the
+//! process boundary costs wake-ups (~25 us each on 2 cores): inherent, and documented.
+//!
 //! The hot loop does not allocate: timings go to the reporting thread in fixed-size records over
 //! a bounded crossbeam channel (`try_send`; a full channel is counted, never waited on).
 //!
@@ -17,7 +24,9 @@
 //! A stop flag (set by SIGINT/SIGTERM, `--duration`, or the end of a finite source) ends the
 //! ingest; the lagged stages are then flushed through the rest of the chain, the reporter
 //! writes its final report, all ports and the node are dropped, and the prefix's leftover files
-//! are removed when no other node of the prefix is alive.
+//! are removed when no other node of the prefix is alive. A later segment keeps reading until
+//! the segment before it has finished and its input has been quiet for [`EXTERNAL_GRACE`], then
+//! flushes its own lagged stages.
 
 use std::io::Write as _;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -81,7 +90,7 @@ pub fn node_name(pipeline: &str) -> String {
     format!("driftless-{pipeline}")
 }
 
-/// Counts kept by the hot thread, stored into the shared [`Counters`] at each batch.
+/// Counts kept by a segment's thread, stored into the shared [`Counters`] at each batch.
 #[derive(Debug, Default)]
 struct Local {
     stage_in: [u64; MAX_STAGES],
@@ -89,16 +98,27 @@ struct Local {
     misses: u64,
     repaired: u64,
     metric_drops: u64,
+    metric_drops_stored: u64,
 }
 
-/// The hops and stages, owned by the hot thread (iceoryx2 ports are not `Send`).
+/// The hops and stages of one segment, owned by its thread (iceoryx2 ports are not `Send`).
+///
+/// Segment 1 (`head` set) starts at the ingest; a later segment starts at the stage after an
+/// `external` stage. A segment ends at the publish stage (`is_final`) or at the stage feeding
+/// an `external` stage.
 struct Chain {
-    raw_out: Output<RawSample>,
-    raw_in: Input<RawSample>,
+    /// The ingest hop (segment 1 only).
+    head: Option<(Output<RawSample>, Input<RawSample>)>,
     guard: Guard,
+    /// Chain position of `stages[0]`.
+    first: usize,
     stages: Vec<Box<dyn Stage>>,
     outs: Vec<Output<GyroSample>>,
     ins: Vec<Input<GyroSample>>,
+    is_final: bool,
+    /// Chain positions whose `stage_in` / `stage_out` counts this segment owns.
+    owns_in: std::ops::Range<usize>,
+    owns_out: std::ops::Range<usize>,
     counters: Arc<Counters>,
     local: Local,
     batch: Batch,
@@ -110,14 +130,22 @@ struct Chain {
 /// Longest a partial batch waits before it is sent (so slow pipelines report promptly).
 const BATCH_MAX_AGE_NS: u64 = 50_000_000;
 
+/// How long a later segment keeps reading its input once the segment before it has finished
+/// and the input has gone quiet (the external process relays what was drained upstream).
+pub const EXTERNAL_GRACE: Duration = Duration::from_millis(200);
+
 impl Chain {
     /// The ingest hop, the guard, and the chain after it, for one raw sample.
     fn ingest(&mut self, raw: &RawSample, ingest_ns: u64) -> Result<(), TransportError> {
-        self.local.stage_in[0] += 1;
+        let Some((raw_out, raw_in)) = &self.head else {
+            return Ok(());
+        };
         let mut rec = Record::default();
-        self.raw_out.send(raw)?;
+        raw_out.send(raw)?;
+        let received = raw_in.receive()?;
+        self.local.stage_in[0] += 1;
         self.local.stage_out[0] += 1;
-        let Some(raw) = self.raw_in.receive()? else {
+        let Some(raw) = received else {
             return Ok(());
         };
         let s = self.guard.admit(&raw, ingest_ns);
@@ -129,8 +157,21 @@ impl Chain {
         Ok(())
     }
 
-    /// Run stage `k` (index into `stages`, chain position k + 1) and everything after it;
-    /// `now` is a fresh timestamp. Returns the last timestamp taken.
+    /// A later segment: one sample from the external stage before it.
+    fn after_external(&mut self, s: GyroSample) -> Result<(), TransportError> {
+        let t0 = monotonic_ns();
+        let mut rec = Record {
+            first: self.first as u8,
+            stages_run: self.first as u8,
+            ..Record::default()
+        };
+        let end = self.process_from(0, s, &mut rec, t0)?;
+        self.record(rec, end);
+        Ok(())
+    }
+
+    /// Run stage `k` (index into `stages`, chain position `first + k`) and everything after it
+    /// in this segment; `now` is a fresh timestamp. Returns the last timestamp taken.
     fn process_from(
         &mut self,
         mut k: usize,
@@ -139,7 +180,7 @@ impl Chain {
         mut now: u64,
     ) -> Result<u64, TransportError> {
         while k < self.stages.len() {
-            let pos = k + 1;
+            let pos = self.first + k;
             self.local.stage_in[pos] += 1;
             let out = self.stages[k].process(&input);
             let t1 = monotonic_ns();
@@ -160,26 +201,33 @@ impl Chain {
         Ok(now)
     }
 
-    /// Publish stage `k`'s output; returns what the next stage receives (None after the last).
+    /// Publish stage `k`'s output; returns what the next stage receives (None after the
+    /// segment's last stage).
     fn publish(
         &mut self,
         k: usize,
         out: &GyroSample,
         rec: &mut Record,
     ) -> Result<Option<GyroSample>, TransportError> {
-        self.local.stage_out[k + 1] += 1;
+        let pos = self.first + k;
+        self.local.stage_out[pos] += 1;
         self.outs[k].send(out)?;
         if k + 1 == self.stages.len() {
-            // Published: the end-to-end clock stops before readers are woken.
-            if out.flags & FLAG_FLUSHED == 0 {
-                let e2e = monotonic_ns().saturating_sub(out.ingest_ns).max(1);
-                rec.e2e_ns = e2e;
-                if e2e > self.deadline_ns {
-                    self.local.misses += 1;
+            if self.is_final {
+                // Published: the end-to-end clock stops before readers are woken.
+                if out.flags & FLAG_FLUSHED == 0 {
+                    let e2e = monotonic_ns().saturating_sub(out.ingest_ns).max(1);
+                    rec.e2e_ns = e2e;
+                    if e2e > self.deadline_ns {
+                        self.local.misses += 1;
+                    }
                 }
-            }
-            if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
-                self.local.repaired += 1;
+                if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
+                    self.local.repaired += 1;
+                }
+            } else {
+                // Offered to the external stage (its "in" as seen from the service).
+                self.local.stage_in[pos + 1] += 1;
             }
             self.outs[k].notify();
             return Ok(None);
@@ -199,7 +247,7 @@ impl Chain {
         }
     }
 
-    /// Send the pending batch (never blocking) and store the counters.
+    /// Send the pending batch (never blocking) and store the counters this segment owns.
     fn send_batch(&mut self) {
         if self.batch.len > 0 {
             if self.tx.try_send(self.batch).is_err() {
@@ -208,19 +256,28 @@ impl Chain {
             self.batch.len = 0;
         }
         let c = &self.counters;
-        let l = &self.local;
-        for i in 0..MAX_STAGES {
+        let l = &mut self.local;
+        for i in self.owns_in.clone() {
             c.stage_in[i].store(l.stage_in[i], Ordering::Relaxed);
+        }
+        for i in self.owns_out.clone() {
             c.stage_out[i].store(l.stage_out[i], Ordering::Relaxed);
         }
-        c.deadline_misses.store(l.misses, Ordering::Relaxed);
-        c.repaired.store(l.repaired, Ordering::Relaxed);
-        c.metric_drops.store(l.metric_drops, Ordering::Relaxed);
-        let g = &self.guard.counts;
-        c.invalid.store(g.invalid, Ordering::Relaxed);
-        c.gaps.store(g.gaps, Ordering::Relaxed);
-        c.missing.store(g.missing, Ordering::Relaxed);
-        c.backwards.store(g.backwards, Ordering::Relaxed);
+        if self.is_final {
+            c.deadline_misses.store(l.misses, Ordering::Relaxed);
+            c.repaired.store(l.repaired, Ordering::Relaxed);
+        }
+        // Every segment may drop records: add, do not overwrite.
+        c.metric_drops
+            .fetch_add(l.metric_drops - l.metric_drops_stored, Ordering::Relaxed);
+        l.metric_drops_stored = l.metric_drops;
+        if self.head.is_some() {
+            let g = &self.guard.counts;
+            c.invalid.store(g.invalid, Ordering::Relaxed);
+            c.gaps.store(g.gaps, Ordering::Relaxed);
+            c.missing.store(g.missing, Ordering::Relaxed);
+            c.backwards.store(g.backwards, Ordering::Relaxed);
+        }
     }
 
     /// When the source is idle: do not let a partial batch wait.
@@ -232,7 +289,7 @@ impl Chain {
         }
     }
 
-    /// Drain the lagged stages, oldest first, through the rest of the chain.
+    /// Drain the lagged stages, oldest first, through the rest of the segment.
     fn drain(&mut self) -> Result<(), TransportError> {
         for k in 0..self.stages.len() {
             while let Some(out) = self.stages[k].flush() {
@@ -325,6 +382,215 @@ fn schedule_hot_thread(p: &Pipeline) {
     }
 }
 
+/// The positions of one segment's stages (`lo..hi`, after the ingest) and what follows it.
+#[derive(Debug, Clone, Copy)]
+struct SegmentSpan {
+    lo: usize,
+    hi: usize,
+    /// Ends at the publish stage (otherwise it feeds the external stage at `hi`).
+    is_final: bool,
+}
+
+/// Split the chain at its `external` stages: segment 1 starts after the ingest, each later one
+/// after an external stage.
+fn segments(p: &Pipeline) -> Vec<SegmentSpan> {
+    let mut out = Vec::new();
+    let mut lo = 1;
+    for (i, spec) in p.stages.iter().enumerate().skip(1) {
+        if matches!(spec.kind, StageKind::External { .. }) {
+            out.push(SegmentSpan {
+                lo,
+                hi: i,
+                is_final: false,
+            });
+            lo = i + 1;
+        }
+    }
+    out.push(SegmentSpan {
+        lo,
+        hi: p.stages.len(),
+        is_final: true,
+    });
+    out
+}
+
+/// Build a segment's stages and ports (in the thread that runs it). Returns the chain without
+/// its head, the loss counters of its outputs and the sum of its stages' lags.
+fn build_segment(
+    p: &Pipeline,
+    transport: &Transport,
+    span: SegmentSpan,
+    counters: Arc<Counters>,
+    tx: Sender<Batch>,
+) -> Result<(Chain, Vec<Arc<AtomicU64>>, usize), RunError> {
+    let mut stage_objs = Vec::new();
+    let mut outs = Vec::new();
+    let mut ins = Vec::new();
+    let mut lag = 0usize;
+    for i in span.lo..span.hi {
+        let spec = &p.stages[i];
+        let stage = stages::build(spec, p).map_err(|message| RunError::Stage {
+            stage: spec.name.clone(),
+            message,
+        })?;
+        lag += stage.lag();
+        stage_objs.push(stage);
+        let feeds_external = !span.is_final && i + 1 == span.hi;
+        if feeds_external {
+            // The external process may have created the service first.
+            outs.push(transport.external_output::<GyroSample>(&spec.output, true)?);
+        } else {
+            let notify = matches!(spec.kind, StageKind::Publish { notify: true });
+            outs.push(transport.output::<GyroSample>(&spec.output, notify)?);
+        }
+        if i + 1 != span.hi {
+            ins.push(transport.input::<GyroSample>(&spec.output)?);
+        }
+    }
+    let lost = outs.iter().map(Output::lost_counter).collect();
+    let (first_in, first_out) = if span.lo == 1 {
+        (0, 0)
+    } else {
+        // The external stage before: its "out" is what this segment receives.
+        (span.lo, span.lo - 1)
+    };
+    let end_in = if span.is_final { span.hi } else { span.hi + 1 };
+    let chain = Chain {
+        head: None,
+        guard: Guard::new(p.input_units, p.axes),
+        first: span.lo,
+        stages: stage_objs,
+        outs,
+        ins,
+        is_final: span.is_final,
+        owns_in: first_in..end_in,
+        owns_out: first_out..span.hi,
+        counters,
+        local: Local::default(),
+        batch: Batch::default(),
+        batch_started_ns: 0,
+        tx,
+        deadline_ns: p.deadline.as_nanos() as u64,
+    };
+    Ok((chain, lost, lag))
+}
+
+/// Sets a flag when dropped: a segment is finished on every way out of its thread.
+struct SetOnDrop(Arc<AtomicBool>);
+
+impl Drop for SetOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Release);
+    }
+}
+
+/// What a later segment's thread reports once its ports exist.
+type Ready = Result<(Vec<Arc<AtomicU64>>, usize), RunError>;
+
+/// A later segment's thread: it wakes on the event service of the external stage's output,
+/// runs its stages on each sample, and after `upstream_done` keeps reading until its input has
+/// been quiet for [`EXTERNAL_GRACE`]; then it flushes its own lagged stages.
+#[allow(clippy::too_many_arguments)]
+fn run_segment(
+    p: &Pipeline,
+    prefix: &str,
+    node: &str,
+    qos: Qos,
+    span: SegmentSpan,
+    counters: Arc<Counters>,
+    tx: Sender<Batch>,
+    external_lost: Arc<AtomicU64>,
+    upstream_done: &AtomicBool,
+    stop: &AtomicBool,
+    ready: crossbeam_channel::Sender<Ready>,
+) -> Result<(), RunError> {
+    let ext = &p.stages[span.lo - 1];
+    let StageKind::External { poll_timeout } = ext.kind else {
+        return Err(RunError::Stage {
+            stage: ext.name.clone(),
+            message: "a later segment must follow an external stage".into(),
+        });
+    };
+    let set_up = (|| {
+        let transport = Transport::new(prefix, node, qos)?;
+        let input = transport.external_input::<GyroSample>(&ext.output)?;
+        let waker = transport.waker(&ext.output)?;
+        let (chain, lost, lag) = build_segment(p, &transport, span, counters, tx)?;
+        Ok::<_, RunError>((transport, input, waker, chain, lost, lag))
+    })();
+    let (transport, input, waker, mut chain, lost, lag) = match set_up {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = ready.send(Err(RunError::Stage {
+                stage: ext.name.clone(),
+                message: e.to_string(),
+            }));
+            return Ok(());
+        }
+    };
+    let _ = ready.send(Ok((lost, lag)));
+    let grace = EXTERNAL_GRACE.as_nanos() as u64;
+    let mut next_seq: Option<u64> = None;
+    let mut last_rx = monotonic_ns();
+    let mut upstream_done_at: Option<u64> = None;
+    let mut failure = None;
+    'run: loop {
+        loop {
+            match input.receive() {
+                Ok(Some(s)) => {
+                    chain.local.stage_out[span.lo - 1] += 1;
+                    if let Some(expected) = next_seq {
+                        if s.seq > expected {
+                            external_lost.fetch_add(s.seq - expected, Ordering::Relaxed);
+                        }
+                    }
+                    next_seq = Some(s.seq.wrapping_add(1));
+                    if let Err(e) = chain.after_external(s) {
+                        failure = Some(e);
+                        break 'run;
+                    }
+                    last_rx = monotonic_ns();
+                }
+                Ok(None) => break,
+                Err(e) => {
+                    failure = Some(e);
+                    break 'run;
+                }
+            }
+        }
+        let now = monotonic_ns();
+        if upstream_done_at.is_none() && upstream_done.load(Ordering::Acquire) {
+            upstream_done_at = Some(now);
+        }
+        if let Some(done) = upstream_done_at {
+            if now.saturating_sub(done.max(last_rx)) >= grace {
+                break;
+            }
+        }
+        chain.idle();
+        // An error here is a signal interrupting the wait (SIGTERM may land on this thread):
+        // the flags above decide when to stop, the next round reads the input again.
+        let _ = waker.wait(poll_timeout);
+    }
+    if failure.is_none() {
+        if let Err(e) = chain.drain() {
+            failure = Some(e);
+        }
+    }
+    chain.send_batch();
+    drop(chain);
+    drop((input, waker));
+    drop(transport);
+    match failure {
+        Some(e) => {
+            // Stop the whole pipeline: the segments before this one end and drain.
+            stop.store(true, Ordering::Relaxed);
+            Err(e.into())
+        }
+        None => Ok(()),
+    }
+}
+
 fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunError> {
     let qos = Qos {
         buffer_size: p.iceoryx2.buffer_size,
@@ -335,29 +601,89 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     let raw_service = &p.stages[0].output;
     let raw_out = transport.output::<RawSample>(raw_service, false)?;
     let raw_in = transport.input::<RawSample>(raw_service)?;
-    let mut stage_objs = Vec::new();
-    let mut outs = Vec::new();
-    let mut ins = Vec::new();
-    let mut lag_total = 0usize;
-    let last = p.stages.len() - 1;
-    for (i, spec) in p.stages.iter().enumerate().skip(1) {
-        let stage = stages::build(spec, p).map_err(|message| RunError::Stage {
-            stage: spec.name.clone(),
-            message,
-        })?;
-        lag_total += stage.lag();
-        stage_objs.push(stage);
-        let notify = matches!(spec.kind, StageKind::Publish { notify: true });
-        outs.push(transport.output::<GyroSample>(&spec.output, notify)?);
-        if i != last {
-            ins.push(transport.input::<GyroSample>(&spec.output)?);
-        }
-    }
-    let mut lost: Vec<Arc<AtomicU64>> = vec![raw_out.lost_counter()];
-    lost.extend(outs.iter().map(Output::lost_counter));
-
+    let spans = segments(p);
     let counters = Arc::new(Counters::default());
     let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
+    let (mut chain, head_lost, mut lag_total) =
+        build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;
+    chain.head = Some((raw_out, raw_in));
+    let mut lost: Vec<Arc<AtomicU64>> = vec![chain.head.as_ref().map_or_else(
+        || Arc::new(AtomicU64::new(0)),
+        |(raw_out, _)| raw_out.lost_counter(),
+    )];
+    lost.extend(head_lost);
+
+    // Later segments: one thread each, started before the ingest so that their subscribers
+    // exist before the first sample.
+    let shared = Arc::new(p.clone());
+    let done: Vec<Arc<AtomicBool>> = spans.iter().map(|_| Arc::default()).collect();
+    let mut segment_threads = Vec::new();
+    let mut startup_error = None;
+    for (j, span) in spans.iter().copied().enumerate().skip(1) {
+        let (ready_tx, ready_rx) = bounded::<Ready>(1);
+        let external_lost = Arc::new(AtomicU64::new(0));
+        let args = (
+            Arc::clone(&shared),
+            opts.prefix.clone(),
+            format!("{name}-seg{}", j + 1),
+            Arc::clone(&counters),
+            tx.clone(),
+            Arc::clone(&external_lost),
+            Arc::clone(&done[j - 1]),
+            Arc::clone(&done[j]),
+            Arc::clone(&opts.stop),
+        );
+        let spawned = std::thread::Builder::new()
+            .name(format!("driftless-seg{}", j + 1))
+            .spawn(move || {
+                let (p, prefix, node, counters, tx, ext_lost, upstream, mine, stop) = args;
+                let _finished = SetOnDrop(mine);
+                run_segment(
+                    &p, &prefix, &node, qos, span, counters, tx, ext_lost, &upstream, &stop,
+                    ready_tx,
+                )
+            });
+        let handle = match spawned {
+            Ok(h) => h,
+            Err(e) => {
+                startup_error = Some(RunError::Stage {
+                    stage: format!("segment {}", j + 1),
+                    message: e.to_string(),
+                });
+                break;
+            }
+        };
+        segment_threads.push(handle);
+        match ready_rx.recv() {
+            Ok(Ok((seg_lost, lag))) => {
+                lost.push(external_lost);
+                lost.extend(seg_lost);
+                lag_total += lag;
+            }
+            Ok(Err(e)) => {
+                startup_error = Some(e);
+                break;
+            }
+            Err(_) => {
+                startup_error = Some(RunError::Stage {
+                    stage: format!("segment {}", j + 1),
+                    message: "the segment thread ended before starting".into(),
+                });
+                break;
+            }
+        }
+    }
+    if let Some(e) = startup_error {
+        done[0].store(true, Ordering::Release);
+        drop(chain);
+        drop(tx);
+        for h in segment_threads {
+            let _ = h.join();
+        }
+        return Err(e);
+    }
+    drop(tx);
+
     let layout = Layout {
         pipeline: p.name.clone(),
         stages: p
@@ -401,22 +727,20 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
         .map_err(|e| RunError::Stage {
             stage: "reporter".into(),
             message: e.to_string(),
-        })?;
-
-    let mut chain = Chain {
-        raw_out,
-        raw_in,
-        guard: Guard::new(p.input_units, p.axes),
-        stages: stage_objs,
-        outs,
-        ins,
-        counters,
-        local: Local::default(),
-        batch: Batch::default(),
-        batch_started_ns: 0,
-        tx,
-        deadline_ns: p.deadline.as_nanos() as u64,
+        });
+    let reporter_thread = match reporter_thread {
+        Ok(h) => h,
+        Err(e) => {
+            // Let the later segments end before giving up.
+            done[0].store(true, Ordering::Release);
+            drop(chain);
+            for h in segment_threads {
+                let _ = h.join();
+            }
+            return Err(e);
+        }
     };
+
     // After the reporter thread is spawned, so only the hot thread gets these settings.
     schedule_hot_thread(p);
     let stop = &opts.stop;
@@ -454,13 +778,27 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     chain.send_batch();
     drop(source);
     drop(chain);
+    // The later segments drain what the external stages still relay, then flush.
+    done[0].store(true, Ordering::Release);
+    let mut failure: Option<RunError> = failure.map(Into::into);
+    for h in segment_threads {
+        let result = h.join().unwrap_or_else(|_| {
+            Err(RunError::Stage {
+                stage: "segment".into(),
+                message: "a segment thread panicked".into(),
+            })
+        });
+        if let (Err(e), None) = (result, &failure) {
+            failure = Some(e);
+        }
+    }
     let report = reporter_thread.join().map_err(|_| RunError::Stage {
         stage: "reporter".into(),
         message: "the reporting thread panicked".into(),
     })?;
     drop(transport);
     match failure {
-        Some(e) => Err(e.into()),
+        Some(e) => Err(e),
         None => Ok(report),
     }
 }

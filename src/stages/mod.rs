@@ -7,6 +7,7 @@
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
 //! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |
+//! | `external` | [`external`] | a stage run by another process (the daemon only links to it) |
 //! | `publish` | [`publish`] | the final guard before the public service |
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,6 +17,7 @@ use crate::pipeline::config::{Pipeline, StageKind, StageSpec};
 use crate::pipeline::stage::Stage;
 
 pub mod denoise;
+pub mod external;
 pub mod ingest_csv;
 pub mod ingest_iceoryx2;
 pub mod ingest_sim;
@@ -31,6 +33,7 @@ pub fn build(spec: &StageSpec, pipeline: &Pipeline) -> Result<Box<dyn Stage>, St
         StageKind::PredictNone => Ok(Box::new(predict::NoDrift)),
         StageKind::PredictRbf(p) => Ok(Box::new(predict::RbfDrift::new(p, pipeline)?)),
         StageKind::Publish { .. } => Ok(Box::new(publish::Publish)),
+        StageKind::External { .. } => Err("an external stage runs in another process".into()),
         other => Err(format!(
             "{} is an ingest, not a processing stage",
             other.name()

@@ -1,0 +1,217 @@
+//! No heap allocation per sample in the segments of a pipeline with an `external` stage: the
+//! segment after it runs on its own thread, so this test binary counts the allocations of the
+//! whole process, and of the hot thread and the in-process reference external stage apart (the
+//! rest is the later segment's thread and the reporter), for a short and a long run of the same
+//! pipeline. Set-up costs the same in both, so any per-sample allocation shows up as a
+//! difference of thousands.
+//!
+//! As in `no_alloc.rs`, iceoryx2 0.10's `Publisher::loan_uninit` allocates a small state per
+//! loaned sample: that cost is measured on a bare service and allowed per send.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use common::{csv, Dir, Prefix};
+use driftless::pipeline::config;
+use driftless::pipeline::runtime::{run, RunOptions};
+use driftless::stages::external::{relay, RelayOptions};
+use driftless::transport::{GyroSample, Qos, Transport};
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static MINE: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+fn mine() -> u64 {
+    MINE.with(|c| c.get())
+}
+
+struct Counting;
+
+// SAFETY: forwards to the system allocator; only counts calls.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        MINE.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        MINE.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        MINE.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+const BUFFER: usize = 32_768;
+
+fn pipeline(rows: usize, dir: &Dir, name: &str) -> config::Pipeline {
+    dir.write(&format!("{name}.csv"), &csv(rows));
+    let text = format!(
+        r#"
+name = "{name}"
+rate_hz = 1000.0
+report_interval_s = 600.0
+[iceoryx2]
+buffer_size = {BUFFER}
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "{name}/raw"
+file = "{name}.csv"
+pace = "asap"
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+input = "{name}/raw"
+output = "{name}/denoised"
+wavelet = "db6"
+level = 5
+lag = 64
+window = 512
+[[stage]]
+name = "filter"
+kind = "external"
+input = "{name}/denoised"
+output = "{name}/filtered"
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "{name}/filtered"
+output = "{name}/predicted"
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "{name}/predicted"
+output = "{name}/corrected"
+"#
+    );
+    let file = dir.write(&format!("{name}.toml"), &text);
+    config::load(&file).expect("valid pipeline")
+}
+
+fn allocations_for(rows: usize, tag: &str) -> Counts {
+    let dir = Dir::new();
+    let prefix = Prefix::new(tag);
+    let p = pipeline(rows, &dir, tag);
+    let relay_opts = RelayOptions {
+        prefix: prefix.0.clone(),
+        input: format!("{tag}/denoised"),
+        output: format!("{tag}/filtered"),
+        scale: 2.0,
+        offset: 0.0,
+        count: Some(rows as u64),
+        qos: Qos {
+            buffer_size: BUFFER,
+            ..Qos::default()
+        },
+        poll_timeout: Duration::from_millis(10),
+        delay: Duration::ZERO,
+    };
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let relay_stop = Arc::new(AtomicBool::new(false));
+    let stop = Arc::clone(&relay_stop);
+    let relay_thread = std::thread::spawn(move || {
+        let b = mine();
+        let relayed = relay(&relay_opts, &stop, || ready_tx.send(()).expect("ready"));
+        (relayed, mine() - b)
+    });
+    ready_rx.recv().expect("relay started");
+    let opts = RunOptions {
+        prefix: prefix.0.clone(),
+        duration: None,
+        stop: Arc::new(AtomicBool::new(false)),
+        print_summary: false,
+    };
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before_hot = mine();
+    let report = run(&p, &opts).expect("run");
+    let hot = mine() - before_hot;
+    relay_stop.store(true, Ordering::Relaxed);
+    let (relayed, relay_allocs) = relay_thread.join().expect("relay thread");
+    assert_eq!(relayed.expect("relay"), rows as u64);
+    let all = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    assert_eq!(report.samples_out, rows as u64, "{}", report.table());
+    Counts {
+        hot,
+        relay: relay_allocs,
+        others: all - hot - relay_allocs,
+        samples: report.samples_out,
+    }
+}
+
+/// Allocations during a run, by thread.
+#[derive(Debug, Clone, Copy)]
+struct Counts {
+    /// The hot thread (segment 1).
+    hot: u64,
+    /// The reference external stage.
+    relay: u64,
+    /// The later segment's thread and the reporter.
+    others: u64,
+    samples: u64,
+}
+
+/// Allocations of one iceoryx2 send (+ receive) on a bare service.
+fn iceoryx2_allocations_per_send() -> u64 {
+    let prefix = Prefix::new("xalloccal");
+    let t = Transport::new(&prefix.0, "cal", Qos::default()).expect("node");
+    let out = t.output::<GyroSample>("cal/x", false).expect("publisher");
+    let input = t.input::<GyroSample>("cal/x").expect("subscriber");
+    let s = GyroSample::default();
+    out.send(&s).expect("send");
+    input.receive().expect("receive");
+    const N: u64 = 1000;
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for _ in 0..N {
+        out.send(&s).expect("send");
+        input.receive().expect("receive");
+    }
+    let per = (ALLOCATIONS.load(Ordering::Relaxed) - before) / N;
+    assert!(per <= 1, "iceoryx2 allocates {per} times per send");
+    per
+}
+
+#[test]
+fn no_segment_allocates_per_sample_across_an_external_stage() {
+    let per_send = iceoryx2_allocations_per_send();
+    let short = allocations_for(1_000, "xallocshort");
+    let long = allocations_for(21_000, "xalloclong");
+    let extra = long.samples - short.samples;
+    eprintln!("allocations: {short:?}, {long:?}; iceoryx2: {per_send} per send");
+    // Sends per sample: hot thread 2 (raw, denoised), relay 1 (filtered), later segment 2
+    // (predicted, corrected).
+    for (what, sends, a, b) in [
+        ("hot thread", 2, short.hot, long.hot),
+        ("external stage", 1, short.relay, long.relay),
+        ("later segment and reporter", 2, short.others, long.others),
+    ] {
+        let more = b.saturating_sub(a);
+        let allowed = per_send * sends * extra + extra / 20 + 100;
+        assert!(
+            more <= allowed,
+            "{what}: {more} more allocations for {extra} more samples \
+             (iceoryx2's own loans account for {})",
+            per_send * sends * extra
+        );
+    }
+}
