@@ -9,6 +9,8 @@
 //! The maths modules ([`wavelet`], ...) are pure: no I/O, no transport, usable as a library.
 //! Layers, from the ground up: maths -> pipeline and stages -> transport -> [`cli`].
 
+#![warn(missing_docs)]
+
 pub mod allan;
 pub mod cli;
 pub mod drift;

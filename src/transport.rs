@@ -75,7 +75,7 @@ pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
 /// |---:|---|---|
 /// | 0 | u64 | `t_ns` sensor timestamp, ns |
 /// | 8 | u64 | `seq` sequence number |
-/// | 16 | f64[3] | `rate` x, y, z in the pipeline's `input_units` |
+/// | 16 | `[f64; 3]` | `rate` x, y, z in the pipeline's `input_units` |
 /// | 40 | u32 | `flags` (bit 0: [`RAW_INVALID`]) |
 /// | 44 | u32 | reserved, 0 |
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
@@ -101,9 +101,9 @@ pub struct RawSample {
 /// | 0 | u64 | `t_ns` sensor timestamp of this sample, ns |
 /// | 8 | u64 | `seq` sequence number, unchanged from the raw sample |
 /// | 16 | u64 | `ingest_ns` CLOCK_MONOTONIC ns when the sample completing this output was ingested |
-/// | 24 | f64[3] | `rate` corrected rate, rad/s (= denoised - drift) |
-/// | 48 | f64[3] | `drift` drift estimate, rad/s |
-/// | 72 | f64[3] | `denoised` denoised rate, rad/s |
+/// | 24 | `[f64; 3]` | `rate` corrected rate, rad/s (= denoised - drift) |
+/// | 48 | `[f64; 3]` | `drift` drift estimate, rad/s |
+/// | 72 | `[f64; 3]` | `denoised` denoised rate, rad/s |
 /// | 96 | u32 | `flags` ([`FLAG_WARMING_UP`], [`FLAG_INPUT_INVALID`], ...) |
 /// | 100 | u32 | reserved, 0 |
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
