@@ -206,7 +206,10 @@ fn no_segment_allocates_per_sample_across_an_external_stage() {
         ("later segment and reporter", 2, short.others, long.others),
     ] {
         let more = b.saturating_sub(a);
-        let allowed = per_send * sends * extra + extra / 20 + 100;
+        // Slack: a quarter of an allocation per sample. Set-up and idle waits allocate a timing-
+        // dependent amount (the short run's count swings by ~1,500 on a loaded machine), while
+        // a single allocation of ours per sample adds `extra` (20,000) and still fails.
+        let allowed = per_send * sends * extra + extra / 4;
         assert!(
             more <= allowed,
             "{what}: {more} more allocations for {extra} more samples \
