@@ -471,6 +471,15 @@ fn int_in(
     Ok(x as usize)
 }
 
+/// `poll_timeout_us` of a stage that waits on another process's service: 10 us to 1 s, default
+/// 1 ms.
+fn poll_timeout(src: &Src<'_>, v: Option<&Spanned<i64>>) -> Result<Duration, InputError> {
+    Ok(match v {
+        Some(p) => Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64),
+        None => Duration::from_millis(1),
+    })
+}
+
 fn positive(src: &Src<'_>, v: &Spanned<f64>, what: &str, max: f64) -> Result<f64, InputError> {
     let x = *v.get_ref();
     if !(x.is_finite() && x > 0.0 && x <= max) {
@@ -737,12 +746,7 @@ fn stage<'i>(
         }
         "ingest.iceoryx2" => {
             let r: RawIceoryx2 = de(src, value)?;
-            let poll_timeout = match &r.poll_timeout_us {
-                Some(p) => {
-                    Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64)
-                }
-                None => Duration::from_millis(1),
-            };
+            let poll_timeout = poll_timeout(src, r.poll_timeout_us.as_ref())?;
             entry(
                 &r.name,
                 Some(&r.input),
@@ -783,12 +787,7 @@ fn stage<'i>(
         }
         "external" => {
             let r: RawExternal = de(src, value)?;
-            let poll_timeout = match &r.poll_timeout_us {
-                Some(p) => {
-                    Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64)
-                }
-                None => Duration::from_millis(1),
-            };
+            let poll_timeout = poll_timeout(src, r.poll_timeout_us.as_ref())?;
             entry(
                 &r.name,
                 Some(&r.input),
