@@ -8,10 +8,11 @@
 //! As in `no_alloc.rs`, iceoryx2 0.10's `Publisher::loan_uninit` allocates a small state per
 //! loaned sample: that cost is measured on a bare service and allowed per send.
 
+#[path = "support/alloc_counter.rs"]
+mod alloc_counter;
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -19,48 +20,7 @@ use common::{csv, Dir, Prefix};
 use driftless::pipeline::config;
 use driftless::pipeline::runtime::{run, RunOptions};
 use driftless::stages::external::{relay, RelayOptions};
-use driftless::transport::{GyroSample, Qos, Transport};
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-thread_local! {
-    static MINE: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
-}
-
-fn mine() -> u64 {
-    MINE.with(|c| c.get())
-}
-
-struct Counting;
-
-// SAFETY: forwards to the system allocator; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        MINE.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        MINE.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        MINE.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+use driftless::transport::Qos;
 
 const BUFFER: usize = 32_768;
 
@@ -131,9 +91,9 @@ fn allocations_for(rows: usize, tag: &str) -> Counts {
     let relay_stop = Arc::new(AtomicBool::new(false));
     let stop = Arc::clone(&relay_stop);
     let relay_thread = std::thread::spawn(move || {
-        let b = mine();
+        let b = alloc_counter::this_thread();
         let relayed = relay(&relay_opts, &stop, || ready_tx.send(()).expect("ready"));
-        (relayed, mine() - b)
+        (relayed, alloc_counter::this_thread() - b)
     });
     ready_rx.recv().expect("relay started");
     let opts = RunOptions {
@@ -142,14 +102,14 @@ fn allocations_for(rows: usize, tag: &str) -> Counts {
         stop: Arc::new(AtomicBool::new(false)),
         print_summary: false,
     };
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    let before_hot = mine();
+    let before = alloc_counter::process();
+    let before_hot = alloc_counter::this_thread();
     let report = run(&p, &opts).expect("run");
-    let hot = mine() - before_hot;
+    let hot = alloc_counter::this_thread() - before_hot;
     relay_stop.store(true, Ordering::Relaxed);
     let (relayed, relay_allocs) = relay_thread.join().expect("relay thread");
     assert_eq!(relayed.expect("relay"), rows as u64);
-    let all = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let all = alloc_counter::process() - before;
     assert_eq!(report.samples_out, rows as u64, "{}", report.table());
     Counts {
         hot,
@@ -171,29 +131,10 @@ struct Counts {
     samples: u64,
 }
 
-/// Allocations of one iceoryx2 send (+ receive) on a bare service.
-fn iceoryx2_allocations_per_send() -> u64 {
-    let prefix = Prefix::new("xalloccal");
-    let t = Transport::new(&prefix.0, "cal", Qos::default()).expect("node");
-    let out = t.output::<GyroSample>("cal/x", false).expect("publisher");
-    let input = t.input::<GyroSample>("cal/x").expect("subscriber");
-    let s = GyroSample::default();
-    out.send(&s).expect("send");
-    input.receive().expect("receive");
-    const N: u64 = 1000;
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    for _ in 0..N {
-        out.send(&s).expect("send");
-        input.receive().expect("receive");
-    }
-    let per = (ALLOCATIONS.load(Ordering::Relaxed) - before) / N;
-    assert!(per <= 1, "iceoryx2 allocates {per} times per send");
-    per
-}
-
 #[test]
 fn no_segment_allocates_per_sample_across_an_external_stage() {
-    let per_send = iceoryx2_allocations_per_send();
+    let calibration = Prefix::new("xalloccal");
+    let per_send = alloc_counter::iceoryx2_allocations_per_send(&calibration.0);
     let short = allocations_for(1_000, "xallocshort");
     let long = allocations_for(21_000, "xalloclong");
     let extra = long.samples - short.samples;

@@ -75,35 +75,11 @@ fn allocations_for(rows: usize, tag: &str) -> (u64, u64) {
     (allocations as u64, report.samples_out)
 }
 
-/// Allocations of one iceoryx2 send (+ receive) on a bare service.
-fn iceoryx2_allocations_per_send() -> u64 {
-    use driftless::transport::{GyroSample, Qos, Transport};
-    let prefix = Prefix::new("alloccal");
-    let t = Transport::new(&prefix.0, "cal", Qos::default()).expect("node");
-    let out = t.output::<GyroSample>("cal/x", false).expect("publisher");
-    let input = t.input::<GyroSample>("cal/x").expect("subscriber");
-    let s = GyroSample::default();
-    out.send(&s).expect("send");
-    input.receive().expect("receive");
-    const N: u64 = 1000;
-    let (allocations, ()) = alloc_counter::allocations_during(|| {
-        for _ in 0..N {
-            out.send(&s).expect("send");
-            input.receive().expect("receive");
-        }
-    });
-    let per = allocations as u64 / N;
-    assert!(
-        per <= 1,
-        "iceoryx2 allocates {per} times per send: more than measured before"
-    );
-    per
-}
-
 #[test]
 fn the_hot_loop_does_not_allocate_per_sample() {
     const HOPS: u64 = 4;
-    let per_send = iceoryx2_allocations_per_send();
+    let calibration = Prefix::new("alloccal");
+    let per_send = alloc_counter::iceoryx2_allocations_per_send(&calibration.0);
     let (short, n_short) = allocations_for(1_000, "allocshort");
     let (long, n_long) = allocations_for(21_000, "alloclong");
     let extra_samples = n_long - n_short;

@@ -1,9 +1,13 @@
 //! A counting global allocator for "allocates nothing" tests. Include it with
 //! `#[path = "support/alloc_counter.rs"] mod alloc_counter;` (a global allocator is per test
-//! binary). The count is per thread, so the test harness's other threads cannot disturb it.
+//! binary). Counts are kept per thread, so the test harness's other threads cannot disturb
+//! them, and for the whole process, for code that runs threads of its own.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+static PROCESS: AtomicU64 = AtomicU64::new(0);
 
 thread_local! {
     static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
@@ -13,6 +17,7 @@ struct Counting;
 
 fn count() {
     ALLOCATIONS.with(|c| c.set(c.get() + 1));
+    PROCESS.fetch_add(1, Ordering::Relaxed);
 }
 
 // SAFETY: forwards to the system allocator; only counts calls on the current thread.
@@ -50,4 +55,43 @@ pub fn allocations_during<T>(f: impl FnOnce() -> T) -> (usize, T) {
     assert!(start > before, "the counting allocator does not count");
     let out = f();
     (ALLOCATIONS.with(Cell::get) - start, out)
+}
+
+/// Allocations made so far on this thread.
+#[allow(dead_code)] // not every including test needs it
+pub fn this_thread() -> u64 {
+    ALLOCATIONS.with(Cell::get) as u64
+}
+
+/// Allocations made so far by every thread of the process.
+#[allow(dead_code)]
+pub fn process() -> u64 {
+    PROCESS.load(Ordering::Relaxed)
+}
+
+/// Allocations of one iceoryx2 send (+ receive) on a bare service under `prefix`: iceoryx2 0.10's
+/// `Publisher::loan_uninit` allocates a small state per loaned sample, a cost the daemon's
+/// allocation tests allow per hop.
+#[allow(dead_code)]
+pub fn iceoryx2_allocations_per_send(prefix: &str) -> u64 {
+    use driftless::transport::{GyroSample, Qos, Transport};
+    let t = Transport::new(prefix, "cal", Qos::default()).expect("node");
+    let out = t.output::<GyroSample>("cal/x", false).expect("publisher");
+    let input = t.input::<GyroSample>("cal/x").expect("subscriber");
+    let s = GyroSample::default();
+    out.send(&s).expect("send");
+    input.receive().expect("receive");
+    const N: u64 = 1000;
+    let (allocations, ()) = allocations_during(|| {
+        for _ in 0..N {
+            out.send(&s).expect("send");
+            input.receive().expect("receive");
+        }
+    });
+    let per = allocations as u64 / N;
+    assert!(
+        per <= 1,
+        "iceoryx2 allocates {per} times per send: more than measured before"
+    );
+    per
 }
