@@ -5,10 +5,12 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{csv, finish, signal, start, wait_ready, Dir, Prefix};
+use common::{
+    collect, csv, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
+};
 use driftless::transport::{
-    GyroSample, Qos, RawSample, Transport, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
-    FLAG_TIME_BACKWARDS, RAW_INVALID,
+    GyroSample, RawSample, Transport, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID, FLAG_TIME_BACKWARDS,
+    RAW_INVALID,
 };
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
@@ -92,45 +94,6 @@ output = "c/corrected"
     )
 }
 
-fn qos(buffer: usize) -> Qos {
-    Qos {
-        buffer_size: buffer,
-        max_subscribers: 8,
-    }
-}
-
-fn raw(seq: u64, t_ns: u64, rate: [f64; 3]) -> RawSample {
-    RawSample {
-        t_ns,
-        seq,
-        rate,
-        flags: 0,
-        reserved: 0,
-    }
-}
-
-/// Receive until `n` samples came or `timeout` passed.
-fn collect(
-    input: &driftless::transport::Input<GyroSample>,
-    n: usize,
-    timeout: Duration,
-) -> Vec<GyroSample> {
-    let mut got = Vec::with_capacity(n);
-    let end = Instant::now() + timeout;
-    while got.len() < n && Instant::now() < end {
-        match input.receive().expect("receive") {
-            Some(s) => got.push(s),
-            None => std::thread::sleep(Duration::from_micros(200)),
-        }
-    }
-    got
-}
-
-fn report(dir: &Dir) -> serde_json::Value {
-    let text = std::fs::read_to_string(dir.path("report.json")).expect("report written");
-    serde_json::from_str(&text).expect("report is JSON")
-}
-
 #[test]
 fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
     const N: usize = 1500;
@@ -150,16 +113,7 @@ fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
     let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
     wait_ready(&prefix, "t/stats", &mut child);
 
-    let input: Vec<[f64; 3]> = (0..N)
-        .map(|i| {
-            let t = i as f64 * 1e-3;
-            [
-                (t * 9.0).sin() + 0.3 * ((i * 7919 % 23) as f64 / 23.0 - 0.5),
-                (t * 2.0).cos(),
-                ((i * 104_729 % 31) as f64 / 31.0) - 0.5,
-            ]
-        })
-        .collect();
+    let input = test_rates(N);
     for (i, r) in input.iter().enumerate() {
         let delivered = sensor
             .send(&raw(i as u64, i as u64 * 1_000_000, *r))

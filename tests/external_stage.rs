@@ -8,9 +8,11 @@ use std::io::{BufRead, BufReader};
 use std::process::{Child, ChildStderr, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{csv, finish, signal, start, wait_ready, Dir, Prefix};
+use common::{
+    collect, csv, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
+};
 use driftless::stages::external::transform;
-use driftless::transport::{GyroSample, Qos, RawSample, Transport};
+use driftless::transport::{GyroSample, RawSample, Transport};
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
 
@@ -100,49 +102,6 @@ fn start_relay(
     (child, err)
 }
 
-fn wait_exit(mut child: Child, timeout: Duration) -> Option<i32> {
-    let end = Instant::now() + timeout;
-    loop {
-        if let Some(status) = child.try_wait().expect("wait") {
-            return status.code();
-        }
-        if Instant::now() > end {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("process did not exit within {timeout:?}");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
-
-fn collect(
-    input: &driftless::transport::Input<GyroSample>,
-    n: usize,
-    timeout: Duration,
-) -> Vec<GyroSample> {
-    let mut got = Vec::with_capacity(n);
-    let end = Instant::now() + timeout;
-    while got.len() < n && Instant::now() < end {
-        match input.receive().expect("receive") {
-            Some(s) => got.push(s),
-            None => std::thread::sleep(Duration::from_micros(200)),
-        }
-    }
-    got
-}
-
-fn report(dir: &Dir) -> serde_json::Value {
-    let text = std::fs::read_to_string(dir.path("report.json")).expect("report written");
-    serde_json::from_str(&text).expect("report is JSON")
-}
-
-fn qos(buffer: usize) -> Qos {
-    Qos {
-        buffer_size: buffer,
-        max_subscribers: 8,
-    }
-}
-
 #[test]
 fn every_sample_crosses_the_external_stage_once_in_order_with_the_offline_values() {
     const N: usize = 1200;
@@ -162,25 +121,10 @@ fn every_sample_crosses_the_external_stage_once_in_order_with_the_offline_values
     let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
     wait_ready(&prefix, "t/stats", &mut child);
 
-    let input: Vec<[f64; 3]> = (0..N)
-        .map(|i| {
-            let t = i as f64 * 1e-3;
-            [
-                (t * 9.0).sin() + 0.3 * ((i * 7919 % 23) as f64 / 23.0 - 0.5),
-                (t * 2.0).cos(),
-                ((i * 104_729 % 31) as f64 / 31.0) - 0.5,
-            ]
-        })
-        .collect();
+    let input = test_rates(N);
     for (i, r) in input.iter().enumerate() {
-        let raw = RawSample {
-            t_ns: i as u64 * 1_000_000,
-            seq: i as u64,
-            rate: *r,
-            flags: 0,
-            reserved: 0,
-        };
-        assert_eq!(sensor.send(&raw).expect("send"), 1);
+        let sample = raw(i as u64, i as u64 * 1_000_000, *r);
+        assert_eq!(sensor.send(&sample).expect("send"), 1);
         sensor.notify();
         if i % 64 == 63 {
             std::thread::sleep(Duration::from_millis(2));
@@ -197,7 +141,7 @@ fn every_sample_crosses_the_external_stage_once_in_order_with_the_offline_values
     while let Some(s) = corrected.receive().expect("receive") {
         got.push(s);
     }
-    assert_eq!(wait_exit(relay, Duration::from_secs(5)), Some(0));
+    assert_eq!(finish(relay, Duration::from_secs(5)).0, Some(0));
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut relay_err, &mut rest).unwrap();
     assert!(
@@ -329,7 +273,7 @@ fn sigterm_drains_through_the_external_stage_exits_zero_and_leaves_nothing() {
     assert_eq!(ext["samples_out"], n);
     assert_eq!(r["lost"], 0);
     signal(&relay, SIGTERM);
-    assert_eq!(wait_exit(relay, Duration::from_secs(5)), Some(0));
+    assert_eq!(finish(relay, Duration::from_secs(5)).0, Some(0));
     let left = prefix.leftovers();
     assert!(left.is_empty(), "left behind: {left:?}");
 }

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use driftless::transport::{StatsSnapshot, Transport};
+use driftless::transport::{GyroSample, Input, Qos, RawSample, StatsSnapshot, Transport};
 
 /// A test's own iceoryx2 prefix; its files are removed on drop.
 pub struct Prefix(pub String);
@@ -21,8 +21,8 @@ impl Prefix {
     /// Files left under this prefix in /dev/shm and /tmp/iceoryx2.
     pub fn leftovers(&self) -> Vec<PathBuf> {
         let mut out = Vec::new();
-        collect(Path::new("/dev/shm"), &self.0, &mut out);
-        collect(Path::new("/tmp/iceoryx2"), &self.0, &mut out);
+        collect_files(Path::new("/dev/shm"), &self.0, &mut out);
+        collect_files(Path::new("/tmp/iceoryx2"), &self.0, &mut out);
         out
     }
 
@@ -43,7 +43,7 @@ impl Drop for Prefix {
     }
 }
 
-fn collect(dir: &Path, prefix: &str, out: &mut Vec<PathBuf>) {
+fn collect_files(dir: &Path, prefix: &str, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
@@ -52,7 +52,7 @@ fn collect(dir: &Path, prefix: &str, out: &mut Vec<PathBuf>) {
         if e.file_name().to_string_lossy().starts_with(prefix) {
             out.push(path);
         } else if path.is_dir() {
-            collect(&path, prefix, out);
+            collect_files(&path, prefix, out);
         }
     }
 }
@@ -148,8 +148,60 @@ pub fn finish(mut child: Child, timeout: Duration) -> (Option<i32>, String) {
         if Instant::now() > end {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("daemon did not exit within {timeout:?}");
+            panic!("process did not exit within {timeout:?}");
         }
         std::thread::sleep(Duration::from_millis(10));
     }
+}
+
+/// QoS of a test's own ports: `buffer` samples, as the pipeline under test sets.
+pub fn qos(buffer: usize) -> Qos {
+    Qos {
+        buffer_size: buffer,
+        max_subscribers: 8,
+    }
+}
+
+/// A valid raw sample.
+pub fn raw(seq: u64, t_ns: u64, rate: [f64; 3]) -> RawSample {
+    RawSample {
+        t_ns,
+        seq,
+        rate,
+        flags: 0,
+        reserved: 0,
+    }
+}
+
+/// `n` deterministic 3-axis rates with a sine, a cosine and some roughness, for end-to-end tests.
+pub fn test_rates(n: usize) -> Vec<[f64; 3]> {
+    (0..n)
+        .map(|i| {
+            let t = i as f64 * 1e-3;
+            [
+                (t * 9.0).sin() + 0.3 * ((i * 7919 % 23) as f64 / 23.0 - 0.5),
+                (t * 2.0).cos(),
+                ((i * 104_729 % 31) as f64 / 31.0) - 0.5,
+            ]
+        })
+        .collect()
+}
+
+/// Receive until `n` samples came or `timeout` passed.
+pub fn collect(input: &Input<GyroSample>, n: usize, timeout: Duration) -> Vec<GyroSample> {
+    let mut got = Vec::with_capacity(n);
+    let end = Instant::now() + timeout;
+    while got.len() < n && Instant::now() < end {
+        match input.receive().expect("receive") {
+            Some(s) => got.push(s),
+            None => std::thread::sleep(Duration::from_micros(200)),
+        }
+    }
+    got
+}
+
+/// The JSON report a run wrote to `report.json` in `dir`.
+pub fn report(dir: &Dir) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.path("report.json")).expect("report written");
+    serde_json::from_str(&text).expect("report is JSON")
 }
