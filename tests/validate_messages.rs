@@ -73,7 +73,61 @@ fn every_recorded_case_prints_its_recorded_message() {
                 .is_some_and(|x| x == "toml")
         })
         .count();
-    assert_eq!(expected.len(), cases + pipelines, "a case without a recording");
+    assert_eq!(
+        expected.len(),
+        cases + pipelines,
+        "a case without a recording"
+    );
     assert!(cases >= 90, "only {cases} cases");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The stage table of docs/daemon.md is what `validate --kinds --markdown` prints from the
+/// keys the stage files declare.
+#[test]
+fn the_documented_stage_table_is_the_generated_one() {
+    let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(["validate", "--kinds", "--markdown"])
+        .output()
+        .expect("run driftless validate --kinds");
+    assert_eq!(out.status.code(), Some(0));
+    let generated = String::from_utf8(out.stdout).unwrap();
+    for kind in ["ingest.sim", "denoise.wavelet", "predict.rbf", "publish"] {
+        assert!(generated.contains(&format!("**`{kind}`**")), "{generated}");
+    }
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/daemon.md")).unwrap();
+    let begin = doc.find("<!-- stage-kinds:begin").expect("begin marker");
+    let body = &doc[doc[begin..].find('\n').unwrap() + begin + 1..];
+    let end = body.find("<!-- stage-kinds:end -->").expect("end marker");
+    assert_eq!(
+        &body[..end],
+        generated,
+        "docs/daemon.md is stale: paste `driftless validate --kinds --markdown` between its markers"
+    );
+}
+
+/// `validate --kinds` lists every kind's keys, one per line with type and default.
+#[test]
+fn kinds_lists_every_key_with_type_and_default() {
+    let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(["validate", "--kinds"])
+        .output()
+        .expect("run driftless validate --kinds");
+    assert_eq!(out.status.code(), Some(0));
+    let text = String::from_utf8(out.stdout).unwrap();
+    for line in [
+        "  lag              int 0..=full lag",
+        "  level            int 1..=12; default 5",
+        "  poll_timeout_us  int 10..=1000000; default 1000",
+        "  notify           bool; default true",
+    ] {
+        assert!(text.contains(line), "{line:?} in\n{text}");
+    }
+    // Without a pipeline and without --kinds, it is a usage error.
+    let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("validate")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
 }
