@@ -114,7 +114,28 @@ impl Src<'_> {
     pub fn positive(&self, v: &Spanned<f64>, what: &str, max: f64) -> Result<f64, InputError> {
         let x = *v.get_ref();
         if !(x.is_finite() && x > 0.0 && x <= max) {
-            return Err(self.span(v, format!("{what} must be > 0 and <= {max}, got {x}")));
+            return Err(self.span(
+                v,
+                format!("{what} must be > 0 and <= {}, got {}", num(max), num(x)),
+            ));
+        }
+        Ok(x)
+    }
+
+    /// A finite float in `[lo, hi]`.
+    pub fn float_in(
+        &self,
+        v: &Spanned<f64>,
+        what: &str,
+        lo: f64,
+        hi: f64,
+    ) -> Result<f64, InputError> {
+        let x = *v.get_ref();
+        if !(x.is_finite() && (lo..=hi).contains(&x)) {
+            return Err(self.span(
+                v,
+                format!("{what} must be in [{}, {}], got {}", num(lo), num(hi), num(x)),
+            ));
         }
         Ok(x)
     }
@@ -136,6 +157,17 @@ impl Src<'_> {
                 .parent()
                 .map_or_else(|| rel.to_path_buf(), |d| d.join(rel))
         }
+    }
+}
+
+/// A number as a person reads it in a message: plain decimals in a readable range, scientific
+/// notation outside it (`1e300`, not 301 digits).
+pub fn num(x: f64) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e9).contains(&a) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }
 
