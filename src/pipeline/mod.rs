@@ -5,6 +5,7 @@
 
 pub mod config;
 pub mod guard;
+pub mod offline;
 pub mod registry;
 pub mod runtime;
 pub mod schema;

@@ -134,7 +134,12 @@ impl Src<'_> {
         if !(x.is_finite() && (lo..=hi).contains(&x)) {
             return Err(self.span(
                 v,
-                format!("{what} must be in [{}, {}], got {}", num(lo), num(hi), num(x)),
+                format!(
+                    "{what} must be in [{}, {}], got {}",
+                    num(lo),
+                    num(hi),
+                    num(x)
+                ),
             ));
         }
         Ok(x)
