@@ -1,6 +1,7 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
 
 use clap::{Parser, Subcommand};
+use std::io::Write as _;
 use std::process::ExitCode;
 
 pub mod allan;
@@ -128,7 +129,8 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("driftless: error: {}", e.message);
+            // A closed stderr must not turn a clean error exit into a panic.
+            let _ = writeln!(std::io::stderr(), "driftless: error: {}", e.message);
             ExitCode::from(e.code)
         }
     }

@@ -195,8 +195,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         },
     };
     let report_interval = match &raw.report_interval_s {
-        // A report line is for people: more often than every 0.1 s is a mistake, not a need.
-        Some(r) => Duration::from_secs_f64(src.float_in(r, "report_interval_s", 0.1, 3600.0)?),
+        // A report line is for people: more often than every 10 ms is a mistake, not a need.
+        Some(r) => Duration::from_secs_f64(src.float_in(r, "report_interval_s", 0.01, 3600.0)?),
         None => Duration::from_secs(2),
     };
     let realtime_priority = match &raw.realtime_priority {

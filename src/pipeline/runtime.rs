@@ -35,7 +35,9 @@ use std::time::Duration;
 
 use crossbeam_channel::{bounded, Sender};
 
-use crate::metrics::{Batch, Counters, Layout, Record, Report, Reporter, BATCH, MAX_STAGES};
+use crate::metrics::{
+    Batch, Counters, HeadingTracker, Layout, Record, Report, Reporter, BATCH, MAX_STAGES,
+};
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::pipeline::stage::Role;
@@ -125,6 +127,9 @@ struct Chain {
     batch_started_ns: u64,
     tx: Sender<Batch>,
     deadline_ns: u64,
+    /// Heading error against the truth (a simulated ingest): raw in segment 1, published
+    /// rates in the final segment.
+    heading: Option<HeadingTracker>,
 }
 
 /// Longest a partial batch waits before it is sent (so slow pipelines report promptly).
@@ -149,6 +154,9 @@ impl Chain {
             return Ok(());
         };
         let s = self.guard.admit(&raw, ingest_ns);
+        if let Some(h) = &mut self.heading {
+            h.raw(&s);
+        }
         let t0 = monotonic_ns();
         rec.stage_ns[0] = (t0.saturating_sub(ingest_ns)).min(u64::from(u32::MAX)) as u32;
         rec.stages_run = 1;
@@ -225,6 +233,9 @@ impl Chain {
                 if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
                     self.local.repaired += 1;
                 }
+                if let Some(h) = &mut self.heading {
+                    h.published(out);
+                }
             } else {
                 // Offered to the external stage (its "in" as seen from the service).
                 self.local.stage_in[pos + 1] += 1;
@@ -249,6 +260,7 @@ impl Chain {
 
     /// Send the pending batch (never blocking) and store the counters this segment owns.
     fn send_batch(&mut self) {
+        self.batch.heading = self.heading.as_ref().map(HeadingTracker::summary);
         if self.batch.len > 0 {
             if self.tx.try_send(self.batch).is_err() {
                 self.local.metric_drops += self.batch.len as u64;
@@ -456,6 +468,10 @@ fn build_segment(
         batch_started_ns: 0,
         tx,
         deadline_ns: p.deadline.as_nanos() as u64,
+        heading: (span.lo == 1 || span.is_final)
+            .then(|| p.stages[0].params.truth(&p.context()))
+            .flatten()
+            .map(|t| HeadingTracker::new(t, p.input_units.to_rad_per_sec(), p.rate_hz, p.axes)),
     };
     Ok((chain, lost, lag))
 }

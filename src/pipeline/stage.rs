@@ -51,6 +51,9 @@ pub trait Source {
     fn poll(&mut self, stop: &AtomicBool) -> Poll;
 }
 
+/// The true rate per axis, in the pipeline's input units, at sensor time `t` (s).
+pub type TrueRate = Box<dyn Fn(f64) -> [f64; 3] + Send>;
+
 /// Where a kind sits in the chain.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
@@ -95,6 +98,12 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     /// (stages whose output another process publishes).
     fn poll_timeout(&self) -> Duration {
         Duration::from_millis(1)
+    }
+
+    /// The true rate of the sensor, when the ingest knows it (a simulator): the daemon then
+    /// reports the heading error of what it publishes against the truth.
+    fn truth(&self, _cx: &Context) -> Option<TrueRate> {
+        None
     }
 
     /// Extra lines for `driftless validate` (indented by the caller).

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use crate::io::InputError;
 use crate::pipeline::schema::{Context, Key, StageTable, Type, Units};
-use crate::pipeline::stage::{Kind, Params, Poll, Role, Source};
+use crate::pipeline::stage::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::sim::{SimConfig, Simulator};
 use crate::transport::{monotonic_ns, RawSample};
 
@@ -35,7 +35,7 @@ const SEED: Key = Key {
 };
 const MOTION: Key = Key {
     name: "motion",
-    ty: Type::Choice(&["none", "sines", "steps", "turn"]),
+    ty: Type::Choice(&["none", "sines", "steps", "turn", "stop-and-go"]),
     default: "\"sines\"",
     doc: "true motion added to the noise",
 };
@@ -62,7 +62,7 @@ pub struct SimParams {
     pub profile: String,
     /// Random seed.
     pub seed: u64,
-    /// True motion: none, sines, steps, turn.
+    /// True motion: none, sines, steps, turn, stop-and-go.
     pub motion: String,
     /// Stop after this many samples (None: run until stopped).
     pub samples: Option<u64>,
@@ -98,6 +98,18 @@ impl Params for SimParams {
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
         Ok(Box::new(SimSource::new(self, cx.rate_hz, cx.axes)?))
+    }
+
+    fn truth(&self, cx: &Context) -> Option<TrueRate> {
+        let motion: crate::sim::Motion = self.motion.parse().ok()?;
+        let axes = cx.axes;
+        Some(Box::new(move |t| {
+            let mut r = [0.0; 3];
+            for (axis, v) in r.iter_mut().enumerate().take(axes) {
+                *v = motion.rate(axis, axes, t);
+            }
+            r
+        }))
     }
 }
 
