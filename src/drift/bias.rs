@@ -8,16 +8,17 @@
 //!
 //! - **turn-on bias and rate random walk**: one state with a prior of `initial_sd` and process
 //!   noise K^2 dt per sample (IEEE 952 K in deg/s/sqrt(s); K = 0 makes it a constant);
-//! - **bias instability B**: by default a bank of first-order Gauss-Markov states, one per
-//!   octave of correlation time, each of stationary variance B^2 ln2/pi ([`Instability::Flicker`]).
-//!   That is the flicker PSD B^2/(2 pi f) whose Allan floor is 0.664 B, the same construction as
-//!   the simulator ([`crate::sim`]), so the filter's bias moves as much over 10 s as over 10 min,
-//!   as a flat Allan floor says it does. The classic single Gauss-Markov state (sigma = B/0.664,
-//!   one correlation time) is [`Instability::GaussMarkov`]; over intervals much shorter than its
-//!   correlation time it is a random walk and under-predicts how far a flicker bias wanders
-//!   between stops a minute apart.
-//! - **measurement noise** per sample: (N^2 + the flicker below the bank's shortest state) x rate
-//!   + lsb^2/12. This is the white noise's *low-frequency* PSD, what averaging a still period
+//! - **bias instability B**, three ways ([`Instability`]). The default,
+//!   [`Instability::RandomWalk`], adds to that state the random walk whose Allan variance equals
+//!   the flicker floor (2 ln2/pi) B^2 at 10 s: no mean reversion, like the gyro bias state of
+//!   PX4 EKF2 or ArduPilot EKF3. [`Instability::Flicker`] is a bank of first-order Gauss-Markov
+//!   states, one per octave of correlation time, each of stationary variance B^2 ln2/pi: the
+//!   flicker PSD B^2/(2 pi f) with Allan floor 0.664 B, the simulator's own construction
+//!   ([`crate::sim`]). [`Instability::GaussMarkov`] is the classic single state, sigma = B/0.664.
+//!   Measured on heading (docs/navigation.md), the mean-reverting models lose: while moving they
+//!   pull the held estimate back towards an old mean, and on the real log the bias has moved.
+//! - **measurement noise** per sample: N^2 x rate plus lsb^2/12 (and, for the bank, the flicker
+//!   faster than its shortest state). This is the white noise's *low-frequency* PSD, what averaging a still period
 //!   feels (N/sqrt(T) over T seconds), not the per-sample variance: real sensors are band-limited
 //!   (the real ADIS16405 has 0.32 deg/s per sample where N x sqrt(rate) = 0.38), and quantisation
 //!   noise Q (a differenced white angle) has no low-frequency power at all.
@@ -206,6 +207,15 @@ pub enum Instability {
         /// Longest correlation time, s.
         longest_s: f64,
     },
+    /// No mean reversion: B as extra rate random walk on the turn-on state, sized so that its
+    /// Allan variance equals the flicker floor at `tau_s` (K_eq^2 tau/3 = (2 ln2/pi) B^2, so
+    /// q = 3 (2 ln2/pi) B^2 / tau_s per second). Bias changes of the flicker's size over
+    /// `tau_s`, more over longer times, and no pull back to an old mean when the bias has moved:
+    /// what INS filters (PX4 EKF2, ArduPilot EKF3) do with their gyro bias state.
+    RandomWalk {
+        /// Time scale at which the random walk matches the flicker floor, s.
+        tau_s: f64,
+    },
     /// One first-order Gauss-Markov state, sigma = B / 0.664, correlation time `tau_s`.
     GaussMarkov {
         /// Correlation time, s.
@@ -219,9 +229,20 @@ pub enum Instability {
 pub const DEFAULT_LONGEST_S: f64 = 3600.0;
 
 impl Instability {
-    /// The default: a flicker bank from 1 s to where the flat floor meets the rate random walk
-    /// line ((2 ln2/pi) B^2 = K^2 tau / 3), or [`DEFAULT_LONGEST_S`] when K = 0.
-    pub fn from_terms(terms: &BiasTerms) -> Self {
+    /// The default: [`Instability::RandomWalk`] matched to the flicker floor at
+    /// [`DEFAULT_MATCH_S`]. Measured against the bank and a single Gauss-Markov state on the
+    /// simulator and the real ADIS16405 log (docs/navigation.md): the mean-reverting models pull
+    /// the held estimate back towards an old mean while moving, which costs heading when the
+    /// real bias has moved (it ramps over minutes on the real log).
+    pub fn from_terms(_terms: &BiasTerms) -> Self {
+        Instability::RandomWalk {
+            tau_s: DEFAULT_MATCH_S,
+        }
+    }
+
+    /// A flicker bank from 1 s to where the flat floor meets the rate random walk line
+    /// ((2 ln2/pi) B^2 = K^2 tau / 3), or [`DEFAULT_LONGEST_S`] when K = 0.
+    pub fn flicker_bank(terms: &BiasTerms) -> Self {
         let longest = if terms.k > 0.0 && terms.b > 0.0 {
             (3.0 * 2.0 * LN_2 / PI * terms.b * terms.b / (terms.k * terms.k))
                 .clamp(1.0, DEFAULT_LONGEST_S)
@@ -234,6 +255,11 @@ impl Instability {
         }
     }
 }
+
+/// Time scale (s) at which the default random walk matches the flicker floor: the shortest gap
+/// between stops worth carrying a bias across. Chosen on the simulator and on windows 0-3 of
+/// the real log (10 s beat 1, 30 and 100 s there), then checked on held-out windows.
+pub const DEFAULT_MATCH_S: f64 = 10.0;
 
 /// A bias model: diagonal state transition, diagonal process noise, H = [1, ..., 1].
 #[derive(Debug, Clone, PartialEq)]
@@ -292,6 +318,12 @@ impl BiasModel {
                     // Octaves below the bank (down to the sample time) as white noise.
                     m.r += 2.0 * s2 * shortest_s.max(dt) * rate_hz;
                 }
+            }
+            Instability::RandomWalk { tau_s } => {
+                if !(tau_s.is_finite() && tau_s > 0.0) {
+                    return Err(BiasError::BadTime("tau_s", tau_s));
+                }
+                m.q[0] += 3.0 * 2.0 * LN_2 / PI * terms.b * terms.b / tau_s * dt;
             }
             Instability::GaussMarkov { tau_s } => {
                 if !(tau_s.is_finite() && tau_s > 0.0) {
@@ -527,7 +559,7 @@ pub struct TrackerConfig {
 
 impl Default for TrackerConfig {
     /// Window 1 s, settle 0.25 s, delay 1 s, variance 4 sd, mean 4 sd, hysteresis 1.5,
-    /// estimate 3 sd, the default flicker bank.
+    /// estimate 3 sd, the default instability ([`Instability::from_terms`]).
     fn default() -> Self {
         TrackerConfig {
             window_s: 1.0,
@@ -670,7 +702,11 @@ impl BiasTracker {
 
     /// The default tracker of a named sensor ([`BiasTerms::profile`], [`TrackerConfig::default`]).
     pub fn for_profile(name: &str, rate_hz: f64) -> Result<Self, BiasError> {
-        Self::new(&BiasTerms::profile(name)?, rate_hz, &TrackerConfig::default())
+        Self::new(
+            &BiasTerms::profile(name)?,
+            rate_hz,
+            &TrackerConfig::default(),
+        )
     }
 
     /// The filter.
@@ -794,7 +830,9 @@ mod tests {
         t = terms();
         t.initial_sd = 0.0;
         assert!(BiasTracker::new(&t, 100.0, &TrackerConfig::default()).is_err());
-        assert!(BiasModel::new(&terms(), f64::INFINITY, Instability::from_terms(&terms())).is_err());
+        assert!(
+            BiasModel::new(&terms(), f64::INFINITY, Instability::from_terms(&terms())).is_err()
+        );
         let cfg = TrackerConfig {
             delay_s: -1.0,
             ..TrackerConfig::default()
@@ -834,6 +872,10 @@ mod tests {
             },
         )
         .unwrap();
+        assert!(matches!(
+            Instability::flicker_bank(&t),
+            Instability::Flicker { longest_s, .. } if longest_s == DEFAULT_LONGEST_S
+        ));
         let tau: f64 = 30.0;
         let dt: f64 = 0.01;
         let mut avar = 0.0;
@@ -851,10 +893,22 @@ mod tests {
     }
 
     #[test]
+    fn the_random_walk_matches_the_floor_at_its_time_scale() {
+        // AVAR of a random walk of PSD q: q tau / 3; at tau_s it must be (2 ln2/pi) B^2.
+        let t = terms();
+        let m = BiasModel::new(&t, 100.0, Instability::RandomWalk { tau_s: 10.0 }).unwrap();
+        assert_eq!(m.states(), 1);
+        let q_per_s = m.q[0] * 100.0;
+        let floor = 2.0 * LN_2 / PI * t.b * t.b;
+        assert!((q_per_s * 10.0 / 3.0 / floor - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
     fn still_samples_average_like_a_mean() {
         // B = K = 0: the filter is the running mean (with a vague prior).
         let t = BiasTerms { b: 0.0, ..terms() };
-        let mut f = BiasFilter::new(BiasModel::new(&t, 100.0, Instability::from_terms(&t)).unwrap());
+        let mut f =
+            BiasFilter::new(BiasModel::new(&t, 100.0, Instability::from_terms(&t)).unwrap());
         let xs = [0.3, 0.5, 0.1, 0.7, 0.4];
         for &x in &xs {
             f.predict();

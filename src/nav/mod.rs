@@ -19,6 +19,8 @@ pub mod metrics;
 pub mod profiles;
 
 pub use baselines::{BiasEstimator, Raw, Tracked, Zaru};
-pub use eval::{evaluate, format_table, summarize_methods, EvalError, Method, MethodSummary, Setup};
+pub use eval::{
+    evaluate, format_table, summarize_methods, EvalError, Method, MethodSummary, Setup,
+};
 pub use metrics::{heading_error, heading_metrics, summarize, HeadingMetrics, Summary};
 pub use profiles::{generate, MotionTrace, Profile, ProfileError};
