@@ -48,3 +48,56 @@ fn push_allocates_nothing_in_any_mode() {
     assert!(tracker.filter().updates() > 0, "the delay window drained");
     assert_eq!(allocations, 0, "allocations during push");
 }
+
+/// The `predict.bias` stage as the daemon builds it from a pipeline file: `process` allocates
+/// nothing per sample, and every flag state is exercised.
+#[test]
+fn the_predict_bias_stage_allocates_nothing_per_sample() {
+    use driftless::pipeline::config;
+    use driftless::transport::{GyroSample, FLAG_MOVING, FLAG_STILL};
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"
+name = "a"
+rate_hz = 100.0
+axes = 3
+input_units = "deg/s"
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "a/raw"
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "a/raw"
+output = "a/predicted"
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "a/predicted"
+output = "a/corrected"
+"#;
+    let file = dir.path().join("p.toml");
+    std::fs::write(&file, text).unwrap();
+    let p = config::load(&file).expect("valid pipeline");
+    let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
+    let mut stage = spec.params.stage(&p.context()).expect("stage");
+    let (allocations, flags) = alloc_counter::allocations_during(|| {
+        let mut flags = [0usize; 2];
+        for t in 0..20_000usize {
+            let mut s = GyroSample {
+                seq: t as u64,
+                ..GyroSample::default()
+            };
+            s.denoised = [rate(t).to_radians(); 3];
+            let out = stage.process(&s).expect("one out per in");
+            flags[0] += usize::from(out.flags & FLAG_STILL != 0);
+            flags[1] += usize::from(out.flags & FLAG_MOVING != 0);
+        }
+        flags
+    });
+    assert!(
+        flags.iter().all(|&n| n > 1000),
+        "still and moving: {flags:?}"
+    );
+    assert_eq!(allocations, 0, "allocations in predict.bias process");
+}

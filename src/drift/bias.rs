@@ -37,10 +37,11 @@
 //! enters the filter only when it can no longer be the start of a movement.
 //!
 //! # Flags
-//! [`BiasMode::Warming`]: the filter has never taken a sample and none is waiting: the estimate
-//! is the prior (0) and its standard deviation the prior's. [`BiasMode::Still`]: the detector (or
-//! the gate) says still. [`BiasMode::Moving`]: otherwise, including after a stop too short to
-//! commit anything, as long as the filter has taken something before.
+//! [`BiasMode::Still`]: the detector (or the gate) says still. [`BiasMode::Moving`]: it says
+//! moving, before the first stop too. [`BiasMode::Warming`]: the detector's first window is not
+//! full yet, so it cannot tell. Apart from the mode, [`BiasStep::informed`] says whether the
+//! estimate rests on any still sample (taken or waiting); until then it is the prior (0) with
+//! the prior's standard deviation, and a stage flags "warming up": nothing to go on.
 
 use super::stillness::{StillnessConfig, StillnessDetector};
 use crate::allan::fit::NoiseFit;
@@ -634,7 +635,7 @@ pub fn stillness_from_terms(
 /// What the tracker knows at a sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BiasMode {
-    /// Nothing to go on yet: no still sample taken or waiting; the estimate is the prior (0).
+    /// The detector's first window is not full: still or moving cannot be told yet.
     Warming,
     /// Still (confirmed by the detector, or by the gate).
     Still,
@@ -651,6 +652,9 @@ pub struct BiasStep {
     pub std: f64,
     /// The mode.
     pub mode: BiasMode,
+    /// Whether the estimate rests on a still sample (taken by the filter or waiting in the
+    /// delay window); false: it is the prior.
+    pub informed: bool,
 }
 
 /// The live bias estimator of one axis: a [`BiasFilter`], its own [`StillnessDetector`], and the
@@ -754,12 +758,18 @@ impl BiasTracker {
             (f64::NAN, 0.0)
         };
         let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
-        self.push_gated(x, still)
+        let known = self.detector.is_ready();
+        self.step(x, still, known)
     }
 
     /// One rate sample with stillness decided outside (a known stop, another sensor): the same
     /// filter and delay window, the tracker's detector unused.
     pub fn push_gated(&mut self, x: f64, still: bool) -> BiasStep {
+        self.step(x, still, true)
+    }
+
+    /// `known`: whether "not still" means moving (false while the detector's window fills).
+    fn step(&mut self, x: f64, still: bool, known: bool) -> BiasStep {
         self.filter.predict();
         let still = still && x.is_finite();
         if still {
@@ -789,15 +799,16 @@ impl BiasTracker {
         };
         self.mode = if still {
             BiasMode::Still
-        } else if self.filter.updates() == 0 {
-            BiasMode::Warming
-        } else {
+        } else if known {
             BiasMode::Moving
+        } else {
+            BiasMode::Warming
         };
         BiasStep {
             bias,
             std: var.sqrt(),
             mode: self.mode,
+            informed: self.pending > 0 || self.filter.updates() > 0,
         }
     }
 }
@@ -939,7 +950,12 @@ mod tests {
             steps.push(tr.push(bias + motion));
         }
         assert_eq!(steps[0].mode, BiasMode::Warming);
+        assert!(!steps[0].informed);
         assert_eq!(steps[0].bias, 0.0);
+        // Window full (1 s) and still, but not yet settled: moving, nothing to go on.
+        assert_eq!(steps[110].mode, BiasMode::Moving);
+        assert!(!steps[110].informed);
+        assert!(steps[2999].informed);
         assert_eq!(steps[2999].mode, BiasMode::Still);
         assert!((steps[2999].bias - bias).abs() < 1e-3);
         assert_eq!(steps[5199].mode, BiasMode::Moving);
@@ -981,16 +997,17 @@ mod tests {
         let mut tr = BiasTracker::for_profile("adis16405", 100.0).unwrap();
         assert!(tr.delay() == 100);
         let s = tr.push_gated(1.0, false);
-        assert_eq!(s.mode, BiasMode::Warming);
+        assert_eq!((s.mode, s.informed), (BiasMode::Moving, false));
         let s = tr.push_gated(1.0, true);
-        assert_eq!(s.mode, BiasMode::Still);
+        assert_eq!((s.mode, s.informed), (BiasMode::Still, true));
         // Provisional: one sample of variance R ~ 0.15 against the prior's 1 + flicker.
         assert!(
             s.bias > 0.8 && s.bias < 0.95,
             "provisional estimate from the waiting sample: {s:?}"
         );
-        // A short stop is dropped: nothing was taken, so warming again.
-        assert_eq!(tr.push_gated(1.0, false).mode, BiasMode::Warming);
+        // A short stop is dropped: nothing was taken, so nothing to go on again.
+        let s = tr.push_gated(1.0, false);
+        assert_eq!((s.mode, s.informed, s.bias), (BiasMode::Moving, false, 0.0));
         assert!(tr.push_gated(f64::NAN, true).bias.is_finite());
         tr.reset();
         assert_eq!(tr.filter().updates(), 0);

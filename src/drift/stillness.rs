@@ -153,6 +153,11 @@ impl StillnessDetector {
         self.still
     }
 
+    /// Whether the window is full, so that "not still" means moving.
+    pub fn is_ready(&self) -> bool {
+        self.filled == self.ring.len()
+    }
+
     /// Back to the initial (moving, empty) state.
     pub fn reset(&mut self) {
         self.pos = 0;

@@ -24,6 +24,8 @@ pub enum Method {
     ZaruOracle,
     /// ZARU on the detector's stops (the tracker's detector and thresholds, no delay window).
     ZaruDetected,
+    /// [`Method::ZaruDetected`] on the streaming-denoised rate (as [`Method::KfDenoised`]).
+    ZaruDenoised,
     /// The bias Kalman filter with its own detector and delay window (the new estimator).
     KfDetected,
     /// The same filter gated by the oracle's stops, no delay.
@@ -41,11 +43,12 @@ pub enum Method {
 
 impl Method {
     /// Every method, in table order.
-    pub const ALL: [Method; 9] = [
+    pub const ALL: [Method; 10] = [
         Method::Raw,
         Method::PowerOn,
         Method::ZaruOracle,
         Method::ZaruDetected,
+        Method::ZaruDenoised,
         Method::KfDetected,
         Method::KfOracle,
         Method::KfHold,
@@ -60,6 +63,7 @@ impl Method {
             Method::PowerOn => "power-on",
             Method::ZaruOracle => "ZARU oracle",
             Method::ZaruDetected => "ZARU detected",
+            Method::ZaruDenoised => "ZARU detected, denoised",
             Method::KfDetected => "KF detected",
             Method::KfOracle => "KF oracle",
             Method::KfHold => "KF detected + hold",
@@ -134,6 +138,16 @@ fn run(
     acc.metrics()
 }
 
+/// The streaming-denoised rate, sample k standing for measured sample k (lag removed).
+fn denoise(measured: &[f64], setup: &Setup) -> Result<Vec<f64>, EvalError> {
+    let mut d = StreamingDenoiser::new(&setup.denoiser)?;
+    let mut y: Vec<f64> = measured.iter().filter_map(|&x| d.push(x)).collect();
+    while let Some(v) = d.flush() {
+        y.push(v);
+    }
+    Ok(y)
+}
+
 /// The heading figures of each of `methods` on one window: `measured` rate (deg/s), the
 /// `truth` under it and the oracle's `still` flags, every method starting fresh at the first
 /// sample.
@@ -165,11 +179,18 @@ pub fn evaluate(
             Method::Raw => run(&mut Raw, measured, truth, still, dt, false),
             Method::PowerOn => run(&mut Zaru::power_on(min), measured, truth, still, dt, false),
             Method::ZaruOracle => run(&mut Zaru::oracle(min), measured, truth, still, dt, false),
-            Method::ZaruDetected => {
+            Method::ZaruDetected | Method::ZaruDenoised => {
                 let cfg = stillness_from_terms(&setup.terms, rate, &setup.tracker)?;
+                let denoised;
+                let input = if m == Method::ZaruDenoised {
+                    denoised = denoise(measured, setup)?;
+                    &denoised
+                } else {
+                    measured
+                };
                 run(
                     &mut Zaru::detected(min, cfg),
-                    measured,
+                    input,
                     truth,
                     still,
                     dt,
@@ -192,21 +213,14 @@ pub fn evaluate(
                 dt,
                 false,
             ),
-            Method::KfDenoised => {
-                let mut d = StreamingDenoiser::new(&setup.denoiser)?;
-                let mut y: Vec<f64> = measured.iter().filter_map(|&x| d.push(x)).collect();
-                while let Some(v) = d.flush() {
-                    y.push(v);
-                }
-                run(
-                    &mut Tracked::detected(tracker()?),
-                    &y,
-                    truth,
-                    still,
-                    dt,
-                    false,
-                )
-            }
+            Method::KfDenoised => run(
+                &mut Tracked::detected(tracker()?),
+                &denoise(measured, setup)?,
+                truth,
+                still,
+                dt,
+                false,
+            ),
             Method::Floor => {
                 let model = setup.floor.clone().ok_or(EvalError::NoFloor)?;
                 let t = BiasTracker::with_model(model, &setup.terms, rate, &oracle_cfg)?;
@@ -286,17 +300,24 @@ pub fn summarize_methods(
 /// A Markdown table of summaries: RMS and |final| heading error (median / worst, deg) and the
 /// per-window RMS ratio to the reference (median / worst).
 pub fn format_table(title: &str, rows: &[MethodSummary]) -> String {
+    let labels: Vec<&str> = rows.iter().map(|r| r.method.label()).collect();
+    format_table_labelled(title, rows, &labels)
+}
+
+/// [`format_table`] with the rows named by `labels` (methods that are not a [`Method`], such as
+/// a pipeline's stages).
+pub fn format_table_labelled(title: &str, rows: &[MethodSummary], labels: &[&str]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
         "| {title} | RMS heading med | RMS worst | final med | final worst | RMS/ref med | RMS/ref worst | final/ref med |"
     );
     let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|");
-    for r in rows {
+    for (r, label) in rows.iter().zip(labels) {
         let _ = writeln!(
             s,
             "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} |",
-            r.method.label(),
+            label,
             r.rms.median,
             r.rms.worst,
             r.final_abs.median,

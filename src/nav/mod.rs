@@ -20,7 +20,10 @@ pub mod profiles;
 
 pub use baselines::{BiasEstimator, Raw, Tracked, Zaru};
 pub use eval::{
-    evaluate, format_table, summarize_methods, EvalError, Method, MethodSummary, Setup,
+    evaluate, format_table, format_table_labelled, summarize_methods, EvalError, Method,
+    MethodSummary, Setup,
 };
-pub use metrics::{heading_error, heading_metrics, summarize, HeadingMetrics, Summary};
+pub use metrics::{
+    heading_error, heading_metrics, summarize, HeadingAccumulator, HeadingMetrics, Summary,
+};
 pub use profiles::{generate, MotionTrace, Profile, ProfileError};

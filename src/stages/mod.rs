@@ -8,6 +8,7 @@
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
 //! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |
+//! | `predict.bias` | [`predict_bias`] | the bias as a Kalman state from the gyro's Allan terms (no training) |
 //! | `external` | [`external`] | a stage run by another process (the daemon only links to it) |
 //! | `publish` | [`publish`] | the final guard before the public service |
 //!
@@ -37,6 +38,7 @@ pub mod ingest_csv;
 pub mod ingest_iceoryx2;
 pub mod ingest_sim;
 pub mod predict;
+pub mod predict_bias;
 pub mod publish;
 
 /// Every stage kind, in the order listed in messages and documentation.
@@ -48,6 +50,7 @@ pub const KINDS: &[&Kind] = &[
     &denoise::NONE_KIND,
     &predict::NONE_KIND,
     &predict::RBF_KIND,
+    &predict_bias::KIND,
     &external::KIND,
     &publish::KIND,
 ];

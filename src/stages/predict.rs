@@ -266,7 +266,8 @@ impl Stage for NoDrift {
 
 /// `predict.rbf`: one compensator per axis. The published rate is the denoised rate minus the
 /// predicted drift. Flags: [`FLAG_STILL`] when every axis is still, [`FLAG_MOVING`] when any axis
-/// is moving, [`FLAG_WARMING_UP`] while an axis has never been still (nothing subtracted there).
+/// is moving (before its first stop too), [`FLAG_WARMING_UP`] while an axis has never been still
+/// (nothing subtracted there).
 /// The models work in the pipeline's input units; samples arrive in rad/s and are scaled.
 pub struct RbfDrift {
     comps: Vec<Compensator<Rbf>>,
@@ -306,6 +307,7 @@ impl Stage for RbfDrift {
                 Mode::Moving => (still, moving) = (false, true),
                 Mode::Warming => (still, warming) = (false, true),
             }
+            moving |= c.is_moving();
         }
         if moving {
             out.flags |= FLAG_MOVING;
