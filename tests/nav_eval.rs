@@ -176,6 +176,17 @@ fn bad_input_is_one_line_and_exit_2() {
             "--rate is required with a log".into(),
         ),
         (
+            vec![
+                "--sim",
+                "adis16405",
+                "--model",
+                "a.json",
+                "--model",
+                "b.json",
+            ],
+            "--model: 2 models for 3 axes".into(),
+        ),
+        (
             vec!["--sim", "adis16405", "--terms", "nope"],
             "--terms: no default bias terms for 'nope'".into(),
         ),

@@ -60,6 +60,12 @@ pub struct Args {
     /// Output step of the log, deg/s (0: not quantised; the ADIS16405's is 0.05).
     #[arg(long, default_value = "0")]
     pub lsb: String,
+    /// RBF drift models (`driftless train`, at the log's rate): adds the paper's chain
+    /// `denoise.wavelet -> predict.rbf` as a method. One model for every axis, or one per axis
+    /// in column order (repeat the option): the network works on the drift's levels, so a
+    /// model trained on one axis does not carry to another axis' bias.
+    #[arg(long = "model", value_name = "MODEL.json")]
+    pub models: Vec<PathBuf>,
     /// A pipeline file whose stages after its ingest run offline as one more method
     /// (repeatable). Its rate must be the log's; rates are fed in its `input_units`.
     #[arg(long = "pipeline", value_name = "FILE.toml")]
@@ -85,7 +91,7 @@ struct Source {
 /// A method that runs a pipeline's stages.
 struct Chain {
     label: String,
-    /// Built per axis (terms differ per axis) or once (a user's file).
+    /// One per axis (each run alone), or one for all axes (a user's file, run lane by lane).
     pipelines: Vec<Pipeline>,
 }
 
@@ -170,12 +176,11 @@ fn sim_source(sensor: &str, args: &Args, rate: f64, window: usize) -> Result<Sou
     })
 }
 
-/// The product's chain at the log's rate with one axis' terms, as a pipeline file would say it.
-fn builtin_chain(src: &Source) -> Result<Chain, CliError> {
-    let mut pipelines = Vec::with_capacity(src.terms.len());
-    for t in &src.terms {
-        let text = format!(
-            r#"name = "nav-eval"
+/// A one-axis pipeline at `rate`: `denoise.wavelet` (defaults) then `predict` (its kind and
+/// keys, TOML), as a pipeline file would say it.
+fn builtin_pipeline(rate: f64, predict: &str, name: &str) -> Result<Pipeline, CliError> {
+    let text = format!(
+        r#"name = "nav-eval"
 rate_hz = {rate}
 axes = 1
 input_units = "deg/s"
@@ -193,35 +198,66 @@ output = "nav-eval/denoised"
 
 [[stage]]
 name = "predict"
-kind = "predict.bias"
 input = "nav-eval/denoised"
 output = "nav-eval/predicted"
-arw = {n:e}
-bias_instability = {b:e}
-rrw = {k:e}
-lsb = {lsb:e}
+{predict}
 
 [[stage]]
 name = "publish"
 kind = "publish"
 input = "nav-eval/predicted"
 output = "nav-eval/corrected"
-"#,
-            rate = src.rate,
-            n = t.n * 60.0,
-            b = t.b * 3600.0,
-            k = t.k * 216_000.0,
-            lsb = t.lsb,
-        );
-        let p = config::parse(
-            Path::new("<built-in denoise.wavelet -> predict.bias>"),
-            &text,
-        )
-        .map_err(|e| CliError::internal(format!("the built-in chain: {e}")))?;
-        pipelines.push(p);
-    }
+"#
+    );
+    // Errors here come from the user's model (rate, units): exit 2, the model named.
+    config::parse(Path::new(name), &text).map_err(CliError::from)
+}
+
+/// The product's chain, `denoise.wavelet -> predict.bias`, with each axis' terms.
+fn bias_chain(src: &Source) -> Result<Chain, CliError> {
+    let pipelines = src
+        .terms
+        .iter()
+        .map(|t| {
+            let keys = format!(
+                "kind = \"predict.bias\"\narw = {:e}\nbias_instability = {:e}\nrrw = {:e}\nlsb = {:e}",
+                t.n * 60.0,
+                t.b * 3600.0,
+                t.k * 216_000.0,
+                t.lsb
+            );
+            builtin_pipeline(src.rate, &keys, "<built-in denoise.wavelet -> predict.bias>")
+        })
+        .collect::<Result<_, _>>()?;
     Ok(Chain {
         label: "denoise.wavelet -> predict.bias (stages)".into(),
+        pipelines,
+    })
+}
+
+/// The paper's chain, `denoise.wavelet -> predict.rbf`: one model for every axis, or one each.
+fn rbf_chain(src: &Source, models: &[PathBuf]) -> Result<Chain, CliError> {
+    let axes = src.axes.len();
+    if models.len() != 1 && models.len() != axes {
+        return Err(CliError::input(format!(
+            "--model: {} models for {axes} axes (give one, or one per axis)",
+            models.len()
+        )));
+    }
+    let pipelines = (0..axes)
+        .map(|a| {
+            let m = &models[a.min(models.len() - 1)];
+            let path = std::path::absolute(m)
+                .map_err(|e| CliError::input(format!("{}: {e}", m.display())))?;
+            let keys = format!(
+                "kind = \"predict.rbf\"\nmodel = {:?}",
+                path.display().to_string()
+            );
+            builtin_pipeline(src.rate, &keys, &format!("--model {}", m.display()))
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(Chain {
+        label: "denoise.wavelet -> predict.rbf (stages)".into(),
         pipelines,
     })
 }
@@ -367,7 +403,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         (Some(_), Some(_)) => return Err(CliError::input("give a log or --sim, not both")),
         (None, None) => return Err(CliError::input("give a static log, or --sim SENSOR")),
     };
-    let mut chains = vec![builtin_chain(&src)?];
+    let mut chains = vec![bias_chain(&src)?];
+    if !args.models.is_empty() {
+        chains.push(rbf_chain(&src, &args.models)?);
+    }
     for p in &args.pipelines {
         chains.push(file_chain(p, rate)?);
     }
@@ -412,7 +451,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             // Stage methods: per-axis pipelines one axis at a time, a file's all axes at once.
             let mut chain_out: Vec<Vec<Vec<f64>>> = Vec::with_capacity(chains.len());
             for c in &chains {
-                if c.pipelines.len() == src.axes.len() && c.pipelines.len() > 1 {
+                if c.pipelines.len() > 1 {
                     let mut per_axis = Vec::with_capacity(src.axes.len());
                     for (p, y) in c.pipelines.iter().zip(&measured) {
                         per_axis.extend(run_chain(p, &[y])?);
