@@ -309,14 +309,23 @@ impl Stage for RbfDrift {
             }
             moving |= c.is_moving();
         }
-        if moving {
-            out.flags |= FLAG_MOVING;
-        } else if still {
-            out.flags |= FLAG_STILL;
-        }
-        if warming {
-            out.flags |= FLAG_WARMING_UP;
-        }
+        out.flags |= motion_flags(still, moving, warming);
         Some(out)
     }
+}
+
+/// The flags of a drift predictor's sample from its axes: [`FLAG_MOVING`] if any axis moves,
+/// else [`FLAG_STILL`] if every axis is still; [`FLAG_WARMING_UP`] if any axis has nothing to go
+/// on.
+pub fn motion_flags(all_still: bool, any_moving: bool, any_warming: bool) -> u32 {
+    let mut flags = 0;
+    if any_moving {
+        flags |= FLAG_MOVING;
+    } else if all_still {
+        flags |= FLAG_STILL;
+    }
+    if any_warming {
+        flags |= FLAG_WARMING_UP;
+    }
+    flags
 }

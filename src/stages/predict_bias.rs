@@ -22,11 +22,14 @@
 //! filling, or no still sample has been seen yet (nothing is subtracted there). Moving before the
 //! first stop is therefore `MOVING | WARMING_UP`.
 
+use super::predict::motion_flags;
 use crate::drift::bias::{BiasMode, BiasTerms, BiasTracker, TrackerConfig, DEFAULT_INITIAL_SD};
 use crate::io::InputError;
 use crate::pipeline::schema::{Context, Key, StageTable, Type};
 use crate::pipeline::stage::{Kind, Params, Role, Stage};
-use crate::transport::{GyroSample, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use crate::transport::GyroSample;
+#[cfg(doc)]
+use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 
 const PROFILE: Key = Key {
     name: "profile",
@@ -182,14 +185,7 @@ impl Stage for BiasStage {
             }
             warming |= !step.informed;
         }
-        if moving {
-            out.flags |= FLAG_MOVING;
-        } else if still {
-            out.flags |= FLAG_STILL;
-        }
-        if warming {
-            out.flags |= FLAG_WARMING_UP;
-        }
+        out.flags |= motion_flags(still, moving, warming);
         Some(out)
     }
 }
