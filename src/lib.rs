@@ -16,6 +16,7 @@ pub mod cli;
 pub mod drift;
 pub mod io;
 pub mod metrics;
+pub mod nav;
 pub mod pipeline;
 pub mod quality;
 pub mod sim;

@@ -43,12 +43,14 @@ const POLL: Duration = Duration::from_millis(10);
 pub const BATCH: usize = 32;
 
 /// A batch of records (the first `len` are valid).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Batch {
     /// Valid records.
     pub len: usize,
     /// The records.
     pub records: [Record; BATCH],
+    /// The heading errors against the truth so far, when the ingest knows the truth.
+    pub heading: Option<HeadingSummary>,
 }
 
 impl Default for Batch {
@@ -56,7 +58,133 @@ impl Default for Batch {
         Batch {
             len: 0,
             records: [Record::default(); BATCH],
+            heading: None,
         }
+    }
+}
+
+/// Heading error of one signal on one axis against the truth: the integral of (signal - true
+/// rate) over time, as a navigator integrating the signal would see it. Degrees.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct HeadingError {
+    /// At the last sample.
+    pub final_deg: f64,
+    /// RMS over time (the final value alone is a lottery of cancellations).
+    pub rms_deg: f64,
+    /// Largest |error|.
+    pub max_deg: f64,
+    #[serde(skip)]
+    sum_sq: f64,
+    #[serde(skip)]
+    n: u64,
+}
+
+impl HeadingError {
+    /// Add one sample's rate error (rad/s) held for `dt` seconds.
+    pub fn add(&mut self, error_rad_s: f64, dt: f64) {
+        self.final_deg += error_rad_s.to_degrees() * dt;
+        self.sum_sq += self.final_deg * self.final_deg;
+        self.n += 1;
+        self.rms_deg = (self.sum_sq / self.n as f64).sqrt();
+        self.max_deg = self.max_deg.max(self.final_deg.abs());
+    }
+}
+
+/// Heading errors of the raw, denoised and corrected rates, per axis (unused axes 0). A part a
+/// segment does not see (the raw rate after an external stage) is None.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct HeadingSummary {
+    /// The raw rate (as the guard admitted it).
+    pub raw: Option<[HeadingError; 3]>,
+    /// The denoised rate, as published.
+    pub denoised: Option<[HeadingError; 3]>,
+    /// The corrected (published) rate.
+    pub corrected: Option<[HeadingError; 3]>,
+}
+
+impl HeadingSummary {
+    /// Take the parts `other` has.
+    pub fn merge(&mut self, other: &HeadingSummary) {
+        self.raw = other.raw.or(self.raw);
+        self.denoised = other.denoised.or(self.denoised);
+        self.corrected = other.corrected.or(self.corrected);
+    }
+
+    /// The worst axis's RMS heading error of each part, degrees.
+    pub fn worst_rms(&self) -> [Option<f64>; 3] {
+        let worst = |p: &Option<[HeadingError; 3]>| {
+            p.map(|a| a.iter().map(|e| e.rms_deg).fold(0.0, f64::max))
+        };
+        [
+            worst(&self.raw),
+            worst(&self.denoised),
+            worst(&self.corrected),
+        ]
+    }
+}
+
+/// Integrates the heading error of a segment's samples against the truth, in the hot thread:
+/// a few additions and the truth's evaluation per sample, no allocation.
+pub struct HeadingTracker {
+    truth: crate::pipeline::stage::TrueRate,
+    /// rad/s per input unit (the truth's units).
+    scale: f64,
+    dt: f64,
+    axes: usize,
+    summary: HeadingSummary,
+}
+
+impl HeadingTracker {
+    /// A tracker for samples at `rate_hz` of `axes` axes, the truth in input units scaled to
+    /// rad/s by `scale`.
+    pub fn new(
+        truth: crate::pipeline::stage::TrueRate,
+        scale: f64,
+        rate_hz: f64,
+        axes: usize,
+    ) -> Self {
+        HeadingTracker {
+            truth,
+            scale,
+            dt: 1.0 / rate_hz,
+            axes: axes.clamp(1, 3),
+            summary: HeadingSummary::default(),
+        }
+    }
+
+    /// The true rate at `t_ns`, rad/s.
+    fn truth_at(&self, t_ns: u64) -> [f64; 3] {
+        let t = (self.truth)(t_ns as f64 * 1e-9);
+        t.map(|v| v * self.scale)
+    }
+
+    fn add(&self, part: &mut Option<[HeadingError; 3]>, values: &[f64; 3], truth: &[f64; 3]) {
+        let part = part.get_or_insert_with(Default::default);
+        for axis in 0..self.axes {
+            part[axis].add(values[axis] - truth[axis], self.dt);
+        }
+    }
+
+    /// A raw sample as the guard admitted it (rad/s).
+    pub fn raw(&mut self, s: &crate::transport::GyroSample) {
+        let truth = self.truth_at(s.t_ns);
+        let mut part = self.summary.raw;
+        self.add(&mut part, &s.rate, &truth);
+        self.summary.raw = part;
+    }
+
+    /// A published sample: its denoised and corrected rates (rad/s).
+    pub fn published(&mut self, s: &crate::transport::GyroSample) {
+        let truth = self.truth_at(s.t_ns);
+        let (mut den, mut cor) = (self.summary.denoised, self.summary.corrected);
+        self.add(&mut den, &s.denoised, &truth);
+        self.add(&mut cor, &s.rate, &truth);
+        (self.summary.denoised, self.summary.corrected) = (den, cor);
+    }
+
+    /// What was integrated so far.
+    pub fn summary(&self) -> HeadingSummary {
+        self.summary
     }
 }
 
@@ -214,6 +342,9 @@ pub struct Report {
     pub end_to_end_ns: Pct,
     /// Per stage.
     pub stages: Vec<StageReport>,
+    /// Heading error of the raw, denoised and corrected rates against the truth (a simulated
+    /// ingest only).
+    pub heading: Option<HeadingSummary>,
 }
 
 impl Report {
@@ -269,6 +400,23 @@ impl Report {
             "flagged: {} invalid, {} gaps ({} missing), {} time backwards, {} repaired; metric drops {}\n",
             f.invalid, f.gaps, f.missing, f.time_backwards, f.repaired_outputs, self.metric_drops
         ));
+        if let Some(h) = &self.heading {
+            s.push_str(
+                "heading error vs the simulator's truth, deg (final / rms / max per axis):\n",
+            );
+            for (name, part) in [
+                ("raw", &h.raw),
+                ("denoised", &h.denoised),
+                ("corrected", &h.corrected),
+            ] {
+                let Some(axes) = part else { continue };
+                let cells: Vec<String> = axes
+                    .iter()
+                    .map(|e| format!("{:>7.3} {:>6.3} {:>6.3}", e.final_deg, e.rms_deg, e.max_deg))
+                    .collect();
+                s.push_str(&format!("  {:<10} {}\n", name, cells.join("  |  ")));
+            }
+        }
         s
     }
 }
@@ -280,6 +428,7 @@ pub struct Reporter {
     lost: Vec<Arc<AtomicU64>>,
     stage_hist: Vec<Histogram<u64>>,
     e2e: Histogram<u64>,
+    heading: Option<HeadingSummary>,
     started: Instant,
 }
 
@@ -298,6 +447,7 @@ impl Reporter {
             lost,
             stage_hist: (0..n).map(|_| histogram()).collect(),
             e2e: histogram(),
+            heading: None,
             started: Instant::now(),
         }
     }
@@ -305,6 +455,9 @@ impl Reporter {
     fn record_batch(&mut self, b: &Batch) {
         for r in &b.records[..b.len.min(BATCH)] {
             self.record(r);
+        }
+        if let Some(h) = &b.heading {
+            self.heading.get_or_insert_with(Default::default).merge(h);
         }
     }
 
@@ -362,7 +515,13 @@ impl Reporter {
 
     fn summary_line(&self, s: &StatsSnapshot) -> String {
         let us = |ns: u64| ns as f64 / 1e3;
-        format!(
+        let heading = self.heading.map_or(String::new(), |h| {
+            let [raw, den, cor] = h
+                .worst_rms()
+                .map(|v| v.map_or("-".into(), |d| format!("{d:.2}")));
+            format!(", heading rms vs truth raw {raw} denoised {den} corrected {cor} deg")
+        });
+        let line = format!(
             "{}: {:.0} Hz, e2e p50 {:.1} us p99 {:.1} us p99.9 {:.1} us max {:.1} us, misses {}, lost {}, flagged {}, drops {}",
             self.layout.pipeline,
             s.rate_hz,
@@ -374,7 +533,8 @@ impl Reporter {
             s.lost,
             s.flagged,
             s.metric_drops
-        )
+        );
+        line + &heading
     }
 
     fn lost_total(&self) -> u64 {
@@ -459,6 +619,7 @@ impl Reporter {
                     compute_ns: Pct::of(&self.stage_hist[i]),
                 })
                 .collect(),
+            heading: self.heading,
         }
     }
 }

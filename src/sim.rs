@@ -71,6 +71,12 @@ pub enum Motion {
     /// A turn profile on the last axis, repeating every 60 s: still 20 s, a +90 deg turn in 10 s
     /// (raised-cosine rate, peak 18 deg/s), still 20 s, a -90 deg turn in 10 s. Other axes still.
     Turn,
+    /// Stop and go, as a vehicle: still for the first 60 s, then cycles of 40 s moving and 20 s
+    /// still. Moving: a 10 deg/s turn on the last axis (with raised-cosine 2 s ramps, so the
+    /// stop does not start with a jump) plus vibration-like sines of 2 deg/s at 0.7 Hz and
+    /// 1.5 deg/s at 1.9 Hz on every axis, faded in and out with the same ramps. Still: exactly
+    /// zero. The profile of issue 9's navigation benchmark.
+    StopAndGo,
 }
 
 impl Motion {
@@ -101,8 +107,51 @@ impl Motion {
                     0.0
                 }
             }
+            Motion::StopAndGo => {
+                let Some(env) = stop_and_go(t) else {
+                    return 0.0;
+                };
+                let ph = 2.0 * PI * axis as f64 / 3.0;
+                let turn = if axis + 1 == axes { 10.0 } else { 0.0 };
+                env * (turn
+                    + 2.0 * (2.0 * PI * 0.7 * t + ph).sin()
+                    + 1.5 * (2.0 * PI * 1.9 * t + ph).sin())
+            }
         }
     }
+
+    /// Whether the sensor is truly still at `t` (s): the oracle stops of a profile.
+    pub fn is_still(self, t: f64) -> bool {
+        match self {
+            Motion::None => true,
+            Motion::StopAndGo => stop_and_go(t).is_none(),
+            Motion::Sines | Motion::Steps | Motion::Turn => {
+                (0..3).all(|axis| self.rate(axis, 3, t) == 0.0)
+            }
+        }
+    }
+}
+
+/// The stop-and-go profile: (envelope in 0..=1, time since the start of the current moving
+/// stretch), or None while still.
+fn stop_and_go(t: f64) -> Option<f64> {
+    const FIRST: f64 = 60.0;
+    const MOVE: f64 = 40.0;
+    const CYCLE: f64 = 60.0;
+    const RAMP: f64 = 2.0;
+    if t < FIRST {
+        return None;
+    }
+    let c = (t - FIRST).rem_euclid(CYCLE);
+    if c >= MOVE {
+        return None;
+    }
+    let edge = c.min(MOVE - c);
+    Some(if edge >= RAMP {
+        1.0
+    } else {
+        0.5 * (1.0 - (PI * edge / RAMP).cos())
+    })
 }
 
 impl FromStr for Motion {
@@ -113,6 +162,7 @@ impl FromStr for Motion {
             "sines" => Ok(Motion::Sines),
             "steps" => Ok(Motion::Steps),
             "turn" => Ok(Motion::Turn),
+            "stop-and-go" => Ok(Motion::StopAndGo),
             _ => Err(SimError::UnknownMotion(s.to_string())),
         }
     }
@@ -125,6 +175,7 @@ impl fmt::Display for Motion {
             Motion::Sines => "sines",
             Motion::Steps => "steps",
             Motion::Turn => "turn",
+            Motion::StopAndGo => "stop-and-go",
         })
     }
 }
@@ -136,7 +187,7 @@ pub enum SimError {
     #[error("unknown profile '{0}' (adxrs450, adis16405)")]
     UnknownProfile(String),
     /// No motion of that name.
-    #[error("unknown motion '{0}' (none, sines, steps, turn)")]
+    #[error("unknown motion '{0}' (none, sines, steps, turn, stop-and-go)")]
     UnknownMotion(String),
     /// The rate is not a positive finite number.
     #[error("the sample rate must be a positive number of Hz, not {0}")]
@@ -401,7 +452,13 @@ mod tests {
 
     #[test]
     fn motion_names_round_trip() {
-        for m in [Motion::None, Motion::Sines, Motion::Steps, Motion::Turn] {
+        for m in [
+            Motion::None,
+            Motion::Sines,
+            Motion::Steps,
+            Motion::Turn,
+            Motion::StopAndGo,
+        ] {
             assert_eq!(m.to_string().parse::<Motion>(), Ok(m));
         }
         assert!("spin".parse::<Motion>().is_err());

@@ -1,11 +1,13 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
 
 use clap::{Parser, Subcommand};
+use std::io::Write as _;
 use std::process::ExitCode;
 
 pub mod allan;
 pub mod denoise;
 pub mod eval;
+pub mod nav_eval;
 pub mod relay;
 pub mod run;
 pub mod simulate;
@@ -31,6 +33,9 @@ enum Command {
     Train(train::Args),
     /// Evaluate a drift model on a log: the paper's Table 3 (Allan terms before and after).
     Eval(eval::Args),
+    /// The heading benchmark: known motion added to a static log (or the simulator), every
+    /// method (baselines, estimators, pipelines' stages) judged by the integrated heading error.
+    NavEval(nav_eval::Args),
     /// Run a pipeline (the daemon) until SIGINT/SIGTERM or --duration.
     Run(run::Args),
     /// Check a pipeline file as `run` would, without starting anything.
@@ -117,6 +122,7 @@ pub fn main() -> ExitCode {
         Command::Denoise(args) => denoise::run(args),
         Command::Train(args) => train::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::NavEval(args) => nav_eval::run(args),
         Command::Run(args) => run::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
@@ -128,7 +134,8 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("driftless: error: {}", e.message);
+            // A closed stderr must not turn a clean error exit into a panic.
+            let _ = writeln!(std::io::stderr(), "driftless: error: {}", e.message);
             ExitCode::from(e.code)
         }
     }

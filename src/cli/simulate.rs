@@ -55,7 +55,7 @@ pub struct Args {
     /// Seed of the random stream.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// True motion: none, sines, steps, turn.
+    /// True motion: none, sines, steps, turn, stop-and-go.
     #[arg(long, default_value = "none")]
     pub motion: String,
     /// Output CSV.

@@ -1,23 +1,37 @@
 //! `driftless validate PIPELINE`: every check `run` makes, nothing started.
+//! `driftless validate --kinds`: every stage kind with its keys, from the schema the stage files
+//! own (`--markdown`: the table `docs/daemon.md` holds).
 
 use std::path::PathBuf;
 
 use crate::cli::CliError;
 use crate::pipeline::config;
+use crate::pipeline::stage::{Kind, Role};
 
 /// Arguments of `driftless validate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Pipeline file (TOML).
-    pub pipeline: PathBuf,
+    #[arg(required_unless_present = "kinds")]
+    pub pipeline: Option<PathBuf>,
+    /// List every stage kind with its keys, types, ranges and defaults instead.
+    #[arg(long, conflicts_with = "pipeline")]
+    pub kinds: bool,
+    /// With --kinds: as the Markdown table of docs/daemon.md.
+    #[arg(long, requires = "kinds")]
+    pub markdown: bool,
 }
 
-/// Validate the pipeline and describe it on stdout.
+/// Validate the pipeline and describe it on stdout, or list the stage kinds.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let p = config::load(&args.pipeline)?;
+    let Some(path) = args.pipeline else {
+        print!("{}", kinds(args.markdown));
+        return Ok(());
+    };
+    let p = config::load(&path)?;
     println!(
         "{}: pipeline {:?} is valid: {} Hz, deadline {} us, {} axis/axes, prefix {:?}",
-        args.pipeline.display(),
+        path.display(),
         p.name,
         p.rate_hz,
         p.deadline.as_micros(),
@@ -28,32 +42,80 @@ pub fn run(args: Args) -> Result<(), CliError> {
         println!(
             "  {:<12} {:<16} {} -> {}",
             s.name,
-            s.kind.name(),
+            s.kind.name,
             s.input.as_deref().unwrap_or("-"),
             s.output
         );
-        if let config::StageKind::External { .. } = &s.kind {
-            println!(
-                "    runs in another process: it reads {} and must publish {} (and notify it)",
-                s.input.as_deref().unwrap_or("-"),
-                s.output
-            );
-        }
-        if let config::StageKind::PredictRbf(r) = &s.kind {
-            for (axis, (path, m)) in r.paths.iter().zip(&r.models).enumerate() {
-                println!(
-                    "    axis {axis}: model {} ({} Hz, {}, {} lags, {} centres, trained on {} [{}])",
-                    path.display(),
-                    m.rate_hz,
-                    m.units,
-                    m.network.lags,
-                    m.network.centre_count(),
-                    m.provenance.file,
-                    m.provenance.column
-                );
-            }
+        for line in s.params.describe(s.input.as_deref(), &s.output) {
+            println!("    {line}");
         }
     }
     println!("  stats on {}", p.iceoryx2.stats_service);
     Ok(())
+}
+
+fn role(kind: &Kind) -> &'static str {
+    match kind.role {
+        Role::Ingest { has_input: false } => "ingest, no input",
+        Role::Ingest { has_input: true } => "ingest, input from another process",
+        Role::Process => "processing stage",
+        Role::External => "run by another process",
+        Role::Publish => "ends the chain",
+    }
+}
+
+/// The stage kinds and their keys, as text or as Markdown.
+pub fn kinds(markdown: bool) -> String {
+    let mut out = String::new();
+    let common = "`name` (unique), `kind`, `output` (a service name), and `input` where noted";
+    if markdown {
+        out.push_str(&format!("Every `[[stage]]` has {common}.\n"));
+    } else {
+        out.push_str(&format!(
+            "Every [[stage]] has {}.\n",
+            common.replace('`', "")
+        ));
+    }
+    for kind in crate::stages::KINDS {
+        if markdown {
+            out.push_str(&format!(
+                "\n**`{}`** ({}): {}.\n",
+                kind.name,
+                role(kind),
+                kind.summary
+            ));
+            if kind.keys.is_empty() {
+                out.push_str("\nNo keys of its own.\n");
+                continue;
+            }
+            out.push_str("\n| key | type | default | meaning |\n|---|---|---|---|\n");
+            for k in kind.keys {
+                out.push_str(&format!(
+                    "| `{}` | {} | {} | {} |\n",
+                    k.name,
+                    k.ty.describe().replace('|', "\\|"),
+                    k.default,
+                    k.doc
+                ));
+            }
+        } else {
+            out.push_str(&format!(
+                "\n{} [{}]\n  {}\n",
+                kind.name,
+                role(kind),
+                kind.summary
+            ));
+            for k in kind.keys {
+                out.push_str(&format!(
+                    "  {:<16} {}; default {}\n  {:<16} {}\n",
+                    k.name,
+                    k.ty.describe(),
+                    k.default,
+                    "",
+                    k.doc
+                ));
+            }
+        }
+    }
+    out
 }

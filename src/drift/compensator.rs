@@ -106,6 +106,12 @@ impl<P: Predictor> Compensator<P> {
         self.hist[p - 1] = v;
     }
 
+    /// Whether the detector, its window full, judged the last sample moving: true while warming
+    /// too, when the sensor moves before its first stop.
+    pub fn is_moving(&self) -> bool {
+        self.detector.is_ready() && !self.detector.is_still()
+    }
+
     /// Compensate one sample.
     pub fn push(&mut self, x: f64) -> Step {
         let p = self.lags;

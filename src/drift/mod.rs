@@ -9,6 +9,8 @@
 //! - [`model`]: the versioned model file (JSON) with its checks.
 //! - [`stillness`]: the stillness detector that decides when the low band is drift.
 //! - [`compensator`]: per-sample live compensation, anchored only while still.
+//! - [`bias`]: a Kalman filter on the bias with noise from the Allan terms, updated only while
+//!   confirmed still (the estimator judged by heading error in [`crate::nav`]).
 //!
 //! Pure maths: nothing here does I/O ([`crate::io::model_file`] reads and writes model files).
 //!
@@ -20,6 +22,7 @@
 //! at sample t only depends on samples <= t.
 
 pub mod baselines;
+pub mod bias;
 pub mod compensator;
 pub mod lowband;
 pub mod model;
@@ -29,6 +32,7 @@ pub mod stillness;
 pub mod training;
 
 pub use baselines::Predictor;
+pub use bias::{BiasMode, BiasStep, BiasTerms, BiasTracker, TrackerConfig};
 pub use compensator::{Compensator, Mode as CompMode, Step};
 pub use lowband::LowBand;
 pub use model::{DriftModel, ModelError};

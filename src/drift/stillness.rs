@@ -153,6 +153,11 @@ impl StillnessDetector {
         self.still
     }
 
+    /// Whether the window is full, so that "not still" means moving.
+    pub fn is_ready(&self) -> bool {
+        self.filled == self.ring.len()
+    }
+
     /// Back to the initial (moving, empty) state.
     pub fn reset(&mut self) {
         self.pos = 0;
@@ -166,6 +171,20 @@ impl StillnessDetector {
     /// Take one rate sample and the current drift estimate (NaN: none yet); returns whether the
     /// sensor is still.
     pub fn update(&mut self, x: f64, reference: f64) -> bool {
+        self.update_with_tolerance(x, reference, 0.0)
+    }
+
+    /// As [`update`](Self::update), with both mean-shift thresholds raised by `tolerance` (>= 0,
+    /// same units as the rate): the uncertainty of the reference itself. A reference that is only
+    /// known to +-0.02 must not turn a still sensor into a moving one because it is 0.02 off,
+    /// else a poor first estimate could never be corrected (the sensor would never be still
+    /// again). A non-finite or negative tolerance counts as 0.
+    pub fn update_with_tolerance(&mut self, x: f64, reference: f64, tolerance: f64) -> bool {
+        let tol = if tolerance.is_finite() && tolerance > 0.0 {
+            tolerance
+        } else {
+            0.0
+        };
         if self.filled == 0 {
             // Sums are kept relative to the first sample, against cancellation at large biases.
             self.origin = x;
@@ -195,11 +214,11 @@ impl StillnessDetector {
             0.0
         };
         if self.still {
-            if var > self.cfg.var_enter || shift > self.cfg.mean_enter {
+            if var > self.cfg.var_enter || shift > self.cfg.mean_enter + tol {
                 self.still = false;
                 self.quiet = 0;
             }
-        } else if var <= self.cfg.var_exit && shift <= self.cfg.mean_exit {
+        } else if var <= self.cfg.var_exit && shift <= self.cfg.mean_exit + tol {
             self.quiet += 1;
             if self.quiet >= self.cfg.settle {
                 self.still = true;
@@ -263,6 +282,23 @@ mod tests {
         let mut d = StillnessDetector::new(c);
         let still = x.iter().filter(|&&v| d.update(v, 0.06)).count();
         assert!(still > 400, "{still}");
+    }
+
+    #[test]
+    fn tolerance_widens_the_mean_test_only() {
+        let mut plain = StillnessDetector::new(cfg());
+        let mut tolerant = StillnessDetector::new(cfg());
+        // A reference 0.4 off: beyond mean_exit (0.25), within 0.25 + 0.2.
+        for _ in 0..30 {
+            plain.update(1.4, 1.0);
+            tolerant.update_with_tolerance(1.4, 1.0, 0.2);
+        }
+        assert!(!plain.is_still() && tolerant.is_still());
+        // Variance still trips the tolerant detector.
+        for i in 0..10 {
+            tolerant.update_with_tolerance(1.4 + (i % 2) as f64, 1.0, 0.2);
+        }
+        assert!(!tolerant.is_still());
     }
 
     #[test]

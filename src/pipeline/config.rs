@@ -30,6 +30,7 @@
 
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Deserialize;
@@ -37,25 +38,10 @@ use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 use crate::io::InputError;
-
-/// Input units of the raw rates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Units {
-    /// Degrees per second.
-    DegPerSec,
-    /// Radians per second.
-    RadPerSec,
-}
-
-impl Units {
-    /// Factor converting these units to rad/s.
-    pub fn to_rad_per_sec(self) -> f64 {
-        match self {
-            Units::DegPerSec => std::f64::consts::PI / 180.0,
-            Units::RadPerSec => 1.0,
-        }
-    }
-}
+use crate::pipeline::registry::{self, Entry};
+use crate::pipeline::schema::Src;
+pub use crate::pipeline::schema::{Context, Units};
+use crate::pipeline::stage::{Kind, Params, Role};
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]
@@ -106,171 +92,26 @@ pub struct StageSpec {
     pub input: Option<String>,
     /// Output service.
     pub output: String,
-    /// The kind and its parameters.
-    pub kind: StageKind,
+    /// The kind ([`registry::KINDS`]).
+    pub kind: &'static Kind,
+    /// Its validated parameters, as the kind's parse function made them.
+    pub params: Arc<dyn Params>,
 }
 
-/// Pacing of a CSV replay.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Pace {
-    /// At the file's rate (its time column, or the pipeline's `rate_hz`).
-    Realtime,
-    /// As fast as possible.
-    Asap,
-}
-
-/// A CSV replay, loaded at validation.
-#[derive(Debug, Clone)]
-pub struct CsvParams {
-    /// The file.
-    pub file: PathBuf,
-    /// Sensor timestamps, ns (from the time column, or `i / rate_hz`).
-    pub t_ns: Vec<u64>,
-    /// The rates, one row per sample (unused axes 0).
-    pub rates: Vec<[f64; 3]>,
-    /// Pacing.
-    pub pace: Pace,
-    /// Replay again from the start at the end of the file.
-    pub looped: bool,
-}
-
-/// The simulated sensor.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SimParams {
-    /// Noise profile name.
-    pub profile: String,
-    /// Random seed.
-    pub seed: u64,
-    /// True motion: none, sines, steps, turn.
-    pub motion: String,
-    /// Stop after this many samples (None: run until stopped).
-    pub samples: Option<u64>,
-}
-
-/// Parameters of `denoise.wavelet` (validated; passed to the streaming denoiser).
-#[derive(Debug, Clone, PartialEq)]
-pub struct WaveletParams {
-    /// Wavelet name, e.g. "db6".
-    pub wavelet: String,
-    /// Decomposition level.
-    pub level: usize,
-    /// Threshold function name.
-    pub threshold: String,
-    /// Firm threshold ratio.
-    pub ratio: Option<f64>,
-    /// Improved threshold `a`.
-    pub a: Option<f64>,
-    /// Improved threshold `beta`.
-    pub beta: Option<f64>,
-    /// Improved threshold `kappa`.
-    pub kappa: Option<f64>,
-    /// Sliding window length, samples.
-    pub window: usize,
-    /// Output lag, samples.
-    pub lag: usize,
-    /// Noise sigma: None for MAD, Some(fixed).
-    pub sigma: Option<f64>,
-}
-
-/// `predict.rbf` parameters: the drift models, loaded and checked against the pipeline at
-/// validation, one per axis (a shared model is repeated).
-///
-/// ```toml
-/// [[stage]]
-/// name = "predict"
-/// kind = "predict.rbf"
-/// input = "demo/denoised"
-/// output = "demo/predicted"
-/// model = "models/adis-x.json"    # one model for every axis, or
-/// # models = ["x.json", "y.json", "z.json"]   # one per axis
-/// # Stillness overrides (default: the model's calibrated thresholds), in input_units:
-/// # still_window = 50, settle = 342, var_enter = 1e-4, var_exit = 5e-5,
-/// # mean_enter = 0.02, mean_exit = 0.01
-/// ```
-#[derive(Debug, Clone)]
-pub struct RbfParams {
-    /// Model file of each axis.
-    pub paths: Vec<PathBuf>,
-    /// The model of each axis.
-    pub models: Vec<crate::drift::DriftModel>,
-    /// The stillness thresholds of each axis (the model's, with the overrides applied).
-    pub stillness: Vec<crate::drift::StillnessConfig>,
-}
-
-/// A stage kind and its parameters.
-#[derive(Debug, Clone)]
-pub enum StageKind {
-    /// `ingest.sim`: the built-in simulator, paced in real time.
-    IngestSim(SimParams),
-    /// `ingest.csv`: a CSV replay.
-    IngestCsv(CsvParams),
-    /// `ingest.iceoryx2`: raw samples from another process.
-    IngestIceoryx2 {
-        /// How long to sleep waiting for a sample before checking for shutdown.
-        poll_timeout: Duration,
-    },
-    /// `denoise.wavelet`: the streaming wavelet denoiser.
-    DenoiseWavelet(WaveletParams),
-    /// `denoise.none`: pass-through.
-    DenoiseNone,
-    /// `predict.none`: no drift removed.
-    PredictNone,
-    /// `predict.rbf`: the RBF drift model with live stillness-gated compensation.
-    PredictRbf(RbfParams),
-    /// `external`: a stage that runs in another process: it reads `input` and publishes
-    /// `output` (both [`crate::transport::GyroSample`]); the daemon only links to it.
-    External {
-        /// How long the segment after it sleeps waiting for a sample before checking for
-        /// shutdown (a safety net: the external process should notify after each sample).
-        poll_timeout: Duration,
-    },
-    /// `publish`: the final, public service.
-    Publish {
-        /// Notify the event service of the same name after each sample.
-        notify: bool,
-    },
-}
-
-impl StageKind {
-    /// Whether this kind starts a chain.
-    pub fn is_ingest(&self) -> bool {
-        matches!(
-            self,
-            StageKind::IngestSim(_) | StageKind::IngestCsv(_) | StageKind::IngestIceoryx2 { .. }
-        )
-    }
-
-    /// The kind's name as written in pipeline files.
-    pub fn name(&self) -> &'static str {
-        match self {
-            StageKind::IngestSim(_) => "ingest.sim",
-            StageKind::IngestCsv(_) => "ingest.csv",
-            StageKind::IngestIceoryx2 { .. } => "ingest.iceoryx2",
-            StageKind::DenoiseWavelet(_) => "denoise.wavelet",
-            StageKind::DenoiseNone => "denoise.none",
-            StageKind::PredictNone => "predict.none",
-            StageKind::PredictRbf(_) => "predict.rbf",
-            StageKind::External { .. } => "external",
-            StageKind::Publish { .. } => "publish",
+impl Pipeline {
+    /// The pipeline-wide values stages are validated and built against.
+    pub fn context(&self) -> Context {
+        Context {
+            rate_hz: self.rate_hz,
+            axes: self.axes,
+            units: self.input_units,
         }
     }
 }
 
-/// Every kind, in the order listed in error messages.
-pub const KINDS: &[&str] = &[
-    "ingest.sim",
-    "ingest.csv",
-    "ingest.iceoryx2",
-    "denoise.wavelet",
-    "denoise.none",
-    "predict.none",
-    "predict.rbf",
-    "external",
-    "publish",
-];
-
 // ---------------------------------------------------------------------------------------------
-// Raw (serde) shapes: deny unknown keys; spans on everything checked afterwards.
+// Raw (serde) shapes of the pipeline-wide tables: deny unknown keys; spans on everything checked
+// afterwards. Each stage kind reads its own table (see `crate::stages`).
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -293,205 +134,6 @@ struct RawIox {
     buffer_size: Option<Spanned<i64>>,
     max_subscribers: Option<Spanned<i64>>,
     stats_service: Option<Spanned<String>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawSim {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    output: Spanned<String>,
-    profile: Option<Spanned<String>>,
-    seed: Option<Spanned<i64>>,
-    motion: Option<Spanned<String>>,
-    samples: Option<Spanned<i64>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawCsv {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    output: Spanned<String>,
-    file: Spanned<String>,
-    columns: Option<Spanned<Vec<String>>>,
-    time_column: Option<Spanned<String>>,
-    pace: Option<Spanned<String>>,
-    #[serde(rename = "loop")]
-    looped: Option<bool>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawIceoryx2 {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    input: Spanned<String>,
-    output: Spanned<String>,
-    poll_timeout_us: Option<Spanned<i64>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawWavelet {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    input: Spanned<String>,
-    output: Spanned<String>,
-    wavelet: Option<Spanned<String>>,
-    level: Option<Spanned<i64>>,
-    threshold: Option<Spanned<String>>,
-    ratio: Option<Spanned<f64>>,
-    a: Option<Spanned<f64>>,
-    beta: Option<Spanned<f64>>,
-    kappa: Option<Spanned<f64>>,
-    window: Option<Spanned<i64>>,
-    lag: Option<Spanned<i64>>,
-    sigma: Option<Spanned<SigmaSetting>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(untagged)]
-enum SigmaSetting {
-    Fixed(f64),
-    Named(String),
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawPassThrough {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    input: Spanned<String>,
-    output: Spanned<String>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawRbf {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    input: Spanned<String>,
-    output: Spanned<String>,
-    model: Option<Spanned<String>>,
-    models: Option<Spanned<Vec<Spanned<String>>>>,
-    still_window: Option<Spanned<i64>>,
-    settle: Option<Spanned<i64>>,
-    var_enter: Option<Spanned<f64>>,
-    var_exit: Option<Spanned<f64>>,
-    mean_enter: Option<Spanned<f64>>,
-    mean_exit: Option<Spanned<f64>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawExternal {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    input: Spanned<String>,
-    output: Spanned<String>,
-    poll_timeout_us: Option<Spanned<i64>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawPublish {
-    name: Spanned<String>,
-    #[allow(dead_code)]
-    kind: Spanned<String>,
-    input: Spanned<String>,
-    output: Spanned<String>,
-    notify: Option<bool>,
-}
-
-// ---------------------------------------------------------------------------------------------
-
-/// Positions errors in one source text.
-struct Src<'a> {
-    path: &'a Path,
-    text: &'a str,
-}
-
-impl Src<'_> {
-    fn at(&self, offset: usize, message: impl Into<String>) -> InputError {
-        let offset = offset.min(self.text.len());
-        let before = &self.text[..floor_char_boundary(self.text, offset)];
-        let line = before.matches('\n').count() as u64 + 1;
-        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-        let column = before[line_start..].chars().count() as u64 + 1;
-        InputError::At {
-            path: self.path.display().to_string(),
-            line,
-            column,
-            message: message.into(),
-        }
-    }
-
-    fn span<T>(&self, s: &Spanned<T>, message: impl Into<String>) -> InputError {
-        self.at(s.span().start, message)
-    }
-
-    fn toml(&self, e: toml::de::Error, fallback: usize) -> InputError {
-        let offset = e.span().map_or(fallback, |r| r.start);
-        self.at(offset, e.message().trim_end().to_string())
-    }
-}
-
-fn floor_char_boundary(s: &str, mut i: usize) -> usize {
-    while i > 0 && !s.is_char_boundary(i) {
-        i -= 1;
-    }
-    i
-}
-
-fn de<'i, T: Deserialize<'i>>(src: &Src<'_>, value: Spanned<DeValue<'i>>) -> Result<T, InputError> {
-    let start = value.span().start;
-    T::deserialize(serde::de::IntoDeserializer::into_deserializer(value))
-        .map_err(|e| src.toml(e, start))
-}
-
-fn int_in(
-    src: &Src<'_>,
-    v: &Spanned<i64>,
-    what: &str,
-    lo: i64,
-    hi: i64,
-) -> Result<usize, InputError> {
-    let x = *v.get_ref();
-    if x < lo || x > hi {
-        return Err(src.span(v, format!("{what} must be in {lo}..={hi}, got {x}")));
-    }
-    Ok(x as usize)
-}
-
-/// `poll_timeout_us` of a stage that waits on another process's service: 10 us to 1 s, default
-/// 1 ms.
-fn poll_timeout(src: &Src<'_>, v: Option<&Spanned<i64>>) -> Result<Duration, InputError> {
-    Ok(match v {
-        Some(p) => Duration::from_micros(int_in(src, p, "poll_timeout_us", 10, 1_000_000)? as u64),
-        None => Duration::from_millis(1),
-    })
-}
-
-fn positive(src: &Src<'_>, v: &Spanned<f64>, what: &str, max: f64) -> Result<f64, InputError> {
-    let x = *v.get_ref();
-    if !(x.is_finite() && x > 0.0 && x <= max) {
-        return Err(src.span(v, format!("{what} must be > 0 and <= {max}, got {x}")));
-    }
-    Ok(x)
-}
-
-fn service(src: &Src<'_>, v: &Spanned<String>) -> Result<String, InputError> {
-    crate::transport::check_service_name(v.get_ref())
-        .map_err(|e| src.span(v, format!("invalid service name {:?}: {e}", v.get_ref())))?;
-    Ok(v.get_ref().clone())
 }
 
 /// Read and validate a pipeline file: everything `run` needs is checked here, nothing started.
@@ -517,7 +159,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             top.insert(k, v);
         }
     }
-    let raw: RawTop = de(&src, Spanned::new(doc_span.clone(), DeValue::Table(top)))?;
+    let raw: RawTop = src.de(Spanned::new(doc_span.clone(), DeValue::Table(top)))?;
 
     let name = raw.name.get_ref().clone();
     if name.is_empty()
@@ -530,13 +172,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             "name must be non-empty ASCII letters, digits, '-' or '_'",
         ));
     }
-    let rate_hz = positive(&src, &raw.rate_hz, "rate_hz", 1e6)?;
+    let rate_hz = src.positive(&raw.rate_hz, "rate_hz", 1e6)?;
     let deadline = match &raw.deadline_us {
-        Some(d) => Duration::from_secs_f64(positive(&src, d, "deadline_us", 1e9)? * 1e-6),
+        Some(d) => Duration::from_secs_f64(src.positive(d, "deadline_us", 1e9)? * 1e-6),
         None => Duration::from_secs_f64(1.0 / rate_hz),
     };
     let axes = match &raw.axes {
-        Some(a) => int_in(&src, a, "axes", 1, 3)?,
+        Some(a) => src.int_in(a, "axes", 1, 3)?,
         None => 3,
     };
     let input_units = match &raw.input_units {
@@ -553,15 +195,16 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         },
     };
     let report_interval = match &raw.report_interval_s {
-        Some(r) => Duration::from_secs_f64(positive(&src, r, "report_interval_s", 3600.0)?),
+        // A report line is for people: more often than every 10 ms is a mistake, not a need.
+        Some(r) => Duration::from_secs_f64(src.float_in(r, "report_interval_s", 0.01, 3600.0)?),
         None => Duration::from_secs(2),
     };
     let realtime_priority = match &raw.realtime_priority {
-        Some(p) => Some(int_in(&src, p, "realtime_priority", 1, 99)? as i32),
+        Some(p) => Some(src.int_in(p, "realtime_priority", 1, 99)? as i32),
         None => None,
     };
     let cpu = match &raw.cpu {
-        Some(c) => Some(int_in(&src, c, "cpu", 0, 1023)?),
+        Some(c) => Some(src.int_in(c, "cpu", 0, 1023)?),
         None => None,
     };
     let iox = raw.iceoryx2.unwrap_or(RawIox {
@@ -579,15 +222,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         None => crate::transport::DEFAULT_PREFIX.to_string(),
     };
     let buffer_size = match &iox.buffer_size {
-        Some(b) => int_in(&src, b, "buffer_size", 1, 65_536)?,
+        Some(b) => src.int_in(b, "buffer_size", 1, 65_536)?,
         None => 256,
     };
     let max_subscribers = match &iox.max_subscribers {
-        Some(m) => int_in(&src, m, "max_subscribers", 2, 64)?,
+        Some(m) => src.int_in(m, "max_subscribers", 2, 64)?,
         None => 8,
     };
     let stats_service = match &iox.stats_service {
-        Some(s) => service(&src, s)?,
+        Some(s) => src.service(s)?,
         None => format!("{name}/stats"),
     };
 
@@ -604,9 +247,14 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             "`stage` must be an array of tables ([[stage]])",
         ));
     };
+    let cx = Context {
+        rate_hz,
+        axes,
+        units: input_units,
+    };
     let mut entries = Vec::new();
     for value in array {
-        entries.push(stage(&src, value, rate_hz, axes, input_units)?);
+        entries.push(registry::stage(&src, value, cx)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
     Ok(Pipeline {
@@ -626,512 +274,6 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             stats_service,
         },
         stages,
-    })
-}
-
-/// A parsed stage with the positions the chain check reports.
-struct Entry {
-    spec: StageSpec,
-    name_at: usize,
-    input_at: usize,
-    output_at: usize,
-}
-
-fn stage<'i>(
-    src: &Src<'_>,
-    value: Spanned<DeValue<'i>>,
-    rate_hz: f64,
-    axes: usize,
-    units: Units,
-) -> Result<Entry, InputError> {
-    let start = value.span().start;
-    let kind = match value.get_ref() {
-        DeValue::Table(t) => t
-            .iter()
-            .find(|(k, _)| k.get_ref() == "kind")
-            .map(|(_, v)| (v.span().start, v.get_ref().as_str().map(str::to_string))),
-        _ => return Err(src.at(start, "each [[stage]] must be a table")),
-    };
-    let (kind_at, kind) = match kind {
-        None => {
-            return Err(src.at(
-                start,
-                format!("stage without `kind` (valid: {})", KINDS.join(", ")),
-            ))
-        }
-        Some((at, None)) => return Err(src.at(at, "`kind` must be a string")),
-        Some((at, Some(k))) => (at, k),
-    };
-    let entry = |name: &Spanned<String>,
-                 input: Option<&Spanned<String>>,
-                 output: &Spanned<String>,
-                 kind: StageKind|
-     -> Result<Entry, InputError> {
-        if name.get_ref().is_empty() {
-            return Err(src.span(name, "stage name must not be empty"));
-        }
-        Ok(Entry {
-            spec: StageSpec {
-                name: name.get_ref().clone(),
-                input: input.map(|i| service(src, i)).transpose()?,
-                output: service(src, output)?,
-                kind,
-            },
-            name_at: name.span().start,
-            input_at: input.map_or(start, |i| i.span().start),
-            output_at: output.span().start,
-        })
-    };
-    match kind.as_str() {
-        "ingest.sim" => {
-            let r: RawSim = de(src, value)?;
-            let profile = r
-                .profile
-                .as_ref()
-                .map_or("adxrs450".to_string(), |p| p.get_ref().clone());
-            if let Some(p) = &r.profile {
-                if !["adxrs450", "adis16405"].contains(&p.get_ref().as_str()) {
-                    return Err(src.span(
-                        p,
-                        format!(
-                            "unknown profile {:?} (valid: adxrs450, adis16405)",
-                            p.get_ref()
-                        ),
-                    ));
-                }
-            }
-            let seed = match &r.seed {
-                Some(s) => int_in(src, s, "seed", 0, i64::MAX)? as u64,
-                None => 1,
-            };
-            let samples = match &r.samples {
-                Some(s) => Some(int_in(src, s, "samples", 1, i64::MAX)? as u64),
-                None => None,
-            };
-            let motion = r
-                .motion
-                .as_ref()
-                .map_or("sines".to_string(), |m| m.get_ref().clone());
-            if let Some(m) = &r.motion {
-                if m.get_ref().parse::<crate::sim::Motion>().is_err() {
-                    return Err(src.span(
-                        m,
-                        format!(
-                            "unknown motion {:?} (valid: none, sines, steps, turn)",
-                            m.get_ref()
-                        ),
-                    ));
-                }
-            }
-            if units != Units::DegPerSec {
-                return Err(src.at(
-                    kind_at,
-                    "ingest.sim produces deg/s: set input_units = \"deg/s\"",
-                ));
-            }
-            let params = SimParams {
-                profile,
-                seed,
-                motion,
-                samples,
-            };
-            crate::stages::ingest_sim::sim_config(&params, rate_hz, axes)
-                .map_err(|e| src.at(start, format!("ingest.sim: {e}")))?;
-            entry(&r.name, None, &r.output, StageKind::IngestSim(params))
-        }
-        "ingest.csv" => {
-            let r: RawCsv = de(src, value)?;
-            let csv = csv_params(src, &r, rate_hz, axes)?;
-            entry(&r.name, None, &r.output, StageKind::IngestCsv(csv))
-        }
-        "ingest.iceoryx2" => {
-            let r: RawIceoryx2 = de(src, value)?;
-            let poll_timeout = poll_timeout(src, r.poll_timeout_us.as_ref())?;
-            entry(
-                &r.name,
-                Some(&r.input),
-                &r.output,
-                StageKind::IngestIceoryx2 { poll_timeout },
-            )
-        }
-        "denoise.wavelet" => {
-            let r: RawWavelet = de(src, value)?;
-            let params = wavelet_params(src, &r)?;
-            crate::stages::denoise::check_wavelet(&params)
-                .map_err(|e| src.at(start, format!("denoise.wavelet: {e}")))?;
-            entry(
-                &r.name,
-                Some(&r.input),
-                &r.output,
-                StageKind::DenoiseWavelet(params),
-            )
-        }
-        "denoise.none" | "predict.none" => {
-            let r: RawPassThrough = de(src, value)?;
-            let k = if kind == "denoise.none" {
-                StageKind::DenoiseNone
-            } else {
-                StageKind::PredictNone
-            };
-            entry(&r.name, Some(&r.input), &r.output, k)
-        }
-        "predict.rbf" => {
-            let r: RawRbf = de(src, value)?;
-            let params = rbf_params(src, &r, start, rate_hz, axes, units)?;
-            entry(
-                &r.name,
-                Some(&r.input),
-                &r.output,
-                StageKind::PredictRbf(params),
-            )
-        }
-        "external" => {
-            let r: RawExternal = de(src, value)?;
-            let poll_timeout = poll_timeout(src, r.poll_timeout_us.as_ref())?;
-            entry(
-                &r.name,
-                Some(&r.input),
-                &r.output,
-                StageKind::External { poll_timeout },
-            )
-        }
-        "publish" => {
-            let r: RawPublish = de(src, value)?;
-            entry(
-                &r.name,
-                Some(&r.input),
-                &r.output,
-                StageKind::Publish {
-                    notify: r.notify.unwrap_or(true),
-                },
-            )
-        }
-        other => Err(src.at(
-            kind_at,
-            format!("unknown kind {other:?} (valid: {})", KINDS.join(", ")),
-        )),
-    }
-}
-
-/// A path in the pipeline file, relative to the file's folder.
-fn resolve(src: &Src<'_>, rel: &str) -> PathBuf {
-    let rel = Path::new(rel);
-    if rel.is_absolute() {
-        rel.to_path_buf()
-    } else {
-        src.path
-            .parent()
-            .map_or_else(|| rel.to_path_buf(), |d| d.join(rel))
-    }
-}
-
-/// Load every model of a `predict.rbf` stage and check it against the pipeline: it loads, its
-/// rate and units are the pipeline's, and there is one per axis (or one shared).
-fn rbf_params(
-    src: &Src<'_>,
-    r: &RawRbf,
-    start: usize,
-    rate_hz: f64,
-    axes: usize,
-    units: Units,
-) -> Result<RbfParams, InputError> {
-    let files: Vec<&Spanned<String>> = match (&r.model, &r.models) {
-        (Some(m), None) => vec![m; axes],
-        (None, Some(list)) => {
-            if list.get_ref().len() != axes {
-                return Err(src.span(
-                    list,
-                    format!(
-                        "`models` lists {} model(s) but the pipeline has {axes} axes (one per axis, or a shared `model`)",
-                        list.get_ref().len()
-                    ),
-                ));
-            }
-            list.get_ref().iter().collect()
-        }
-        (Some(m), Some(_)) => {
-            return Err(src.span(
-                m,
-                "give `model` (shared) or `models` (one per axis), not both",
-            ))
-        }
-        (None, None) => {
-            return Err(src.at(
-                start,
-                "predict.rbf needs `model` (one model for every axis) or `models` (one per axis)",
-            ))
-        }
-    };
-    let unit_name = match units {
-        Units::DegPerSec => "deg/s",
-        Units::RadPerSec => "rad/s",
-    };
-    let mut paths = Vec::with_capacity(axes);
-    let mut models = Vec::with_capacity(axes);
-    let mut stillness = Vec::with_capacity(axes);
-    for f in files {
-        let path = resolve(src, f.get_ref());
-        let m = crate::io::model_file::read_model(&path).map_err(|e| src.span(f, e))?;
-        if (m.rate_hz - rate_hz).abs() > 1e-9 * rate_hz {
-            return Err(src.span(
-                f,
-                format!(
-                    "model {} was trained at {} Hz but the pipeline runs at {rate_hz} Hz",
-                    path.display(),
-                    m.rate_hz
-                ),
-            ));
-        }
-        if m.units != unit_name {
-            return Err(src.span(
-                f,
-                format!(
-                    "model {} is in {} but the pipeline's input_units are {unit_name}",
-                    path.display(),
-                    m.units
-                ),
-            ));
-        }
-        let mut s = m.stillness;
-        if let Some(w) = &r.still_window {
-            s.window = int_in(src, w, "still_window", 2, 1_000_000)?;
-        }
-        if let Some(v) = &r.settle {
-            s.settle = int_in(src, v, "settle", 0, 100_000_000)?;
-        }
-        for (field, value) in [
-            (&mut s.var_enter, &r.var_enter),
-            (&mut s.var_exit, &r.var_exit),
-            (&mut s.mean_enter, &r.mean_enter),
-            (&mut s.mean_exit, &r.mean_exit),
-        ] {
-            if let Some(v) = value {
-                *field = positive(src, v, "stillness threshold", f64::MAX)?;
-            }
-        }
-        s.check()
-            .map_err(|e| src.at(start, format!("predict.rbf: {e}")))?;
-        paths.push(path);
-        models.push(m);
-        stillness.push(s);
-    }
-    Ok(RbfParams {
-        paths,
-        models,
-        stillness,
-    })
-}
-
-fn csv_params(
-    src: &Src<'_>,
-    r: &RawCsv,
-    rate_hz: f64,
-    axes: usize,
-) -> Result<CsvParams, InputError> {
-    let rel = Path::new(r.file.get_ref());
-    let file = if rel.is_absolute() {
-        rel.to_path_buf()
-    } else {
-        src.path
-            .parent()
-            .map_or_else(|| rel.to_path_buf(), |d| d.join(rel))
-    };
-    if !file.is_file() {
-        return Err(src.span(&r.file, format!("no such file: {}", file.display())));
-    }
-    let default_cols: Vec<String> = ["x", "y", "z"][..axes]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    let columns = r
-        .columns
-        .as_ref()
-        .map_or(default_cols, |c| c.get_ref().clone());
-    if let Some(c) = &r.columns {
-        if c.get_ref().len() != axes {
-            return Err(src.span(
-                c,
-                format!(
-                    "columns must name {axes} column(s) (one per axis), got {}",
-                    c.get_ref().len()
-                ),
-            ));
-        }
-    }
-    let mut wanted = columns.clone();
-    if let Some(t) = &r.time_column {
-        wanted.push(t.get_ref().clone());
-    }
-    let table = crate::io::read_table(&file, &wanted)?;
-    let mut cols = Vec::with_capacity(axes);
-    for name in &columns {
-        match table.column(name) {
-            Some(c) => cols.push(c),
-            None => {
-                let at = r
-                    .columns
-                    .as_ref()
-                    .map_or(r.file.span().start, |c| c.span().start);
-                return Err(src.at(
-                    at,
-                    format!(
-                        "{} has no column {name:?} (columns: {})",
-                        file.display(),
-                        table.names.join(", ")
-                    ),
-                ));
-            }
-        }
-    }
-    let n = table.rows();
-    if n == 0 {
-        return Err(src.span(&r.file, format!("{} has no data rows", file.display())));
-    }
-    let mut rates = vec![[0.0; 3]; n];
-    for (axis, col) in cols.iter().enumerate() {
-        for (row, v) in col.iter().enumerate() {
-            rates[row][axis] = *v;
-        }
-    }
-    let t_ns: Vec<u64> = match &r.time_column {
-        Some(t) => {
-            let Some(col) = table.column(t.get_ref()) else {
-                return Err(src.span(
-                    t,
-                    format!("{} has no column {:?}", file.display(), t.get_ref()),
-                ));
-            };
-            let mut out = Vec::with_capacity(n);
-            for (row, &s) in col.iter().enumerate() {
-                if s < 0.0 {
-                    return Err(src.span(
-                        t,
-                        format!(
-                            "time column {:?} is negative at data row {}",
-                            t.get_ref(),
-                            row + 1
-                        ),
-                    ));
-                }
-                out.push((s * 1e9).round() as u64);
-            }
-            out
-        }
-        None => (0..n as u64)
-            .map(|i| (i as f64 * 1e9 / rate_hz).round() as u64)
-            .collect(),
-    };
-    let pace = match &r.pace {
-        None => Pace::Realtime,
-        Some(p) => match p.get_ref().as_str() {
-            "realtime" => Pace::Realtime,
-            "asap" => Pace::Asap,
-            other => {
-                return Err(src.span(
-                    p,
-                    format!("unknown pace {other:?} (valid: \"realtime\", \"asap\")"),
-                ))
-            }
-        },
-    };
-    Ok(CsvParams {
-        file,
-        t_ns,
-        rates,
-        pace,
-        looped: r.looped.unwrap_or(false),
-    })
-}
-
-fn wavelet_params(src: &Src<'_>, r: &RawWavelet) -> Result<WaveletParams, InputError> {
-    let wavelet = r
-        .wavelet
-        .as_ref()
-        .map_or("db6".to_string(), |w| w.get_ref().clone());
-    if let Some(w) = &r.wavelet {
-        crate::wavelet::Wavelet::by_name(w.get_ref()).map_err(|e| src.span(w, e.to_string()))?;
-    }
-    let level = match &r.level {
-        Some(l) => int_in(src, l, "level", 1, 12)?,
-        None => 5,
-    };
-    let threshold = r
-        .threshold
-        .as_ref()
-        .map_or("improved".to_string(), |t| t.get_ref().clone());
-    if let Some(t) = &r.threshold {
-        const VALID: [&str; 5] = ["hard", "soft", "garrote", "firm", "improved"];
-        if !VALID.contains(&t.get_ref().as_str()) {
-            return Err(src.span(
-                t,
-                format!(
-                    "unknown threshold function {:?} (valid: {})",
-                    t.get_ref(),
-                    VALID.join(", ")
-                ),
-            ));
-        }
-    }
-    let ratio = match &r.ratio {
-        Some(v) => {
-            if *v.get_ref() <= 1.0 || !v.get_ref().is_finite() {
-                return Err(src.span(v, format!("ratio must be > 1, got {}", v.get_ref())));
-            }
-            Some(*v.get_ref())
-        }
-        None => None,
-    };
-    let pos = |v: &Option<Spanned<f64>>, what: &str| -> Result<Option<f64>, InputError> {
-        v.as_ref().map(|v| positive(src, v, what, 1e9)).transpose()
-    };
-    let a = match &r.a {
-        Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
-            return Err(src.span(v, format!("a must be finite and >= 0, got {}", v.get_ref())))
-        }
-        Some(v) => Some(*v.get_ref()),
-        None => None,
-    };
-    let beta = pos(&r.beta, "beta")?;
-    let kappa = pos(&r.kappa, "kappa")?;
-    let window = match &r.window {
-        Some(w) => int_in(src, w, "window", 2, 1 << 20)?,
-        None => crate::wavelet::stream::StreamConfig::DEFAULT_WINDOW,
-    };
-    let filter_len = crate::wavelet::Wavelet::by_name(&wavelet)
-        .map(|w| w.filter_len())
-        .unwrap_or(2);
-    let full_lag = crate::wavelet::stream::StreamConfig::full_lag(filter_len, level);
-    let lag = match &r.lag {
-        Some(l) => int_in(src, l, "lag", 0, full_lag as i64)?,
-        None => crate::wavelet::stream::StreamConfig::DEFAULT_LAG.min(full_lag),
-    };
-    let sigma = match &r.sigma {
-        None => None,
-        Some(s) => match s.get_ref() {
-            SigmaSetting::Named(n) if n == "mad" => None,
-            SigmaSetting::Named(n) => {
-                return Err(src.span(
-                    s,
-                    format!("sigma must be \"mad\" or a number > 0, got {n:?}"),
-                ))
-            }
-            SigmaSetting::Fixed(x) if x.is_finite() && *x > 0.0 => Some(*x),
-            SigmaSetting::Fixed(x) => {
-                return Err(src.span(s, format!("sigma must be \"mad\" or a number > 0, got {x}")))
-            }
-        },
-    };
-    Ok(WaveletParams {
-        wavelet,
-        level,
-        threshold,
-        ratio,
-        a,
-        beta,
-        kappa,
-        window,
-        lag,
-        sigma,
     })
 }
 
@@ -1172,9 +314,14 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
     }
     let ingests: Vec<&Entry> = entries.iter().filter(|e| e.spec.kind.is_ingest()).collect();
     let Some(ingest) = ingests.first() else {
+        let ingests: Vec<&str> = registry::KINDS
+            .iter()
+            .filter(|k| k.is_ingest())
+            .map(|k| k.name)
+            .collect();
         return Err(src.at(
             at,
-            "no ingest stage (kinds ingest.sim, ingest.csv, ingest.iceoryx2)",
+            format!("no ingest stage (kinds {})", ingests.join(", ")),
         ));
     };
     if let Some(second) = ingests.get(1) {
@@ -1245,7 +392,7 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
             ),
         ));
     }
-    let is_external = |i: usize| matches!(entries[i].spec.kind, StageKind::External { .. });
+    let is_external = |i: usize| entries[i].spec.kind.role == Role::External;
     for (pos, &i) in order.iter().enumerate() {
         if !is_external(i) {
             continue;
@@ -1281,18 +428,17 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
         }
     }
     let last = &entries[*order.last().unwrap_or(&0)];
-    if !matches!(last.spec.kind, StageKind::Publish { .. }) {
+    if last.spec.kind.role != Role::Publish {
         return Err(src.at(
             last.output_at,
             format!(
                 "the chain ends at stage {:?} ({}), not at a publish stage",
-                last.spec.name,
-                last.spec.kind.name()
+                last.spec.name, last.spec.kind.name
             ),
         ));
     }
     for &i in &order[1..order.len() - 1] {
-        if matches!(entries[i].spec.kind, StageKind::Publish { .. }) {
+        if entries[i].spec.kind.role == Role::Publish {
             return Err(src.at(
                 entries[i].name_at,
                 "a publish stage must be the last of the chain",
@@ -1372,10 +518,8 @@ mod tests {
         let p = parse_str(&format!("{HEAD}{publish}{ext}{DENOISE}{INGEST}")).unwrap();
         let names: Vec<&str> = p.stages.iter().map(|s| s.name.as_str()).collect();
         assert_eq!(names, ["in", "dn", "ext", "pub"]);
-        assert!(matches!(
-            p.stages[2].kind,
-            StageKind::External { poll_timeout } if poll_timeout == Duration::from_millis(1)
-        ));
+        assert_eq!(p.stages[2].kind.name, "external");
+        assert_eq!(p.stages[2].params.poll_timeout(), Duration::from_millis(1));
         // Without the external declaration the publish stage's input dangles.
         let e = parse_str(&format!("{HEAD}{publish}{DENOISE}{INGEST}")).unwrap_err();
         assert!(e.contains("dangling input \"t/ext\""), "{e}");

@@ -35,11 +35,13 @@ use std::time::Duration;
 
 use crossbeam_channel::{bounded, Sender};
 
-use crate::metrics::{Batch, Counters, Layout, Record, Report, Reporter, BATCH, MAX_STAGES};
-use crate::pipeline::config::{Pipeline, StageKind};
+use crate::metrics::{
+    Batch, Counters, HeadingTracker, Layout, Record, Report, Reporter, BATCH, MAX_STAGES,
+};
+use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
+use crate::pipeline::stage::Role;
 use crate::pipeline::stage::{Poll, Source, Stage};
-use crate::stages;
 use crate::transport::{
     monotonic_ns, remove_prefix_leftovers, GyroSample, Input, Output, Qos, RawSample,
     StatsSnapshot, Transport, TransportError, FLAG_FLUSHED, FLAG_OUTPUT_REPAIRED,
@@ -125,6 +127,9 @@ struct Chain {
     batch_started_ns: u64,
     tx: Sender<Batch>,
     deadline_ns: u64,
+    /// Heading error against the truth (a simulated ingest): raw in segment 1, published
+    /// rates in the final segment.
+    heading: Option<HeadingTracker>,
 }
 
 /// Longest a partial batch waits before it is sent (so slow pipelines report promptly).
@@ -149,6 +154,9 @@ impl Chain {
             return Ok(());
         };
         let s = self.guard.admit(&raw, ingest_ns);
+        if let Some(h) = &mut self.heading {
+            h.raw(&s);
+        }
         let t0 = monotonic_ns();
         rec.stage_ns[0] = (t0.saturating_sub(ingest_ns)).min(u64::from(u32::MAX)) as u32;
         rec.stages_run = 1;
@@ -225,6 +233,9 @@ impl Chain {
                 if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
                     self.local.repaired += 1;
                 }
+                if let Some(h) = &mut self.heading {
+                    h.published(out);
+                }
             } else {
                 // Offered to the external stage (its "in" as seen from the service).
                 self.local.stage_in[pos + 1] += 1;
@@ -249,6 +260,7 @@ impl Chain {
 
     /// Send the pending batch (never blocking) and store the counters this segment owns.
     fn send_batch(&mut self) {
+        self.batch.heading = self.heading.as_ref().map(HeadingTracker::summary);
         if self.batch.len > 0 {
             if self.tx.try_send(self.batch).is_err() {
                 self.local.metric_drops += self.batch.len as u64;
@@ -310,27 +322,9 @@ fn build_source(p: &Pipeline, transport: &Transport) -> Result<Box<dyn Source>, 
         stage: spec.name.clone(),
         message,
     };
-    match &spec.kind {
-        StageKind::IngestCsv(csv) => Ok(Box::new(stages::ingest_csv::CsvReplay::new(
-            csv.clone(),
-            p.rate_hz,
-        ))),
-        StageKind::IngestIceoryx2 { poll_timeout } => {
-            let input = spec
-                .input
-                .as_deref()
-                .ok_or_else(|| err("ingest.iceoryx2 needs an input service".into()))?;
-            Ok(Box::new(stages::ingest_iceoryx2::ExternalRaw::new(
-                transport,
-                input,
-                *poll_timeout,
-            )?))
-        }
-        StageKind::IngestSim(sim) => Ok(Box::new(
-            stages::ingest_sim::SimSource::new(sim, p.rate_hz, p.axes).map_err(err)?,
-        )),
-        other => Err(err(format!("{} cannot start a chain", other.name()))),
-    }
+    spec.params
+        .source(&p.context(), transport, spec.input.as_deref())
+        .map_err(err)
 }
 
 /// Run a validated pipeline until stopped; returns the final report.
@@ -397,7 +391,7 @@ fn segments(p: &Pipeline) -> Vec<SegmentSpan> {
     let mut out = Vec::new();
     let mut lo = 1;
     for (i, spec) in p.stages.iter().enumerate().skip(1) {
-        if matches!(spec.kind, StageKind::External { .. }) {
+        if spec.kind.role == Role::External {
             out.push(SegmentSpan {
                 lo,
                 hi: i,
@@ -429,10 +423,13 @@ fn build_segment(
     let mut lag = 0usize;
     for i in span.lo..span.hi {
         let spec = &p.stages[i];
-        let stage = stages::build(spec, p).map_err(|message| RunError::Stage {
-            stage: spec.name.clone(),
-            message,
-        })?;
+        let stage = spec
+            .params
+            .stage(&p.context())
+            .map_err(|message| RunError::Stage {
+                stage: spec.name.clone(),
+                message,
+            })?;
         lag += stage.lag();
         stage_objs.push(stage);
         let feeds_external = !span.is_final && i + 1 == span.hi;
@@ -440,7 +437,7 @@ fn build_segment(
             // The external process may have created the service first.
             outs.push(transport.external_output::<GyroSample>(&spec.output, true)?);
         } else {
-            let notify = matches!(spec.kind, StageKind::Publish { notify: true });
+            let notify = spec.params.notifies();
             outs.push(transport.output::<GyroSample>(&spec.output, notify)?);
         }
         if i + 1 != span.hi {
@@ -471,6 +468,10 @@ fn build_segment(
         batch_started_ns: 0,
         tx,
         deadline_ns: p.deadline.as_nanos() as u64,
+        heading: (span.lo == 1 || span.is_final)
+            .then(|| p.stages[0].params.truth(&p.context()))
+            .flatten()
+            .map(|t| HeadingTracker::new(t, p.input_units.to_rad_per_sec(), p.rate_hz, p.axes)),
     };
     Ok((chain, lost, lag))
 }
@@ -505,7 +506,8 @@ fn run_segment(
     ready: crossbeam_channel::Sender<Ready>,
 ) -> Result<(), RunError> {
     let ext = &p.stages[span.lo - 1];
-    let StageKind::External { poll_timeout } = ext.kind else {
+    let poll_timeout = ext.params.poll_timeout();
+    if ext.kind.role != Role::External {
         return Err(RunError::Stage {
             stage: ext.name.clone(),
             message: "a later segment must follow an external stage".into(),
@@ -689,7 +691,7 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
         stages: p
             .stages
             .iter()
-            .map(|s| (s.name.clone(), s.kind.name().to_string()))
+            .map(|s| (s.name.clone(), s.kind.name.to_string()))
             .collect(),
         deadline: p.deadline,
         algorithmic_delay: Duration::from_secs_f64(lag_total as f64 / p.rate_hz),

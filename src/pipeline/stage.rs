@@ -1,4 +1,5 @@
-//! The stage contract.
+//! The stage contract: what a stage kind provides ([`Kind`], [`Params`]) and what a built
+//! stage does ([`Stage`], [`Source`]).
 //!
 //! A stage is built from its validated TOML table ([`crate::pipeline::StageSpec`]), then called
 //! once per sample with [`Stage::process`], which must not allocate; at shutdown the runtime
@@ -9,7 +10,10 @@
 //! sleeps until that sample is due.
 
 use std::sync::atomic::AtomicBool;
+use std::time::Duration;
 
+use crate::io::InputError;
+use crate::pipeline::schema::{Context, Key, StageTable};
 use crate::transport::{GyroSample, RawSample};
 
 /// A processing stage: one sample in, at most one sample out.
@@ -45,4 +49,98 @@ pub trait Source {
     /// The next raw sample; may sleep until it is due, but returns `Idle` within a few
     /// milliseconds when `stop` is set. Must not allocate.
     fn poll(&mut self, stop: &AtomicBool) -> Poll;
+}
+
+/// The true rate per axis, in the pipeline's input units, at sensor time `t` (s).
+pub type TrueRate = Box<dyn Fn(f64) -> [f64; 3] + Send>;
+
+/// Where a kind sits in the chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// Starts the chain (a [`Source`]); `input` only when it reads another process's service.
+    Ingest {
+        /// Whether the table has an `input` (a service of another process).
+        has_input: bool,
+    },
+    /// A processing stage the daemon runs (a [`Stage`]).
+    Process,
+    /// A stage another process runs: the daemon only links to it.
+    External,
+    /// The final, public service: ends the chain.
+    Publish,
+}
+
+/// A stage's validated parameters, as its kind's parse function made them: what the runtime
+/// builds the stage from, and what `validate` tells about it.
+pub trait Params: std::fmt::Debug + Send + Sync {
+    /// Build the processing stage (kinds with [`Role::Process`] or [`Role::Publish`]).
+    fn stage(&self, _cx: &Context) -> Result<Box<dyn Stage>, String> {
+        Err("this kind is not a processing stage".into())
+    }
+
+    /// Build the source (kinds with [`Role::Ingest`]); `input` is the stage's input service.
+    fn source(
+        &self,
+        _cx: &Context,
+        _transport: &crate::transport::Transport,
+        _input: Option<&str>,
+    ) -> Result<Box<dyn Source>, String> {
+        Err("this kind cannot start a chain".into())
+    }
+
+    /// Whether the daemon notifies the event service named like this stage's output after
+    /// each sample (so other processes can sleep until data arrives).
+    fn notifies(&self) -> bool {
+        false
+    }
+
+    /// How long the daemon's wait on this stage's output sleeps before checking for shutdown
+    /// (stages whose output another process publishes).
+    fn poll_timeout(&self) -> Duration {
+        Duration::from_millis(1)
+    }
+
+    /// The true rate of the sensor, when the ingest knows it (a simulator): the daemon then
+    /// reports the heading error of what it publishes against the truth.
+    fn truth(&self, _cx: &Context) -> Option<TrueRate> {
+        None
+    }
+
+    /// Extra lines for `driftless validate` (indented by the caller).
+    fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// A stage kind: its name in pipeline files, its place in the chain, its keys and its parse
+/// function. Each stage file declares one or more; [`crate::stages::KINDS`] lists them all.
+pub struct Kind {
+    /// The name written as `kind = "..."`.
+    pub name: &'static str,
+    /// Where it sits in the chain.
+    pub role: Role,
+    /// One line on what it does (the stage table of `docs/daemon.md` is generated from it).
+    pub summary: &'static str,
+    /// Its own keys, beyond `name`, `kind`, `input` and `output`, in the order listed.
+    pub keys: &'static [Key],
+    /// Read and check its table; everything the stage needs is validated here.
+    pub parse: fn(&mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError>,
+}
+
+impl Kind {
+    /// Whether this kind starts a chain.
+    pub fn is_ingest(&self) -> bool {
+        matches!(self.role, Role::Ingest { .. })
+    }
+
+    /// Whether its table has an `input` key.
+    pub fn has_input(&self) -> bool {
+        !matches!(self.role, Role::Ingest { has_input: false })
+    }
+}
+
+impl std::fmt::Debug for Kind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name)
+    }
 }

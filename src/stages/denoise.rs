@@ -1,10 +1,232 @@
 //! `denoise.wavelet` (the streaming wavelet denoiser, one per axis) and `denoise.none`.
+//!
+//! ```toml
+//! [[stage]]
+//! name = "denoise"
+//! kind = "denoise.wavelet"
+//! input = "demo/raw"
+//! output = "demo/denoised"
+//! wavelet = "db6"
+//! level = 5
+//! threshold = "improved"     # hard, soft, garrote, firm, improved
+//! window = 1024              # samples of the noise-sigma window
+//! lag = 64                   # output delay, samples (0..=full lag)
+//! ```
 
-use crate::pipeline::config::WaveletParams;
-use crate::pipeline::stage::Stage;
+use toml::Spanned;
+
+use crate::io::InputError;
+use crate::pipeline::schema::{Context, Key, StageTable, Type};
+use crate::pipeline::stage::{Kind, Params, Role, Stage};
 use crate::transport::{GyroSample, FLAG_FLUSHED, FLAG_WARMING_UP};
 use crate::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
+
+const WAVELET: Key = Key {
+    name: "wavelet",
+    ty: Type::Str("haar, db1..db20, sym2..sym20, coif1..coif17"),
+    default: "\"db6\"",
+    doc: "the wavelet",
+};
+const LEVEL: Key = Key {
+    name: "level",
+    ty: Type::Int(1, 12),
+    default: "5",
+    doc: "decomposition level",
+};
+const THRESHOLD: Key = Key {
+    name: "threshold",
+    ty: Type::Choice(&["hard", "soft", "garrote", "firm", "improved"]),
+    default: "\"improved\"",
+    doc: "threshold function",
+};
+const RATIO: Key = Key {
+    name: "ratio",
+    ty: Type::Float("> 1"),
+    default: "the function's",
+    doc: "firm threshold: upper / lower threshold",
+};
+const A: Key = Key {
+    name: "a",
+    ty: Type::Float(">= 0"),
+    default: "0.5",
+    doc: "improved threshold: shrinkage below the threshold",
+};
+const BETA: Key = Key {
+    name: "beta",
+    ty: Type::Positive(1e9),
+    default: "5",
+    doc: "improved threshold: how fast it tends to hard above the threshold",
+};
+const KAPPA: Key = Key {
+    name: "kappa",
+    ty: Type::Positive(1e9),
+    default: "5",
+    doc: "improved threshold: how fast small coefficients vanish",
+};
+const WINDOW: Key = Key {
+    name: "window",
+    ty: Type::Int(2, 1 << 20),
+    default: "1024",
+    doc: "samples of the sliding noise-sigma window",
+};
+const LAG: Key = Key {
+    name: "lag",
+    ty: Type::IntDepends("0..=full lag ((2^level - 1)(filter length - 1))"),
+    default: "64 (at most the full lag)",
+    doc: "output delay in samples: more lag, closer to offline denoising",
+};
+const SIGMA: Key = Key {
+    name: "sigma",
+    ty: Type::StrOrFloat("\"mad\" | float > 0"),
+    default: "\"mad\"",
+    doc: "noise sigma: estimated (median absolute deviation) or fixed, in input units",
+};
+
+/// `denoise.wavelet`.
+pub const WAVELET_KIND: Kind = Kind {
+    name: "denoise.wavelet",
+    role: Role::Process,
+    summary: "the streaming wavelet-threshold denoiser, one per axis",
+    keys: &[
+        WAVELET, LEVEL, THRESHOLD, RATIO, A, BETA, KAPPA, WINDOW, LAG, SIGMA,
+    ],
+    parse: parse_wavelet,
+};
+
+/// `denoise.none`.
+pub const NONE_KIND: Kind = Kind {
+    name: "denoise.none",
+    role: Role::Process,
+    summary: "no denoising: the rate passes through",
+    keys: &[],
+    parse: |_| Ok(Box::new(NoDenoise)),
+};
+
+/// Parameters of `denoise.wavelet` (validated; passed to the streaming denoiser).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaveletParams {
+    /// Wavelet name, e.g. "db6".
+    pub wavelet: String,
+    /// Decomposition level.
+    pub level: usize,
+    /// Threshold function name.
+    pub threshold: String,
+    /// Firm threshold ratio.
+    pub ratio: Option<f64>,
+    /// Improved threshold `a`.
+    pub a: Option<f64>,
+    /// Improved threshold `beta`.
+    pub beta: Option<f64>,
+    /// Improved threshold `kappa`.
+    pub kappa: Option<f64>,
+    /// Sliding window length, samples.
+    pub window: usize,
+    /// Output lag, samples.
+    pub lag: usize,
+    /// Noise sigma: None for MAD, Some(fixed).
+    pub sigma: Option<f64>,
+}
+
+#[derive(Debug, serde::Deserialize)]
+#[serde(untagged)]
+enum SigmaSetting {
+    Fixed(f64),
+    Named(String),
+}
+
+fn parse_wavelet(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    let src = t.src;
+    let wavelet = match t.get::<String>(&WAVELET)? {
+        Some(w) => {
+            crate::wavelet::Wavelet::by_name(w.get_ref())
+                .map_err(|e| src.span(&w, e.to_string()))?;
+            w.into_inner()
+        }
+        None => "db6".to_string(),
+    };
+    let level = t.int(&LEVEL)?.unwrap_or(5);
+    let threshold = t
+        .choice(&THRESHOLD, "threshold function", false)?
+        .unwrap_or_else(|| "improved".into());
+    let ratio = match t.get::<f64>(&RATIO)? {
+        Some(v) if *v.get_ref() <= 1.0 || !v.get_ref().is_finite() => {
+            return Err(src.span(&v, format!("ratio must be > 1, got {}", v.get_ref())))
+        }
+        v => v.map(Spanned::into_inner),
+    };
+    let a = match t.get::<f64>(&A)? {
+        Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
+            return Err(src.span(
+                &v,
+                format!("a must be finite and >= 0, got {}", v.get_ref()),
+            ))
+        }
+        v => v.map(Spanned::into_inner),
+    };
+    let beta = t.positive(&BETA, "beta")?;
+    let kappa = t.positive(&KAPPA, "kappa")?;
+    let window = t.int(&WINDOW)?.unwrap_or(StreamConfig::DEFAULT_WINDOW);
+    let filter_len = crate::wavelet::Wavelet::by_name(&wavelet)
+        .map(|w| w.filter_len())
+        .unwrap_or(2);
+    let full_lag = StreamConfig::full_lag(filter_len, level);
+    let lag = t
+        .int_in(&LAG, 0, full_lag as i64)?
+        .unwrap_or(StreamConfig::DEFAULT_LAG.min(full_lag));
+    let sigma = match t.get::<SigmaSetting>(&SIGMA)? {
+        None => None,
+        Some(s) => match s.get_ref() {
+            SigmaSetting::Named(n) if n == "mad" => None,
+            SigmaSetting::Named(n) => {
+                return Err(src.span(
+                    &s,
+                    format!("sigma must be \"mad\" or a number > 0, got {n:?}"),
+                ))
+            }
+            SigmaSetting::Fixed(x) if x.is_finite() && *x > 0.0 => Some(*x),
+            SigmaSetting::Fixed(x) => {
+                return Err(src.span(
+                    &s,
+                    format!("sigma must be \"mad\" or a number > 0, got {x}"),
+                ))
+            }
+        },
+    };
+    let params = WaveletParams {
+        wavelet,
+        level,
+        threshold,
+        ratio,
+        a,
+        beta,
+        kappa,
+        window,
+        lag,
+        sigma,
+    };
+    StreamingDenoiser::new(
+        &stream_config(&params).map_err(|e| t.error(format!("denoise.wavelet: {e}")))?,
+    )
+    .map_err(|e| t.error(format!("denoise.wavelet: {e}")))?;
+    Ok(Box::new(params))
+}
+
+impl Params for WaveletParams {
+    fn stage(&self, cx: &Context) -> Result<Box<dyn Stage>, String> {
+        Ok(Box::new(Wavelet::new(self, cx.axes)?))
+    }
+}
+
+/// `denoise.none` parameters (it has none).
+#[derive(Debug, Clone, Copy)]
+struct NoDenoise;
+
+impl Params for NoDenoise {
+    fn stage(&self, _cx: &Context) -> Result<Box<dyn Stage>, String> {
+        Ok(Box::new(PassThrough))
+    }
+}
 
 /// The streaming denoiser's settings for validated parameters.
 pub fn stream_config(p: &WaveletParams) -> Result<StreamConfig, String> {
@@ -36,14 +258,6 @@ pub fn stream_config(p: &WaveletParams) -> Result<StreamConfig, String> {
         lag: p.lag,
         sigma: p.sigma.map_or(Sigma::Mad, Sigma::Fixed),
     })
-}
-
-/// Check that the denoiser accepts these parameters (used by validation).
-pub fn check_wavelet(p: &WaveletParams) -> Result<(), String> {
-    let cfg = stream_config(p)?;
-    StreamingDenoiser::new(&cfg)
-        .map(|_| ())
-        .map_err(|e| e.to_string())
 }
 
 /// `denoise.wavelet`: one [`StreamingDenoiser`] per axis. With lag L, the output for sample

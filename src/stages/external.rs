@@ -22,7 +22,46 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+use crate::io::InputError;
+use crate::pipeline::schema::{StageTable, POLL_TIMEOUT_US};
+use crate::pipeline::stage::{Kind, Params, Role};
 use crate::transport::{GyroSample, Qos, Transport, TransportError};
+
+/// `external`.
+pub const KIND: Kind = Kind {
+    name: "external",
+    role: Role::External,
+    summary: "a stage another process runs: it reads `input` and publishes `output` (both driftless::GyroSample); not first after the ingest, not last, not two in a row",
+    keys: &[POLL_TIMEOUT_US],
+    parse,
+};
+
+/// `external` parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExternalParams {
+    /// How long the segment after it sleeps waiting for a sample before checking for
+    /// shutdown (a safety net: the external process should notify after each sample).
+    pub poll_timeout: Duration,
+}
+
+fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    Ok(Box::new(ExternalParams {
+        poll_timeout: t.poll_timeout(&POLL_TIMEOUT_US)?,
+    }))
+}
+
+impl Params for ExternalParams {
+    fn poll_timeout(&self) -> Duration {
+        self.poll_timeout
+    }
+
+    fn describe(&self, input: Option<&str>, output: &str) -> Vec<String> {
+        vec![format!(
+            "runs in another process: it reads {} and must publish {output} (and notify it)",
+            input.unwrap_or("-")
+        )]
+    }
+}
 
 /// Settings of the reference external process.
 #[derive(Debug, Clone)]

@@ -2,12 +2,59 @@
 //! iceoryx2 service ([`crate::transport::RawSample`]). The stage sleeps on the event service of
 //! the same name (a driver should notify it after each sample) with a timeout, so a driver that
 //! does not notify is still read within `poll_timeout_us`.
+//!
+//! ```toml
+//! [[stage]]
+//! name = "sensor"
+//! kind = "ingest.iceoryx2"
+//! input = "sensor/raw"        # published by the driver
+//! output = "ext/raw"
+//! # poll_timeout_us = 1000
+//! ```
 
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use crate::pipeline::stage::{Poll, Source};
+use crate::io::InputError;
+use crate::pipeline::schema::{Context, StageTable, POLL_TIMEOUT_US};
+use crate::pipeline::stage::{Kind, Params, Poll, Role, Source};
 use crate::transport::{monotonic_ns, Input, RawSample, Transport, TransportError, Waker};
+
+/// `ingest.iceoryx2`.
+pub const KIND: Kind = Kind {
+    name: "ingest.iceoryx2",
+    role: Role::Ingest { has_input: true },
+    summary: "raw samples (driftless::RawSample) a sensor driver publishes on `input` from another process",
+    keys: &[POLL_TIMEOUT_US],
+    parse,
+};
+
+/// `ingest.iceoryx2` parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Iceoryx2Params {
+    /// How long to sleep waiting for a sample before checking for shutdown.
+    pub poll_timeout: Duration,
+}
+
+fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    Ok(Box::new(Iceoryx2Params {
+        poll_timeout: t.poll_timeout(&POLL_TIMEOUT_US)?,
+    }))
+}
+
+impl Params for Iceoryx2Params {
+    fn source(
+        &self,
+        _cx: &Context,
+        transport: &Transport,
+        input: Option<&str>,
+    ) -> Result<Box<dyn Source>, String> {
+        let input = input.ok_or("ingest.iceoryx2 needs an input service")?;
+        ExternalRaw::new(transport, input, self.poll_timeout)
+            .map(|s| Box::new(s) as Box<dyn Source>)
+            .map_err(|e| e.to_string())
+    }
+}
 
 /// Reads a raw service of another process.
 pub struct ExternalRaw {

@@ -1,13 +1,117 @@
 //! `ingest.sim`: the built-in gyro simulator ([`crate::sim`]), paced in real time from the
 //! monotonic clock. Sensor timestamps are `k / rate` in ns; rates are in deg/s.
+//!
+//! ```toml
+//! [[stage]]
+//! name = "sensor"
+//! kind = "ingest.sim"
+//! output = "demo/raw"
+//! profile = "adis16405"    # noise terms: adxrs450 (default) or adis16405
+//! motion = "sines"         # true motion: none, sines (default), steps, turn
+//! seed = 1
+//! # samples = 60000        # stop after this many (default: run until stopped)
+//! ```
 
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use crate::pipeline::config::SimParams;
-use crate::pipeline::stage::{Poll, Source};
+use crate::io::InputError;
+use crate::pipeline::schema::{Context, Key, StageTable, Type, Units};
+use crate::pipeline::stage::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::sim::{SimConfig, Simulator};
 use crate::transport::{monotonic_ns, RawSample};
+
+const PROFILE: Key = Key {
+    name: "profile",
+    ty: Type::Choice(&["adxrs450", "adis16405"]),
+    default: "\"adxrs450\"",
+    doc: "noise profile (IEEE 952 terms of the part)",
+};
+const SEED: Key = Key {
+    name: "seed",
+    ty: Type::Int(0, i64::MAX),
+    default: "1",
+    doc: "random seed",
+};
+const MOTION: Key = Key {
+    name: "motion",
+    ty: Type::Choice(&["none", "sines", "steps", "turn", "stop-and-go"]),
+    default: "\"sines\"",
+    doc: "true motion added to the noise",
+};
+const SAMPLES: Key = Key {
+    name: "samples",
+    ty: Type::Int(1, i64::MAX),
+    default: "none (until stopped)",
+    doc: "stop after this many samples",
+};
+
+/// `ingest.sim`.
+pub const KIND: Kind = Kind {
+    name: "ingest.sim",
+    role: Role::Ingest { has_input: false },
+    summary: "the built-in gyro simulator, paced in real time; needs input_units = \"deg/s\"",
+    keys: &[PROFILE, SEED, MOTION, SAMPLES],
+    parse,
+};
+
+/// The simulated sensor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimParams {
+    /// Noise profile name.
+    pub profile: String,
+    /// Random seed.
+    pub seed: u64,
+    /// True motion: none, sines, steps, turn, stop-and-go.
+    pub motion: String,
+    /// Stop after this many samples (None: run until stopped).
+    pub samples: Option<u64>,
+}
+
+fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    let profile = t.choice(&PROFILE, "profile", false)?;
+    let seed = t.int(&SEED)?;
+    let motion = t.choice(&MOTION, "motion", false)?;
+    let samples = t.int(&SAMPLES)?;
+    if t.cx.units != Units::DegPerSec {
+        return Err(t.src.at(
+            t.kind_at,
+            "ingest.sim produces deg/s: set input_units = \"deg/s\"",
+        ));
+    }
+    let params = SimParams {
+        profile: profile.unwrap_or_else(|| "adxrs450".into()),
+        seed: seed.map_or(1, |s| s as u64),
+        motion: motion.unwrap_or_else(|| "sines".into()),
+        samples: samples.map(|s| s as u64),
+    };
+    sim_config(&params, t.cx.rate_hz, t.cx.axes)
+        .map_err(|e| t.error(format!("ingest.sim: {e}")))?;
+    Ok(Box::new(params))
+}
+
+impl Params for SimParams {
+    fn source(
+        &self,
+        cx: &Context,
+        _transport: &crate::transport::Transport,
+        _input: Option<&str>,
+    ) -> Result<Box<dyn Source>, String> {
+        Ok(Box::new(SimSource::new(self, cx.rate_hz, cx.axes)?))
+    }
+
+    fn truth(&self, cx: &Context) -> Option<TrueRate> {
+        let motion: crate::sim::Motion = self.motion.parse().ok()?;
+        let axes = cx.axes;
+        Some(Box::new(move |t| {
+            let mut r = [0.0; 3];
+            for (axis, v) in r.iter_mut().enumerate().take(axes) {
+                *v = motion.rate(axis, axes, t);
+            }
+            r
+        }))
+    }
+}
 
 /// The simulator's configuration for validated parameters.
 pub fn sim_config(p: &SimParams, rate_hz: f64, axes: usize) -> Result<SimConfig, String> {

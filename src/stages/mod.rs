@@ -1,4 +1,5 @@
-//! The stage kinds, one file each, and the factory that builds them from validated specs.
+//! The stage kinds, one file each: every file owns its kind's keys (with types, ranges and
+//! defaults), their validation, how the stage is built, and the line that documents it.
 //!
 //! | kind | file | role |
 //! |---|---|---|
@@ -7,14 +8,29 @@
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
 //! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |
+//! | `predict.bias` | [`predict_bias`] | the bias as a Kalman state from the gyro's Allan terms (no training) |
 //! | `external` | [`external`] | a stage run by another process (the daemon only links to it) |
 //! | `publish` | [`publish`] | the final guard before the public service |
+//!
+//! # Adding a stage kind
+//! 1. Write `src/stages/<kind>.rs` with: its keys as [`Key`](crate::pipeline::schema::Key)
+//!    constants; a parse function reading them from the
+//!    [`StageTable`](crate::pipeline::schema::StageTable) (it checks types, ranges and anything
+//!    else `run` needs, positioning every error) and returning its parameters; a parameters
+//!    type implementing [`Params`](crate::pipeline::stage::Params) (how the stage or source is
+//!    built, what `validate` says of it); and a `pub const KIND: Kind` tying them together with
+//!    its name, [`Role`](crate::pipeline::stage::Role) and one-line summary.
+//! 2. Add `pub mod <kind>;` below and its `KIND` to [`KINDS`].
+//!
+//! Nothing else changes: the pipeline file's reader finds the kind in [`KINDS`], rejects keys
+//! the kind does not declare (naming the kind a stray key belongs to), and `driftless validate
+//! --kinds` and the stage table of `docs/daemon.md` list the new keys.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::pipeline::config::{Pipeline, StageKind, StageSpec};
-use crate::pipeline::stage::Stage;
+use crate::pipeline::config::{Pipeline, StageSpec};
+use crate::pipeline::stage::{Kind, Stage};
 
 pub mod denoise;
 pub mod external;
@@ -22,23 +38,27 @@ pub mod ingest_csv;
 pub mod ingest_iceoryx2;
 pub mod ingest_sim;
 pub mod predict;
+pub mod predict_bias;
 pub mod publish;
 
-/// Build the processing stage for `spec` (not an ingest). Errors are parameter errors that
-/// validation should already have caught.
+/// Every stage kind, in the order listed in messages and documentation.
+pub const KINDS: &[&Kind] = &[
+    &ingest_sim::KIND,
+    &ingest_csv::KIND,
+    &ingest_iceoryx2::KIND,
+    &denoise::WAVELET_KIND,
+    &denoise::NONE_KIND,
+    &predict::NONE_KIND,
+    &predict::RBF_KIND,
+    &predict_bias::KIND,
+    &external::KIND,
+    &publish::KIND,
+];
+
+/// Build the processing stage of a validated spec, as the daemon does. Errors are parameter
+/// errors that validation should already have caught.
 pub fn build(spec: &StageSpec, pipeline: &Pipeline) -> Result<Box<dyn Stage>, String> {
-    match &spec.kind {
-        StageKind::DenoiseWavelet(p) => Ok(Box::new(denoise::Wavelet::new(p, pipeline.axes)?)),
-        StageKind::DenoiseNone => Ok(Box::new(denoise::PassThrough)),
-        StageKind::PredictNone => Ok(Box::new(predict::NoDrift)),
-        StageKind::PredictRbf(p) => Ok(Box::new(predict::RbfDrift::new(p, pipeline)?)),
-        StageKind::Publish { .. } => Ok(Box::new(publish::Publish)),
-        StageKind::External { .. } => Err("an external stage runs in another process".into()),
-        other => Err(format!(
-            "{} is an ingest, not a processing stage",
-            other.name()
-        )),
-    }
+    spec.params.stage(&pipeline.context())
 }
 
 /// Sleep until `due` (a monotonic instant), in slices short enough to notice `stop`.

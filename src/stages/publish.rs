@@ -1,7 +1,60 @@
 //! `publish`: the last guard before the public service: no non-finite value ever leaves.
+//!
+//! ```toml
+//! [[stage]]
+//! name = "publish"
+//! kind = "publish"
+//! input = "demo/predicted"
+//! output = "demo/corrected"
+//! # notify = true            # notify the event service of the same name after each sample
+//! ```
 
-use crate::pipeline::stage::Stage;
+use toml::Spanned;
+
+use crate::io::InputError;
+use crate::pipeline::schema::{Context, Key, StageTable, Type};
+use crate::pipeline::stage::{Kind, Params, Role, Stage};
 use crate::transport::{GyroSample, FLAG_OUTPUT_REPAIRED};
+
+const NOTIFY: Key = Key {
+    name: "notify",
+    ty: Type::Bool,
+    default: "true",
+    doc: "notify the event service named like `output` after each sample",
+};
+
+/// `publish`.
+pub const KIND: Kind = Kind {
+    name: "publish",
+    role: Role::Publish,
+    summary:
+        "the final guard before the public service: non-finite values replaced by 0 and flagged",
+    keys: &[NOTIFY],
+    parse,
+};
+
+/// `publish` parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PublishParams {
+    /// Notify the event service of the same name after each sample.
+    pub notify: bool,
+}
+
+fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    Ok(Box::new(PublishParams {
+        notify: t.get::<bool>(&NOTIFY)?.is_none_or(Spanned::into_inner),
+    }))
+}
+
+impl Params for PublishParams {
+    fn stage(&self, _cx: &Context) -> Result<Box<dyn Stage>, String> {
+        Ok(Box::new(Publish))
+    }
+
+    fn notifies(&self) -> bool {
+        self.notify
+    }
+}
 
 /// Passes samples through, replacing any non-finite value by 0 and flagging it.
 pub struct Publish;

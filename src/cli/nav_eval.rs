@@ -1,0 +1,593 @@
+//! `driftless nav-eval`: the heading benchmark. Known motion ([`crate::nav::profiles`]) is added
+//! to a static gyro log (or to the simulator's noise), every method corrects the sum, and each is
+//! judged by the heading error a navigator integrating it would see, window by window, against
+//! ZARU with the true stops.
+//!
+//! Methods: the baselines a navigator already has and the library's estimators
+//! ([`crate::nav::eval::Method`]), plus pipelines run through the daemon's own stage code
+//! ([`crate::pipeline::offline::Offline`]): the product's chain `denoise.wavelet ->
+//! predict.bias` built in at the log's rate with the axis' terms, and any `--pipeline FILE`.
+
+use super::simulate::{parse_duration, parse_number};
+use super::CliError;
+use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
+use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
+use crate::io::csv_table::read_table;
+use crate::io::plot::{self, Panel, Series};
+use crate::nav::{
+    evaluate, format_table_labelled, generate, heading_error, summarize_methods, BiasEstimator,
+    HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile, Setup, Zaru,
+};
+use crate::pipeline::config::{self, Pipeline};
+use crate::pipeline::offline::Offline;
+use crate::pipeline::schema::Src;
+use crate::sim::{SimConfig, Simulator};
+use crate::transport::RawSample;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `driftless nav-eval`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A static gyro log (CSV, `.gz` too), rates in deg/s; or `--sim SENSOR` instead.
+    pub input: Option<PathBuf>,
+    /// Sample rate of the log, Hz (with `--sim`: default 100).
+    #[arg(long, allow_hyphen_values = true)]
+    pub rate: Option<String>,
+    /// Columns to use, one axis each (repeatable; default: every numeric column but time).
+    #[arg(long = "column", value_name = "NAME")]
+    pub columns: Vec<String>,
+    /// Instead of a log: the simulator's noise of this sensor (adis16405, adxrs450), 3 axes.
+    #[arg(long, value_name = "SENSOR")]
+    pub sim: Option<String>,
+    /// Windows per axis with `--sim`.
+    #[arg(long, default_value = "6")]
+    pub windows: usize,
+    /// Motion profiles, comma separated (stop-and-go, vehicle, continuous, pedestrian) or `all`.
+    #[arg(long, default_value = "all")]
+    pub motion: String,
+    /// Length of each window (e.g. 10min, 600s).
+    #[arg(long, default_value = "10min")]
+    pub window: String,
+    /// The start of the log that the Allan fit characterises (`--terms fit`); the windows come
+    /// after it, so they are held out.
+    #[arg(long, default_value = "33min")]
+    pub characterise: String,
+    /// Noise terms of the estimators: `fit` (IEEE 952 fit of each axis' characterisation part)
+    /// or a sensor profile (adis16405, adxrs450). With `--sim`: the simulated sensor's.
+    #[arg(long, default_value = "fit")]
+    pub terms: String,
+    /// Output step of the log, deg/s (0: not quantised; the ADIS16405's is 0.05).
+    #[arg(long, default_value = "0")]
+    pub lsb: String,
+    /// A pipeline file whose stages after its ingest run offline as one more method
+    /// (repeatable). Its rate must be the log's; rates are fed in its `input_units`.
+    #[arg(long = "pipeline", value_name = "FILE.toml")]
+    pub pipelines: Vec<PathBuf>,
+    /// One JSON document on stdout instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// SVG of the heading error over time of the first window, per method.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+}
+
+/// The static noise: one series per axis, deg/s, and where the windows may start.
+struct Source {
+    name: String,
+    rate: f64,
+    axes: Vec<(String, Vec<f64>)>,
+    first_window: usize,
+    terms: Vec<BiasTerms>,
+    floor: Option<SimConfig>,
+}
+
+/// A method that runs a pipeline's stages.
+struct Chain {
+    label: String,
+    /// Built per axis (terms differ per axis) or once (a user's file).
+    pipelines: Vec<Pipeline>,
+}
+
+fn log_source(path: &Path, args: &Args, rate: f64, window: usize) -> Result<Source, CliError> {
+    let table = read_table(path, &args.columns)?;
+    let characterise =
+        (parse_duration(&args.characterise).map_err(CliError::input)? * rate).round() as usize;
+    let lsb = parse_number("--lsb", &args.lsb)?;
+    if !(lsb.is_finite() && lsb >= 0.0) {
+        return Err(CliError::input(format!(
+            "--lsb '{}' must be >= 0",
+            args.lsb
+        )));
+    }
+    let rows = table.rows();
+    if rows < characterise + window {
+        return Err(CliError::input(format!(
+            "{}: {rows} rows, but the characterisation ({characterise}) and one window ({window}) need {}",
+            path.display(),
+            characterise + window
+        )));
+    }
+    let axes: Vec<(String, Vec<f64>)> = table.names.into_iter().zip(table.columns).collect();
+    let mut terms = Vec::with_capacity(axes.len());
+    for (name, y) in &axes {
+        terms.push(if args.terms == "fit" {
+            let points = allan(&y[..characterise], rate, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA)
+                .map_err(|e| CliError::input(format!("{}: {name}: {e}", path.display())))?;
+            let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
+                CliError::input(format!(
+                    "{}: {name}: no noise terms from the first {characterise} rows ({e}); give --terms adis16405 or a longer --characterise",
+                    path.display()
+                ))
+            })?;
+            BiasTerms::from_fit(&fit, lsb)
+                .map_err(|e| CliError::input(format!("{}: {name}: {e}", path.display())))?
+        } else {
+            profile_terms(&args.terms)?
+        });
+    }
+    Ok(Source {
+        name: path.display().to_string(),
+        rate,
+        axes,
+        first_window: characterise,
+        terms,
+        floor: None,
+    })
+}
+
+fn profile_terms(name: &str) -> Result<BiasTerms, CliError> {
+    BiasTerms::profile(name).map_err(|e| CliError::input(format!("--terms: {e}")))
+}
+
+fn sim_source(sensor: &str, args: &Args, rate: f64, window: usize) -> Result<Source, CliError> {
+    let mut cfg = SimConfig::profile(sensor).map_err(|e| CliError::input(format!("--sim: {e}")))?;
+    cfg.rate_hz = rate;
+    cfg.axes = 3;
+    let n = window * args.windows;
+    let mut axes: Vec<(String, Vec<f64>)> = (0..3)
+        .map(|a| (format!("sim axis {a}"), Vec::with_capacity(n)))
+        .collect();
+    let mut sim = Simulator::new(&cfg).map_err(|e| CliError::input(format!("--sim: {e}")))?;
+    for _ in 0..n {
+        let s = sim.next_sample();
+        for (a, (_, y)) in axes.iter_mut().enumerate() {
+            y.push(s.measured[a]);
+        }
+    }
+    let terms = if args.terms == "fit" {
+        profile_terms(sensor)?
+    } else {
+        profile_terms(&args.terms)?
+    };
+    Ok(Source {
+        name: format!("simulated {sensor}"),
+        rate,
+        axes,
+        first_window: 0,
+        terms: vec![terms; 3],
+        floor: Some(cfg),
+    })
+}
+
+/// The product's chain at the log's rate with one axis' terms, as a pipeline file would say it.
+fn builtin_chain(src: &Source) -> Result<Chain, CliError> {
+    let mut pipelines = Vec::with_capacity(src.terms.len());
+    for t in &src.terms {
+        let text = format!(
+            r#"name = "nav-eval"
+rate_hz = {rate}
+axes = 1
+input_units = "deg/s"
+
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "nav-eval/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+input = "nav-eval/raw"
+output = "nav-eval/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "nav-eval/denoised"
+output = "nav-eval/predicted"
+arw = {n:e}
+bias_instability = {b:e}
+rrw = {k:e}
+lsb = {lsb:e}
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "nav-eval/predicted"
+output = "nav-eval/corrected"
+"#,
+            rate = src.rate,
+            n = t.n * 60.0,
+            b = t.b * 3600.0,
+            k = t.k * 216_000.0,
+            lsb = t.lsb,
+        );
+        let p = config::parse(
+            Path::new("<built-in denoise.wavelet -> predict.bias>"),
+            &text,
+        )
+        .map_err(|e| CliError::internal(format!("the built-in chain: {e}")))?;
+        pipelines.push(p);
+    }
+    Ok(Chain {
+        label: "denoise.wavelet -> predict.bias (stages)".into(),
+        pipelines,
+    })
+}
+
+fn file_chain(path: &Path, rate: f64) -> Result<Chain, CliError> {
+    let p = config::load(path)?;
+    if (p.rate_hz - rate).abs() > 1e-9 * rate {
+        // Point at the key: the pipeline keeps values, not spans.
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        let at = text.find("rate_hz").unwrap_or(0);
+        return Err(Src { path, text: &text }
+            .at(
+                at,
+                format!(
+                    "rate_hz is {} Hz but the log is {rate} Hz: nav-eval feeds the log's samples at its own rate",
+                    p.rate_hz
+                ),
+            )
+            .into());
+    }
+    Offline::new(&p).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+    let kinds: Vec<&str> = p.stages.iter().skip(1).map(|s| s.kind.name).collect();
+    Ok(Chain {
+        label: format!(
+            "{} ({})",
+            path.file_name().map_or_else(
+                || path.display().to_string(),
+                |f| f.to_string_lossy().into_owned()
+            ),
+            kinds.join(" -> ")
+        ),
+        pipelines: vec![p],
+    })
+}
+
+/// Corrected rates (deg/s) of `inputs` (one measured series per axis, equal lengths) through
+/// `p`'s stages; lanes beyond the pipeline's axes run in further passes.
+fn run_chain(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, CliError> {
+    let lanes = p.axes;
+    let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
+    let n = inputs.first().map_or(0, |x| x.len());
+    let mut out = Vec::with_capacity(inputs.len());
+    for chunk in inputs.chunks(lanes) {
+        let mut off = Offline::new(p).map_err(CliError::input)?;
+        let mut got: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; chunk.len()];
+        let mut put = |g: crate::transport::GyroSample| {
+            let k = g.seq as usize;
+            for (lane, col) in got.iter_mut().enumerate() {
+                if k < n {
+                    col[k] = g.rate[lane].to_degrees();
+                }
+            }
+        };
+        for k in 0..n {
+            let mut rate = [0.0; 3];
+            for (lane, r) in rate.iter_mut().enumerate().take(lanes) {
+                // Unused lanes repeat the first axis (their output is not read).
+                *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
+            }
+            let raw = RawSample {
+                t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
+                seq: k as u64,
+                rate,
+                flags: 0,
+                reserved: 0,
+            };
+            off.push(&raw, &mut put);
+        }
+        off.finish(&mut put);
+        out.extend(got);
+    }
+    Ok(out)
+}
+
+/// One evaluated case: a window of one axis under one profile.
+struct Case {
+    profile: Profile,
+    metrics: Vec<HeadingMetrics>,
+}
+
+fn metrics_of(corrected: &[f64], truth: &[f64], dt: f64) -> HeadingMetrics {
+    let mut acc = HeadingAccumulator::new(dt);
+    for (&c, &t) in corrected.iter().zip(truth) {
+        // A sample a stage never published (it cannot happen with the shipped stages) counts as
+        // uncorrected zero rate, not as silently skipped.
+        acc.push(if c.is_finite() { c } else { 0.0 }, t);
+    }
+    acc.metrics()
+}
+
+fn parse_profiles(s: &str) -> Result<Vec<Profile>, CliError> {
+    if s == "all" {
+        return Ok(Profile::ALL.to_vec());
+    }
+    s.split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<Profile>()
+                .map_err(|e| CliError::input(format!("--motion: {e}")))
+        })
+        .collect()
+}
+
+fn summary_json(s: &MethodSummary, label: &str) -> Value {
+    let sum = |x: &crate::nav::Summary| json!({"median": x.median, "worst": x.worst});
+    json!({
+        "method": label,
+        "rms_heading_deg": sum(&s.rms),
+        "final_heading_deg": sum(&s.final_abs),
+        "max_heading_deg": sum(&s.max),
+        "rms_rate_degps": sum(&s.rms_rate),
+        "rms_ratio_to_zaru_oracle": sum(&s.rms_ratio),
+        "final_ratio_to_zaru_oracle": sum(&s.final_ratio),
+    })
+}
+
+/// Run `driftless nav-eval`.
+pub fn run(args: Args) -> Result<(), CliError> {
+    let rate = match (&args.rate, &args.sim) {
+        (Some(r), _) => parse_number("--rate", r)?,
+        (None, Some(_)) => 100.0,
+        (None, None) => return Err(CliError::input("--rate is required with a log")),
+    };
+    if !(rate.is_finite() && rate > 0.0 && rate <= 1e6) {
+        return Err(CliError::input(format!(
+            "--rate {rate} must be in (0, 1e6] Hz"
+        )));
+    }
+    let window_s = parse_duration(&args.window).map_err(CliError::input)?;
+    let window = (window_s * rate).round() as usize;
+    if window < 2 {
+        return Err(CliError::input("--window holds fewer than 2 samples"));
+    }
+    let profiles = parse_profiles(&args.motion)?;
+    let src = match (&args.input, &args.sim) {
+        (Some(p), None) => log_source(p, &args, rate, window)?,
+        (None, Some(s)) => {
+            if !(1..=1000).contains(&args.windows) {
+                return Err(CliError::input("--windows must be 1..=1000"));
+            }
+            sim_source(s, &args, rate, window)?
+        }
+        (Some(_), Some(_)) => return Err(CliError::input("give a log or --sim, not both")),
+        (None, None) => return Err(CliError::input("give a static log, or --sim SENSOR")),
+    };
+    let mut chains = vec![builtin_chain(&src)?];
+    for p in &args.pipelines {
+        chains.push(file_chain(p, rate)?);
+    }
+    let mut methods = vec![
+        Method::Raw,
+        Method::PowerOn,
+        Method::ZaruOracle,
+        Method::ZaruDetected,
+        Method::ZaruDenoised,
+        Method::KfDetected,
+        Method::KfOracle,
+    ];
+    if src.floor.is_some() {
+        methods.push(Method::Floor);
+    }
+    let mut labels: Vec<String> = methods.iter().map(|m| m.label().to_string()).collect();
+    labels.extend(chains.iter().map(|c| c.label.clone()));
+
+    let windows = (src.axes[0].1.len() - src.first_window) / window;
+    let dt = 1.0 / rate;
+    let mut cases: Vec<Case> = Vec::new();
+    let mut plot_traces: Option<(Vec<f64>, Vec<Vec<f64>>)> = None;
+    for &profile in &profiles {
+        for w in 0..windows {
+            let start = src.first_window + w * window;
+            let motions: Vec<MotionTrace> = (0..src.axes.len())
+                .map(|a| generate(profile, rate, window_s, (w * 3 + a) as u64))
+                .collect::<Result<_, _>>()
+                .map_err(|e| CliError::internal(e.to_string()))?;
+            let measured: Vec<Vec<f64>> = src
+                .axes
+                .iter()
+                .zip(&motions)
+                .map(|((_, y), m)| {
+                    y[start..start + window]
+                        .iter()
+                        .zip(&m.truth)
+                        .map(|(x, t)| x + t)
+                        .collect()
+                })
+                .collect();
+            // Stage methods: per-axis pipelines one axis at a time, a file's all axes at once.
+            let mut chain_out: Vec<Vec<Vec<f64>>> = Vec::with_capacity(chains.len());
+            for c in &chains {
+                if c.pipelines.len() == src.axes.len() && c.pipelines.len() > 1 {
+                    let mut per_axis = Vec::with_capacity(src.axes.len());
+                    for (p, y) in c.pipelines.iter().zip(&measured) {
+                        per_axis.extend(run_chain(p, &[y])?);
+                    }
+                    chain_out.push(per_axis);
+                } else {
+                    let inputs: Vec<&[f64]> = measured.iter().map(Vec::as_slice).collect();
+                    chain_out.push(run_chain(&c.pipelines[0], &inputs)?);
+                }
+            }
+            for (a, m) in motions.iter().enumerate() {
+                let mut setup = Setup::new(src.terms[a], rate);
+                if let Some(cfg) = &src.floor {
+                    setup.floor = Some(
+                        BiasModel::simulator_truth(cfg, setup.terms.initial_sd)
+                            .map_err(|e| CliError::internal(e.to_string()))?,
+                    );
+                }
+                let mut metrics = evaluate(&measured[a], &m.truth, &m.still, &setup, &methods)
+                    .map_err(|e| CliError::input(format!("{}: {e}", src.name)))?;
+                for out in &chain_out {
+                    metrics.push(metrics_of(&out[a], &m.truth, dt));
+                }
+                if plot_traces.is_none() && args.plot.is_some() {
+                    plot_traces = Some(traces(&measured[a], m, &chain_out, a, &setup)?);
+                }
+                cases.push(Case { profile, metrics });
+            }
+        }
+    }
+
+    let table = |title: &str, sel: &dyn Fn(&Case) -> bool| -> (String, Vec<MethodSummary>) {
+        let res: Vec<Vec<HeadingMetrics>> = cases
+            .iter()
+            .filter(|c| sel(c))
+            .map(|c| c.metrics.clone())
+            .collect();
+        // Chain columns have no `Method`: a placeholder that is never the reference, relabelled
+        // on output.
+        let all: Vec<Method> = (0..labels.len())
+            .map(|i| methods.get(i).copied().unwrap_or(Method::KfDenoised))
+            .collect();
+        (
+            title.to_string(),
+            summarize_methods(&all, &res, Method::ZaruOracle),
+        )
+    };
+    let mut sections: Vec<(String, Vec<MethodSummary>)> = profiles
+        .iter()
+        .map(|&p| table(&format!("{p}"), &|c: &Case| c.profile == p))
+        .collect();
+    if profiles.len() > 1 {
+        sections.push(table("all profiles", &|_| true));
+    }
+
+    if let (Some(path), Some((t, series))) = (&args.plot, &plot_traces) {
+        let mut names = vec![
+            "power-on".to_string(),
+            "ZARU oracle".into(),
+            "ZARU detected".into(),
+        ];
+        names.extend(chains.iter().map(|c| c.label.clone()));
+        let panel = Panel {
+            title: format!(
+                "heading error, {} motion, first window of {} ({})",
+                profiles[0], src.axes[0].0, src.name
+            ),
+            x_label: "time (s)".into(),
+            y_label: "heading error (deg)".into(),
+            series: names
+                .into_iter()
+                .zip(series)
+                .map(|(name, h)| Series {
+                    name,
+                    points: t.iter().copied().zip(h.iter().copied()).collect(),
+                })
+                .collect(),
+        };
+        plot::write_panels(path, &[panel])
+            .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+        eprintln!("wrote {}", path.display());
+    }
+
+    let cases_per = windows * src.axes.len();
+    if args.json {
+        let terms: Vec<Value> = src
+            .axes
+            .iter()
+            .zip(&src.terms)
+            .map(|((name, _), t)| {
+                json!({"axis": name, "arw_deg_per_sqrt_h": t.n * 60.0, "bias_instability_deg_per_h": t.b * 3600.0,
+                       "rrw_deg_per_h_per_sqrt_h": t.k * 216_000.0, "lsb_degps": t.lsb})
+            })
+            .collect();
+        let sections: Vec<Value> = sections
+            .iter()
+            .map(|(title, rows)| {
+                json!({"profile": title, "methods": rows.iter().zip(&labels)
+                    .map(|(r, l)| summary_json(r, l)).collect::<Vec<_>>()})
+            })
+            .collect();
+        println!(
+            "{}",
+            json!({"source": src.name, "rate_hz": rate, "window_s": window_s,
+                   "windows_per_axis": windows, "axes": src.axes.len(), "terms": terms,
+                   "reference": "ZARU oracle", "sections": sections})
+        );
+        return Ok(());
+    }
+    println!(
+        "{}: {} axes x {windows} windows of {window_s} s per profile ({cases_per} cases each), {rate} Hz; windows start after the first {} s{}",
+        src.name,
+        src.axes.len(),
+        src.first_window as f64 / rate,
+        if args.terms == "fit" && src.floor.is_none() {
+            " (the Allan fit's part: held out)"
+        } else {
+            ""
+        }
+    );
+    for ((name, _), t) in src.axes.iter().zip(&src.terms) {
+        println!(
+            "  {name}: N {:.3} deg/sqrt(h), B {:.2} deg/h, K {:.2} deg/h/sqrt(h), lsb {} deg/s",
+            t.n * 60.0,
+            t.b * 3600.0,
+            t.k * 216_000.0,
+            t.lsb
+        );
+    }
+    println!();
+    for (title, rows) in &sections {
+        let names: Vec<&str> = labels.iter().map(String::as_str).collect();
+        print!("{}", format_table_labelled(title, rows, &names));
+        println!();
+    }
+    println!("RMS heading: the RMS over time of the integrated error (deg); final: |error| at the window's end; ref: ZARU with the true stops, per window.");
+    Ok(())
+}
+
+/// Heading error traces of one case: power-on, ZARU oracle, ZARU detected, then each chain.
+fn traces(
+    measured: &[f64],
+    m: &MotionTrace,
+    chains: &[Vec<Vec<f64>>],
+    axis: usize,
+    setup: &Setup,
+) -> Result<(Vec<f64>, Vec<Vec<f64>>), CliError> {
+    let dt = 1.0 / setup.rate_hz;
+    let min = (setup.zaru_min_s * setup.rate_hz).round().max(1.0) as usize;
+    // Keep the SVG small: at most about 4000 points per line.
+    let step = (measured.len() / 4000).max(1);
+    let thin = |c: &[f64]| -> Vec<f64> {
+        heading_error(c, &m.truth, dt)
+            .into_iter()
+            .step_by(step)
+            .collect()
+    };
+    let t: Vec<f64> = (0..measured.len())
+        .step_by(step)
+        .map(|k| k as f64 * dt)
+        .collect();
+    let correct = |mut est: Zaru| -> Vec<f64> {
+        measured
+            .iter()
+            .zip(&m.still)
+            .map(|(&x, &s)| x - est.push(x, s))
+            .collect()
+    };
+    let detector = stillness_from_terms(&setup.terms, setup.rate_hz, &setup.tracker)
+        .map_err(|e| CliError::input(e.to_string()))?;
+    let mut series = vec![
+        thin(&correct(Zaru::power_on(min))),
+        thin(&correct(Zaru::oracle(min))),
+        thin(&correct(Zaru::detected(min, detector))),
+    ];
+    series.extend(chains.iter().map(|c| thin(&c[axis])));
+    Ok((t, series))
+}

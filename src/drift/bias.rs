@@ -1,0 +1,1015 @@
+//! A Kalman filter on the gyro bias whose noise comes from the sensor's own IEEE Std 952 terms,
+//! updated by the rate only while the sensor is confirmed still: the estimator a navigator
+//! compares with ZARU and with the bias state of an INS filter (docs: `notes/navigation.md`).
+//!
+//! # Model (one axis, deg/s)
+//! measured = bias + white, and while still the true rate is zero, so each still sample is a
+//! measurement of the bias. The bias is a sum of states ([`BiasModel`]):
+//!
+//! - **turn-on bias and rate random walk**: one state with a prior of `initial_sd` and process
+//!   noise K^2 dt per sample (IEEE 952 K in deg/s/sqrt(s); K = 0 makes it a constant);
+//! - **bias instability B**, three ways ([`Instability`]). The default,
+//!   [`Instability::RandomWalk`], adds to that state the random walk whose Allan variance equals
+//!   the flicker floor (2 ln2/pi) B^2 at 10 s: no mean reversion, like the gyro bias state of
+//!   PX4 EKF2 or ArduPilot EKF3. [`Instability::Flicker`] is a bank of first-order Gauss-Markov
+//!   states, one per octave of correlation time, each of stationary variance B^2 ln2/pi: the
+//!   flicker PSD B^2/(2 pi f) with Allan floor 0.664 B, the simulator's own construction
+//!   ([`crate::sim`]). [`Instability::GaussMarkov`] is the classic single state, sigma = B/0.664.
+//!   Measured on heading (docs/navigation.md), the mean-reverting models lose: while moving they
+//!   pull the held estimate back towards an old mean, and on the real log the bias has moved.
+//! - **measurement noise** per sample: N^2 x rate plus lsb^2/12 (and, for the bank, the flicker
+//!   faster than its shortest state). This is the white noise's *low-frequency* PSD, what averaging a still period
+//!   feels (N/sqrt(T) over T seconds), not the per-sample variance: real sensors are band-limited
+//!   (the real ADIS16405 has 0.32 deg/s per sample where N x sqrt(rate) = 0.38), and quantisation
+//!   noise Q (a differenced white angle) has no low-frequency power at all.
+//!
+//! The filter predicts every sample (the variance grows while moving) and takes a still sample
+//! as a measurement H = [1, ..., 1]. O(states^2) per sample, fixed arrays, no allocation.
+//!
+//! # Stillness and the delay window ([`BiasTracker`])
+//! Its own [`StillnessDetector`] on the rate, thresholds from the same terms
+//! ([`stillness_from_terms`]). A detector sees motion onset only some samples after it began (the
+//! first samples of a slow ramp look still). So a sample enters the filter only once the detector
+//! has stayed still for `delay` samples after it: still samples wait in a fixed ring, and when the
+//! detector says moving, the ring is dropped unused. While the samples wait, the output is a
+//! *provisional* estimate (the filter's estimate combined with the mean of the waiting samples, a
+//! scalar update that is not kept), so a stop's measurement is used at once for the output but
+//! enters the filter only when it can no longer be the start of a movement.
+//!
+//! # Flags
+//! [`BiasMode::Still`]: the detector (or the gate) says still. [`BiasMode::Moving`]: it says
+//! moving, before the first stop too. [`BiasMode::Warming`]: the detector's first window is not
+//! full yet, so it cannot tell. Apart from the mode, [`BiasStep::informed`] says whether the
+//! estimate rests on any still sample (taken or waiting); until then it is the prior (0) with
+//! the prior's standard deviation, and a stage flags "warming up": nothing to go on.
+
+use super::stillness::{StillnessConfig, StillnessDetector};
+use crate::allan::fit::NoiseFit;
+use crate::allan::Term;
+use crate::sim::{SimConfig, GM_MAX, GM_MAX_TIME_CONSTANT};
+use std::f64::consts::{LN_2, PI};
+
+/// Most states of a bias model.
+pub const MAX_STATES: usize = 32;
+
+/// Longest delay window (samples).
+pub const MAX_DELAY: usize = 1 << 20;
+
+/// The Allan floor of a flicker bias is `B_FLOOR` x B (sqrt(2 ln 2 / pi)).
+pub const B_FLOOR: f64 = 0.664_282_598_7;
+
+/// Why a bias model or tracker cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BiasError {
+    /// A noise term is negative or not finite.
+    #[error("noise term {0} must be a finite number >= 0, not {1}")]
+    BadTerm(&'static str, f64),
+    /// Neither N nor the LSB gives measurement noise.
+    #[error("the measurement noise is zero: N (angle random walk) or the LSB must be > 0")]
+    NoMeasurementNoise,
+    /// The prior of the turn-on bias is not a positive number.
+    #[error("the turn-on bias prior must be a finite number > 0 (deg/s), not {0}")]
+    BadPrior(f64),
+    /// The sample rate is not a positive finite number.
+    #[error("the sample rate must be a positive number of Hz, not {0}")]
+    BadRate(f64),
+    /// A time setting is negative or not finite.
+    #[error("{0} must be a finite number of seconds >= 0, not {1}")]
+    BadTime(&'static str, f64),
+    /// A threshold multiplier is not a positive finite number.
+    #[error("{0} must be a finite number > 0, not {1}")]
+    BadFactor(&'static str, f64),
+    /// The model would need more than [`MAX_STATES`] states.
+    #[error("the bias model would need {0} states, at most {MAX_STATES}")]
+    TooManyStates(usize),
+    /// The delay window is longer than [`MAX_DELAY`] samples.
+    #[error("a delay of {0} samples is too long (at most {MAX_DELAY})")]
+    DelayTooLong(usize),
+    /// No default terms for that sensor.
+    #[error("no default bias terms for '{0}' (adis16405, adxrs450)")]
+    UnknownProfile(String),
+    /// The Allan fit could not identify N.
+    #[error("the Allan fit has no angle random walk N ({0}): cannot size the measurement noise")]
+    NoN(String),
+    /// The derived stillness thresholds are invalid.
+    #[error("stillness: {0}")]
+    Stillness(String),
+}
+
+/// Noise terms of one gyro axis in base units (see [`crate::allan::units`]): what the bias
+/// filter and its stillness detector are built from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasTerms {
+    /// Angle random walk N, deg/sqrt(s).
+    pub n: f64,
+    /// Bias instability B, deg/s.
+    pub b: f64,
+    /// Rate random walk K, deg/s/sqrt(s).
+    pub k: f64,
+    /// Quantisation noise Q, deg (only widens the detector's variance threshold).
+    pub q: f64,
+    /// Output step of the rate, deg/s (0: none).
+    pub lsb: f64,
+    /// Standard deviation of the turn-on bias before any still sample, deg/s.
+    pub initial_sd: f64,
+}
+
+/// Default prior of the turn-on bias (deg/s): wide for a MEMS gyro, so the first stop decides.
+pub const DEFAULT_INITIAL_SD: f64 = 1.0;
+
+impl BiasTerms {
+    /// Check: N, B, K, Q, lsb finite and >= 0, some measurement noise (N or lsb > 0), prior > 0.
+    pub fn check(&self) -> Result<(), BiasError> {
+        for (name, v) in [
+            ("N", self.n),
+            ("B", self.b),
+            ("K", self.k),
+            ("Q", self.q),
+            ("lsb", self.lsb),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(BiasError::BadTerm(name, v));
+            }
+        }
+        if self.n == 0.0 && self.lsb == 0.0 {
+            return Err(BiasError::NoMeasurementNoise);
+        }
+        if !(self.initial_sd.is_finite() && self.initial_sd > 0.0) {
+            return Err(BiasError::BadPrior(self.initial_sd));
+        }
+        Ok(())
+    }
+
+    /// Default terms of a named sensor, the simulator's profiles ([`SimConfig::profile`]):
+    /// `adis16405` (N, B fitted to the real static log, LSB 0.05 deg/s) and `adxrs450` (the
+    /// paper's Table 1 read in deg/s units), with [`DEFAULT_INITIAL_SD`]. A start with no
+    /// characterisation of one's own sensor.
+    pub fn profile(name: &str) -> Result<Self, BiasError> {
+        let cfg =
+            SimConfig::profile(name).map_err(|_| BiasError::UnknownProfile(name.to_string()))?;
+        let t = cfg.terms;
+        Ok(BiasTerms {
+            n: t.n,
+            b: t.b,
+            k: t.k,
+            q: t.q,
+            lsb: cfg.lsb.unwrap_or(0.0),
+            initial_sd: DEFAULT_INITIAL_SD,
+        })
+    }
+
+    /// Terms from an Allan fit ([`crate::allan::fit_terms`], base units). N must be identified.
+    /// B, K and Q are the fit's best values (its theta) even where the record cannot identify
+    /// them as significant: a Kalman filter needs the best guess of each noise, and zero is a
+    /// confident claim ("this bias never moves") that a short record does not support. R (rate
+    /// ramp) is not modelled. `lsb` is the rate's output step (0: none).
+    pub fn from_fit(fit: &NoiseFit, lsb: f64) -> Result<Self, BiasError> {
+        let nfit = fit.get(Term::N);
+        let Some(n) = nfit.estimate else {
+            return Err(BiasError::NoN(
+                nfit.reason.clone().unwrap_or_else(|| "no estimate".into()),
+            ));
+        };
+        let value = |t: Term| fit.theta[t as usize].max(0.0).sqrt();
+        let terms = BiasTerms {
+            n: n.value,
+            b: value(Term::B),
+            k: value(Term::K),
+            q: value(Term::Q),
+            lsb,
+            initial_sd: DEFAULT_INITIAL_SD,
+        };
+        terms.check()?;
+        Ok(terms)
+    }
+
+    /// Variance of one sample of a still sensor at `rate_hz` ((deg/s)^2): white N^2 rate,
+    /// quantisation 2 Q^2 rate^2, rounding lsb^2/12, and the flicker's B^2 ln2/pi per octave
+    /// faster than a second.
+    pub fn sample_variance(&self, rate_hz: f64) -> f64 {
+        let fast_octaves = (rate_hz.max(1.0)).log2().ceil() + 1.0;
+        self.n * self.n * rate_hz
+            + 2.0 * self.q * self.q * rate_hz * rate_hz
+            + self.lsb * self.lsb / 12.0
+            + fast_octaves * self.b * self.b * LN_2 / PI
+    }
+}
+
+/// How bias instability B becomes filter states.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Instability {
+    /// One Gauss-Markov state per octave of correlation time from `shortest_s` to at most
+    /// `longest_s`, each of stationary variance B^2 ln2/pi: the flicker PSD B^2/(2 pi f) between
+    /// those time scales. Slower flicker is left to the turn-on state; faster flicker is added to
+    /// the measurement noise as white noise of PSD 2 (B^2 ln2/pi) `shortest_s`.
+    Flicker {
+        /// Shortest correlation time, s.
+        shortest_s: f64,
+        /// Longest correlation time, s.
+        longest_s: f64,
+    },
+    /// No mean reversion: B as extra rate random walk on the turn-on state, sized so that its
+    /// Allan variance equals the flicker floor at `tau_s` (K_eq^2 tau/3 = (2 ln2/pi) B^2, so
+    /// q = 3 (2 ln2/pi) B^2 / tau_s per second). Bias changes of the flicker's size over
+    /// `tau_s`, more over longer times, and no pull back to an old mean when the bias has moved:
+    /// what INS filters (PX4 EKF2, ArduPilot EKF3) do with their gyro bias state.
+    RandomWalk {
+        /// Time scale at which the random walk matches the flicker floor, s.
+        tau_s: f64,
+    },
+    /// One first-order Gauss-Markov state, sigma = B / 0.664, correlation time `tau_s`.
+    GaussMarkov {
+        /// Correlation time, s.
+        tau_s: f64,
+    },
+}
+
+/// Default longest correlation time of the flicker bank when the terms show no rate random walk
+/// to end the flat floor (s): an hour, past a navigation leg between stops. Slower flicker acts
+/// as a constant within it.
+pub const DEFAULT_LONGEST_S: f64 = 3600.0;
+
+impl Instability {
+    /// The default: [`Instability::RandomWalk`] matched to the flicker floor at
+    /// [`DEFAULT_MATCH_S`]. Measured against the bank and a single Gauss-Markov state on the
+    /// simulator and the real ADIS16405 log (docs/navigation.md): the mean-reverting models pull
+    /// the held estimate back towards an old mean while moving, which costs heading when the
+    /// real bias has moved (it ramps over minutes on the real log).
+    pub fn from_terms(_terms: &BiasTerms) -> Self {
+        Instability::RandomWalk {
+            tau_s: DEFAULT_MATCH_S,
+        }
+    }
+
+    /// A flicker bank from 1 s to where the flat floor meets the rate random walk line
+    /// ((2 ln2/pi) B^2 = K^2 tau / 3), or [`DEFAULT_LONGEST_S`] when K = 0.
+    pub fn flicker_bank(terms: &BiasTerms) -> Self {
+        let longest = if terms.k > 0.0 && terms.b > 0.0 {
+            (3.0 * 2.0 * LN_2 / PI * terms.b * terms.b / (terms.k * terms.k))
+                .clamp(1.0, DEFAULT_LONGEST_S)
+        } else {
+            DEFAULT_LONGEST_S
+        };
+        Instability::Flicker {
+            shortest_s: 1.0,
+            longest_s: longest,
+        }
+    }
+}
+
+/// Time scale (s) at which the default random walk matches the flicker floor: the shortest gap
+/// between stops worth carrying a bias across. Chosen on the simulator and on windows 0-3 of
+/// the real log (10 s beat 1, 30 and 100 s there), then checked on held-out windows.
+pub const DEFAULT_MATCH_S: f64 = 10.0;
+
+/// A bias model: diagonal state transition, diagonal process noise, H = [1, ..., 1].
+#[derive(Debug, Clone, PartialEq)]
+pub struct BiasModel {
+    states: usize,
+    phi: [f64; MAX_STATES],
+    q: [f64; MAX_STATES],
+    p0: [f64; MAX_STATES],
+    r: f64,
+}
+
+impl BiasModel {
+    /// The model of `terms` at `rate_hz` with bias instability as `instability`.
+    pub fn new(
+        terms: &BiasTerms,
+        rate_hz: f64,
+        instability: Instability,
+    ) -> Result<Self, BiasError> {
+        terms.check()?;
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(BiasError::BadRate(rate_hz));
+        }
+        let dt = 1.0 / rate_hz;
+        let mut m = BiasModel {
+            states: 1,
+            phi: [0.0; MAX_STATES],
+            q: [0.0; MAX_STATES],
+            p0: [0.0; MAX_STATES],
+            r: terms.n * terms.n * rate_hz + terms.lsb * terms.lsb / 12.0,
+        };
+        // State 0: turn-on bias plus rate random walk.
+        m.phi[0] = 1.0;
+        m.q[0] = terms.k * terms.k * dt;
+        m.p0[0] = terms.initial_sd * terms.initial_sd;
+        let s2 = terms.b * terms.b * LN_2 / PI;
+        match instability {
+            Instability::Flicker {
+                shortest_s,
+                longest_s,
+            } => {
+                for (name, v) in [("shortest_s", shortest_s), ("longest_s", longest_s)] {
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(BiasError::BadTime(name, v));
+                    }
+                }
+                if terms.b > 0.0 {
+                    let mut tc = shortest_s;
+                    while tc <= longest_s * (1.0 + 1e-9) {
+                        if m.states == MAX_STATES {
+                            let octaves = (longest_s / shortest_s).log2().floor() as usize + 2;
+                            return Err(BiasError::TooManyStates(octaves));
+                        }
+                        m.push_gm(tc, s2, dt);
+                        tc *= 2.0;
+                    }
+                    // Octaves below the bank (down to the sample time) as white noise.
+                    m.r += 2.0 * s2 * shortest_s.max(dt) * rate_hz;
+                }
+            }
+            Instability::RandomWalk { tau_s } => {
+                if !(tau_s.is_finite() && tau_s > 0.0) {
+                    return Err(BiasError::BadTime("tau_s", tau_s));
+                }
+                m.q[0] += 3.0 * 2.0 * LN_2 / PI * terms.b * terms.b / tau_s * dt;
+            }
+            Instability::GaussMarkov { tau_s } => {
+                if !(tau_s.is_finite() && tau_s > 0.0) {
+                    return Err(BiasError::BadTime("tau_s", tau_s));
+                }
+                if terms.b > 0.0 {
+                    let sd = terms.b / B_FLOOR;
+                    m.push_gm(tau_s, sd * sd, dt);
+                }
+            }
+        }
+        if !(m.r.is_finite() && m.r > 0.0) {
+            return Err(BiasError::NoMeasurementNoise);
+        }
+        Ok(m)
+    }
+
+    fn push_gm(&mut self, tau: f64, var: f64, dt: f64) {
+        let phi = (-dt / tau).exp();
+        let i = self.states;
+        self.phi[i] = phi;
+        self.q[i] = var * (1.0 - phi * phi);
+        self.p0[i] = var;
+        self.states += 1;
+    }
+
+    /// The simulator's true bias model ([`crate::sim`]): its exact Gauss-Markov bank for B (one
+    /// state per octave from dt/2 to [`GM_MAX_TIME_CONSTANT`], started stationary), K as a random
+    /// walk, white N and the LSB's rounding as measurement noise, and a turn-on bias of prior
+    /// `initial_sd`. The filter of the physical floor: it knows every noise term. Exact for
+    /// Q = 0 (the differenced quantisation noise is not modelled).
+    pub fn simulator_truth(cfg: &SimConfig, initial_sd: f64) -> Result<Self, BiasError> {
+        let t = cfg.terms;
+        let terms = BiasTerms {
+            n: t.n,
+            b: t.b,
+            k: t.k,
+            q: t.q,
+            lsb: cfg.lsb.unwrap_or(0.0),
+            initial_sd,
+        };
+        terms.check()?;
+        if !(cfg.rate_hz.is_finite() && cfg.rate_hz > 0.0) {
+            return Err(BiasError::BadRate(cfg.rate_hz));
+        }
+        let dt = 1.0 / cfg.rate_hz;
+        let mut m = BiasModel {
+            states: 1,
+            phi: [0.0; MAX_STATES],
+            q: [0.0; MAX_STATES],
+            p0: [0.0; MAX_STATES],
+            r: terms.n * terms.n * cfg.rate_hz + terms.lsb * terms.lsb / 12.0,
+        };
+        m.phi[0] = 1.0;
+        m.q[0] = terms.k * terms.k * dt;
+        m.p0[0] = initial_sd * initial_sd;
+        if t.b > 0.0 {
+            let s2 = t.b * t.b * LN_2 / PI;
+            let mut tc = 0.5 * dt;
+            let mut count = 0;
+            while count < GM_MAX && tc <= GM_MAX_TIME_CONSTANT {
+                if m.states == MAX_STATES {
+                    return Err(BiasError::TooManyStates(MAX_STATES + 1));
+                }
+                m.push_gm(tc, s2, dt);
+                count += 1;
+                tc *= 2.0;
+            }
+        }
+        if !(m.r.is_finite() && m.r > 0.0) {
+            return Err(BiasError::NoMeasurementNoise);
+        }
+        Ok(m)
+    }
+
+    /// Number of states.
+    pub fn states(&self) -> usize {
+        self.states
+    }
+
+    /// Measurement noise variance per sample, (deg/s)^2.
+    pub fn measurement_variance(&self) -> f64 {
+        self.r
+    }
+
+    /// Prior variance of the bias (the sum of the states), (deg/s)^2.
+    pub fn prior_variance(&self) -> f64 {
+        self.p0[..self.states].iter().sum()
+    }
+}
+
+/// The Kalman filter of a [`BiasModel`]: predict every sample, update with still samples.
+#[derive(Debug, Clone)]
+pub struct BiasFilter {
+    model: BiasModel,
+    x: [f64; MAX_STATES],
+    p: Box<[[f64; MAX_STATES]; MAX_STATES]>,
+    phi2: Box<[[f64; MAX_STATES]; MAX_STATES]>,
+    updates: u64,
+}
+
+impl BiasFilter {
+    /// A filter at its prior (estimate 0).
+    pub fn new(model: BiasModel) -> Self {
+        let n = model.states;
+        let mut phi2 = Box::new([[0.0; MAX_STATES]; MAX_STATES]);
+        for i in 0..n {
+            for j in 0..n {
+                phi2[i][j] = model.phi[i] * model.phi[j];
+            }
+        }
+        let mut f = BiasFilter {
+            model,
+            x: [0.0; MAX_STATES],
+            p: Box::new([[0.0; MAX_STATES]; MAX_STATES]),
+            phi2,
+            updates: 0,
+        };
+        f.reset();
+        f
+    }
+
+    /// Back to the prior.
+    pub fn reset(&mut self) {
+        self.x = [0.0; MAX_STATES];
+        for row in self.p.iter_mut() {
+            *row = [0.0; MAX_STATES];
+        }
+        for i in 0..self.model.states {
+            self.p[i][i] = self.model.p0[i];
+        }
+        self.updates = 0;
+    }
+
+    /// The model.
+    pub fn model(&self) -> &BiasModel {
+        &self.model
+    }
+
+    /// Time update by one sample: the states decay, their variance grows.
+    pub fn predict(&mut self) {
+        let n = self.model.states;
+        for i in 0..n {
+            self.x[i] *= self.model.phi[i];
+            for j in 0..n {
+                self.p[i][j] *= self.phi2[i][j];
+            }
+            self.p[i][i] += self.model.q[i];
+        }
+    }
+
+    /// Measurement update with one still sample `z` (deg/s); returns the innovation. A
+    /// non-finite sample is ignored (returns NaN).
+    pub fn update(&mut self, z: f64) -> f64 {
+        if !z.is_finite() {
+            return f64::NAN;
+        }
+        let n = self.model.states;
+        let mut pu = [0.0; MAX_STATES];
+        for (i, pui) in pu.iter_mut().enumerate().take(n) {
+            *pui = self.p[i][..n].iter().sum();
+        }
+        let v: f64 = pu[..n].iter().sum::<f64>().max(0.0);
+        let s = v + self.model.r;
+        let innovation = z - self.estimate();
+        for i in 0..n {
+            self.x[i] += pu[i] / s * innovation;
+            for j in 0..n {
+                self.p[i][j] -= pu[i] * pu[j] / s;
+            }
+        }
+        self.updates += 1;
+        innovation
+    }
+
+    /// The bias estimate (the sum of the states), deg/s.
+    pub fn estimate(&self) -> f64 {
+        self.x[..self.model.states].iter().sum()
+    }
+
+    /// Variance of the estimate, (deg/s)^2.
+    pub fn variance(&self) -> f64 {
+        let n = self.model.states;
+        self.p[..n]
+            .iter()
+            .map(|row| row[..n].iter().sum::<f64>())
+            .sum::<f64>()
+            .max(0.0)
+    }
+
+    /// Samples taken so far.
+    pub fn updates(&self) -> u64 {
+        self.updates
+    }
+
+    /// The estimate and variance if `count` more samples of mean `mean` were taken now, without
+    /// taking them (one scalar update with measurement variance R / count).
+    pub fn with_mean(&self, mean: f64, count: usize) -> (f64, f64) {
+        let b = self.estimate();
+        let v = self.variance();
+        if count == 0 || !mean.is_finite() {
+            return (b, v);
+        }
+        let r = self.model.r / count as f64;
+        let g = v / (v + r);
+        (b + g * (mean - b), (1.0 - g) * v)
+    }
+}
+
+/// Settings of the stillness gating and delay of a [`BiasTracker`], in seconds and in standard
+/// deviations of the still statistics (thresholds from the noise terms, see
+/// [`stillness_from_terms`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerConfig {
+    /// Detector window, s.
+    pub window_s: f64,
+    /// Quiet time after the window before "still", s.
+    pub settle_s: f64,
+    /// Delay window: a still sample enters the filter only after the detector stayed still this
+    /// long after it, s.
+    pub delay_s: f64,
+    /// Variance exit threshold: standard deviations of the window variance above its still value.
+    pub var_sigmas: f64,
+    /// Mean-shift exit threshold: standard deviations of the window mean.
+    pub mean_sigmas: f64,
+    /// The enter (back to moving) thresholds are this many times the exit distances (>= 1).
+    pub hysteresis: f64,
+    /// The mean-shift test tolerates this many standard deviations of the bias estimate.
+    pub estimate_sigmas: f64,
+    /// How bias instability becomes states (None: [`Instability::from_terms`]).
+    pub instability: Option<Instability>,
+}
+
+impl Default for TrackerConfig {
+    /// Window 1 s, settle 0.25 s, delay 1 s, variance 4 sd, mean 4 sd, hysteresis 1.5,
+    /// estimate 3 sd, the default instability ([`Instability::from_terms`]).
+    fn default() -> Self {
+        TrackerConfig {
+            window_s: 1.0,
+            settle_s: 0.25,
+            delay_s: 1.0,
+            var_sigmas: 4.0,
+            mean_sigmas: 4.0,
+            hysteresis: 1.5,
+            estimate_sigmas: 3.0,
+            instability: None,
+        }
+    }
+}
+
+fn samples(name: &'static str, s: f64, rate_hz: f64) -> Result<usize, BiasError> {
+    if !(s.is_finite() && s >= 0.0) {
+        return Err(BiasError::BadTime(name, s));
+    }
+    let n = (s * rate_hz).round();
+    if n > MAX_DELAY as f64 {
+        return Err(BiasError::DelayTooLong(n as usize));
+    }
+    Ok(n as usize)
+}
+
+/// Stillness thresholds from noise terms: over a window of w samples a still sensor's variance
+/// is sigma^2 = [`BiasTerms::sample_variance`] with relative spread sqrt(2/w), and its mean is
+/// the bias with spread sqrt(N^2/T + (sigma^2 - N^2 rate)/w), T = w/rate. Exit thresholds sit
+/// `var_sigmas` and `mean_sigmas` of those spreads above; the enter thresholds `hysteresis`
+/// times as far.
+pub fn stillness_from_terms(
+    terms: &BiasTerms,
+    rate_hz: f64,
+    cfg: &TrackerConfig,
+) -> Result<StillnessConfig, BiasError> {
+    terms.check()?;
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(BiasError::BadRate(rate_hz));
+    }
+    for (name, v) in [
+        ("var_sigmas", cfg.var_sigmas),
+        ("mean_sigmas", cfg.mean_sigmas),
+        ("hysteresis", cfg.hysteresis),
+        ("estimate_sigmas", cfg.estimate_sigmas),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(BiasError::BadFactor(name, v));
+        }
+    }
+    if cfg.hysteresis < 1.0 {
+        return Err(BiasError::BadFactor("hysteresis (>= 1)", cfg.hysteresis));
+    }
+    let window = samples("window_s", cfg.window_s, rate_hz)?.max(2);
+    let settle = samples("settle_s", cfg.settle_s, rate_hz)?;
+    let w = window as f64;
+    let var = terms.sample_variance(rate_hz);
+    let spread = (2.0 / w).sqrt();
+    let white = terms.n * terms.n * rate_hz;
+    let mean_sd = (terms.n * terms.n * rate_hz / w + (var - white).max(0.0) / w).sqrt();
+    let c = StillnessConfig {
+        window,
+        var_exit: var * (1.0 + cfg.var_sigmas * spread),
+        var_enter: var * (1.0 + cfg.hysteresis * cfg.var_sigmas * spread),
+        mean_exit: cfg.mean_sigmas * mean_sd,
+        mean_enter: cfg.hysteresis * cfg.mean_sigmas * mean_sd,
+        settle,
+    };
+    c.check().map_err(BiasError::Stillness)?;
+    Ok(c)
+}
+
+/// What the tracker knows at a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BiasMode {
+    /// The detector's first window is not full: still or moving cannot be told yet.
+    Warming,
+    /// Still (confirmed by the detector, or by the gate).
+    Still,
+    /// Moving: the estimate is held, its variance grows.
+    Moving,
+}
+
+/// One sample's output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasStep {
+    /// Bias estimate, deg/s (subtract it from the rate).
+    pub bias: f64,
+    /// Its standard deviation, deg/s.
+    pub std: f64,
+    /// The mode.
+    pub mode: BiasMode,
+    /// Whether the estimate rests on a still sample (taken by the filter or waiting in the
+    /// delay window); false: it is the prior.
+    pub informed: bool,
+}
+
+/// The live bias estimator of one axis: a [`BiasFilter`], its own [`StillnessDetector`], and the
+/// delay window (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct BiasTracker {
+    filter: BiasFilter,
+    detector: StillnessDetector,
+    estimate_sigmas: f64,
+    ring: Vec<f64>,
+    head: usize,
+    pending: usize,
+    pending_sum: f64,
+    mode: BiasMode,
+}
+
+impl BiasTracker {
+    /// A tracker for `terms` at `rate_hz` (model from `cfg.instability`, thresholds from
+    /// [`stillness_from_terms`]).
+    pub fn new(terms: &BiasTerms, rate_hz: f64, cfg: &TrackerConfig) -> Result<Self, BiasError> {
+        let instability = cfg
+            .instability
+            .unwrap_or_else(|| Instability::from_terms(terms));
+        let model = BiasModel::new(terms, rate_hz, instability)?;
+        Self::with_model(model, terms, rate_hz, cfg)
+    }
+
+    /// A tracker around any bias model (e.g. [`BiasModel::simulator_truth`]); the detector's
+    /// thresholds still come from `terms`.
+    pub fn with_model(
+        model: BiasModel,
+        terms: &BiasTerms,
+        rate_hz: f64,
+        cfg: &TrackerConfig,
+    ) -> Result<Self, BiasError> {
+        let still = stillness_from_terms(terms, rate_hz, cfg)?;
+        let delay = samples("delay_s", cfg.delay_s, rate_hz)?;
+        Ok(BiasTracker {
+            filter: BiasFilter::new(model),
+            detector: StillnessDetector::new(still),
+            estimate_sigmas: cfg.estimate_sigmas,
+            ring: vec![0.0; delay],
+            head: 0,
+            pending: 0,
+            pending_sum: 0.0,
+            mode: BiasMode::Warming,
+        })
+    }
+
+    /// The default tracker of a named sensor ([`BiasTerms::profile`], [`TrackerConfig::default`]).
+    pub fn for_profile(name: &str, rate_hz: f64) -> Result<Self, BiasError> {
+        Self::new(
+            &BiasTerms::profile(name)?,
+            rate_hz,
+            &TrackerConfig::default(),
+        )
+    }
+
+    /// The filter.
+    pub fn filter(&self) -> &BiasFilter {
+        &self.filter
+    }
+
+    /// The detector's thresholds.
+    pub fn stillness(&self) -> &StillnessConfig {
+        self.detector.config()
+    }
+
+    /// The delay window, samples.
+    pub fn delay(&self) -> usize {
+        self.ring.len()
+    }
+
+    /// Whether the last sample was judged still.
+    pub fn is_still(&self) -> bool {
+        self.mode == BiasMode::Still
+    }
+
+    /// Forget everything (back to warming at the prior).
+    pub fn reset(&mut self) {
+        self.filter.reset();
+        self.detector.reset();
+        self.drop_pending();
+        self.mode = BiasMode::Warming;
+    }
+
+    fn drop_pending(&mut self) {
+        self.head = 0;
+        self.pending = 0;
+        self.pending_sum = 0.0;
+    }
+
+    /// One rate sample (deg/s) with the tracker's own stillness detection.
+    pub fn push(&mut self, x: f64) -> BiasStep {
+        let (reference, tol) = if self.filter.updates() > 0 {
+            (
+                self.filter.estimate(),
+                self.estimate_sigmas * self.filter.variance().sqrt(),
+            )
+        } else {
+            (f64::NAN, 0.0)
+        };
+        let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
+        let known = self.detector.is_ready();
+        self.step(x, still, known)
+    }
+
+    /// One rate sample with stillness decided outside (a known stop, another sensor): the same
+    /// filter and delay window, the tracker's detector unused.
+    pub fn push_gated(&mut self, x: f64, still: bool) -> BiasStep {
+        self.step(x, still, true)
+    }
+
+    /// `known`: whether "not still" means moving (false while the detector's window fills).
+    fn step(&mut self, x: f64, still: bool, known: bool) -> BiasStep {
+        self.filter.predict();
+        let still = still && x.is_finite();
+        if still {
+            let d = self.ring.len();
+            if d == 0 {
+                self.filter.update(x);
+            } else {
+                if self.pending == d {
+                    let old = self.ring[self.head];
+                    self.filter.update(old);
+                    self.pending_sum -= old;
+                } else {
+                    self.pending += 1;
+                }
+                self.ring[self.head] = x;
+                self.head = if self.head + 1 == d { 0 } else { self.head + 1 };
+                self.pending_sum += x;
+            }
+        } else {
+            self.drop_pending();
+        }
+        let (bias, var) = if self.pending > 0 {
+            self.filter
+                .with_mean(self.pending_sum / self.pending as f64, self.pending)
+        } else {
+            (self.filter.estimate(), self.filter.variance())
+        };
+        self.mode = if still {
+            BiasMode::Still
+        } else if known {
+            BiasMode::Moving
+        } else {
+            BiasMode::Warming
+        };
+        BiasStep {
+            bias,
+            std: var.sqrt(),
+            mode: self.mode,
+            informed: self.pending > 0 || self.filter.updates() > 0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn terms() -> BiasTerms {
+        BiasTerms {
+            n: 0.04,
+            b: 0.005,
+            k: 0.0,
+            q: 0.0,
+            lsb: 0.0,
+            initial_sd: 1.0,
+        }
+    }
+
+    #[test]
+    fn bad_terms_are_refused() {
+        let mut t = terms();
+        t.n = -1.0;
+        assert_eq!(t.check(), Err(BiasError::BadTerm("N", -1.0)));
+        t.n = f64::NAN;
+        assert!(matches!(t.check(), Err(BiasError::BadTerm("N", _))));
+        t = terms();
+        t.n = 0.0;
+        assert_eq!(t.check(), Err(BiasError::NoMeasurementNoise));
+        t = terms();
+        t.initial_sd = 0.0;
+        assert!(BiasTracker::new(&t, 100.0, &TrackerConfig::default()).is_err());
+        assert!(
+            BiasModel::new(&terms(), f64::INFINITY, Instability::from_terms(&terms())).is_err()
+        );
+        let cfg = TrackerConfig {
+            delay_s: -1.0,
+            ..TrackerConfig::default()
+        };
+        assert!(BiasTracker::new(&terms(), 100.0, &cfg).is_err());
+        let cfg = TrackerConfig {
+            delay_s: 1e9,
+            ..TrackerConfig::default()
+        };
+        assert!(matches!(
+            BiasTracker::new(&terms(), 100.0, &cfg),
+            Err(BiasError::DelayTooLong(_))
+        ));
+        assert!(BiasTerms::profile("nope").is_err());
+        let bank = Instability::Flicker {
+            shortest_s: 1e-9,
+            longest_s: 1e9,
+        };
+        assert!(matches!(
+            BiasModel::new(&terms(), 100.0, bank),
+            Err(BiasError::TooManyStates(_))
+        ));
+    }
+
+    #[test]
+    fn a_flicker_bank_has_the_allan_floor_it_is_built_from() {
+        // The bank's stationary bias: Allan variance at tau from the states' autocovariance.
+        // For a GM of variance s2, time constant T: AVAR(tau) = s2 T/tau^2 (2 tau - 3T + 4T e^-u -
+        // T e^-2u), u = tau/T. The sum over the bank at tau = 30 s must be near (2 ln2/pi) B^2.
+        let t = terms();
+        let m = BiasModel::new(
+            &t,
+            100.0,
+            Instability::Flicker {
+                shortest_s: 0.05,
+                longest_s: 1e5,
+            },
+        )
+        .unwrap();
+        assert!(matches!(
+            Instability::flicker_bank(&t),
+            Instability::Flicker { longest_s, .. } if longest_s == DEFAULT_LONGEST_S
+        ));
+        let tau: f64 = 30.0;
+        let dt: f64 = 0.01;
+        let mut avar = 0.0;
+        for i in 1..m.states() {
+            let tc = -dt / m.phi[i].ln();
+            let u = tau / tc;
+            avar += m.p0[i] * tc / (tau * tau)
+                * (2.0 * tau - 3.0 * tc + 4.0 * tc * (-u).exp() - tc * (-2.0 * u).exp());
+        }
+        let floor = 2.0 * LN_2 / PI * t.b * t.b;
+        assert!(
+            (avar / floor - 1.0).abs() < 0.15,
+            "bank AVAR {avar} vs floor {floor}"
+        );
+    }
+
+    #[test]
+    fn the_random_walk_matches_the_floor_at_its_time_scale() {
+        // AVAR of a random walk of PSD q: q tau / 3; at tau_s it must be (2 ln2/pi) B^2.
+        let t = terms();
+        let m = BiasModel::new(&t, 100.0, Instability::RandomWalk { tau_s: 10.0 }).unwrap();
+        assert_eq!(m.states(), 1);
+        let q_per_s = m.q[0] * 100.0;
+        let floor = 2.0 * LN_2 / PI * t.b * t.b;
+        assert!((q_per_s * 10.0 / 3.0 / floor - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn still_samples_average_like_a_mean() {
+        // B = K = 0: the filter is the running mean (with a vague prior).
+        let t = BiasTerms { b: 0.0, ..terms() };
+        let mut f =
+            BiasFilter::new(BiasModel::new(&t, 100.0, Instability::from_terms(&t)).unwrap());
+        let xs = [0.3, 0.5, 0.1, 0.7, 0.4];
+        for &x in &xs {
+            f.predict();
+            f.update(x);
+        }
+        let r = f.model().measurement_variance();
+        let mean = 0.4;
+        // Posterior mean with prior N(0, 1): mean * 5/r / (5/r + 1).
+        let expect = mean * (5.0 / r) / (5.0 / r + 1.0);
+        assert!((f.estimate() - expect).abs() < 1e-12, "{}", f.estimate());
+        assert!((f.variance() - 1.0 / (5.0 / r + 1.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn onset_does_not_leak_and_the_mode_is_truthful() {
+        let t = terms();
+        let mut tr = BiasTracker::new(&t, 100.0, &TrackerConfig::default()).unwrap();
+        let bias = 0.4;
+        // 30 s still (constant input: no noise), then a slow ramp to 5 deg/s over 2 s, 20 s moving.
+        let mut steps = Vec::new();
+        for k in 0..5200 {
+            let tt = k as f64 / 100.0;
+            let motion = if tt < 30.0 {
+                0.0
+            } else {
+                5.0 * ((tt - 30.0) / 2.0).min(1.0)
+            };
+            steps.push(tr.push(bias + motion));
+        }
+        assert_eq!(steps[0].mode, BiasMode::Warming);
+        assert!(!steps[0].informed);
+        assert_eq!(steps[0].bias, 0.0);
+        // Window full (1 s) and still, but not yet settled: moving, nothing to go on.
+        assert_eq!(steps[110].mode, BiasMode::Moving);
+        assert!(!steps[110].informed);
+        assert!(steps[2999].informed);
+        assert_eq!(steps[2999].mode, BiasMode::Still);
+        assert!((steps[2999].bias - bias).abs() < 1e-3);
+        assert_eq!(steps[5199].mode, BiasMode::Moving);
+        // Nothing of the ramp entered the filter: the held estimate is the still bias.
+        assert!(
+            (steps[5199].bias - bias).abs() < 1e-3,
+            "leaked: {}",
+            steps[5199].bias
+        );
+        // Its variance grew while moving.
+        assert!(steps[5199].std > steps[3000].std);
+    }
+
+    #[test]
+    fn without_the_delay_the_onset_leaks() {
+        // The same ramp with delay 0: the slow start of the ramp is taken as bias, and the
+        // detector still takes it (which is why the delay exists).
+        let t = terms();
+        let cfg = TrackerConfig {
+            delay_s: 0.0,
+            ..TrackerConfig::default()
+        };
+        let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut last = None;
+        for k in 0..5200 {
+            let tt = k as f64 / 100.0;
+            let motion = if tt < 30.0 {
+                0.0
+            } else {
+                5.0 * ((tt - 30.0) / 2.0).min(1.0)
+            };
+            last = Some(tr.push(0.4 + motion));
+        }
+        assert!((last.unwrap().bias - 0.4).abs() > 1e-4);
+    }
+
+    #[test]
+    fn gated_pushes_and_profiles() {
+        let mut tr = BiasTracker::for_profile("adis16405", 100.0).unwrap();
+        assert!(tr.delay() == 100);
+        let s = tr.push_gated(1.0, false);
+        assert_eq!((s.mode, s.informed), (BiasMode::Moving, false));
+        let s = tr.push_gated(1.0, true);
+        assert_eq!((s.mode, s.informed), (BiasMode::Still, true));
+        // Provisional: one sample of variance R ~ 0.15 against the prior's 1 + flicker.
+        assert!(
+            s.bias > 0.8 && s.bias < 0.95,
+            "provisional estimate from the waiting sample: {s:?}"
+        );
+        // A short stop is dropped: nothing was taken, so nothing to go on again.
+        let s = tr.push_gated(1.0, false);
+        assert_eq!((s.mode, s.informed, s.bias), (BiasMode::Moving, false, 0.0));
+        assert!(tr.push_gated(f64::NAN, true).bias.is_finite());
+        tr.reset();
+        assert_eq!(tr.filter().updates(), 0);
+    }
+}

@@ -1,0 +1,29 @@
+//! The navigation benchmark: what a navigator judges a gyro correction by, the heading error of
+//! the integrated rate, measured against the baselines they already have.
+//!
+//! - [`profiles`]: known motion (stop-and-go, vehicle, continuous, pedestrian) with the oracle
+//!   still mask, deterministic from (rate, duration, seed), to add to a static record.
+//! - [`metrics`]: heading error series, final / RMS / max heading error and RMS rate error;
+//!   median, worst and per-window ratios over many windows.
+//! - [`baselines`]: causal per-sample bias estimators behind [`baselines::BiasEstimator`]: raw,
+//!   power-on bias, ZARU with oracle or detected stops, and the new estimator
+//!   ([`crate::drift::bias::BiasTracker`]).
+//! - [`eval`]: every method on one window, and summaries against a reference (oracle ZARU).
+//!
+//! Pure: no I/O. Results on the real ADIS16405 log and the simulator: docs/navigation.md and
+//! tests/nav_*.rs.
+
+pub mod baselines;
+pub mod eval;
+pub mod metrics;
+pub mod profiles;
+
+pub use baselines::{BiasEstimator, Raw, Tracked, Zaru};
+pub use eval::{
+    evaluate, format_table, format_table_labelled, summarize_methods, EvalError, Method,
+    MethodSummary, Setup,
+};
+pub use metrics::{
+    heading_error, heading_metrics, summarize, HeadingAccumulator, HeadingMetrics, Summary,
+};
+pub use profiles::{generate, MotionTrace, Profile, ProfileError};

@@ -1,0 +1,195 @@
+//! `predict.bias`: the gyro bias as a Kalman filter state whose noise comes from the sensor's
+//! own IEEE 952 terms ([`crate::drift::bias`]), re-measured while the sensor is still, held
+//! (its uncertainty growing) while it moves. No training: the terms of a named sensor, or the
+//! terms `driftless allan` measured on one's own static log.
+//!
+//! ```toml
+//! [[stage]]
+//! name = "predict"
+//! kind = "predict.bias"
+//! input = "demo/denoised"
+//! output = "demo/predicted"
+//! profile = "adis16405"        # default terms; or give them, as `driftless allan` prints:
+//! # arw = 2.3                  # N, deg/sqrt(h)
+//! # bias_instability = 34.0    # B, deg/h
+//! # rrw = 0.0                  # K, deg/h/sqrt(h)
+//! # lsb = 0.05                 # output step of the raw rate, input units (0: none)
+//! ```
+//!
+//! The published rate is the denoised rate minus the estimate. Flags: [`FLAG_STILL`] when every
+//! axis is still, [`FLAG_MOVING`] when any axis moves (before the first stop too),
+//! [`FLAG_WARMING_UP`] while an axis has nothing to go on: its detector's first window is
+//! filling, or no still sample has been seen yet (nothing is subtracted there). Moving before the
+//! first stop is therefore `MOVING | WARMING_UP`.
+
+use crate::drift::bias::{BiasMode, BiasTerms, BiasTracker, TrackerConfig, DEFAULT_INITIAL_SD};
+use crate::io::InputError;
+use crate::pipeline::schema::{Context, Key, StageTable, Type};
+use crate::pipeline::stage::{Kind, Params, Role, Stage};
+use crate::transport::{GyroSample, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+
+const PROFILE: Key = Key {
+    name: "profile",
+    ty: Type::Choice(&["adis16405", "adxrs450"]),
+    default: "\"adis16405\" (unless the terms are given)",
+    doc: "the default noise terms of a named sensor",
+};
+const ARW: Key = Key {
+    name: "arw",
+    ty: Type::Positive(1e6),
+    default: "the profile's",
+    doc: "angle random walk N, deg/sqrt(h) (as `driftless allan` prints it)",
+};
+const BIAS_INSTABILITY: Key = Key {
+    name: "bias_instability",
+    ty: Type::Float(">= 0"),
+    default: "the profile's",
+    doc: "bias instability B, deg/h",
+};
+const RRW: Key = Key {
+    name: "rrw",
+    ty: Type::Float(">= 0"),
+    default: "the profile's",
+    doc: "rate random walk K, deg/h/sqrt(h)",
+};
+const LSB: Key = Key {
+    name: "lsb",
+    ty: Type::Float(">= 0"),
+    default: "the profile's",
+    doc: "output step of the raw rate, input units (0: not quantised)",
+};
+const INITIAL_SD: Key = Key {
+    name: "initial_sd",
+    ty: Type::Positive(1e6),
+    default: "1 deg/s",
+    doc: "spread of the turn-on bias before the first stop, input units",
+};
+const DELAY_S: Key = Key {
+    name: "delay_s",
+    ty: Type::Float("0..=60"),
+    default: "1",
+    doc: "a still sample enters the filter only after the sensor stayed still this long after it",
+};
+
+/// `predict.bias`.
+pub const KIND: Kind = Kind {
+    name: "predict.bias",
+    role: Role::Process,
+    summary: "the bias as a Kalman state from the gyro's Allan terms, re-measured while still, held while moving; no training needed",
+    keys: &[PROFILE, ARW, BIAS_INSTABILITY, RRW, LSB, INITIAL_SD, DELAY_S],
+    parse,
+};
+
+/// `predict.bias` parameters: the terms (deg/s based) and the tracker's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasParams {
+    /// The noise terms, deg/s based.
+    pub terms: BiasTerms,
+    /// Stillness gating and delay.
+    pub tracker: TrackerConfig,
+}
+
+fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    let src = t.src;
+    let profile = t.choice(&PROFILE, "profile", false)?;
+    let arw = t.positive(&ARW, "arw")?;
+    let non_negative = |t: &mut StageTable<'_, '_>, key: &Key| -> Result<Option<f64>, InputError> {
+        match t.get::<f64>(key)? {
+            Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => Err(src.span(
+                &v,
+                format!("{} must be finite and >= 0, got {}", key.name, v.get_ref()),
+            )),
+            v => Ok(v.map(toml::Spanned::into_inner)),
+        }
+    };
+    let b = non_negative(t, &BIAS_INSTABILITY)?;
+    let k = non_negative(t, &RRW)?;
+    let lsb = non_negative(t, &LSB)?;
+    let initial_sd = t.positive(&INITIAL_SD, "initial_sd")?;
+    let delay_s = match t.get::<f64>(&DELAY_S)? {
+        Some(v) => Some(src.float_in(&v, "delay_s", 0.0, 60.0)?),
+        None => None,
+    };
+    let name = profile.as_deref().unwrap_or("adis16405");
+    let mut terms = BiasTerms::profile(name).map_err(|e| t.error(format!("predict.bias: {e}")))?;
+    // Given terms are in the units `driftless allan` prints; the filter works in deg/s.
+    let to_deg = t.cx.units.to_rad_per_sec().to_degrees();
+    if let Some(n) = arw {
+        terms.n = n / 60.0;
+    }
+    if let Some(b) = b {
+        terms.b = b / 3600.0;
+    }
+    if let Some(k) = k {
+        terms.k = k / 3600.0 / 60.0;
+    }
+    if let Some(l) = lsb {
+        terms.lsb = l * to_deg;
+    }
+    terms.initial_sd = initial_sd.map_or(DEFAULT_INITIAL_SD, |s| s * to_deg);
+    let mut tracker = TrackerConfig::default();
+    if let Some(d) = delay_s {
+        tracker.delay_s = d;
+    }
+    let params = BiasParams { terms, tracker };
+    BiasTracker::new(&params.terms, t.cx.rate_hz, &params.tracker)
+        .map_err(|e| t.error(format!("predict.bias: {e}")))?;
+    Ok(Box::new(params))
+}
+
+impl Params for BiasParams {
+    fn stage(&self, cx: &Context) -> Result<Box<dyn Stage>, String> {
+        let mut trackers = Vec::with_capacity(cx.axes);
+        for _ in 0..cx.axes {
+            trackers.push(
+                BiasTracker::new(&self.terms, cx.rate_hz, &self.tracker)
+                    .map_err(|e| e.to_string())?,
+            );
+        }
+        Ok(Box::new(BiasStage { trackers }))
+    }
+
+    fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
+        let t = &self.terms;
+        vec![format!(
+            "terms: N {:.3} deg/sqrt(h), B {:.2} deg/h, K {:.3} deg/h/sqrt(h), lsb {} deg/s; delay {} s",
+            t.n * 60.0,
+            t.b * 3600.0,
+            t.k * 3600.0 * 60.0,
+            t.lsb,
+            self.tracker.delay_s
+        )]
+    }
+}
+
+/// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
+pub struct BiasStage {
+    trackers: Vec<BiasTracker>,
+}
+
+impl Stage for BiasStage {
+    fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
+        let mut out = *input;
+        let (mut still, mut moving, mut warming) = (true, false, false);
+        for (axis, tr) in self.trackers.iter_mut().enumerate() {
+            let step = tr.push(input.denoised[axis].to_degrees());
+            out.drift[axis] = step.bias.to_radians();
+            out.rate[axis] = input.denoised[axis] - out.drift[axis];
+            match step.mode {
+                BiasMode::Still => {}
+                BiasMode::Moving => (still, moving) = (false, true),
+                BiasMode::Warming => (still, warming) = (false, true),
+            }
+            warming |= !step.informed;
+        }
+        if moving {
+            out.flags |= FLAG_MOVING;
+        } else if still {
+            out.flags |= FLAG_STILL;
+        }
+        if warming {
+            out.flags |= FLAG_WARMING_UP;
+        }
+        Some(out)
+    }
+}

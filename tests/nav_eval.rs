@@ -1,0 +1,191 @@
+//! `driftless nav-eval`, run as a user runs it: the built-in chain and a pipeline file go through
+//! the daemon's stage code, the figures are the library's, and bad input is one line, exit 2.
+
+mod common;
+
+use common::Dir;
+use serde_json::Value;
+use std::process::{Command, Output};
+
+fn nav_eval(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("nav-eval")
+        .args(args)
+        .output()
+        .expect("driftless runs")
+}
+
+fn json(out: &Output) -> Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON document")
+}
+
+fn method<'a>(section: &'a Value, name: &str) -> &'a Value {
+    section["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["method"].as_str().unwrap().starts_with(name))
+        .unwrap_or_else(|| panic!("no method {name} in {section}"))
+}
+
+fn med(m: &Value, key: &str) -> f64 {
+    m[key]["median"].as_f64().unwrap()
+}
+
+const PASS_THROUGH: &str = r#"
+name = "pass"
+rate_hz = 100.0
+axes = 3
+input_units = "rad/s"
+
+[[stage]]
+name = "sensor"
+kind = "ingest.iceoryx2"
+input = "sensor/raw"
+output = "pass/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "pass/raw"
+output = "pass/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "pass/denoised"
+output = "pass/predicted"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "pass/predicted"
+output = "pass/corrected"
+"#;
+
+#[test]
+fn on_the_simulator_the_stages_are_judged_with_the_baselines() {
+    let dir = Dir::new();
+    let pass = dir.write("pass.toml", PASS_THROUGH);
+    let out = nav_eval(&[
+        "--sim",
+        "adis16405",
+        "--windows",
+        "2",
+        "--window",
+        "5min",
+        "--motion",
+        "stop-and-go",
+        "--json",
+        "--pipeline",
+        pass.to_str().unwrap(),
+    ]);
+    let v = json(&out);
+    let s = &v["sections"][0];
+    assert_eq!(s["profile"], "stop-and-go");
+    assert_eq!(v["axes"], 3);
+    assert_eq!(v["windows_per_axis"], 2);
+    let raw = method(s, "raw");
+    let zaru = method(s, "ZARU oracle");
+    let chain = method(s, "denoise.wavelet -> predict.bias");
+    let pass = method(s, "pass.toml (denoise.none -> predict.none -> publish)");
+    assert_eq!(med(zaru, "rms_ratio_to_zaru_oracle"), 1.0);
+    // A pass-through pipeline, fed in rad/s, publishes the raw rate: the same figures exactly
+    // but for rounding through the unit conversion.
+    for key in ["rms_heading_deg", "final_heading_deg", "rms_rate_degps"] {
+        let (a, b) = (med(pass, key), med(raw, key));
+        assert!((a - b).abs() <= 1e-9 * b, "{key}: {a} vs raw {b}");
+    }
+    // The product's chain removes the bias: far from raw, near the oracle ZARU.
+    assert!(med(raw, "rms_ratio_to_zaru_oracle") > 20.0);
+    let r = med(chain, "rms_ratio_to_zaru_oracle");
+    assert!(r < 1.5, "the stages against oracle ZARU: {r}");
+    // The simulator knows its noise model: the floor is reported.
+    method(s, "floor");
+}
+
+#[test]
+fn on_the_real_log_the_product_beats_the_navigators_own_baselines() {
+    let Some(log) = std::env::var_os("DRIFTLESS_ADIS16405") else {
+        println!("SKIP: DRIFTLESS_ADIS16405 is not set");
+        return;
+    };
+    let dir = Dir::new();
+    let svg = dir.path("h.svg");
+    let out = nav_eval(&[
+        log.to_str().unwrap(),
+        "--rate",
+        "100",
+        "--lsb",
+        "0.05",
+        "--motion",
+        "stop-and-go,pedestrian",
+        "--json",
+        "--plot",
+        svg.to_str().unwrap(),
+    ]);
+    let v = json(&out);
+    let sections = v["sections"].as_array().unwrap();
+    assert_eq!(sections.len(), 3, "two profiles and all");
+    let all = &sections[2];
+    assert_eq!(all["profile"], "all profiles");
+    let chain = med(
+        method(all, "denoise.wavelet -> predict.bias"),
+        "rms_heading_deg",
+    );
+    for baseline in ["power-on", "ZARU detected"] {
+        let b = med(method(all, baseline), "rms_heading_deg");
+        assert!(chain < b, "stages {chain} deg against {baseline} {b} deg");
+    }
+    let text = std::fs::read_to_string(&svg).expect("the plot");
+    assert!(text.starts_with("<svg") && text.contains("ZARU oracle"));
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_2() {
+    let dir = Dir::new();
+    let fast = dir.write("fast.toml", &PASS_THROUGH.replace("100.0", "1000.0"));
+    let short = dir.write("short.csv", "t,x\n0,0.1\n0.01,0.2\n");
+    let cases: Vec<(Vec<&str>, String)> = vec![
+        (
+            vec!["--sim", "adis16405", "--pipeline", fast.to_str().unwrap()],
+            format!(
+                "{}:3:1: rate_hz is 1000 Hz but the log is 100 Hz",
+                fast.display()
+            ),
+        ),
+        (
+            vec!["--sim", "adis16405", "--motion", "walk"],
+            "--motion: unknown motion profile 'walk'".into(),
+        ),
+        (
+            vec!["--sim", "gyro9"],
+            "--sim: unknown profile 'gyro9'".into(),
+        ),
+        (
+            vec![short.to_str().unwrap(), "--rate", "100"],
+            "2 rows, but the characterisation".into(),
+        ),
+        (
+            vec![short.to_str().unwrap()],
+            "--rate is required with a log".into(),
+        ),
+        (
+            vec!["--sim", "adis16405", "--terms", "nope"],
+            "--terms: no default bias terms for 'nope'".into(),
+        ),
+    ];
+    for (args, want) in cases {
+        let out = nav_eval(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(&want), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+    }
+}

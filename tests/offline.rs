@@ -1,0 +1,127 @@
+//! The offline runner (`pipeline::offline`, what `driftless nav-eval` judges) publishes, for the
+//! same raw samples and the same pipeline file, exactly what the live daemon publishes: every
+//! field of every sample but the ingest clock.
+
+mod common;
+
+use std::time::Duration;
+
+use common::{collect, finish, qos, start, Dir, Prefix};
+use driftless::pipeline::config;
+use driftless::pipeline::offline::Offline;
+use driftless::sim::{Motion, SimConfig, Simulator};
+use driftless::transport::{GyroSample, RawSample, Transport};
+
+const N: usize = 25_000;
+
+fn pipeline(predict: &str) -> String {
+    format!(
+        r#"
+name = "off"
+rate_hz = 1000.0
+axes = 3
+input_units = "deg/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {N}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "off/raw"
+file = "log.csv"
+pace = "asap"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+input = "off/raw"
+output = "off/denoised"
+lag = 33
+
+[[stage]]
+name = "predict"
+input = "off/denoised"
+output = "off/predicted"
+{predict}
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "off/predicted"
+output = "off/corrected"
+"#
+    )
+}
+
+#[test]
+fn offline_output_is_the_live_daemons_sample_for_sample() {
+    let dir = Dir::new();
+    // A simulated ADIS16405 at 1 kHz: still 20 s, then a turn starting on the last axis.
+    let mut cfg = SimConfig::profile("adis16405").unwrap();
+    cfg.rate_hz = 1000.0;
+    cfg.axes = 3;
+    cfg.seed = 11;
+    cfg.motion = Motion::Turn;
+    let mut sim = Simulator::new(&cfg).unwrap();
+    let mut text = String::from("x,y,z\n");
+    let mut raws = Vec::with_capacity(N);
+    for i in 0..N {
+        let s = sim.next_sample();
+        // Written and read back through the CSV's own decimal text.
+        let line = format!("{},{},{}", s.measured[0], s.measured[1], s.measured[2]);
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        raws.push(RawSample {
+            t_ns: (i as f64 * 1e9 / 1000.0).round() as u64,
+            seq: i as u64,
+            rate: [v[0], v[1], v[2]],
+            flags: 0,
+            reserved: 0,
+        });
+        text.push_str(&line);
+        text.push('\n');
+    }
+    dir.write("log.csv", &text);
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/pipelines/models/demo-drift-1khz.json"
+    );
+    for (name, predict) in [
+        ("rbf", format!("kind = \"predict.rbf\"\nmodel = {model:?}")),
+        ("none", "kind = \"predict.none\"".to_string()),
+        ("bias", "kind = \"predict.bias\"".to_string()),
+    ] {
+        let file = dir.write(&format!("{name}.toml"), &pipeline(&predict));
+        let p = config::load(&file).expect("valid pipeline");
+
+        let mut offline = Offline::new(&p).expect("offline");
+        let mut want: Vec<GyroSample> = Vec::with_capacity(N);
+        for r in &raws {
+            offline.push(r, &mut |s| want.push(s));
+        }
+        offline.finish(&mut |s| want.push(s));
+        assert_eq!(want.len(), N, "{name}: every sample offline");
+
+        let prefix = Prefix::new(&format!("off{name}"));
+        let me = Transport::new(&prefix.0, "nav", qos(N)).expect("node");
+        let corrected = me.input::<GyroSample>("off/corrected").expect("subscriber");
+        let child = start(&file, &prefix, &[]);
+        let got = collect(&corrected, N, Duration::from_secs(30));
+        let (code, err) = finish(child, Duration::from_secs(10));
+        assert_eq!(code, Some(0), "{name}: {err}");
+        assert_eq!(got.len(), N, "{name}: every sample live");
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            let mut g = *g;
+            g.ingest_ns = w.ingest_ns;
+            assert_eq!(g, *w, "{name}: sample {i} differs");
+        }
+        if name != "none" {
+            let anchored = want.iter().filter(|s| s.drift != [0.0; 3]).count();
+            assert!(
+                anchored > N / 2,
+                "{name}: the drift model ran: {anchored} samples"
+            );
+        }
+    }
+}
