@@ -208,7 +208,7 @@ fn b_read_off_caveat(octave: &[AllanPoint], read_offs: &[TermFit]) -> Option<Str
     let p = octave.iter().min_by(|a, b| a.dev.total_cmp(&b.dev))?;
     matches!(p.noise_id, NoiseId::Widest { .. }).then(|| {
         format!(
-            "the B read-off is the curve's lowest point, at tau {} s with EDF {:.1} and too few tau-spans to identify the noise: the lowest of scattered points sits low by chance",
+            "the B read-off is the curve's lowest point, at tau {} s with EDF {:.1} and too few tau-spans to identify the noise: the lowest of scattered points can sit low by chance",
             p.tau, p.edf
         )
     })
