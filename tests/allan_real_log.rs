@@ -57,16 +57,25 @@ fn x_axis_oadev_matches_allantools_and_the_profile_matches_the_fit() {
     let profile = SimConfig::profile("adis16405").unwrap().terms;
     let n = fit.get(Term::N).estimate.expect("N identified").value;
     let b = fit.get(Term::B).estimate.expect("B identified").value;
-    assert!(
-        ((n - profile.n) / profile.n).abs() < 1e-9,
-        "N {n} vs profile {}",
-        profile.n
-    );
-    assert!(
-        ((b - profile.b) / profile.b).abs() < 1e-9,
-        "B {b} vs profile {}",
-        profile.b
-    );
+    // The profile is the fit as it was before issue 14 (long-tau points with unidentified noise
+    // then kept the slope's type; some claimed white phase and outweighed the rest). The fit now
+    // moves by +0.02% (N) and -0.28% (B); the profile is kept, so every simulated adis16405
+    // record stays as it was, and must stay this close to the fit and well inside its interval.
+    for (name, term, value, profile) in [("N", Term::N, n, profile.n), ("B", Term::B, b, profile.b)]
+    {
+        let e = fit.get(term).estimate.expect("identified");
+        assert!(
+            ((value - profile) / profile).abs() < 5e-3,
+            "{name} {value} vs profile {profile}"
+        );
+        let half = (e.hi - e.lo) / 2.0;
+        assert!(
+            (profile - value).abs() < 0.2 * half,
+            "{name}: profile {profile} vs fit {value} [{}, {}]",
+            e.lo,
+            e.hi
+        );
+    }
     for t in [Term::Q, Term::K, Term::R] {
         assert!(
             fit.get(t).estimate.is_none(),

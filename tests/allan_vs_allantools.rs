@@ -1,9 +1,9 @@
 //! driftless's Allan deviations, EDF and intervals against allantools 2024.6
 //! (fixtures from scripts/gen_allantools_fixtures.py; the data sets are regenerated here bit for bit).
 
-use driftless::allan::chi2::confidence_interval;
+use driftless::allan::chi2::{confidence_interval, ONE_SIGMA};
 use driftless::allan::edf::edf_greenhall;
-use driftless::allan::{allan, Kind, TauGrid};
+use driftless::allan::{allan, Kind, NoiseId, TauGrid};
 use serde_json::Value;
 
 fn fixture(name: &str) -> Value {
@@ -58,6 +58,22 @@ fn dataset(name: &str) -> Vec<f64> {
                     let b = g.next().expect("endless");
                     rw += b - 0.5;
                     ((a - 0.5) * 2.0 + rw * 0.01) + (1e-4 * k as f64 + 3.0)
+                })
+                .collect()
+        }
+        "white_32768" => {
+            let mut g = driftless::synthetic::SplitMix64(11);
+            (0..32768)
+                .map(|_| g.next().expect("endless") - 0.5)
+                .collect()
+        }
+        "random_walk_32768" => {
+            let mut g = driftless::synthetic::SplitMix64(12);
+            let mut s = 0.0;
+            (0..32768)
+                .map(|_| {
+                    s += g.next().expect("endless") - 0.5;
+                    s
                 })
                 .collect()
         }
@@ -173,5 +189,70 @@ fn chi_squared_intervals_match_allantools() {
         let (wlo, whi) = (row["lo"].as_f64().unwrap(), row["hi"].as_f64().unwrap());
         assert!(rel(lo, wlo) < 1e-9, "edf {edf} ci {ci}: lo {lo} vs {wlo}");
         assert!(rel(hi, whi) < 1e-9, "edf {edf} ci {ci}: hi {hi} vs {whi}");
+    }
+}
+
+/// Issue 14: allantools' own noise identification (lag-1 autocorrelation) at every octave tau.
+/// Where it identifies the noise and so does our slope, the type, EDF and interval agree; where
+/// it refuses (fewer than 30 decimated points, `NotImplementedError`) we flag the point; where we
+/// flag a point it still identifies (30 to 60 spans: our slope needs 30 at the far neighbour,
+/// about 2 tau), our interval holds allantools'.
+#[test]
+fn noise_identification_and_long_taus_against_allantools() {
+    let fx = fixture("noise_id.json");
+    for case in fx["cases"].as_array().unwrap() {
+        let name = case["data"].as_str().unwrap();
+        let data = dataset(name);
+        let rate = case["rate"].as_f64().unwrap();
+        assert_eq!(case["phase_len"].as_u64().unwrap() as usize, data.len() + 1);
+        let got = allan(&data, rate, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA).unwrap();
+        let want = case["points"].as_array().unwrap();
+        assert_eq!(got.len(), want.len(), "{name}: number of points");
+        let (mut same, mut refused, mut held) = (0, 0, 0);
+        for (p, w) in got.iter().zip(want) {
+            let label = format!("{name} m {}", p.m);
+            assert_eq!(p.m as u64, w["m"].as_u64().unwrap(), "{label}");
+            assert!(
+                rel(p.dev, w["dev"].as_f64().unwrap()) < 1e-9,
+                "{label}: dev"
+            );
+            match (p.noise_id, w["alpha"].as_i64()) {
+                (NoiseId::Slope, Some(alpha)) => {
+                    assert_eq!(i64::from(p.alpha), alpha, "{label}: noise type");
+                    for key in ["edf", "lo", "hi"] {
+                        let ours = match key {
+                            "edf" => p.edf,
+                            "lo" => p.lo,
+                            _ => p.hi,
+                        };
+                        let theirs = w[key].as_f64().unwrap();
+                        assert!(
+                            rel(ours, theirs) < 1e-9,
+                            "{label}: {key} {ours} vs {theirs}"
+                        );
+                    }
+                    same += 1;
+                }
+                (NoiseId::Slope, None) => panic!("{label}: allantools refuses, we identify"),
+                (NoiseId::Widest { .. }, None) => refused += 1,
+                (NoiseId::Widest { .. }, Some(_)) => {
+                    let (lo, hi) = (w["lo"].as_f64().unwrap(), w["hi"].as_f64().unwrap());
+                    assert!(
+                        p.edf <= w["edf"].as_f64().unwrap() * (1.0 + 1e-12),
+                        "{label}"
+                    );
+                    assert!(
+                        p.lo <= lo * (1.0 + 1e-12) && p.hi >= hi * (1.0 - 1e-12),
+                        "{label}"
+                    );
+                    held += 1;
+                }
+            }
+        }
+        println!("{name}: {same} points as allantools, {held} wider, {refused} it refuses");
+        assert!(
+            same >= 10 && refused >= 3 && held >= 1,
+            "{name}: {same} {held} {refused}"
+        );
     }
 }

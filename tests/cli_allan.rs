@@ -113,7 +113,33 @@ fn allan_json_has_the_documented_shape() {
         }
         assert!(p["n"].as_u64().unwrap() > 1);
         assert!(p["lo"].as_f64() < p["dev"].as_f64() && p["dev"].as_f64() < p["hi"].as_f64());
+        assert!(p["alpha"].is_i64());
+        match p["noise_id"].as_str() {
+            Some("slope") => assert!(p["alpha_plausible"].is_null()),
+            Some("widest") => {
+                let range = p["alpha_plausible"].as_array().expect("[lo, hi]");
+                let (lo, hi) = (range[0].as_i64().unwrap(), range[1].as_i64().unwrap());
+                assert!(lo <= p["alpha"].as_i64().unwrap() && p["alpha"].as_i64().unwrap() <= hi);
+            }
+            other => panic!("noise_id {other:?}"),
+        }
     }
+    // 300 s: the far neighbour has 30 tau-spans up to tau 5 s; the octaves from 5.12 s are
+    // flagged, and they come last.
+    let ids: Vec<&str> = points
+        .iter()
+        .map(|p| p["noise_id"].as_str().unwrap())
+        .collect();
+    assert_eq!(ids.iter().filter(|&&i| i == "widest").count(), 5, "{ids:?}");
+    assert!(ids
+        .windows(2)
+        .all(|w| !(w[0] == "widest" && w[1] == "slope")));
+    assert_eq!(c["trust"]["use"], "terms");
+    assert!(c["trust"]["why"]
+        .as_str()
+        .unwrap()
+        .starts_with("trust the fitted terms"));
+    assert!(c["trust"]["read_offs_outside_fit_interval"].is_array());
     let terms = c["terms"].as_object().unwrap();
     assert_eq!(terms.keys().collect::<Vec<_>>(), ["B", "K", "N", "Q", "R"]);
     for (name, t) in terms {
@@ -161,8 +187,11 @@ fn allan_writes_table_and_plot_and_prints_tables() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("mdev in deg/s"), "{stdout}");
     assert!(stdout.contains("IEEE 952 terms"), "{stdout}");
+    assert!(stdout.contains("-2*"), "a flagged long-tau point: {stdout}");
+    assert!(stdout.contains("* noise type not identified"), "{stdout}");
+    assert!(stdout.contains("Which to trust: "), "{stdout}");
     let table = std::fs::read_to_string(&csv).unwrap();
-    assert!(table.starts_with("tau_s,gyro_x_degps_dev,gyro_x_degps_lo,gyro_x_degps_hi,gyro_x_degps_n,gyro_x_degps_edf,gyro_y_degps_dev,"));
+    assert!(table.starts_with("tau_s,gyro_x_degps_dev,gyro_x_degps_lo,gyro_x_degps_hi,gyro_x_degps_n,gyro_x_degps_edf,gyro_x_degps_alpha,gyro_x_degps_identified,gyro_y_degps_dev,"));
     let plot = std::fs::read_to_string(&svg).unwrap();
     assert!(
         plot.starts_with("<svg") && plot.contains("N = "),

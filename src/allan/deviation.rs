@@ -16,7 +16,11 @@
 //!
 //! Points with n <= 1 are dropped (allantools `remove_small_ns`). The interval is
 //! [`chi2::confidence_interval`] with Greenhall's EDF ([`edf::edf_greenhall`]) for the noise type
-//! read from the local slope of the variance curve ([`edf::alpha_from_slope`]).
+//! read from the local slope of the variance curve ([`edf::alpha_from_slope`]) where every point
+//! the slope uses has at least [`edf::MIN_SPANS`] tau-spans; past that (the long-tau end) the noise
+//! cannot be identified and the point takes the plausible type with the widest interval
+//! ([`edf::widest_alpha`], [`NoiseId::Widest`]). The EDF is kept within its hard bounds
+//! [`edf::edf_bounds`] (1 to the number of terms).
 
 use super::{chi2, edf};
 use std::fmt;
@@ -115,6 +119,23 @@ impl FromStr for TauGrid {
     }
 }
 
+/// How the noise type of a point was chosen for its EDF.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseId {
+    /// From the local slope of the variance ([`edf::alpha_from_slope`]): every point the slope uses
+    /// has at least [`edf::MIN_SPANS`] tau-spans.
+    Slope,
+    /// Too few tau-spans to identify the noise: of the plausible alphas `lo..=hi` (the variance's
+    /// floor up to the last alpha identified at a shorter tau), the one with the widest interval
+    /// ([`edf::widest_alpha`]).
+    Widest {
+        /// The reddest alpha considered.
+        lo: i32,
+        /// The bluest alpha considered.
+        hi: i32,
+    },
+}
+
 /// One point of a deviation curve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AllanPoint {
@@ -126,8 +147,10 @@ pub struct AllanPoint {
     pub dev: f64,
     /// Number of terms in the sum (allantools' `ns`).
     pub n: usize,
-    /// Noise exponent alpha used for the EDF (see [`edf::alpha_from_slope`]).
+    /// Noise exponent alpha used for the EDF (see [`NoiseId`]).
     pub alpha: i32,
+    /// How alpha was chosen.
+    pub noise_id: NoiseId,
     /// Equivalent degrees of freedom (Greenhall).
     pub edf: f64,
     /// Lower end of the confidence interval.
@@ -146,6 +169,7 @@ impl AllanPoint {
             dev,
             n,
             alpha: 0,
+            noise_id: NoiseId::Slope,
             edf: 0.0,
             lo: 0.0,
             hi: 0.0,
@@ -509,8 +533,9 @@ pub fn deviations(kind: Kind, x: &[f64], rate: f64, ms: &[usize]) -> Vec<(f64, u
 }
 
 /// Local log-log slope of the variance at point `j` of `(tau, dev)`, from the neighbours about a
-/// factor 2 away in tau (one-sided at the ends; -1, white rate noise, for a single point).
-fn local_variance_slope(points: &[(f64, f64)], j: usize) -> f64 {
+/// factor 2 away in tau (one-sided at the ends), with the indices of the two points used. `None`
+/// for a single point or a zero deviation.
+pub fn local_variance_slope(points: &[(f64, f64)], j: usize) -> Option<(f64, usize, usize)> {
     let tau = points[j].0;
     let lo = points[..j]
         .iter()
@@ -521,22 +546,54 @@ fn local_variance_slope(points: &[(f64, f64)], j: usize) -> f64 {
         .position(|p| p.0 >= tau * 2.0)
         .map_or(points.len() - 1, |k| j + k);
     if hi == lo || points[lo].1 <= 0.0 || points[hi].1 <= 0.0 {
-        return -1.0;
+        return None;
     }
-    2.0 * (points[hi].1 / points[lo].1).ln() / (points[hi].0 / points[lo].0).ln()
+    let mu = 2.0 * (points[hi].1 / points[lo].1).ln() / (points[hi].0 / points[lo].0).ln();
+    Some((mu, lo, hi))
 }
 
 /// Fill in the noise type, EDF and interval (confidence `ci`, e.g. [`chi2::ONE_SIGMA`]) of
-/// points whose tau, m, dev and n are set, for `phase_len` phase samples.
+/// points whose tau, m, dev and n are set (sorted by tau), for `phase_len` phase samples.
+///
+/// Where every point of the local slope has at least [`edf::MIN_SPANS`] tau-spans, alpha comes
+/// from the slope ([`NoiseId::Slope`]). Beyond (these points come last: the spans fall with tau),
+/// the noise cannot be identified; a point there takes, of the alphas from the variance's floor up
+/// to the last one identified (or 2 if none was), the one with the widest interval
+/// ([`edf::widest_alpha`], [`NoiseId::Widest`]). Before this rule a 3-hour ADXRS450 record
+/// reported white phase noise and EDF 188,669 (+-0.16%) at tau = 2621 s, with 4 tau-spans, because
+/// the last point (2 spans, EDF about 1) happened to fall low and steepened the slope.
 pub fn add_intervals(kind: Kind, points: &mut [AllanPoint], phase_len: usize, ci: f64) {
     let curve: Vec<(f64, f64)> = points.iter().map(|p| (p.tau, p.dev)).collect();
+    let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
+    let d = kind.order();
+    let overlapping = kind != Kind::Adev;
+    let modified = kind == Kind::Mdev;
+    let mut last_identified: Option<i32> = None;
     for (j, p) in points.iter_mut().enumerate() {
-        let mu = local_variance_slope(&curve, j);
-        p.alpha = edf::alpha_from_slope(mu, kind.order());
-        let overlapping = kind != Kind::Adev;
-        let modified = kind == Kind::Mdev;
-        let e = edf::edf_greenhall(p.alpha, kind.order(), p.m, phase_len, overlapping, modified);
-        p.edf = if e.is_finite() && e > 0.0 { e } else { 1.0 };
+        let slope = local_variance_slope(&curve, j)
+            .filter(|&(_, _, hi)| edf::tau_spans(phase_len, ms[hi]) >= edf::MIN_SPANS);
+        let e = match slope {
+            Some((mu, _, _)) => {
+                p.alpha = edf::alpha_from_slope(mu, d);
+                p.noise_id = NoiseId::Slope;
+                last_identified = Some(p.alpha);
+                edf::edf_greenhall(p.alpha, d, p.m, phase_len, overlapping, modified)
+            }
+            None => {
+                let (lo, hi) = (edf::alpha_floor(d), last_identified.unwrap_or(2));
+                let (alpha, e) =
+                    edf::widest_alpha(lo, hi, d, p.m, phase_len, overlapping, modified);
+                p.alpha = alpha;
+                p.noise_id = NoiseId::Widest { lo, hi };
+                e
+            }
+        };
+        let (min_edf, max_edf) = edf::edf_bounds(p.n);
+        p.edf = if e.is_finite() {
+            e.clamp(min_edf, max_edf)
+        } else {
+            min_edf
+        };
         let (lo, hi) = chi2::confidence_interval(p.dev, p.edf, ci);
         p.lo = lo;
         p.hi = hi;

@@ -18,7 +18,7 @@ pub mod edf;
 pub mod fit;
 pub mod units;
 
-pub use deviation::{allan, AllanError, AllanPoint, Kind, TauGrid};
+pub use deviation::{allan, AllanError, AllanPoint, Kind, NoiseId, TauGrid};
 pub use fit::{fit_terms, read_offs, Estimate, FitError, NoiseFit, TermFit};
 pub use units::RateUnit;
 pub use units::Term;

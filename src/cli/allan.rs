@@ -1,9 +1,9 @@
 //! `driftless allan`: Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
 
 use super::CliError;
-use crate::allan::deviation::{self, add_intervals, AllanPoint};
+use crate::allan::deviation::{self, add_intervals, AllanPoint, NoiseId};
 use crate::allan::{
-    chi2, fit_terms, read_offs, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit,
+    chi2, edf, fit_terms, read_offs, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit,
 };
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::{progress, read_table, write_table};
@@ -49,6 +49,8 @@ struct ColumnResult {
     points: Vec<AllanPoint>,
     fit: Result<NoiseFit, FitError>,
     read_offs: Vec<TermFit>,
+    /// The octave OADEV points the fit and the read-offs use (deg/s).
+    octave: Vec<AllanPoint>,
 }
 
 /// Terms a curve sums from which it shows a progress bar (about half a second here).
@@ -136,6 +138,7 @@ fn analyse(
         points,
         fit: fit_terms(&in_deg, ci),
         read_offs: read_offs(&in_deg),
+        octave: in_deg,
     })
 }
 
@@ -173,6 +176,65 @@ fn fit_terms_or_reason(fit: &Result<NoiseFit, FitError>) -> Vec<TermFit> {
             })
             .collect(),
     }
+}
+
+/// Which to trust and why, in one line (text output and JSON `trust.why`).
+const TRUST_FIT: &str = "trust the fitted terms, not the read-offs: the fit uses every octave tau weighted by its interval and separates the terms; a read-off takes one point or segment as it is, other terms' share and chance included";
+
+/// The same line when no fit was possible.
+const TRUST_NONE: &str = "no fit, so no term to trust: a read-off takes one point or segment as it is, other terms' share and chance included";
+
+/// Terms whose read-off lies outside the fitted term's interval.
+fn read_offs_outside_fit(fit: &Result<NoiseFit, FitError>, read_offs: &[TermFit]) -> Vec<Term> {
+    let Ok(fit) = fit else { return Vec::new() };
+    fit.terms
+        .iter()
+        .zip(read_offs)
+        .filter(|(f, r)| match (f.estimate, r.estimate) {
+            (Some(f), Some(r)) => r.value < f.lo || r.value > f.hi,
+            _ => false,
+        })
+        .map(|(f, _)| f.term)
+        .collect()
+}
+
+/// The caveat for a B read-off taken at a point whose noise type could not be identified: the
+/// lowest of scattered points sits low by chance, and there the scatter is largest.
+fn b_read_off_caveat(octave: &[AllanPoint], read_offs: &[TermFit]) -> Option<String> {
+    read_offs
+        .iter()
+        .find(|t| t.term == Term::B && t.estimate.is_some())?;
+    // The same point as fit::read_offs: the curve's minimum.
+    let p = octave.iter().min_by(|a, b| a.dev.total_cmp(&b.dev))?;
+    matches!(p.noise_id, NoiseId::Widest { .. }).then(|| {
+        format!(
+            "the B read-off is the curve's lowest point, at tau {} s with EDF {:.1} and too few tau-spans to identify the noise: the lowest of scattered points can sit low by chance",
+            p.tau, p.edf
+        )
+    })
+}
+
+/// Which to trust and why: the line printed (and JSON `trust.why`) and the terms whose read-off
+/// lies outside the fit's interval.
+fn trust(
+    fit: &Result<NoiseFit, FitError>,
+    read_offs: &[TermFit],
+    octave: &[AllanPoint],
+) -> (String, Vec<Term>) {
+    let mut line = String::from(if fit.is_ok() { TRUST_FIT } else { TRUST_NONE });
+    let outside = read_offs_outside_fit(fit, read_offs);
+    if !outside.is_empty() {
+        let names: Vec<&str> = outside.iter().map(|t| t.name()).collect();
+        line += &format!(
+            "; here the read-off of {} lies outside the fit's interval",
+            names.join(", ")
+        );
+    }
+    if let Some(c) = b_read_off_caveat(octave, read_offs) {
+        line += "; ";
+        line += &c;
+    }
+    (line, outside)
 }
 
 fn format_term(t: &TermFit) -> String {
@@ -235,6 +297,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 ("hi", |p| p.hi),
                 ("n", |p| p.n as f64),
                 ("edf", |p| p.edf),
+                ("alpha", |p| f64::from(p.alpha)),
+                // 1 where the slope identified alpha, 0 where it is the widest plausible one.
+                ("identified", |p| {
+                    f64::from(u8::from(matches!(p.noise_id, NoiseId::Slope)))
+                }),
             ] {
                 names.push(format!("{}_{suffix}", r.name));
                 cols.push(r.points.iter().map(f).collect());
@@ -253,13 +320,29 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 let points: Vec<Value> = r
                     .points
                     .iter()
-                    .map(|p| json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi, "edf": p.edf, "alpha": p.alpha}))
+                    .map(|p| {
+                        let (noise_id, plausible) = match p.noise_id {
+                            NoiseId::Slope => ("slope", Value::Null),
+                            NoiseId::Widest { lo, hi } => ("widest", json!([lo, hi])),
+                        };
+                        json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi,
+                               "edf": p.edf, "alpha": p.alpha, "noise_id": noise_id,
+                               "alpha_plausible": plausible})
+                    })
                     .collect();
                 let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit));
                 let (ro, _) = terms_json(&r.read_offs);
+                let (why, outside) = trust(&r.fit, &r.read_offs, &r.octave);
+                let outside: Vec<&str> = outside.iter().map(|t| t.name()).collect();
+                let trust = json!({
+                    "use": if r.fit.is_ok() { "terms" } else { "none" },
+                    "why": why,
+                    "read_offs_outside_fit_interval": outside,
+                });
                 json!({"name": r.name, "samples": r.samples, "rate": rate, "kind": kind.to_string(),
                        "unit": unit.to_string(), "ci": chi2::ONE_SIGMA, "points": points,
-                       "terms": terms, "not_identified": reasons, "read_offs": ro})
+                       "terms": terms, "not_identified": reasons, "read_offs": ro,
+                       "trust": trust})
             })
             .collect();
         println!("{}", json!({ "columns": columns }));
@@ -271,13 +354,27 @@ pub fn run(args: Args) -> Result<(), CliError> {
             r.name, r.samples, rate, chi2::ONE_SIGMA * 100.0
         );
         println!(
-            "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10}",
-            "tau (s)", "dev", "lo", "hi", "n", "edf"
+            "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10} {:>6}",
+            "tau (s)", "dev", "lo", "hi", "n", "edf", "alpha"
         );
+        let mut widest = None;
         for p in &r.points {
+            let alpha = match p.noise_id {
+                NoiseId::Slope => p.alpha.to_string(),
+                NoiseId::Widest { lo, hi } => {
+                    widest.get_or_insert((lo, hi));
+                    format!("{}*", p.alpha)
+                }
+            };
             println!(
-                "{:>12.6} {:>14.6e} {:>14.6e} {:>14.6e} {:>10} {:>10.1}",
-                p.tau, p.dev, p.lo, p.hi, p.n, p.edf
+                "{:>12.6} {:>14.6e} {:>14.6e} {:>14.6e} {:>10} {:>10.1} {:>6}",
+                p.tau, p.dev, p.lo, p.hi, p.n, p.edf, alpha
+            );
+        }
+        if let Some((lo, hi)) = widest {
+            println!(
+                "* noise type not identified (fewer than {} tau-spans at about 2 tau): of alpha {lo}..{hi} (the floor up to the last one identified), the one with the widest interval",
+                edf::MIN_SPANS
             );
         }
         let fitted = fit_terms_or_reason(&r.fit);
@@ -291,6 +388,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         for (t, ro) in fitted.iter().zip(&r.read_offs) {
             println!("  {}  {}  | {}", t.term, format_term(t), format_term(ro));
         }
+        println!(
+            "Which to trust: {}",
+            trust(&r.fit, &r.read_offs, &r.octave).0
+        );
         println!();
     }
     Ok(())
