@@ -155,7 +155,7 @@ fn bad_input_is_one_line_and_exit_2() {
         (
             vec!["--sim", "adis16405", "--pipeline", fast.to_str().unwrap()],
             format!(
-                "{}:3:1: rate_hz is 1000 Hz but the log is 100 Hz",
+                "{}:3:11: rate_hz is 1000 Hz but the log is 100 Hz",
                 fast.display()
             ),
         ),

@@ -265,9 +265,14 @@ fn rbf_chain(src: &Source, models: &[PathBuf]) -> Result<Chain, CliError> {
 fn file_chain(path: &Path, rate: f64) -> Result<Chain, CliError> {
     let p = config::load(path)?;
     if (p.rate_hz - rate).abs() > 1e-9 * rate {
-        // Point at the key: the pipeline keeps values, not spans.
+        // Point at the value: the pipeline keeps values, not spans, so read its span again (a
+        // text search could land on a comment).
+        #[derive(serde::Deserialize)]
+        struct Top {
+            rate_hz: toml::Spanned<f64>,
+        }
         let text = std::fs::read_to_string(path).unwrap_or_default();
-        let at = text.find("rate_hz").unwrap_or(0);
+        let at = toml::from_str::<Top>(&text).map_or(0, |t| t.rate_hz.span().start);
         return Err(Src { path, text: &text }
             .at(
                 at,
