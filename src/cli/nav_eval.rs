@@ -220,10 +220,11 @@ fn bias_chain(src: &Source) -> Result<Chain, CliError> {
         .iter()
         .map(|t| {
             let keys = format!(
-                "kind = \"predict.bias\"\narw = {:e}\nbias_instability = {:e}\nrrw = {:e}\nlsb = {:e}",
+                "kind = \"predict.bias\"\narw = {:e}\nbias_instability = {:e}\nrrw = {:e}\nquantization = {:e}\nlsb = {:e}",
                 t.n * 60.0,
                 t.b * 3600.0,
                 t.k * 216_000.0,
+                t.q,
                 t.lsb
             );
             builtin_pipeline(src.rate, &keys, "<built-in denoise.wavelet -> predict.bias>")
@@ -340,6 +341,8 @@ fn run_chain(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, CliError>
 /// One evaluated case: a window of one axis under one profile.
 struct Case {
     profile: Profile,
+    window: usize,
+    axis: usize,
     metrics: Vec<HeadingMetrics>,
 }
 
@@ -483,7 +486,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 if plot_traces.is_none() && args.plot.is_some() {
                     plot_traces = Some(traces(&measured[a], m, &chain_out, a, &setup)?);
                 }
-                cases.push(Case { profile, metrics });
+                cases.push(Case {
+                    profile,
+                    window: w,
+                    axis: a,
+                    metrics,
+                });
             }
         }
     }
@@ -558,11 +566,30 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     .map(|(r, l)| summary_json(r, l)).collect::<Vec<_>>()})
             })
             .collect();
+        // Every case too, so the worst window can be found and replayed.
+        let cases: Vec<Value> = cases
+            .iter()
+            .map(|c| {
+                let methods: Vec<Value> = c
+                    .metrics
+                    .iter()
+                    .zip(&labels)
+                    .map(|(m, l)| {
+                        json!({"method": l, "rms_heading_deg": m.rms_deg,
+                               "final_heading_deg": m.final_deg, "max_heading_deg": m.max_deg,
+                               "rms_rate_degps": m.rms_rate})
+                    })
+                    .collect();
+                json!({"profile": c.profile.to_string(), "window": c.window,
+                       "start_s": (src.first_window + c.window * window) as f64 / rate,
+                       "axis": src.axes[c.axis].0, "methods": methods})
+            })
+            .collect();
         println!(
             "{}",
             json!({"source": src.name, "rate_hz": rate, "window_s": window_s,
                    "windows_per_axis": windows, "axes": src.axes.len(), "terms": terms,
-                   "reference": "ZARU oracle", "sections": sections})
+                   "reference": "ZARU oracle", "sections": sections, "cases": cases})
         );
         return Ok(());
     }

@@ -30,11 +30,19 @@
 //! Its own [`StillnessDetector`] on the rate, thresholds from the same terms
 //! ([`stillness_from_terms`]). A detector sees motion onset only some samples after it began (the
 //! first samples of a slow ramp look still). So a sample enters the filter only once the detector
-//! has stayed still for `delay` samples after it: still samples wait in a fixed ring, and when the
-//! detector says moving, the ring is dropped unused. While the samples wait, the output is a
-//! *provisional* estimate (the filter's estimate combined with the mean of the waiting samples, a
-//! scalar update that is not kept), so a stop's measurement is used at once for the output but
-//! enters the filter only when it can no longer be the start of a movement.
+//! has stayed still for `delay` samples after it: still samples wait in a fixed ring. While they
+//! wait, the output is a *provisional* estimate (the filter's estimate combined with the mean of
+//! the waiting samples, a scalar update that is not kept), so a stop's measurement is used at once
+//! for the output but enters the filter only when it can no longer be the start of a movement.
+//!
+//! Both ends of a stop are recovered rather than thrown away:
+//! - **start**: the detector confirms a stop only after its window (1 s) and settling; the
+//!   window's samples, which its test has just judged still, join the stop (`backfill_s`).
+//! - **end**: when the detector says moving, the movement's onset is estimated among the waiting
+//!   samples (the most likely moving suffix under a likelihood ratio for a mean shift or a
+//!   variance rise against the still model); the samples older than the onset by more than
+//!   `onset_guard_s` enter the filter, the rest are dropped. A "stop" confirmed for less than
+//!   `min_stop_s` is dropped whole: more likely a lull within a movement than a stop.
 //!
 //! # Flags
 //! [`BiasMode::Still`]: the detector (or the gate) says still. [`BiasMode::Moving`]: it says
@@ -546,6 +554,17 @@ pub struct TrackerConfig {
     /// Delay window: a still sample enters the filter only after the detector stayed still this
     /// long after it, s.
     pub delay_s: f64,
+    /// When the detector turns still, this much of its window before the current sample (at
+    /// most the window) joins the stop, s: the window's test has just judged those samples
+    /// still, so a stop is measured from (nearly) its start, not from when it was confirmed.
+    pub backfill_s: f64,
+    /// When a movement is detected, the waiting samples older than its estimated onset by more
+    /// than this still enter the filter, s (at least the delay: all are dropped, as before
+    /// onset estimation).
+    pub onset_guard_s: f64,
+    /// A stop confirmed for less than this is dropped whole when a movement is detected, s
+    /// (no onset estimation: a short "stop" within a movement is likely a lull in it).
+    pub min_stop_s: f64,
     /// Variance exit threshold: standard deviations of the window variance above its still value.
     pub var_sigmas: f64,
     /// Mean-shift exit threshold: standard deviations of the window mean.
@@ -559,13 +578,18 @@ pub struct TrackerConfig {
 }
 
 impl Default for TrackerConfig {
-    /// Window 1 s, settle 0.25 s, delay 1 s, variance 4 sd, mean 4 sd, hysteresis 1.5,
-    /// estimate 3 sd, the default instability ([`Instability::from_terms`]).
+    /// Window 1 s, settle 0.25 s, delay 1 s, onset guard 0.5 s, shortest stop 0.5 s, backfill
+    /// 0.5 s, variance 4 sd, mean 4 sd, hysteresis 1.5, estimate 3 sd, the default instability
+    /// ([`Instability::from_terms`]). Measured on heading (docs/navigation.md): the backfill
+    /// and the onset estimate let a stop be used from its start to its end.
     fn default() -> Self {
         TrackerConfig {
             window_s: 1.0,
             settle_s: 0.25,
             delay_s: 1.0,
+            onset_guard_s: 0.5,
+            min_stop_s: 0.5,
+            backfill_s: 0.5,
             var_sigmas: 4.0,
             mean_sigmas: 4.0,
             hysteresis: 1.5,
@@ -588,7 +612,11 @@ fn samples(name: &'static str, s: f64, rate_hz: f64) -> Result<usize, BiasError>
 
 /// Stillness thresholds from noise terms: over a window of w samples a still sensor's variance
 /// is sigma^2 = [`BiasTerms::sample_variance`] with relative spread sqrt(2/w), and its mean is
-/// the bias with spread sqrt(N^2/T + (sigma^2 - N^2 rate)/w), T = w/rate. Exit thresholds sit
+/// the bias with spread sqrt(N^2/T + 2 Q^2/T^2 + rest/w), T = w/rate, where rest is sigma^2
+/// less its white and quantisation parts. Quantisation noise is a differenced white angle: its
+/// window mean telescopes to two samples' worth, so it must not widen the mean test as white
+/// noise of the same per-sample variance would (on a sensor with a large Q, such as the
+/// ADXRS450's, that hid 10 deg/s turns). Exit thresholds sit
 /// `var_sigmas` and `mean_sigmas` of those spreads above; the enter thresholds `hysteresis`
 /// times as far.
 pub fn stillness_from_terms(
@@ -619,7 +647,12 @@ pub fn stillness_from_terms(
     let var = terms.sample_variance(rate_hz);
     let spread = (2.0 / w).sqrt();
     let white = terms.n * terms.n * rate_hz;
-    let mean_sd = (terms.n * terms.n * rate_hz / w + (var - white).max(0.0) / w).sqrt();
+    let quant = 2.0 * terms.q * terms.q * rate_hz * rate_hz;
+    let t = w / rate_hz;
+    let mean_sd = (terms.n * terms.n / t
+        + 2.0 * terms.q * terms.q / (t * t)
+        + (var - white - quant).max(0.0) / w)
+        .sqrt();
     let c = StillnessConfig {
         window,
         var_exit: var * (1.0 + cfg.var_sigmas * spread),
@@ -657,6 +690,126 @@ pub struct BiasStep {
     pub informed: bool,
 }
 
+/// Log-likelihood ratio of "moving" (a mean shift and a variance rise of unknown sizes) against
+/// "still" for `n` standardised residuals of sum `sum` and sum of squares `sum2` (residual over
+/// the still model's standard deviation). A variance *below* the model's counts as still, as a
+/// band-limited real sensor's is.
+fn moving_llr(n: f64, sum: f64, sum2: f64) -> f64 {
+    let mean = sum / n;
+    let s2 = sum2 / n - mean * mean;
+    if s2 > 1.0 {
+        0.5 * (sum2 - n - n * s2.ln())
+    } else {
+        0.5 * sum * mean
+    }
+}
+
+/// Below this [`moving_llr`], a stop's confirming window holds no movement worth cutting off:
+/// the largest of ~100 prefix ratios of still noise stays below it but for about one in 10^3.
+const MOVING_EVIDENCE: f64 = 8.0;
+
+/// Still samples waiting until the sensor has stayed still for the window's length after them
+/// (see the module documentation): a fixed ring and its running sum.
+#[derive(Debug, Clone)]
+struct DelayWindow {
+    ring: Vec<f64>,
+    head: usize,
+    pending: usize,
+    sum: f64,
+}
+
+impl DelayWindow {
+    fn new(len: usize) -> Self {
+        DelayWindow {
+            ring: vec![0.0; len],
+            head: 0,
+            pending: 0,
+            sum: 0.0,
+        }
+    }
+
+    /// A still sample in; the oldest waiting one, if the window is full, into `filter`. A
+    /// non-finite sample is skipped.
+    fn push(&mut self, x: f64, filter: &mut BiasFilter) {
+        if !x.is_finite() {
+            return;
+        }
+        let d = self.ring.len();
+        if d == 0 {
+            filter.update(x);
+            return;
+        }
+        if self.pending == d {
+            let old = self.ring[self.head];
+            filter.update(old);
+            self.sum -= old;
+        } else {
+            self.pending += 1;
+        }
+        self.ring[self.head] = x;
+        self.head = if self.head + 1 == d { 0 } else { self.head + 1 };
+        self.sum += x;
+    }
+
+    /// A movement was detected at `moving` (not waiting): find where it began among the
+    /// waiting samples, put those older than its onset by more than `guard` samples into
+    /// `filter`, and drop the rest. The onset is the start of the most likely moving suffix
+    /// (`moving` included) under [`moving_llr`] against "still around `bias` with per-sample
+    /// variance `var`". O(waiting) once per movement, no allocation.
+    fn release_before_onset(
+        &mut self,
+        moving: f64,
+        bias: f64,
+        var: f64,
+        guard: usize,
+        filter: &mut BiasFilter,
+    ) {
+        let d = self.ring.len();
+        if self.pending > 0 && d > 0 && var > 0.0 && moving.is_finite() && bias.is_finite() {
+            let inv_sd = 1.0 / var.sqrt();
+            let newest = (self.head + d - 1) % d;
+            let (mut n, mut sum, mut sum2) = (0.0f64, 0.0f64, 0.0f64);
+            let (mut best, mut best_len) = (f64::NEG_INFINITY, 0usize);
+            for age in 0..=self.pending {
+                let x = if age == 0 {
+                    moving
+                } else {
+                    self.ring[(newest + d - (age - 1)) % d]
+                };
+                let z = (x - bias) * inv_sd;
+                n += 1.0;
+                sum += z;
+                sum2 += z * z;
+                let llr = moving_llr(n, sum, sum2);
+                if llr > best {
+                    best = llr;
+                    best_len = age + 1;
+                }
+            }
+            let keep = self
+                .pending
+                .saturating_sub((best_len + guard).saturating_sub(1));
+            let oldest = (self.head + d - self.pending) % d;
+            for i in 0..keep {
+                filter.update(self.ring[(oldest + i) % d]);
+            }
+        }
+        self.clear();
+    }
+
+    /// Drop every waiting sample.
+    fn clear(&mut self) {
+        self.head = 0;
+        self.pending = 0;
+        self.sum = 0.0;
+    }
+
+    /// The mean and count of the waiting samples.
+    fn mean(&self) -> Option<(f64, usize)> {
+        (self.pending > 0).then(|| (self.sum / self.pending as f64, self.pending))
+    }
+}
+
 /// The live bias estimator of one axis: a [`BiasFilter`], its own [`StillnessDetector`], and the
 /// delay window (see the module documentation).
 #[derive(Debug, Clone)]
@@ -664,10 +817,12 @@ pub struct BiasTracker {
     filter: BiasFilter,
     detector: StillnessDetector,
     estimate_sigmas: f64,
-    ring: Vec<f64>,
-    head: usize,
-    pending: usize,
-    pending_sum: f64,
+    backfill: usize,
+    guard: usize,
+    still_var: f64,
+    min_run: usize,
+    run: usize,
+    delay: DelayWindow,
     mode: BiasMode,
 }
 
@@ -692,14 +847,18 @@ impl BiasTracker {
     ) -> Result<Self, BiasError> {
         let still = stillness_from_terms(terms, rate_hz, cfg)?;
         let delay = samples("delay_s", cfg.delay_s, rate_hz)?;
+        let backfill = samples("backfill_s", cfg.backfill_s, rate_hz)?.min(still.window);
         Ok(BiasTracker {
             filter: BiasFilter::new(model),
             detector: StillnessDetector::new(still),
             estimate_sigmas: cfg.estimate_sigmas,
-            ring: vec![0.0; delay],
-            head: 0,
-            pending: 0,
-            pending_sum: 0.0,
+            backfill,
+            guard: samples("onset_guard_s", cfg.onset_guard_s, rate_hz)?,
+            still_var: terms.sample_variance(rate_hz),
+            min_run: samples("min_stop_s", cfg.min_stop_s, rate_hz)?,
+            run: 0,
+            // Backfilled samples wait their `delay` like the rest: room for both.
+            delay: DelayWindow::new(delay + backfill),
             mode: BiasMode::Warming,
         })
     }
@@ -725,7 +884,7 @@ impl BiasTracker {
 
     /// The delay window, samples.
     pub fn delay(&self) -> usize {
-        self.ring.len()
+        self.delay.ring.len() - self.backfill
     }
 
     /// Whether the last sample was judged still.
@@ -737,14 +896,9 @@ impl BiasTracker {
     pub fn reset(&mut self) {
         self.filter.reset();
         self.detector.reset();
-        self.drop_pending();
+        self.delay.clear();
+        self.run = 0;
         self.mode = BiasMode::Warming;
-    }
-
-    fn drop_pending(&mut self) {
-        self.head = 0;
-        self.pending = 0;
-        self.pending_sum = 0.0;
     }
 
     /// One rate sample (deg/s) with the tracker's own stillness detection.
@@ -757,9 +911,49 @@ impl BiasTracker {
         } else {
             (f64::NAN, 0.0)
         };
+        let was_still = self.detector.is_still();
         let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
+        if still && !was_still && self.backfill > 0 {
+            self.backfill_stop();
+        }
         let known = self.detector.is_ready();
         self.step(x, still, known)
+    }
+
+    /// The stop began before the detector confirmed it: the last `backfill` samples of its
+    /// window before this one join it (the filter's time update already ran for them), all but
+    /// those up to `guard` after the end of a movement still in the window. That end is the
+    /// end of the most likely moving prefix under [`moving_llr`] against the mean of the
+    /// window's newest half, if that prefix is evidence of movement at all
+    /// ([`MOVING_EVIDENCE`]). O(window) once per stop, no allocation.
+    fn backfill_stop(&mut self) {
+        let w = self.detector.config().window;
+        let half = (w / 2).max(1);
+        let bias = self.detector.window().skip(w - half).sum::<f64>() / half as f64;
+        let inv_sd = 1.0 / self.still_var.sqrt();
+        let (mut n, mut sum, mut sum2) = (0.0f64, 0.0f64, 0.0f64);
+        let mut best = MOVING_EVIDENCE;
+        let mut first = 0;
+        for (i, v) in self.detector.window().take(w - 1).enumerate() {
+            let z = (v - bias) * inv_sd;
+            n += 1.0;
+            sum += z;
+            sum2 += z * z;
+            let llr = moving_llr(n, sum, sum2);
+            if llr > best {
+                best = llr;
+                first = i + 1 + self.guard;
+            }
+        }
+        let first = first.max((w - 1).saturating_sub(self.backfill));
+        for v in self
+            .detector
+            .window()
+            .skip(first)
+            .take((w - 1).saturating_sub(first))
+        {
+            self.delay.push(v, &mut self.filter);
+        }
     }
 
     /// One rate sample with stillness decided outside (a known stop, another sensor): the same
@@ -773,29 +967,29 @@ impl BiasTracker {
         self.filter.predict();
         let still = still && x.is_finite();
         if still {
-            let d = self.ring.len();
-            if d == 0 {
-                self.filter.update(x);
-            } else {
-                if self.pending == d {
-                    let old = self.ring[self.head];
-                    self.filter.update(old);
-                    self.pending_sum -= old;
-                } else {
-                    self.pending += 1;
+            self.delay.push(x, &mut self.filter);
+            self.run += 1;
+        } else {
+            match self.delay.mean() {
+                // A stop confirmed for less than `min_run` is more likely a lull within a
+                // movement (a zero-mean oscillation whose window mean passed) than a stop.
+                Some((mean, count)) if self.run >= self.min_run => {
+                    let (bias, _) = self.filter.with_mean(mean, count);
+                    self.delay.release_before_onset(
+                        x,
+                        bias,
+                        self.still_var,
+                        self.guard,
+                        &mut self.filter,
+                    );
                 }
-                self.ring[self.head] = x;
-                self.head = if self.head + 1 == d { 0 } else { self.head + 1 };
-                self.pending_sum += x;
+                _ => self.delay.clear(),
             }
-        } else {
-            self.drop_pending();
+            self.run = 0;
         }
-        let (bias, var) = if self.pending > 0 {
-            self.filter
-                .with_mean(self.pending_sum / self.pending as f64, self.pending)
-        } else {
-            (self.filter.estimate(), self.filter.variance())
+        let (bias, var) = match self.delay.mean() {
+            Some((mean, count)) => self.filter.with_mean(mean, count),
+            None => (self.filter.estimate(), self.filter.variance()),
         };
         self.mode = if still {
             BiasMode::Still
@@ -808,7 +1002,7 @@ impl BiasTracker {
             bias,
             std: var.sqrt(),
             mode: self.mode,
-            informed: self.pending > 0 || self.filter.updates() > 0,
+            informed: self.delay.pending > 0 || self.filter.updates() > 0,
         }
     }
 }
@@ -976,6 +1170,7 @@ mod tests {
         let t = terms();
         let cfg = TrackerConfig {
             delay_s: 0.0,
+            backfill_s: 0.0,
             ..TrackerConfig::default()
         };
         let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
@@ -1011,5 +1206,137 @@ mod tests {
         assert!(tr.push_gated(f64::NAN, true).bias.is_finite());
         tr.reset();
         assert_eq!(tr.filter().updates(), 0);
+    }
+
+    /// White noise of `sd` around `bias`, deterministic.
+    fn noisy(bias: f64, sd: f64, n: usize, seed: u64) -> Vec<f64> {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..n)
+            .map(|_| {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                bias + sd * z
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_stop_is_measured_from_its_start() {
+        // Still from the first sample: when the detector confirms the stop, the window's samples
+        // before it wait with it (backfill), so the provisional estimate rests on all of them.
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let x = noisy(0.4, sd, 400, 1);
+        let cfg = TrackerConfig::default();
+        let mut with = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut without = BiasTracker::new(
+            &t,
+            100.0,
+            &TrackerConfig {
+                backfill_s: 0.0,
+                ..cfg
+            },
+        )
+        .unwrap();
+        let first = x
+            .iter()
+            .position(|&v| with.push(v).mode == BiasMode::Still)
+            .unwrap();
+        let first_without = x
+            .iter()
+            .position(|&v| without.push(v).mode == BiasMode::Still)
+            .unwrap();
+        assert_eq!(first, first_without, "the detector is the same");
+        assert_eq!(
+            with.delay.pending, 51,
+            "the window's last 0.5 s and this sample"
+        );
+        assert_eq!(without.delay.pending, 1);
+        // They wait their delay like any other: nothing in the filter yet.
+        assert_eq!(with.filter().updates(), 0);
+        assert_eq!(with.delay(), 100);
+    }
+
+    /// A stop of `still_s` then a 10 deg/s turn through a 0.5 s raised-cosine ramp.
+    fn stop_then_turn(still_s: f64, seed: u64) -> (Vec<f64>, usize) {
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let n_still = (still_s * 100.0) as usize;
+        let mut x = noisy(0.4, sd, n_still + 300, seed);
+        for (k, v) in x.iter_mut().enumerate().skip(n_still) {
+            let tt = (k - n_still) as f64 / 100.0;
+            let ramp = if tt < 0.5 {
+                0.5 * (1.0 - (std::f64::consts::PI * tt / 0.5).cos())
+            } else {
+                1.0
+            };
+            *v += 10.0 * ramp;
+        }
+        (x, n_still)
+    }
+
+    #[test]
+    fn a_stop_is_used_up_to_the_movements_onset() {
+        let t = terms();
+        let cfg = TrackerConfig::default();
+        let old = TrackerConfig {
+            onset_guard_s: 10.0,
+            ..cfg
+        };
+        for seed in 0..20 {
+            let (x, n_still) = stop_then_turn(10.0, seed);
+            let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+            let mut dropped = BiasTracker::new(&t, 100.0, &old).unwrap();
+            let mut last = None;
+            for &v in &x {
+                last = Some(tr.push(v));
+                dropped.push(v);
+            }
+            let last = last.unwrap();
+            assert_eq!(last.mode, BiasMode::Moving);
+            let used = tr.filter().updates() as usize;
+            // Everything but the confirmation not backfilled (75 samples), the guard (50) and a
+            // few samples of the ramp's unseen start; the old rules used about 775.
+            assert!(
+                used + 75 + 50 + 40 >= n_still && used <= n_still,
+                "seed {seed}: {used} of {n_still}"
+            );
+            assert!(dropped.filter().updates() as usize + 200 <= n_still);
+            // And nothing of the turn leaked: within 4 sd of the mean of 10 s.
+            let sd_mean = t.n / 10f64.sqrt();
+            assert!(
+                (last.bias - 0.4).abs() < 4.0 * sd_mean,
+                "seed {seed}: {}",
+                last.bias
+            );
+        }
+    }
+
+    #[test]
+    fn a_short_lull_is_not_a_stop() {
+        // Confirmed still for 0.3 s (< min_stop_s), then moving: nothing enters the filter.
+        let t = terms();
+        let cfg = TrackerConfig::default();
+        let (x, _) = stop_then_turn(1.25 + 0.01 + 0.3, 3);
+        let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut still = 0;
+        for &v in &x {
+            if tr.push(v).mode == BiasMode::Still {
+                still += 1;
+            }
+        }
+        assert!(still > 0 && still < 50, "{still}");
+        assert_eq!(tr.filter().updates(), 0);
+    }
+
+    #[test]
+    fn quantisation_noise_does_not_hide_a_turn() {
+        // The ADXRS450's Q at 100 Hz: about 13 deg/s per sample, but its 1 s window mean
+        // telescopes to 0.13 deg/s; the mean test must stay near that, not 13/sqrt(100).
+        let t = BiasTerms::profile("adxrs450").unwrap();
+        let c = stillness_from_terms(&t, 100.0, &TrackerConfig::default()).unwrap();
+        assert!(c.mean_enter < 1.0, "{c:?}");
+        assert!(c.mean_exit > 0.3, "{c:?}");
     }
 }

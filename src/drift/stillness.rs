@@ -6,7 +6,8 @@
 //! - **variance**: var > `var_enter` means motion (vibration, turns starting and stopping);
 //! - **mean shift**: |mean - reference| > `mean_enter` means motion, where the reference is the
 //!   compensator's current drift estimate. This catches a *constant-rate* turn, whose variance
-//!   is that of a still sensor. Before any reference exists only the variance test applies.
+//!   is that of a still sensor. Without a reference (NaN) the window mean at the start of the
+//!   current or last stop stands in; before any stop only the variance test applies.
 //!
 //! Hysteresis: once moving, the sensor is still again only after both statistics have stayed
 //! below the lower `*_exit` thresholds for `settle` consecutive samples. `settle` should be at least
@@ -113,6 +114,7 @@ pub struct StillnessDetector {
     sum2: f64,
     still: bool,
     quiet: usize,
+    anchor: f64,
 }
 
 impl StillnessDetector {
@@ -128,6 +130,7 @@ impl StillnessDetector {
             sum2: 0.0,
             still: false,
             quiet: 0,
+            anchor: f64::NAN,
         }
     }
 
@@ -158,6 +161,13 @@ impl StillnessDetector {
         self.filled == self.ring.len()
     }
 
+    /// The window's samples, oldest first (as many as it holds).
+    pub fn window(&self) -> impl Iterator<Item = f64> + '_ {
+        let w = self.ring.len();
+        let start = if self.filled == w { self.pos } else { 0 };
+        (0..self.filled).map(move |i| self.origin + self.ring[(start + i) % w])
+    }
+
     /// Back to the initial (moving, empty) state.
     pub fn reset(&mut self) {
         self.pos = 0;
@@ -166,6 +176,7 @@ impl StillnessDetector {
         self.sum2 = 0.0;
         self.still = false;
         self.quiet = 0;
+        self.anchor = f64::NAN;
     }
 
     /// Take one rate sample and the current drift estimate (NaN: none yet); returns whether the
@@ -208,6 +219,14 @@ impl StillnessDetector {
             return false;
         }
         let var = self.variance();
+        // With no reference from outside, a stop is its own: the window mean when it began.
+        // Without it, a constant-rate turn that starts inside a first stop would never end it
+        // where the variance test cannot see the turn (a noisy sensor).
+        let reference = if reference.is_finite() {
+            reference
+        } else {
+            self.anchor
+        };
         let shift = if reference.is_finite() {
             (self.mean() - reference).abs()
         } else {
@@ -222,6 +241,7 @@ impl StillnessDetector {
             self.quiet += 1;
             if self.quiet >= self.cfg.settle {
                 self.still = true;
+                self.anchor = self.mean();
             }
         } else {
             self.quiet = 0;
@@ -309,5 +329,26 @@ mod tests {
         c = cfg();
         c.mean_enter = f64::NAN;
         assert!(c.check().is_err());
+    }
+
+    #[test]
+    fn without_a_reference_a_stop_is_its_own() {
+        // No reference ever (NaN): a constant offset of 1 with a still variance (a steady turn
+        // on a sensor whose noise hides its start) ends the stop against the stop's own mean.
+        let mut d = StillnessDetector::new(cfg());
+        for i in 0..20 {
+            d.update(1.0 + (i % 2) as f64 * 0.1, f64::NAN);
+        }
+        assert!(d.is_still());
+        let mut moved = false;
+        for i in 0..10 {
+            moved |= !d.update(2.0 + (i % 2) as f64 * 0.1, f64::NAN);
+        }
+        assert!(moved);
+        d.reset();
+        for i in 0..20 {
+            d.update(5.0 + (i % 2) as f64 * 0.1, f64::NAN);
+        }
+        assert!(d.is_still(), "a reset forgets the old stop");
     }
 }

@@ -169,8 +169,10 @@ pub fn evaluate(
     let dt = 1.0 / rate;
     let min = ((setup.zaru_min_s.max(0.0) * rate).round() as usize).max(1);
     let tracker = || BiasTracker::new(&setup.terms, rate, &setup.tracker);
+    // The true stops need neither a delay nor a backfill.
     let oracle_cfg = TrackerConfig {
         delay_s: 0.0,
+        backfill_s: 0.0,
         ..setup.tracker
     };
     let mut out = Vec::with_capacity(methods.len());

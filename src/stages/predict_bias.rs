@@ -55,6 +55,12 @@ const RRW: Key = Key {
     default: "the profile's",
     doc: "rate random walk K, deg/h/sqrt(h)",
 };
+const QUANTIZATION: Key = Key {
+    name: "quantization",
+    ty: Type::Float(">= 0"),
+    default: "the profile's",
+    doc: "quantisation noise Q, deg (as `driftless allan` prints it)",
+};
 const LSB: Key = Key {
     name: "lsb",
     ty: Type::Float(">= 0"),
@@ -79,7 +85,16 @@ pub const KIND: Kind = Kind {
     name: "predict.bias",
     role: Role::Process,
     summary: "the bias as a Kalman state from the gyro's Allan terms, re-measured while still, held while moving; no training needed",
-    keys: &[PROFILE, ARW, BIAS_INSTABILITY, RRW, LSB, INITIAL_SD, DELAY_S],
+    keys: &[
+        PROFILE,
+        ARW,
+        BIAS_INSTABILITY,
+        RRW,
+        QUANTIZATION,
+        LSB,
+        INITIAL_SD,
+        DELAY_S,
+    ],
     parse,
 };
 
@@ -107,6 +122,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     };
     let b = non_negative(t, &BIAS_INSTABILITY)?;
     let k = non_negative(t, &RRW)?;
+    let q = non_negative(t, &QUANTIZATION)?;
     let lsb = non_negative(t, &LSB)?;
     let initial_sd = t.positive(&INITIAL_SD, "initial_sd")?;
     let delay_s = match t.get::<f64>(&DELAY_S)? {
@@ -125,6 +141,9 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     }
     if let Some(k) = k {
         terms.k = k / 3600.0 / 60.0;
+    }
+    if let Some(q) = q {
+        terms.q = q;
     }
     if let Some(l) = lsb {
         terms.lsb = l * to_deg;
@@ -155,10 +174,11 @@ impl Params for BiasParams {
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
         let t = &self.terms;
         vec![format!(
-            "terms: N {:.3} deg/sqrt(h), B {:.2} deg/h, K {:.3} deg/h/sqrt(h), lsb {} deg/s; delay {} s",
+            "terms: N {:.3} deg/sqrt(h), B {:.2} deg/h, K {:.3} deg/h/sqrt(h), Q {:.3e} deg, lsb {} deg/s; delay {} s",
             t.n * 60.0,
             t.b * 3600.0,
             t.k * 3600.0 * 60.0,
+            t.q,
             t.lsb,
             self.tracker.delay_s
         )]
