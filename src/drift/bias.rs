@@ -704,6 +704,31 @@ fn moving_llr(n: f64, sum: f64, sum2: f64) -> f64 {
     }
 }
 
+/// How many of `samples`, counted from the first, form the run most likely moving (the largest
+/// [`moving_llr`] of their residuals from `bias`, times `inv_sd`), if that ratio exceeds
+/// `floor`.
+fn likeliest_moving_run(
+    samples: impl Iterator<Item = f64>,
+    bias: f64,
+    inv_sd: f64,
+    floor: f64,
+) -> Option<usize> {
+    let (mut n, mut sum, mut sum2) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut best, mut len) = (floor, None);
+    for (i, x) in samples.enumerate() {
+        let z = (x - bias) * inv_sd;
+        n += 1.0;
+        sum += z;
+        sum2 += z * z;
+        let llr = moving_llr(n, sum, sum2);
+        if llr > best {
+            best = llr;
+            len = Some(i + 1);
+        }
+    }
+    len
+}
+
 /// Below this [`moving_llr`], a stop's confirming window holds no movement worth cutting off:
 /// the largest of ~100 prefix ratios of still noise stays below it but for about one in 10^3.
 const MOVING_EVIDENCE: f64 = 8.0;
@@ -768,24 +793,15 @@ impl DelayWindow {
         if self.pending > 0 && d > 0 && var > 0.0 && moving.is_finite() && bias.is_finite() {
             let inv_sd = 1.0 / var.sqrt();
             let newest = (self.head + d - 1) % d;
-            let (mut n, mut sum, mut sum2) = (0.0f64, 0.0f64, 0.0f64);
-            let (mut best, mut best_len) = (f64::NEG_INFINITY, 0usize);
-            for age in 0..=self.pending {
-                let x = if age == 0 {
-                    moving
-                } else {
-                    self.ring[(newest + d - (age - 1)) % d]
-                };
-                let z = (x - bias) * inv_sd;
-                n += 1.0;
-                sum += z;
-                sum2 += z * z;
-                let llr = moving_llr(n, sum, sum2);
-                if llr > best {
-                    best = llr;
-                    best_len = age + 1;
-                }
-            }
+            let ring = &self.ring;
+            let waiting = (1..=self.pending).map(|age| ring[(newest + d - (age - 1)) % d]);
+            let best_len = likeliest_moving_run(
+                std::iter::once(moving).chain(waiting),
+                bias,
+                inv_sd,
+                f64::NEG_INFINITY,
+            )
+            .unwrap_or(0);
             let keep = self
                 .pending
                 .saturating_sub((best_len + guard).saturating_sub(1));
@@ -931,20 +947,13 @@ impl BiasTracker {
         let half = (w / 2).max(1);
         let bias = self.detector.window().skip(w - half).sum::<f64>() / half as f64;
         let inv_sd = 1.0 / self.still_var.sqrt();
-        let (mut n, mut sum, mut sum2) = (0.0f64, 0.0f64, 0.0f64);
-        let mut best = MOVING_EVIDENCE;
-        let mut first = 0;
-        for (i, v) in self.detector.window().take(w - 1).enumerate() {
-            let z = (v - bias) * inv_sd;
-            n += 1.0;
-            sum += z;
-            sum2 += z * z;
-            let llr = moving_llr(n, sum, sum2);
-            if llr > best {
-                best = llr;
-                first = i + 1 + self.guard;
-            }
-        }
+        let first = likeliest_moving_run(
+            self.detector.window().take(w - 1),
+            bias,
+            inv_sd,
+            MOVING_EVIDENCE,
+        )
+        .map_or(0, |len| len + self.guard);
         let first = first.max((w - 1).saturating_sub(self.backfill));
         for v in self
             .detector
