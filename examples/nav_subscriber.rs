@@ -40,7 +40,7 @@ fn options() -> Result<Options, String> {
             "--service" => o.service = value()?,
             "--prefix" => o.prefix = value()?,
             "--duration" => {
-                o.duration = Some(driftless::cli::run::parse_duration(&value()?)?);
+                o.duration = Some(driftless::cli::duration::parse_duration(&value()?)?);
             }
             "--report" => o.report = Some(value()?),
             other => return Err(format!("unknown argument {other:?}")),

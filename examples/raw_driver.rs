@@ -47,7 +47,7 @@ fn run() -> Result<(), String> {
                 }
             }
             "--prefix" => prefix = value()?,
-            "--duration" => duration = Some(driftless::cli::run::parse_duration(&value()?)?),
+            "--duration" => duration = Some(driftless::cli::duration::parse_duration(&value()?)?),
             other => return Err(format!("unknown argument {other:?}")),
         }
     }

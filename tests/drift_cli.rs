@@ -303,7 +303,14 @@ fn bad_input_is_refused_with_exit_code_2() {
             &["--still-window", "1e9"],
             "more than the 12000 training samples",
         ),
-        (&["--horizon=-1"], "--horizon must be a positive"),
+        (
+            &["--horizon=-1"],
+            "for '--horizon <HORIZON>': \"-1\" is not a positive duration",
+        ),
+        (
+            &["--still-window", "0ms"],
+            "\"0ms\" is not a positive duration",
+        ),
         (&["--drift-level", "30"], "low-band level must be 1 to 12"),
         (&["--lag", "100000"], "lag"),
         (&["--units", "furlongs/s"], "--units 'furlongs/s'"),

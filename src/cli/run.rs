@@ -6,6 +6,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::cli::duration::parse_duration;
 use crate::cli::CliError;
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::runtime::{self, RunError, RunOptions};
@@ -16,8 +17,8 @@ use crate::transport;
 pub struct Args {
     /// Pipeline file (TOML).
     pub pipeline: PathBuf,
-    /// Stop by itself after this long: "10s", "500ms", "2m" or seconds.
-    #[arg(long, value_parser = parse_duration)]
+    /// Stop by itself after this long: "10s", "500ms", "1.5s", "90min", or seconds.
+    #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
     pub duration: Option<Duration>,
     /// Write the final report as JSON to this file.
     #[arg(long)]
@@ -28,32 +29,6 @@ pub struct Args {
     /// No periodic summary line on stderr (the final table is still printed).
     #[arg(long, short)]
     pub quiet: bool,
-}
-
-/// Parse "10s", "250ms", "100us", "2m", "1h" or a plain number of seconds.
-pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    let s = s.trim();
-    let (num, scale) = if let Some(v) = s.strip_suffix("ms") {
-        (v, 1e-3)
-    } else if let Some(v) = s.strip_suffix("us") {
-        (v, 1e-6)
-    } else if let Some(v) = s.strip_suffix('s') {
-        (v, 1.0)
-    } else if let Some(v) = s.strip_suffix('m') {
-        (v, 60.0)
-    } else if let Some(v) = s.strip_suffix('h') {
-        (v, 3600.0)
-    } else {
-        (s, 1.0)
-    };
-    let x: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("{s:?} is not a duration (e.g. 10s, 500ms, 2m)"))?;
-    if !(x.is_finite() && x > 0.0 && x * scale < 1e9) {
-        return Err(format!("{s:?} must be a positive duration"));
-    }
-    Ok(Duration::from_secs_f64(x * scale))
 }
 
 /// The iceoryx2 prefix in force: `--prefix`, else `DRIFTLESS_IOX2_PREFIX`, else the pipeline's.
@@ -115,19 +90,4 @@ pub fn run(args: Args) -> Result<(), CliError> {
         write_report(path, &report)?;
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn durations() {
-        assert_eq!(parse_duration("10s"), Ok(Duration::from_secs(10)));
-        assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
-        assert_eq!(parse_duration("2m"), Ok(Duration::from_secs(120)));
-        assert_eq!(parse_duration("1.5"), Ok(Duration::from_millis(1500)));
-        assert!(parse_duration("-1s").is_err());
-        assert!(parse_duration("soon").is_err());
-    }
 }

@@ -24,8 +24,12 @@ pub struct Args {
     /// Exit after this many samples.
     #[arg(long)]
     pub count: Option<u64>,
-    /// Exit after this long ("10s", "500ms").
-    #[arg(long, value_parser = crate::cli::run::parse_duration)]
+    /// Exit after this long ("10s", "500ms", "1.5s", "90min", or seconds).
+    #[arg(
+        long,
+        value_parser = crate::cli::duration::parse_duration,
+        allow_hyphen_values = true
+    )]
     pub duration: Option<Duration>,
 }
 
