@@ -2,10 +2,9 @@
 
 use super::duration::parse_duration;
 use super::CliError;
-use crate::io::atomic::AtomicFile;
+use crate::io::atomic::write_text_atomically;
 use crate::io::progress;
 use crate::sim::{Motion, NoiseTerms, SimConfig, Simulator};
-use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -65,7 +64,7 @@ pub struct Args {
     /// True motion: none, sines, steps, turn, stop-and-go.
     #[arg(long, default_value = "none")]
     pub motion: String,
-    /// Output CSV.
+    /// Output CSV (gzip-compressed if the name ends in .gz).
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
 }
@@ -147,16 +146,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
     let out = &args.output;
     let io_err = |e: std::io::Error| CliError::input(format!("{}: {e}", out.display()));
-    let file = AtomicFile::create(out).map_err(io_err)?;
-    {
-        let mut w = BufWriter::with_capacity(1 << 20, file.file());
+    // A name ending in .gz is written gzip-compressed, as `allan` and the others read it.
+    write_text_atomically(out, |w| {
         let truth = cfg.motion != Motion::None;
         let mut header = vec!["t_s".to_string()];
         header.extend((0..cfg.axes).map(|a| format!("gyro_{}_degps", AXIS[a])));
         if truth {
             header.extend((0..cfg.axes).map(|a| format!("truth_{}_degps", AXIS[a])));
         }
-        writeln!(w, "{}", header.join(",")).map_err(io_err)?;
+        writeln!(w, "{}", header.join(","))?;
         let bar = progress::bar(samples, 2_000_000, "simulating");
         let mut line = String::new();
         for k in 0..samples {
@@ -173,15 +171,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 }
             }
             line.push('\n');
-            w.write_all(line.as_bytes()).map_err(io_err)?;
+            w.write_all(line.as_bytes())?;
             if k % 65_536 == 0 {
                 bar.set_position(k);
             }
         }
         bar.finish_and_clear();
-        w.flush().map_err(io_err)?;
-    }
-    file.commit().map_err(io_err)?;
+        Ok(())
+    })
+    .map_err(io_err)?;
     eprintln!(
         "driftless: wrote {} samples x {} axes at {} Hz ({} s) to {}",
         samples,
