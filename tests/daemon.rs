@@ -474,6 +474,23 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .output()
         .expect("tap raw");
     assert!(String::from_utf8_lossy(&raw.stdout).contains("flags"));
+    // `--hz`: the rate is the output asked for, on stdout; nothing on stderr.
+    let hz = std::process::Command::new(common::bin())
+        .args(["tap", "c/corrected", "--prefix", &prefix.0, "--hz"])
+        .args(["--duration", "1.5s"])
+        .output()
+        .expect("tap --hz");
+    assert_eq!(hz.status.code(), Some(0));
+    let hz_out = String::from_utf8_lossy(&hz.stdout);
+    assert!(
+        hz_out.starts_with("c/corrected: ") && hz_out.contains(" Hz, "),
+        "{hz_out}"
+    );
+    assert!(
+        hz.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&hz.stderr)
+    );
     let stats = std::process::Command::new(common::bin())
         .arg("stats")
         .arg(&file)

@@ -323,6 +323,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             },
         ];
         write_panels(path, &panels).map_err(CliError::internal)?;
+        eprintln!("wrote {}", path.display());
     }
     if args.json {
         let text =
@@ -330,9 +331,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
         println!("{text}");
     } else {
         print_report(&report);
-        if let Some(p) = &args.plot {
-            println!("wrote {}", p.display());
-        }
     }
     Ok(())
 }

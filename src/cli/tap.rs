@@ -18,7 +18,7 @@ pub struct Args {
     /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
     #[arg(long)]
     pub prefix: Option<String>,
-    /// Only the rate line, once a second; no samples.
+    /// Only the rate line, once a second, on stdout; no samples.
     #[arg(long)]
     pub hz: bool,
     /// Exit after this many samples.
@@ -152,13 +152,21 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         }
         let dt = tick.elapsed();
         if dt >= Duration::from_secs(1) {
-            eprintln!(
+            let rate = format!(
                 "{}: {:.1} Hz, {} samples, {} missing (sequence gaps)",
                 args.service,
                 window as f64 / dt.as_secs_f64(),
                 total,
                 gaps
             );
+            // With --hz the rate is the data asked for (stdout); beside samples, a message.
+            if args.hz {
+                if writeln!(out, "{rate}").and_then(|()| out.flush()).is_err() {
+                    return Ok(());
+                }
+            } else {
+                eprintln!("{rate}");
+            }
             window = 0;
             tick = Instant::now();
         }

@@ -340,7 +340,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "NOT better (AR is at least as good on this data)"
         }
     );
-    println!("wrote {}", args.output.display());
+    eprintln!("wrote {}", args.output.display());
     Ok(())
 }
 
