@@ -306,7 +306,7 @@ fn plot(
             }
         })
         .collect();
-    crate::io::plot::write_panels(path, &panels).map_err(CliError::internal)
+    crate::io::plot::write_panels(path, &panels).map_err(CliError::input)
 }
 
 /// Run `driftless denoise`.

@@ -322,7 +322,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 series: allan_series,
             },
         ];
-        write_panels(path, &panels).map_err(CliError::internal)?;
+        write_panels(path, &panels).map_err(CliError::input)?;
         eprintln!("wrote {}", path.display());
     }
     if args.json {

@@ -1,4 +1,14 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
+//!
+//! Exit codes, the same for every command (README, "Command-line conventions"):
+//! - 0: done, including a daemon, `tap`, `stats` or `relay` stopped by SIGINT/SIGTERM,
+//!   `--duration` or `--count`; `--help` and `--version`.
+//! - 1: a run-time failure: the command line and the files are fine, but the command could not
+//!   do its work: no daemon or service to read (`tap`, `stats`), the pipeline already running
+//!   (`run`), iceoryx2 or the operating system failing during a run.
+//! - 2: bad usage or bad input: an unknown option or a bad value (clap's own code for usage
+//!   errors), an input file missing, unreadable or malformed, a pipeline file that does not
+//!   validate, a model that does not fit the data, an output path that cannot be written.
 
 use clap::{Parser, Subcommand};
 use std::io::Write as _;
@@ -54,10 +64,10 @@ enum Command {
     Simulate(simulate::Args),
 }
 
-/// A command's failure: the message for stderr and the process exit code.
+/// A command's failure: the message for stderr and the process exit code (module docs).
 #[derive(Debug)]
 pub struct CliError {
-    /// 2 for bad input or configuration, 1 for anything else.
+    /// 2 for bad usage, input or configuration; 1 for a run-time failure.
     pub code: u8,
     /// One line for the user.
     pub message: String,
@@ -72,7 +82,8 @@ impl CliError {
         }
     }
 
-    /// A failure that is not the input's fault (exit code 1).
+    /// A run-time failure, not the input's fault (exit code 1): nothing to read, the pipeline
+    /// already running, iceoryx2 or the operating system failing.
     pub fn internal(message: impl Into<String>) -> Self {
         CliError {
             code: 1,

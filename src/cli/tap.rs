@@ -95,7 +95,8 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     } else if let Ok(i) = node.open_input::<StatsSnapshot>(&args.service) {
         Tapped::Stats(i)
     } else {
-        return Err(CliError::input(format!(
+        // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.
+        return Err(CliError::internal(format!(
             "no service {:?} of a driftless type under prefix {prefix:?} (is the pipeline running?)",
             args.service
         )));

@@ -313,7 +313,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         },
     };
     model.check().map_err(CliError::internal)?;
-    write_model(&args.output, &model).map_err(CliError::internal)?;
+    write_model(&args.output, &model).map_err(CliError::input)?;
     println!(
         "{}: column {}, {} Hz; trained on samples {}..{} (drift {}..{} after warm-up and lag), \
          held out {}..{}",
