@@ -336,11 +336,42 @@ fn a_second_daemon_for_the_same_pipeline_is_refused() {
     let second = start(&file, &prefix, &[]);
     let (code, err) = finish(second, Duration::from_secs(10));
     assert_eq!(code, Some(1));
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
     assert!(err.contains("already running"), "stderr: {err}");
+    // Who holds it: the first daemon's pid, its user, since when.
+    assert!(
+        err.contains(&format!("held by pid {} (driftless, ", first.id())),
+        "stderr: {err}"
+    );
+    // SAFETY: getuid cannot fail.
+    let me = driftless::transport::user_name(unsafe { libc::getuid() }).expect("user name");
+    assert!(err.contains(&format!("user {me}, since ")), "stderr: {err}");
+    assert!(err.contains(" ago)"), "stderr: {err}");
+    // How to run a second one: the three ways to set another prefix.
+    let other = format!("{}{me}_", prefix.0);
+    for way in [
+        format!("--prefix {other}"),
+        format!("DRIFTLESS_IOX2_PREFIX={other}"),
+        format!(
+            "`prefix = \"{other}\"` under [iceoryx2] in {}",
+            file.display()
+        ),
+    ] {
+        assert!(err.contains(&way), "'{way}' not in: {err}");
+    }
     assert!(
         first.try_wait().unwrap().is_none(),
         "the first daemon still runs"
     );
+    // The advice works: a second daemon of the same pipeline under that prefix runs.
+    let other = Prefix(other);
+    other.clean();
+    let mut second = start(&file, &other, &[]);
+    wait_ready(&other, "c/stats", &mut second);
+    signal(&second, SIGTERM);
+    let (code, err) = finish(second, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert!(other.leftovers().is_empty(), "{:?}", other.leftovers());
     signal(&first, SIGTERM);
     let (code, err) = finish(first, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");

@@ -42,6 +42,22 @@ pub fn effective_prefix(cli: Option<&str>, pipeline_prefix: &str) -> Result<Stri
     Ok(prefix)
 }
 
+/// How to run a second daemon of a pipeline whose prefix `prefix` is taken: the three ways to
+/// set another (the tools that read it then take the same), with a free-to-use example name.
+fn another_prefix_hint(prefix: &str, pipeline: &Path) -> String {
+    // SAFETY: getuid cannot fail.
+    let me = transport::user_name(unsafe { libc::getuid() });
+    let example = me
+        .map(|u| format!("{prefix}{u}_"))
+        .filter(|p| p != prefix && transport::check_prefix(p).is_ok())
+        .unwrap_or_else(|| format!("{prefix}2_"));
+    format!(
+        "--prefix {example}, or DRIFTLESS_IOX2_PREFIX={example}, or `prefix = \"{example}\"` \
+         under [iceoryx2] in {} (tap, stats and subscribers then take the same prefix)",
+        pipeline.display()
+    )
+}
+
 fn write_report(path: &Path, report: &crate::metrics::Report) -> Result<(), CliError> {
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| CliError::internal(format!("report: {e}")))?;
@@ -81,7 +97,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         print_summary: !args.quiet,
     };
     let report = runtime::run(&pipeline, &opts).map_err(|e| match e {
-        RunError::AlreadyRunning { .. } => CliError::internal(e.to_string()),
+        RunError::AlreadyRunning { ref prefix, .. } => CliError::internal(format!(
+            "{e}; stop it first, or run a second one under another prefix: {}",
+            another_prefix_hint(prefix, &args.pipeline)
+        )),
         other => CliError::internal(other.to_string()),
     })?;
     // Best effort: the report file below must be written even if stderr is gone.
