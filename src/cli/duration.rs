@@ -62,7 +62,7 @@ fn reason(s: &str, e: &humantime::DurationError) -> String {
             None => "unexpected character".into(),
         },
         E::NumberExpected(_) => "a number is missing".into(),
-        E::NumberOverflow => "it is too long, or finer than a nanosecond".into(),
+        E::NumberOverflow => "it is too long, or has more decimals than nanoseconds hold".into(),
         E::Empty => "it is empty".into(),
     }
 }
@@ -112,6 +112,7 @@ mod tests {
             ("1e300", "too long"),
             ("40y", "too long"),
             ("1/2s", "unexpected character '/'"),
+            ("1.3333333333333333s", "more decimals"),
         ] {
             let e = parse_duration(bad).expect_err(bad);
             assert!(
