@@ -9,19 +9,53 @@
 //! driftless run pipelines/external-stage.toml
 //! ```
 //!
-//! Options: `--prefix P` (default driftless_ or DRIFTLESS_IOX2_PREFIX), `--input NAME`,
-//! `--output NAME` (defaults: the services of pipelines/external-stage.toml), `--scale S`
+//! Options (`--help`): `--prefix P` (default driftless_ or DRIFTLESS_IOX2_PREFIX), `--input
+//! NAME`, `--output NAME` (defaults: the services of pipelines/external-stage.toml), `--scale S`
 //! (default 2), `--offset O` (rad/s, default 0), `--count N` (exit after N samples; default:
 //! until Ctrl-C). The same loop is `driftless relay` (the library's `stages::external::relay`).
+//! Exit codes as `driftless`'s: 0 done, 1 a run-time failure, 2 bad usage.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use clap::Parser;
 use driftless::transport::{self, GyroSample, Transport};
 
+/// An `external` pipeline stage in its own process: scales and offsets `rate` and `denoised` of
+/// a GyroSample service and publishes (and notifies) another.
+#[derive(Debug, Parser)]
+#[command(name = "external_stage", version)]
+struct Options {
+    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX, else driftless_).
+    #[arg(long, value_parser = prefix)]
+    prefix: Option<String>,
+    /// Service to read (the external stage's `input`).
+    #[arg(long, default_value = "ext/denoised")]
+    input: String,
+    /// Service to publish (the external stage's `output`); notified after each sample.
+    #[arg(long, default_value = "ext/filtered")]
+    output: String,
+    /// Multiply `rate` and `denoised` by this.
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
+    scale: f64,
+    /// Then add this (rad/s).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    offset: f64,
+    /// Exit after this many samples (default: until Ctrl-C).
+    #[arg(long)]
+    count: Option<u64>,
+}
+
+/// A valid iceoryx2 prefix, or a usage error.
+fn prefix(s: &str) -> Result<String, String> {
+    transport::check_prefix(s).map(|()| s.to_string())
+}
+
 fn main() -> std::process::ExitCode {
-    match run() {
+    // Usage errors exit 2, --help 0 (clap).
+    let o = Options::parse();
+    match run(&o) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("external_stage: {e}");
@@ -30,33 +64,18 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn run() -> Result<(), String> {
-    let mut prefix =
-        std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| transport::DEFAULT_PREFIX.into());
-    let mut input = "ext/denoised".to_string();
-    let mut output = "ext/filtered".to_string();
-    let mut scale = 2.0f64;
-    let mut offset = 0.0f64;
-    let mut count: Option<u64> = None;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let mut value = || args.next().ok_or(format!("{a} needs a value"));
-        match a.as_str() {
-            "--prefix" => prefix = value()?,
-            "--input" => input = value()?,
-            "--output" => output = value()?,
-            "--scale" => scale = value()?.parse().map_err(|_| "--scale needs a number")?,
-            "--offset" => offset = value()?.parse().map_err(|_| "--offset needs a number")?,
-            "--count" => count = Some(value()?.parse().map_err(|_| "--count needs a count")?),
-            other => return Err(format!("unknown argument {other:?}")),
-        }
-    }
+fn run(o: &Options) -> Result<(), String> {
+    let prefix = o.prefix.clone().unwrap_or_else(|| {
+        std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| transport::DEFAULT_PREFIX.into())
+    });
     transport::quiet_logging();
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop)).map_err(|e| e.to_string())?;
     }
-    let result = relay(&prefix, &input, &output, scale, offset, count, &stop);
+    let result = relay(
+        &prefix, &o.input, &o.output, o.scale, o.offset, o.count, &stop,
+    );
     // The last process of a prefix removes its management file.
     transport::remove_prefix_leftovers(&prefix);
     result

@@ -7,59 +7,54 @@
 //! cargo run --release --example nav_subscriber -- --service demo/corrected --duration 10s
 //! ```
 //!
-//! Options: `--service NAME` (default demo/corrected), `--prefix P` (default driftless_ or
-//! DRIFTLESS_IOX2_PREFIX), `--duration D` (default: until Ctrl-C), `--report FILE` (JSON).
-//! It sleeps on the event service the publish stage notifies, so it costs one wake-up per sample.
+//! Options (`--help`): `--service NAME` (default demo/corrected), `--prefix P` (default
+//! driftless_ or DRIFTLESS_IOX2_PREFIX), `--duration D` (default: until Ctrl-C), `--report FILE`
+//! (JSON). It sleeps on the event service the publish stage notifies, so it costs one wake-up
+//! per sample. Exit codes as `driftless`'s: 0 done, 1 no service to read (after 10 s) or a
+//! run-time failure, 2 bad usage.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use clap::Parser;
+use driftless::cli::duration::parse_duration;
 use driftless::transport::{self, monotonic_ns, GyroSample, Transport, FLAG_FLUSHED};
 use hdrhistogram::Histogram;
 
+/// A navigation consumer in its own process: integrates heading from a pipeline's corrected
+/// rates and keeps its own latency histogram (ingest to receipt).
+#[derive(Debug, Parser)]
+#[command(name = "nav_subscriber", version)]
 struct Options {
+    /// Service of corrected rates to subscribe to.
+    #[arg(long, default_value = "demo/corrected")]
     service: String,
-    prefix: String,
+    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX, else driftless_).
+    #[arg(long, value_parser = prefix)]
+    prefix: Option<String>,
+    /// Stop after this long ("10s", "90min", or seconds; default: until Ctrl-C).
+    #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
     duration: Option<Duration>,
+    /// Write the summary as JSON to this file.
+    #[arg(long, value_name = "FILE")]
     report: Option<String>,
 }
 
-fn options() -> Result<Options, String> {
-    let mut o = Options {
-        service: "demo/corrected".into(),
-        prefix: std::env::var(transport::PREFIX_ENV)
-            .unwrap_or_else(|_| transport::DEFAULT_PREFIX.into()),
-        duration: None,
-        report: None,
-    };
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let mut value = || args.next().ok_or(format!("{a} needs a value"));
-        match a.as_str() {
-            "--service" => o.service = value()?,
-            "--prefix" => o.prefix = value()?,
-            "--duration" => {
-                o.duration = Some(driftless::cli::run::parse_duration(&value()?)?);
-            }
-            "--report" => o.report = Some(value()?),
-            other => return Err(format!("unknown argument {other:?}")),
-        }
-    }
-    Ok(o)
+/// A valid iceoryx2 prefix, or a usage error.
+fn prefix(s: &str) -> Result<String, String> {
+    transport::check_prefix(s).map(|()| s.to_string())
 }
 
 fn main() -> std::process::ExitCode {
-    let o = match options() {
-        Ok(o) => o,
-        Err(e) => {
-            eprintln!("nav_subscriber: {e}");
-            return std::process::ExitCode::from(2);
-        }
-    };
-    let result = run(&o);
+    // Usage errors exit 2, --help 0 (clap).
+    let o = Options::parse();
+    let prefix = o.prefix.clone().unwrap_or_else(|| {
+        std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| transport::DEFAULT_PREFIX.into())
+    });
+    let result = run(&o, &prefix);
     // The last process of a prefix removes its management file.
-    transport::remove_prefix_leftovers(&o.prefix);
+    transport::remove_prefix_leftovers(&prefix);
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
@@ -69,14 +64,14 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn run(o: &Options) -> Result<(), String> {
+fn run(o: &Options, prefix: &str) -> Result<(), String> {
     transport::quiet_logging();
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop)).map_err(|e| e.to_string())?;
     }
     let node = Transport::new(
-        &o.prefix,
+        prefix,
         &format!("nav-subscriber-{}", std::process::id()),
         Default::default(),
     )

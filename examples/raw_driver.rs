@@ -7,18 +7,57 @@
 //! driftless run pipelines/external-sensor.toml
 //! ```
 //!
-//! Options: `--service NAME` (default sensor/raw), `--rate HZ` (default 1000), `--prefix P`
-//! (default driftless_ or DRIFTLESS_IOX2_PREFIX), `--duration D` (default: until Ctrl-C).
+//! Options (`--help`): `--service NAME` (default sensor/raw), `--rate HZ` (default 1000),
+//! `--prefix P` (default driftless_ or DRIFTLESS_IOX2_PREFIX), `--duration D` (default: until
+//! Ctrl-C). Exit codes as `driftless`'s: 0 done, 1 a run-time failure, 2 bad usage.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use clap::Parser;
+use driftless::cli::duration::parse_duration;
 use driftless::sim::{Motion, SimConfig, Simulator};
 use driftless::transport::{self, RawSample, Transport};
 
+/// A stand-in sensor driver: publishes simulated raw gyro samples (deg/s) at a fixed rate and
+/// notifies after each one, for `ingest.iceoryx2` (pipelines/external-sensor.toml).
+#[derive(Debug, Parser)]
+#[command(name = "raw_driver", version)]
+struct Options {
+    /// Service to publish `driftless::RawSample`s on.
+    #[arg(long, default_value = "sensor/raw")]
+    service: String,
+    /// Sample rate, Hz, in (0, 100000].
+    #[arg(long, default_value = "1000", value_parser = rate, allow_hyphen_values = true)]
+    rate: f64,
+    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX, else driftless_).
+    #[arg(long, value_parser = prefix)]
+    prefix: Option<String>,
+    /// Stop after this long ("10s", "90min", or seconds; default: until Ctrl-C).
+    #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
+    duration: Option<Duration>,
+}
+
+/// A sample rate in (0, 100000] Hz, or a usage error.
+fn rate(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(r) if r > 0.0 && r <= 100_000.0 => Ok(r),
+        _ => Err(format!(
+            "{s:?}: the rate must be a number of Hz in (0, 100000]"
+        )),
+    }
+}
+
+/// A valid iceoryx2 prefix, or a usage error.
+fn prefix(s: &str) -> Result<String, String> {
+    transport::check_prefix(s).map(|()| s.to_string())
+}
+
 fn main() -> std::process::ExitCode {
-    match run() {
+    // Usage errors exit 2, --help 0 (clap).
+    let o = Options::parse();
+    match run(&o) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("raw_driver: {e}");
@@ -27,36 +66,16 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn run() -> Result<(), String> {
-    let mut service = "sensor/raw".to_string();
-    let mut rate = 1000.0f64;
-    let mut prefix =
-        std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| transport::DEFAULT_PREFIX.into());
-    let mut duration = None;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let mut value = || args.next().ok_or(format!("{a} needs a value"));
-        match a.as_str() {
-            "--service" => service = value()?,
-            "--rate" => {
-                rate = value()?
-                    .parse()
-                    .map_err(|_| "--rate needs a number".to_string())?;
-                if !(rate > 0.0 && rate <= 100_000.0) {
-                    return Err("--rate must be in (0, 100000]".into());
-                }
-            }
-            "--prefix" => prefix = value()?,
-            "--duration" => duration = Some(driftless::cli::run::parse_duration(&value()?)?),
-            other => return Err(format!("unknown argument {other:?}")),
-        }
-    }
+fn run(o: &Options) -> Result<(), String> {
+    let prefix = o.prefix.clone().unwrap_or_else(|| {
+        std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| transport::DEFAULT_PREFIX.into())
+    });
     transport::quiet_logging();
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop)).map_err(|e| e.to_string())?;
     }
-    let result = publish(&prefix, &service, rate, duration, &stop);
+    let result = publish(&prefix, &o.service, o.rate, o.duration, &stop);
     // The last process of a prefix removes its management file.
     transport::remove_prefix_leftovers(&prefix);
     result

@@ -351,20 +351,42 @@ impl Transport {
 
     /// Number of live nodes named `node_name` under `prefix`, other than the caller's.
     pub fn live_nodes_named(prefix: &str, node_name: &str) -> Result<usize, TransportError> {
+        Ok(Self::holders_of(prefix, node_name)?.len())
+    }
+
+    /// The live nodes named `node_name` under `prefix` (other than the caller's), described as
+    /// far as iceoryx2's node list and `/proc` tell: who holds a pipeline.
+    pub fn holders_of(prefix: &str, node_name: &str) -> Result<Vec<NodeHolder>, TransportError> {
         let cfg = config(prefix)?;
-        let mut count = 0;
+        let mut holders = Vec::new();
         Node::<Svc>::list(&cfg, |state| {
             if let NodeState::Alive(view) = &state {
                 if let Some(details) = view.details() {
                     if details.name().as_str() == node_name {
-                        count += 1;
+                        let pid = details.process_id().value();
+                        let age = view
+                            .id()
+                            .creation_time::<Svc>()
+                            .ok()
+                            .and_then(|t| t.elapsed().ok());
+                        holders.push(NodeHolder {
+                            pid,
+                            executable: Some(details.executable().to_string())
+                                .filter(|e| !e.is_empty() && e != "undefined"),
+                            user: process_owner(pid),
+                            since: age.and_then(|a| {
+                                std::time::SystemTime::now()
+                                    .checked_sub(a)
+                                    .map(|since| (since, a))
+                            }),
+                        });
                     }
                 }
             }
             CallbackProgression::Continue
         })
         .map_err(|e| setup("node list", prefix, e))?;
-        Ok(count)
+        Ok(holders)
     }
 
     /// Number of nodes (alive or dead) under `prefix`.
@@ -557,6 +579,63 @@ impl Transport {
     }
 }
 
+/// A live iceoryx2 node as the node list describes it: which process, whose, since when.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NodeHolder {
+    /// Process id of the node's owner.
+    pub pid: i32,
+    /// File name of its executable, when iceoryx2 recorded one.
+    pub executable: Option<String>,
+    /// The process owner's user name (or `uid N` without one), while the process is visible.
+    pub user: Option<String>,
+    /// When the node was created (wall clock) and how long ago.
+    pub since: Option<(std::time::SystemTime, Duration)>,
+}
+
+impl std::fmt::Display for NodeHolder {
+    /// `pid 4242 (driftless, user alice, since 2025-06-01T10:00:00Z, 5m 3s ago)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "pid {}", self.pid)?;
+        let mut parts: Vec<String> = Vec::new();
+        parts.extend(self.executable.clone());
+        parts.extend(self.user.as_ref().map(|u| format!("user {u}")));
+        if let Some((since, age)) = self.since {
+            parts.push(format!(
+                "since {}, {} ago",
+                humantime::format_rfc3339_seconds(since),
+                humantime::format_duration(Duration::from_secs(age.as_secs()))
+            ));
+        }
+        if !parts.is_empty() {
+            write!(f, " ({})", parts.join(", "))?;
+        }
+        Ok(())
+    }
+}
+
+/// The user owning process `pid` (the owner of `/proc/PID`), by name where it has one.
+fn process_owner(pid: i32) -> Option<String> {
+    use std::os::unix::fs::MetadataExt as _;
+    let uid = std::fs::metadata(format!("/proc/{pid}")).ok()?.uid();
+    Some(user_name(uid).unwrap_or_else(|| format!("uid {uid}")))
+}
+
+/// The name of user `uid` from the password database.
+pub fn user_name(uid: u32) -> Option<String> {
+    // SAFETY: a zeroed passwd is a valid out-parameter for getpwuid_r.
+    let mut pwd: libc::passwd = unsafe { std::mem::zeroed() };
+    let mut buf: Vec<libc::c_char> = vec![0; 16 * 1024];
+    let mut found: *mut libc::passwd = std::ptr::null_mut();
+    // SAFETY: every pointer is valid for the call; the strings it sets point into `buf`.
+    let rc = unsafe { libc::getpwuid_r(uid, &mut pwd, buf.as_mut_ptr(), buf.len(), &mut found) };
+    if rc != 0 || found.is_null() || pwd.pw_name.is_null() {
+        return None;
+    }
+    // SAFETY: pw_name is a NUL-terminated string inside `buf`, alive here.
+    let name = unsafe { std::ffi::CStr::from_ptr(pwd.pw_name) };
+    Some(name.to_string_lossy().into_owned())
+}
+
 /// Remove the files iceoryx2 leaves for `prefix` once no node of it is left (the per-prefix
 /// management file in `/dev/shm`). Does nothing while a node of the prefix is alive.
 pub fn remove_prefix_leftovers(prefix: &str) {
@@ -721,5 +800,32 @@ mod tests {
             assert_eq!(GyroSample::type_name(), GYRO_TYPE_NAME);
             assert_eq!(StatsSnapshot::type_name(), STATS_TYPE_NAME);
         }
+    }
+
+    #[test]
+    fn a_holder_reads_as_pid_executable_user_and_age() {
+        let since = std::time::UNIX_EPOCH + Duration::from_secs(1_750_000_000);
+        let h = NodeHolder {
+            pid: 4242,
+            executable: Some("driftless".into()),
+            user: Some("alice".into()),
+            since: Some((since, Duration::from_millis(303_900))),
+        };
+        assert_eq!(
+            h.to_string(),
+            "pid 4242 (driftless, user alice, since 2025-06-15T15:06:40Z, 5m 3s ago)"
+        );
+        let bare = NodeHolder {
+            pid: 7,
+            executable: None,
+            user: None,
+            since: None,
+        };
+        assert_eq!(bare.to_string(), "pid 7");
+    }
+
+    #[test]
+    fn user_names_come_from_the_password_database() {
+        assert_eq!(user_name(0).as_deref(), Some("root"));
     }
 }

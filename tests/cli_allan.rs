@@ -336,6 +336,40 @@ fn bad_input_is_one_line_exit_2_and_leaves_no_output() {
 }
 
 #[test]
+fn simulate_writes_gzip_for_a_gz_name_and_allan_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = simulate(dir.path(), &[]);
+    let gz = dir.path().join("sim.csv.gz");
+    let gz_s = gz.to_str().unwrap();
+    let o = driftless(&[
+        "simulate",
+        "--N",
+        "1.5",
+        "--B",
+        "20",
+        "--rate",
+        "100",
+        "--duration",
+        "300s",
+        "--seed",
+        "7",
+        "-o",
+        gz_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = std::fs::read(&gz).unwrap();
+    assert_eq!(&bytes[..2], &[0x1f, 0x8b], "gzip magic");
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut text)
+        .unwrap();
+    assert_eq!(text, std::fs::read_to_string(&plain).unwrap(), "same log");
+    let from_gz = driftless(&["allan", gz_s, "--rate", "100", "--json"]);
+    assert!(from_gz.status.success(), "{}", stderr(&from_gz));
+    let from_plain = driftless(&["allan", &plain, "--rate", "100", "--json"]);
+    assert_eq!(from_gz.stdout, from_plain.stdout);
+}
+
+#[test]
 fn rad_per_s_input_gives_the_same_terms_in_degree_units() {
     let dir = tempfile::tempdir().unwrap();
     let path = simulate(dir.path(), &[]);

@@ -67,6 +67,69 @@ fn output_round_trips_and_equals_the_library() {
 }
 
 #[test]
+fn output_keeps_the_time_column_and_header_and_a_gz_name_is_gzip() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noisy_csv(dir.path(), 1000);
+    let input_text = std::fs::read_to_string(&input).unwrap();
+    let time_in: Vec<&str> = input_text
+        .lines()
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    for (name, column) in [
+        ("out.csv", None),
+        ("out.csv.gz", None),
+        ("y.csv", Some("gyro_y")),
+    ] {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "denoise",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        if let Some(c) = column {
+            args.extend(["--column", c]);
+        }
+        let o = driftless(&args);
+        assert!(o.status.success(), "{name}: {:?}", text(&o));
+        let bytes = std::fs::read(&out).unwrap();
+        let written = if name.ends_with(".gz") {
+            assert_eq!(&bytes[..2], &[0x1f, 0x8b], "{name}: gzip");
+            let mut s = String::new();
+            std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut s)
+                .unwrap();
+            s
+        } else {
+            String::from_utf8(bytes).unwrap()
+        };
+        let header = written.lines().next().unwrap();
+        let want = if column.is_some() {
+            "time,gyro_y"
+        } else {
+            "time,gyro_x,gyro_y"
+        };
+        assert_eq!(header, want, "{name}");
+        let time_out: Vec<&str> = written
+            .lines()
+            .map(|l| l.split(',').next().unwrap())
+            .collect();
+        assert_eq!(time_out, time_in, "{name}: the time column unchanged");
+        // And it reads back as the denoised signals.
+        let back = read_table(&out, &[]).unwrap();
+        let want = denoise(
+            read_table(&input, &["gyro_y".into()])
+                .unwrap()
+                .column("gyro_y")
+                .unwrap(),
+            &DenoiseConfig::paper(),
+        )
+        .unwrap()
+        .signal;
+        assert_eq!(back.column("gyro_y").unwrap(), &want[..], "{name}");
+    }
+}
+
+#[test]
 fn selected_columns_and_summary() {
     let dir = tempfile::tempdir().unwrap();
     let input = noisy_csv(dir.path(), 1000);

@@ -336,11 +336,42 @@ fn a_second_daemon_for_the_same_pipeline_is_refused() {
     let second = start(&file, &prefix, &[]);
     let (code, err) = finish(second, Duration::from_secs(10));
     assert_eq!(code, Some(1));
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
     assert!(err.contains("already running"), "stderr: {err}");
+    // Who holds it: the first daemon's pid, its user, since when.
+    assert!(
+        err.contains(&format!("held by pid {} (driftless, ", first.id())),
+        "stderr: {err}"
+    );
+    // SAFETY: getuid cannot fail.
+    let me = driftless::transport::user_name(unsafe { libc::getuid() }).expect("user name");
+    assert!(err.contains(&format!("user {me}, since ")), "stderr: {err}");
+    assert!(err.contains(" ago)"), "stderr: {err}");
+    // How to run a second one: the three ways to set another prefix.
+    let other = format!("{}{me}_", prefix.0);
+    for way in [
+        format!("--prefix {other}"),
+        format!("DRIFTLESS_IOX2_PREFIX={other}"),
+        format!(
+            "`prefix = \"{other}\"` under [iceoryx2] in {}",
+            file.display()
+        ),
+    ] {
+        assert!(err.contains(&way), "'{way}' not in: {err}");
+    }
     assert!(
         first.try_wait().unwrap().is_none(),
         "the first daemon still runs"
     );
+    // The advice works: a second daemon of the same pipeline under that prefix runs.
+    let other = Prefix(other);
+    other.clean();
+    let mut second = start(&file, &other, &[]);
+    wait_ready(&other, "c/stats", &mut second);
+    signal(&second, SIGTERM);
+    let (code, err) = finish(second, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert!(other.leftovers().is_empty(), "{:?}", other.leftovers());
     signal(&first, SIGTERM);
     let (code, err) = finish(first, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");
@@ -474,6 +505,23 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .output()
         .expect("tap raw");
     assert!(String::from_utf8_lossy(&raw.stdout).contains("flags"));
+    // `--hz`: the rate is the output asked for, on stdout; nothing on stderr.
+    let hz = std::process::Command::new(common::bin())
+        .args(["tap", "c/corrected", "--prefix", &prefix.0, "--hz"])
+        .args(["--duration", "1.5s"])
+        .output()
+        .expect("tap --hz");
+    assert_eq!(hz.status.code(), Some(0));
+    let hz_out = String::from_utf8_lossy(&hz.stdout);
+    assert!(
+        hz_out.starts_with("c/corrected: ") && hz_out.contains(" Hz, "),
+        "{hz_out}"
+    );
+    assert!(
+        hz.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&hz.stderr)
+    );
     let stats = std::process::Command::new(common::bin())
         .arg("stats")
         .arg(&file)
@@ -495,7 +543,8 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .args(["tap", "c/nothing", "--prefix", &prefix.0, "--count", "1"])
         .output()
         .expect("tap");
-    assert_eq!(missing.status.code(), Some(2));
+    // Nothing to read: a run-time failure, exit 1, as `stats` without a daemon.
+    assert_eq!(missing.status.code(), Some(1));
     signal(&child, SIGINT);
     let (code, err) = finish(child, Duration::from_secs(10));
     assert_eq!(code, Some(0), "stderr: {err}");

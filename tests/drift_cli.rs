@@ -112,6 +112,9 @@ fn the_rbf_is_reported_beside_persistence_and_ar_honestly() {
         let cols: Vec<&str> = line[18..].split_whitespace().collect();
         cols[0].parse().unwrap()
     };
+    // Data on stdout, messages on stderr.
+    assert!(!out.contains("wrote"), "{out}");
+    assert!(err.contains(&format!("wrote {}", model.display())), "{err}");
     let (p, ar, rbf) = (rmse("persistence"), rmse("AR(4)"), rmse("RBF(40 centres)"));
     let verdict = out.lines().find(|l| l.starts_with("model skill")).unwrap();
     // The verdict line says what the numbers say, whichever way they go.
@@ -137,15 +140,23 @@ fn the_rbf_is_reported_beside_persistence_and_ar_honestly() {
     assert_eq!(names, ["persistence", "mean", "AR(4)", "RBF(40 centres)"]);
 
     // eval prints Table 3 with the three compensations and the paper's ratios; JSON parses.
+    let table_svg = dir.path().join("t.svg");
     let o = bin()
         .arg("eval")
         .arg(&log)
         .arg("--model")
         .arg(&model)
+        .arg("--plot")
+        .arg(&table_svg)
         .output()
         .unwrap();
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
+    assert!(!out.contains("wrote"), "{out}");
+    assert!(
+        err.contains(&format!("wrote {}", table_svg.display())),
+        "{err}"
+    );
     for want in [
         "Table 3",
         "compensated (RBF)",
@@ -303,7 +314,14 @@ fn bad_input_is_refused_with_exit_code_2() {
             &["--still-window", "1e9"],
             "more than the 12000 training samples",
         ),
-        (&["--horizon=-1"], "--horizon must be a positive"),
+        (
+            &["--horizon=-1"],
+            "for '--horizon <HORIZON>': \"-1\" is not a positive duration",
+        ),
+        (
+            &["--still-window", "0ms"],
+            "\"0ms\" is not a positive duration",
+        ),
         (&["--drift-level", "30"], "low-band level must be 1 to 12"),
         (&["--lag", "100000"], "lag"),
         (&["--units", "furlongs/s"], "--units 'furlongs/s'"),

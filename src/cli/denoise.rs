@@ -2,7 +2,7 @@
 
 use super::CliError;
 use crate::io::plot::{Panel, Series};
-use crate::io::{read_table, write_table, Table};
+use crate::io::{read_table, read_table_keeping_time, write_table_with_time, Table};
 use crate::synthetic::{self, Regime};
 use crate::wavelet::denoise::{compare, denoise, Comparison, DenoiseConfig, NoiseSigma, Rule};
 use crate::wavelet::threshold::ThresholdFn;
@@ -52,7 +52,8 @@ pub struct Args {
     /// Firm threshold: upper threshold as a multiple of lambda (> 1).
     #[arg(long, default_value_t = ThresholdFn::FIRM_RATIO)]
     firm_ratio: f64,
-    /// Write the denoised columns here (same names, full precision).
+    /// Write the denoised columns here (same names, full precision; the input's time column
+    /// unchanged in its place; gzip if the name ends in .gz).
     #[arg(short = 'o', long = "output")]
     output: Option<PathBuf>,
     /// CSV holding the true signal, to score SNR and MSE against.
@@ -143,6 +144,7 @@ fn load(args: &Args) -> Result<Data, CliError> {
                 names: vec!["rate".into()],
                 columns: vec![record.measured],
                 has_header: true,
+                time: None,
             },
             truths: vec![Some(record.truth)],
             truth_source: Some("the synthetic truth".into()),
@@ -152,7 +154,12 @@ fn load(args: &Args) -> Result<Data, CliError> {
         .input
         .as_ref()
         .expect("clap requires input without --synthetic");
-    let table = read_table(input, &args.columns)?;
+    // `-o` carries the input's time column through.
+    let table = if args.output.is_some() {
+        read_table_keeping_time(input, &args.columns)?
+    } else {
+        read_table(input, &args.columns)?
+    };
     let mut truths = vec![None; table.names.len()];
     let mut truth_source = None;
     if let Some(truth_path) = &args.truth {
@@ -299,7 +306,7 @@ fn plot(
             }
         })
         .collect();
-    crate::io::plot::write_panels(path, &panels).map_err(CliError::internal)
+    crate::io::plot::write_panels(path, &panels).map_err(CliError::input)
 }
 
 /// Run `driftless denoise`.
@@ -344,7 +351,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     if let Some(path) = &args.output {
         let columns: Vec<&[f64]> = outputs.iter().map(Vec::as_slice).collect();
-        write_table(path, &data.table.names, &columns)?;
+        write_table_with_time(path, data.table.time.as_ref(), &data.table.names, &columns)?;
         eprintln!(
             "denoised {} column(s) of {} into {}",
             columns.len(),

@@ -322,7 +322,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 series: allan_series,
             },
         ];
-        write_panels(path, &panels).map_err(CliError::internal)?;
+        write_panels(path, &panels).map_err(CliError::input)?;
+        eprintln!("wrote {}", path.display());
     }
     if args.json {
         let text =
@@ -330,9 +331,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
         println!("{text}");
     } else {
         print_report(&report);
-        if let Some(p) = &args.plot {
-            println!("wrote {}", p.display());
-        }
     }
     Ok(())
 }

@@ -1,4 +1,14 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
+//!
+//! Exit codes, the same for every command (README, "Command-line conventions"):
+//! - 0: done, including a daemon, `tap`, `stats` or `relay` stopped by SIGINT/SIGTERM,
+//!   `--duration` or `--count`; `--help` and `--version`.
+//! - 1: a run-time failure: the command line and the files are fine, but the command could not
+//!   do its work: no daemon or service to read (`tap`, `stats`), the pipeline already running
+//!   (`run`), iceoryx2 or the operating system failing during a run.
+//! - 2: bad usage or bad input: an unknown option or a bad value (clap's own code for usage
+//!   errors), an input file missing, unreadable or malformed, a pipeline file that does not
+//!   validate, a model that does not fit the data, an output path that cannot be written.
 
 use clap::{Parser, Subcommand};
 use std::io::Write as _;
@@ -6,6 +16,7 @@ use std::process::ExitCode;
 
 pub mod allan;
 pub mod denoise;
+pub mod duration;
 pub mod eval;
 pub mod nav_eval;
 pub mod relay;
@@ -53,10 +64,10 @@ enum Command {
     Simulate(simulate::Args),
 }
 
-/// A command's failure: the message for stderr and the process exit code.
+/// A command's failure: the message for stderr and the process exit code (module docs).
 #[derive(Debug)]
 pub struct CliError {
-    /// 2 for bad input or configuration, 1 for anything else.
+    /// 2 for bad usage, input or configuration; 1 for a run-time failure.
     pub code: u8,
     /// One line for the user.
     pub message: String,
@@ -71,7 +82,8 @@ impl CliError {
         }
     }
 
-    /// A failure that is not the input's fault (exit code 1).
+    /// A run-time failure, not the input's fault (exit code 1): nothing to read, the pipeline
+    /// already running, iceoryx2 or the operating system failing.
     pub fn internal(message: impl Into<String>) -> Self {
         CliError {
             code: 1,
@@ -101,13 +113,46 @@ fn restore_default_sigpipe() {
     }
 }
 
+/// Where the user finds the usage of the command they typed: `driftless CMD --help`.
+fn help_hint() -> String {
+    use clap::CommandFactory as _;
+    let cli = Cli::command();
+    match std::env::args().nth(1) {
+        Some(sub) if cli.find_subcommand(&sub).is_some() => format!("driftless {sub} --help"),
+        _ => "driftless --help".into(),
+    }
+}
+
+/// A clap usage error as one line: its first paragraph (the error, with the arguments it lists),
+/// without clap's tip, usage and "For more information" paragraphs, and where the usage is.
+fn usage_error_line(rendered: &str, help: &str) -> String {
+    let first = rendered.split("\n\n").next().unwrap_or(rendered);
+    let joined = first
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ");
+    let message = joined.strip_prefix("error: ").unwrap_or(&joined);
+    format!("{message} (see '{help}')")
+}
+
 /// Parse the command line, run the command, and turn its outcome into an exit code.
 pub fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            let _ = e.print();
-            return ExitCode::from(e.exit_code().clamp(0, 255) as u8);
+            use clap::error::ErrorKind;
+            let code = ExitCode::from(e.exit_code().clamp(0, 255) as u8);
+            // --help and --version go to stdout as clap writes them, and so does the help that
+            // a bare `driftless` prints; a usage error is one line, like every other error.
+            if !e.use_stderr() || e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                let _ = e.print();
+            } else {
+                let line = usage_error_line(&e.render().to_string(), &help_hint());
+                let _ = writeln!(std::io::stderr(), "driftless: error: {line}");
+            }
+            return code;
         }
     };
     // Offline filters end quietly on a closed stdout; the daemon, tap and stats hold iceoryx2
@@ -138,5 +183,24 @@ pub fn main() -> ExitCode {
             let _ = writeln!(std::io::stderr(), "driftless: error: {}", e.message);
             ExitCode::from(e.code)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn usage_errors_are_one_line() {
+        let rendered = "error: the following required arguments were not provided:\n  --output <OUT.csv>\n\nUsage: driftless simulate --output <OUT.csv> --N <N>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            usage_error_line(rendered, "driftless simulate --help"),
+            "the following required arguments were not provided: --output <OUT.csv> (see 'driftless simulate --help')"
+        );
+        let rendered = "error: unexpected argument '--bogus' found\n\n  tip: to pass '--bogus' as a value, use '-- --bogus'\n\nUsage: driftless run [OPTIONS] <PIPELINE>\n";
+        assert_eq!(
+            usage_error_line(rendered, "driftless run --help"),
+            "unexpected argument '--bogus' found (see 'driftless run --help')"
+        );
     }
 }

@@ -8,7 +8,8 @@
 //! ([`crate::pipeline::offline::Offline`]): the product's chain `denoise.wavelet ->
 //! predict.bias` built in at the log's rate with the axis' terms, and any `--pipeline FILE`.
 
-use super::simulate::{parse_duration, parse_number};
+use super::duration::parse_seconds;
+use super::simulate::parse_number;
 use super::CliError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
 use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
@@ -97,8 +98,10 @@ struct Chain {
 
 fn log_source(path: &Path, args: &Args, rate: f64, window: usize) -> Result<Source, CliError> {
     let table = read_table(path, &args.columns)?;
-    let characterise =
-        (parse_duration(&args.characterise).map_err(CliError::input)? * rate).round() as usize;
+    let characterise = (parse_seconds(&args.characterise)
+        .map_err(|e| CliError::input(format!("--characterise {e}")))?
+        * rate)
+        .round() as usize;
     let lsb = parse_number("--lsb", &args.lsb)?;
     if !(lsb.is_finite() && lsb >= 0.0) {
         return Err(CliError::input(format!(
@@ -394,7 +397,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "--rate {rate} must be in (0, 1e6] Hz"
         )));
     }
-    let window_s = parse_duration(&args.window).map_err(CliError::input)?;
+    let window_s =
+        parse_seconds(&args.window).map_err(|e| CliError::input(format!("--window {e}")))?;
     let window = (window_s * rate).round() as usize;
     if window < 2 {
         return Err(CliError::input("--window holds fewer than 2 samples"));

@@ -6,6 +6,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::cli::duration::parse_duration;
 use crate::cli::CliError;
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::runtime::{self, RunError, RunOptions};
@@ -16,8 +17,8 @@ use crate::transport;
 pub struct Args {
     /// Pipeline file (TOML).
     pub pipeline: PathBuf,
-    /// Stop by itself after this long: "10s", "500ms", "2m" or seconds.
-    #[arg(long, value_parser = parse_duration)]
+    /// Stop by itself after this long: "10s", "500ms", "1.5s", "90min", or seconds.
+    #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
     pub duration: Option<Duration>,
     /// Write the final report as JSON to this file.
     #[arg(long)]
@@ -30,32 +31,6 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// Parse "10s", "250ms", "100us", "2m", "1h" or a plain number of seconds.
-pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    let s = s.trim();
-    let (num, scale) = if let Some(v) = s.strip_suffix("ms") {
-        (v, 1e-3)
-    } else if let Some(v) = s.strip_suffix("us") {
-        (v, 1e-6)
-    } else if let Some(v) = s.strip_suffix('s') {
-        (v, 1.0)
-    } else if let Some(v) = s.strip_suffix('m') {
-        (v, 60.0)
-    } else if let Some(v) = s.strip_suffix('h') {
-        (v, 3600.0)
-    } else {
-        (s, 1.0)
-    };
-    let x: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("{s:?} is not a duration (e.g. 10s, 500ms, 2m)"))?;
-    if !(x.is_finite() && x > 0.0 && x * scale < 1e9) {
-        return Err(format!("{s:?} must be a positive duration"));
-    }
-    Ok(Duration::from_secs_f64(x * scale))
-}
-
 /// The iceoryx2 prefix in force: `--prefix`, else `DRIFTLESS_IOX2_PREFIX`, else the pipeline's.
 pub fn effective_prefix(cli: Option<&str>, pipeline_prefix: &str) -> Result<String, CliError> {
     let prefix = match cli {
@@ -65,6 +40,22 @@ pub fn effective_prefix(cli: Option<&str>, pipeline_prefix: &str) -> Result<Stri
     transport::check_prefix(&prefix)
         .map_err(|e| CliError::input(format!("invalid iceoryx2 prefix {prefix:?}: {e}")))?;
     Ok(prefix)
+}
+
+/// How to run a second daemon of a pipeline whose prefix `prefix` is taken: the three ways to
+/// set another (the tools that read it then take the same), with a free-to-use example name.
+fn another_prefix_hint(prefix: &str, pipeline: &Path) -> String {
+    // SAFETY: getuid cannot fail.
+    let me = transport::user_name(unsafe { libc::getuid() });
+    let example = me
+        .map(|u| format!("{prefix}{u}_"))
+        .filter(|p| p != prefix && transport::check_prefix(p).is_ok())
+        .unwrap_or_else(|| format!("{prefix}2_"));
+    format!(
+        "--prefix {example}, or DRIFTLESS_IOX2_PREFIX={example}, or `prefix = \"{example}\"` \
+         under [iceoryx2] in {} (tap, stats and subscribers then take the same prefix)",
+        pipeline.display()
+    )
 }
 
 fn write_report(path: &Path, report: &crate::metrics::Report) -> Result<(), CliError> {
@@ -106,7 +97,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         print_summary: !args.quiet,
     };
     let report = runtime::run(&pipeline, &opts).map_err(|e| match e {
-        RunError::AlreadyRunning { .. } => CliError::internal(e.to_string()),
+        RunError::AlreadyRunning { ref prefix, .. } => CliError::internal(format!(
+            "{e}; stop it first, or run a second one under another prefix: {}",
+            another_prefix_hint(prefix, &args.pipeline)
+        )),
         other => CliError::internal(other.to_string()),
     })?;
     // Best effort: the report file below must be written even if stderr is gone.
@@ -115,19 +109,4 @@ pub fn run(args: Args) -> Result<(), CliError> {
         write_report(path, &report)?;
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn durations() {
-        assert_eq!(parse_duration("10s"), Ok(Duration::from_secs(10)));
-        assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
-        assert_eq!(parse_duration("2m"), Ok(Duration::from_secs(120)));
-        assert_eq!(parse_duration("1.5"), Ok(Duration::from_millis(1500)));
-        assert!(parse_duration("-1s").is_err());
-        assert!(parse_duration("soon").is_err());
-    }
 }

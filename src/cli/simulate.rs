@@ -1,11 +1,12 @@
 //! `driftless simulate`: a gyro log with known IEEE Std 952 noise terms (and optional true motion).
 
+use super::duration::parse_duration;
 use super::CliError;
-use crate::io::atomic::AtomicFile;
+use crate::io::atomic::write_text_atomically;
 use crate::io::progress;
 use crate::sim::{Motion, NoiseTerms, SimConfig, Simulator};
-use std::io::{BufWriter, Write};
 use std::path::PathBuf;
+use std::time::Duration;
 
 /// Arguments of `driftless simulate`. Terms are in the units `driftless allan` prints.
 #[derive(Debug, clap::Args)]
@@ -46,9 +47,14 @@ pub struct Args {
     /// Sample rate in Hz (default: the profile's, else 100).
     #[arg(long, allow_hyphen_values = true)]
     pub rate: Option<String>,
-    /// Length: a number with s, min, h or d (default 3h).
-    #[arg(long, default_value = "3h")]
-    pub duration: String,
+    /// Length: "3h", "90min", "500ms", "1.5s", or seconds.
+    #[arg(
+        long,
+        default_value = "3h",
+        value_parser = parse_duration,
+        allow_hyphen_values = true
+    )]
+    pub duration: Duration,
     /// Axes, 1 to 3 (default: the profile's, else 1).
     #[arg(long)]
     pub axes: Option<usize>,
@@ -58,7 +64,7 @@ pub struct Args {
     /// True motion: none, sines, steps, turn, stop-and-go.
     #[arg(long, default_value = "none")]
     pub motion: String,
-    /// Output CSV.
+    /// Output CSV (gzip-compressed if the name ends in .gz).
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
 }
@@ -72,30 +78,6 @@ pub fn parse_number(flag: &str, s: &str) -> Result<f64, CliError> {
 
 fn parse_opt(flag: &str, s: &Option<String>) -> Result<Option<f64>, CliError> {
     s.as_deref().map(|v| parse_number(flag, v)).transpose()
-}
-
-/// Seconds in a duration like `3h`, `90min`, `45s`, `2.5d` or `600` (seconds).
-pub fn parse_duration(s: &str) -> Result<f64, String> {
-    let t = s.trim();
-    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
-    let (num, unit) = t.split_at(split);
-    let scale = match unit {
-        "" | "s" => 1.0,
-        "m" | "min" => 60.0,
-        "h" => 3600.0,
-        "d" => 86400.0,
-        _ => {
-            return Err(format!(
-                "--duration '{s}': unknown unit '{unit}' (s, min, h, d)"
-            ))
-        }
-    };
-    match num.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v * scale),
-        _ => Err(format!(
-            "--duration '{s}' is not a positive duration (like 3h, 90min, 600s)"
-        )),
-    }
 }
 
 const AXIS: [&str; 3] = ["x", "y", "z"];
@@ -158,22 +140,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .motion
         .parse()
         .map_err(|e: crate::sim::SimError| CliError::input(e.to_string()))?;
-    let duration = parse_duration(&args.duration).map_err(CliError::input)?;
+    let duration = args.duration.as_secs_f64();
     let mut sim = Simulator::new(&cfg).map_err(|e| CliError::input(e.to_string()))?;
     let samples = (duration * cfg.rate_hz).round().max(1.0) as u64;
 
     let out = &args.output;
     let io_err = |e: std::io::Error| CliError::input(format!("{}: {e}", out.display()));
-    let file = AtomicFile::create(out).map_err(io_err)?;
-    {
-        let mut w = BufWriter::with_capacity(1 << 20, file.file());
+    // A name ending in .gz is written gzip-compressed, as `allan` and the others read it.
+    write_text_atomically(out, |w| {
         let truth = cfg.motion != Motion::None;
         let mut header = vec!["t_s".to_string()];
         header.extend((0..cfg.axes).map(|a| format!("gyro_{}_degps", AXIS[a])));
         if truth {
             header.extend((0..cfg.axes).map(|a| format!("truth_{}_degps", AXIS[a])));
         }
-        writeln!(w, "{}", header.join(",")).map_err(io_err)?;
+        writeln!(w, "{}", header.join(","))?;
         let bar = progress::bar(samples, 2_000_000, "simulating");
         let mut line = String::new();
         for k in 0..samples {
@@ -190,15 +171,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 }
             }
             line.push('\n');
-            w.write_all(line.as_bytes()).map_err(io_err)?;
+            w.write_all(line.as_bytes())?;
             if k % 65_536 == 0 {
                 bar.set_position(k);
             }
         }
         bar.finish_and_clear();
-        w.flush().map_err(io_err)?;
-    }
-    file.commit().map_err(io_err)?;
+        Ok(())
+    })
+    .map_err(io_err)?;
     eprintln!(
         "driftless: wrote {} samples x {} axes at {} Hz ({} s) to {}",
         samples,
@@ -208,20 +189,4 @@ pub fn run(args: Args) -> Result<(), CliError> {
         out.display()
     );
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_duration;
-
-    #[test]
-    fn durations() {
-        assert_eq!(parse_duration("3h"), Ok(10800.0));
-        assert_eq!(parse_duration("90min"), Ok(5400.0));
-        assert_eq!(parse_duration("600"), Ok(600.0));
-        assert_eq!(parse_duration("1.5s"), Ok(1.5));
-        assert!(parse_duration("0h").is_err());
-        assert!(parse_duration("3 weeks").is_err());
-        assert!(parse_duration("h").is_err());
-    }
 }

@@ -18,14 +18,18 @@ pub struct Args {
     /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
     #[arg(long)]
     pub prefix: Option<String>,
-    /// Only the rate line, once a second; no samples.
+    /// Only the rate line, once a second, on stdout; no samples.
     #[arg(long)]
     pub hz: bool,
     /// Exit after this many samples.
     #[arg(long)]
     pub count: Option<u64>,
-    /// Exit after this long ("10s", "500ms").
-    #[arg(long, value_parser = crate::cli::run::parse_duration)]
+    /// Exit after this long ("10s", "500ms", "1.5s", "90min", or seconds).
+    #[arg(
+        long,
+        value_parser = crate::cli::duration::parse_duration,
+        allow_hyphen_values = true
+    )]
     pub duration: Option<Duration>,
 }
 
@@ -91,7 +95,8 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     } else if let Ok(i) = node.open_input::<StatsSnapshot>(&args.service) {
         Tapped::Stats(i)
     } else {
-        return Err(CliError::input(format!(
+        // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.
+        return Err(CliError::internal(format!(
             "no service {:?} of a driftless type under prefix {prefix:?} (is the pipeline running?)",
             args.service
         )));
@@ -148,13 +153,21 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         }
         let dt = tick.elapsed();
         if dt >= Duration::from_secs(1) {
-            eprintln!(
+            let rate = format!(
                 "{}: {:.1} Hz, {} samples, {} missing (sequence gaps)",
                 args.service,
                 window as f64 / dt.as_secs_f64(),
                 total,
                 gaps
             );
+            // With --hz the rate is the data asked for (stdout); beside samples, a message.
+            if args.hz {
+                if writeln!(out, "{rate}").and_then(|()| out.flush()).is_err() {
+                    return Ok(());
+                }
+            } else {
+                eprintln!("{rate}");
+            }
             window = 0;
             tick = Instant::now();
         }

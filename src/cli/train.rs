@@ -1,6 +1,7 @@
 //! `driftless train`: separate the drift of a static log causally, train the RBF network on the
 //! first part, score it and the baselines on the held-out part, and write the model file.
 
+use super::duration::parse_seconds;
 use super::CliError;
 use crate::drift::baselines::{self, Ar, Mean, Persistence, Score};
 use crate::drift::model::{
@@ -90,11 +91,21 @@ pub struct Args {
     /// Level of the low band that defines the drift (same wavelet).
     #[arg(long, default_value_t = 5)]
     drift_level: usize,
-    /// Free-running horizon for the multi-step error, seconds.
-    #[arg(long, default_value_t = 1.0)]
+    /// Free-running horizon for the multi-step error: "1s", "500ms", or seconds.
+    #[arg(
+        long,
+        default_value = "1",
+        value_parser = parse_seconds,
+        allow_hyphen_values = true
+    )]
     horizon: f64,
-    /// Stillness window, seconds.
-    #[arg(long, default_value_t = 0.5)]
+    /// Stillness window: "0.5s", "500ms", or seconds.
+    #[arg(
+        long,
+        default_value = "0.5",
+        value_parser = parse_seconds,
+        allow_hyphen_values = true
+    )]
     still_window: f64,
     /// Stillness thresholds = this x the largest statistics on the training log (exit), 2x (enter).
     #[arg(long, default_value_t = 1.5)]
@@ -302,7 +313,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         },
     };
     model.check().map_err(CliError::internal)?;
-    write_model(&args.output, &model).map_err(CliError::internal)?;
+    write_model(&args.output, &model).map_err(CliError::input)?;
     println!(
         "{}: column {}, {} Hz; trained on samples {}..{} (drift {}..{} after warm-up and lag), \
          held out {}..{}",
@@ -329,7 +340,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "NOT better (AR is at least as good on this data)"
         }
     );
-    println!("wrote {}", args.output.display());
+    eprintln!("wrote {}", args.output.display());
     Ok(())
 }
 

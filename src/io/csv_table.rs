@@ -5,7 +5,7 @@
 //! Files ending in `.gz` are decompressed on the fly.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// File size from which reading shows a progress bar: about 10^6 rows of a 3-axis log as text
@@ -70,6 +70,21 @@ pub struct Table {
     pub columns: Vec<Vec<f64>>,
     /// Whether the file had a header row.
     pub has_header: bool,
+    /// The file's time column, when it was asked for ([`read_table_keeping_time`]) and is not
+    /// among the selected columns.
+    pub time: Option<TimeColumn>,
+}
+
+/// A time column carried through unchanged: its cells as the file wrote them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TimeColumn {
+    /// Its name (one of [`TIME_COLUMNS`]).
+    pub name: String,
+    /// Where it goes among the selected columns to keep the file's order: the number of selected
+    /// columns before it in the file.
+    pub position: usize,
+    /// Its cells, verbatim.
+    pub cells: Vec<String>,
 }
 
 impl Table {
@@ -100,6 +115,16 @@ fn field_column(record: &csv::ByteRecord, i: usize) -> u64 {
 /// Read the named columns of a CSV file; when `wanted` is empty, every numeric column but a time
 /// column ([`TIME_COLUMNS`]).
 pub fn read_table(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
+    read_table_impl(path, wanted, false)
+}
+
+/// [`read_table`], and the file's time column (the first header named one of [`TIME_COLUMNS`]
+/// that is not selected) kept verbatim in [`Table::time`], for outputs that carry it through.
+pub fn read_table_keeping_time(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
+    read_table_impl(path, wanted, true)
+}
+
+fn read_table_impl(path: &Path, wanted: &[String], keep_time: bool) -> Result<Table, InputError> {
     let shown = path.display().to_string();
     let io_err = |source| InputError::Io {
         path: shown.clone(),
@@ -107,7 +132,7 @@ pub fn read_table(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
     };
     let file = File::open(path).map_err(io_err)?;
     let size = file.metadata().map_err(io_err)?.len();
-    let gz = path.extension().is_some_and(|e| e == "gz");
+    let gz = super::atomic::is_gzip(path);
     let min = if gz {
         PROGRESS_MIN_BYTES_GZ
     } else {
@@ -116,9 +141,14 @@ pub fn read_table(path: &Path, wanted: &[String]) -> Result<Table, InputError> {
     let progress = crate::io::progress::bar(size, min, "reading");
     let raw = BufReader::with_capacity(1 << 20, progress.wrap_read(file));
     let result = if gz {
-        read_from(flate2::bufread::MultiGzDecoder::new(raw), path, wanted)
+        read_from(
+            flate2::bufread::MultiGzDecoder::new(raw),
+            path,
+            wanted,
+            keep_time,
+        )
     } else {
-        read_from(raw, path, wanted)
+        read_from(raw, path, wanted, keep_time)
     };
     progress.finish_and_clear();
     result
@@ -152,7 +182,12 @@ fn csv_error(path: &Path, e: csv::Error) -> InputError {
     }
 }
 
-fn read_from<R: Read>(reader: R, path: &Path, wanted: &[String]) -> Result<Table, InputError> {
+fn read_from<R: Read>(
+    reader: R,
+    path: &Path,
+    wanted: &[String],
+    keep_time: bool,
+) -> Result<Table, InputError> {
     let shown = path.display().to_string();
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
@@ -220,10 +255,17 @@ fn read_from<R: Read>(reader: R, path: &Path, wanted: &[String]) -> Result<Table
             })
             .collect::<Result<_, _>>()?
     };
+    let time_index = names.iter().enumerate().position(|(i, n)| {
+        keep_time && has_header && TIME_COLUMNS.contains(&n.as_str()) && !selected.contains(&i)
+    });
+    let mut time_cells = Vec::new();
     let mut columns: Vec<Vec<f64>> = vec![Vec::new(); selected.len()];
     let mut row = first;
     loop {
         let line = row.position().map_or(0, |p| p.line());
+        if let Some(t) = time_index {
+            time_cells.push(String::from_utf8_lossy(&row[t]).into_owned());
+        }
         for (out, &i) in columns.iter_mut().zip(&selected) {
             let cell = &row[i];
             let at = |message: String| InputError::At {
@@ -261,40 +303,73 @@ fn read_from<R: Read>(reader: R, path: &Path, wanted: &[String]) -> Result<Table
         names: selected.iter().map(|&i| names[i].clone()).collect(),
         columns,
         has_header,
+        time: time_index.map(|t| TimeColumn {
+            name: names[t].clone(),
+            position: selected.iter().filter(|&&i| i < t).count(),
+            cells: time_cells,
+        }),
     })
 }
 
 /// Write equal-length columns with a header, at full precision (every value round-trips exactly).
 ///
-/// The file appears whole or not at all: it is written to a temporary file beside `path`, then renamed.
+/// The file appears whole or not at all: it is written to a temporary file beside `path`, then
+/// renamed. A name ending in `.gz` is written gzip-compressed.
 pub fn write_table(path: &Path, names: &[String], columns: &[&[f64]]) -> Result<(), InputError> {
-    let shown = path.display().to_string();
+    write_table_with_time(path, None, names, columns)
+}
+
+/// [`write_table`], with a time column (as [`read_table_keeping_time`] read it) put back in its
+/// place among the columns, its cells unchanged.
+pub fn write_table_with_time(
+    path: &Path,
+    time: Option<&TimeColumn>,
+    names: &[String],
+    columns: &[&[f64]],
+) -> Result<(), InputError> {
     let io_err = |source| InputError::Io {
-        path: shown.clone(),
+        path: path.display().to_string(),
         source,
     };
-    let out = super::atomic::AtomicFile::create(path).map_err(io_err)?;
-    {
-        let mut w = BufWriter::with_capacity(1 << 20, out.file());
-        writeln!(w, "{}", names.join(",")).map_err(io_err)?;
-        let rows = columns.first().map_or(0, |c| c.len());
+    let rows = columns.first().map_or(0, |c| c.len());
+    if let Some(t) = time {
+        if t.cells.len() != rows || t.position > columns.len() {
+            return Err(InputError::file(
+                path,
+                "the time column does not match the columns",
+            ));
+        }
+    }
+    super::atomic::write_text_atomically(path, |w| {
+        let mut header: Vec<&str> = names.iter().map(String::as_str).collect();
+        if let Some(t) = time {
+            header.insert(t.position, &t.name);
+        }
+        writeln!(w, "{}", header.join(","))?;
+        let time_at = |k: usize| time.filter(|t| t.position == k);
         let mut line = String::new();
         for r in 0..rows {
             line.clear();
             for (k, c) in columns.iter().enumerate() {
-                if k > 0 {
+                if let Some(t) = time_at(k) {
+                    line.push_str(&t.cells[r]);
                     line.push(',');
                 }
                 // `{}` on f64 prints the shortest text that parses back to the same value.
                 use std::fmt::Write as _;
-                let _ = write!(line, "{}", c[r]);
+                let _ = write!(line, "{},", c[r]);
             }
+            if let Some(t) = time_at(columns.len()) {
+                line.push_str(&t.cells[r]);
+                line.push(',');
+            }
+            line.pop(); // the last comma
             line.push('\n');
-            w.write_all(line.as_bytes()).map_err(io_err)?;
+            w.write_all(line.as_bytes())?;
         }
-        w.flush().map_err(io_err)?;
-    }
-    out.commit().map_err(io_err)
+        Ok(())
+    })
+    .map_err(io_err)
 }
 
 #[cfg(test)]
@@ -303,7 +378,7 @@ mod tests {
 
     fn read_str(text: &str, wanted: &[&str]) -> Result<Table, InputError> {
         let wanted: Vec<String> = wanted.iter().map(|s| s.to_string()).collect();
-        read_from(text.as_bytes(), Path::new("t.csv"), &wanted)
+        read_from(text.as_bytes(), Path::new("t.csv"), &wanted, false)
     }
 
     #[test]
@@ -374,6 +449,52 @@ mod tests {
         std::io::Write::write_all(&mut enc, b"x\n1\n2\n").unwrap();
         std::fs::write(&p, enc.finish().unwrap()).unwrap();
         assert_eq!(read_table(&p, &[]).unwrap().columns, vec![vec![1.0, 2.0]]);
+    }
+
+    #[test]
+    fn the_time_column_is_kept_verbatim_in_its_place_when_asked_for() {
+        let text = "gyro_x,t_s,gyro_y\n1,0.000,2\n3,0.010,4\n";
+        let wanted: Vec<String> = Vec::new();
+        let t = read_from(text.as_bytes(), Path::new("t.csv"), &wanted, true).unwrap();
+        assert_eq!(t.names, ["gyro_x", "gyro_y"]);
+        let time = t.time.clone().expect("time kept");
+        assert_eq!((time.name.as_str(), time.position), ("t_s", 1));
+        assert_eq!(time.cells, ["0.000", "0.010"]);
+        assert_eq!(read_str(text, &[]).unwrap().time, None, "only when asked");
+        let named = read_from(text.as_bytes(), Path::new("t.csv"), &["t_s".into()], true);
+        assert_eq!(
+            named.unwrap().time,
+            None,
+            "a selected time column is a signal"
+        );
+
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.csv");
+        let cols: Vec<&[f64]> = t.columns.iter().map(Vec::as_slice).collect();
+        write_table_with_time(&p, t.time.as_ref(), &t.names, &cols).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), text);
+        for position in [0, 2] {
+            let first = TimeColumn {
+                position,
+                ..time.clone()
+            };
+            write_table_with_time(&p, Some(&first), &t.names, &cols).unwrap();
+            let want = if position == 0 {
+                "t_s,gyro_x,gyro_y\n0.000,1,2\n0.010,3,4\n"
+            } else {
+                "gyro_x,gyro_y,t_s\n1,2,0.000\n3,4,0.010\n"
+            };
+            assert_eq!(std::fs::read_to_string(&p).unwrap(), want);
+        }
+    }
+
+    #[test]
+    fn a_gz_output_reads_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.csv.gz");
+        write_table(&p, &["x".into()], &[&[1.5, -2.0]]).unwrap();
+        assert_eq!(&std::fs::read(&p).unwrap()[..2], &[0x1f, 0x8b]);
+        assert_eq!(read_table(&p, &[]).unwrap().columns, vec![vec![1.5, -2.0]]);
     }
 
     #[test]

@@ -8,4 +8,7 @@ pub mod model_file;
 pub mod plot;
 pub mod progress;
 
-pub use csv_table::{read_table, write_table, InputError, Table, TIME_COLUMNS};
+pub use csv_table::{
+    read_table, read_table_keeping_time, write_table, write_table_with_time, InputError, Table,
+    TimeColumn, TIME_COLUMNS,
+};

@@ -43,7 +43,7 @@ use crate::pipeline::guard::Guard;
 use crate::pipeline::stage::Role;
 use crate::pipeline::stage::{Poll, Source, Stage};
 use crate::transport::{
-    monotonic_ns, remove_prefix_leftovers, GyroSample, Input, Output, Qos, RawSample,
+    monotonic_ns, remove_prefix_leftovers, GyroSample, Input, NodeHolder, Output, Qos, RawSample,
     StatsSnapshot, Transport, TransportError, FLAG_FLUSHED, FLAG_OUTPUT_REPAIRED,
 };
 
@@ -67,12 +67,17 @@ pub struct RunOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
     /// A daemon for this pipeline is already running under this prefix.
-    #[error("pipeline {pipeline:?} is already running (prefix {prefix:?}); stop it first")]
+    #[error(
+        "pipeline {pipeline:?} is already running (prefix {prefix:?}), held by {}",
+        describe_holders(.holders)
+    )]
     AlreadyRunning {
         /// Pipeline name.
         pipeline: String,
         /// iceoryx2 prefix.
         prefix: String,
+        /// Who holds it, as iceoryx2's node list tells (at least one).
+        holders: Vec<NodeHolder>,
     },
     /// iceoryx2 set-up or I/O.
     #[error("{0}")]
@@ -85,6 +90,14 @@ pub enum RunError {
         /// What is wrong.
         message: String,
     },
+}
+
+fn describe_holders(holders: &[NodeHolder]) -> String {
+    holders
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(" and ")
 }
 
 /// The node name of a pipeline's daemon (one per pipeline and prefix).
@@ -331,10 +344,12 @@ fn build_source(p: &Pipeline, transport: &Transport) -> Result<Box<dyn Source>, 
 pub fn run(p: &Pipeline, opts: &RunOptions) -> Result<Report, RunError> {
     crate::transport::quiet_logging();
     let name = node_name(&p.name);
-    if Transport::live_nodes_named(&opts.prefix, &name)? > 0 {
+    let holders = Transport::holders_of(&opts.prefix, &name)?;
+    if !holders.is_empty() {
         return Err(RunError::AlreadyRunning {
             pipeline: p.name.clone(),
             prefix: opts.prefix.clone(),
+            holders,
         });
     }
     let result = run_inner(p, opts, &name);
