@@ -1,16 +1,13 @@
 //! `driftless allan` and `driftless simulate` through the real binary: output shapes, errors,
 //! exit codes, and no partial output files.
 
+mod common;
+
+use common::driftless;
+
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn driftless(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
+use std::process::Output;
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -26,7 +23,11 @@ fn assert_input_error(o: &Output, needle: &str) {
 }
 
 fn simulate(dir: &Path, extra: &[&str]) -> String {
-    let out = dir.join("sim.csv");
+    simulate_to(&dir.join("sim.csv"), extra)
+}
+
+/// The 300 s simulated log of [`simulate`], written to `out`.
+fn simulate_to(out: &Path, extra: &[&str]) -> String {
     let out_s = out.to_str().unwrap().to_string();
     let mut args = vec![
         "simulate",
@@ -340,30 +341,14 @@ fn simulate_writes_gzip_for_a_gz_name_and_allan_reads_it() {
     let dir = tempfile::tempdir().unwrap();
     let plain = simulate(dir.path(), &[]);
     let gz = dir.path().join("sim.csv.gz");
-    let gz_s = gz.to_str().unwrap();
-    let o = driftless(&[
-        "simulate",
-        "--N",
-        "1.5",
-        "--B",
-        "20",
-        "--rate",
-        "100",
-        "--duration",
-        "300s",
-        "--seed",
-        "7",
-        "-o",
-        gz_s,
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let gz_s = simulate_to(&gz, &[]);
     let bytes = std::fs::read(&gz).unwrap();
     assert_eq!(&bytes[..2], &[0x1f, 0x8b], "gzip magic");
     let mut text = String::new();
     std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut text)
         .unwrap();
     assert_eq!(text, std::fs::read_to_string(&plain).unwrap(), "same log");
-    let from_gz = driftless(&["allan", gz_s, "--rate", "100", "--json"]);
+    let from_gz = driftless(&["allan", &gz_s, "--rate", "100", "--json"]);
     assert!(from_gz.status.success(), "{}", stderr(&from_gz));
     let from_plain = driftless(&["allan", &plain, "--rate", "100", "--json"]);
     assert_eq!(from_gz.stdout, from_plain.stdout);

@@ -1,23 +1,13 @@
 //! `driftless denoise` as a user runs it: the real binary on real files.
 
+mod common;
+
+use common::{driftless, text};
+
 use driftless::io::read_table;
 use driftless::wavelet::denoise::{denoise, DenoiseConfig};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn driftless(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(o: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
 
 fn write(dir: &Path, name: &str, body: &str) -> PathBuf {
     let p = dir.join(name);

@@ -3,22 +3,8 @@
 
 mod common;
 
-use common::{csv, Dir, Prefix};
-use std::process::{Command, Output};
-
-fn driftless(args: &[&str]) -> Output {
-    Command::new(common::bin())
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn text(o: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
+use common::{csv, driftless, text, Dir, Prefix};
+use std::process::Output;
 
 /// Exit 2, one `driftless: error:` line holding the value, the option and the forms.
 fn assert_refused(o: &Output, value: &str, option: &str) {

@@ -4,20 +4,13 @@
 
 mod common;
 
-use common::{Dir, Prefix};
-use std::process::{Command, Output};
+use common::{driftless, Dir, Prefix};
+use std::process::Output;
 
 const COMMANDS: [&str; 11] = [
     "denoise", "train", "eval", "nav-eval", "run", "validate", "tap", "stats", "relay", "allan",
     "simulate",
 ];
-
-fn driftless(args: &[&str]) -> Output {
-    Command::new(common::bin())
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
 
 /// Exit `code`, nothing on stdout, one `driftless: error:` line containing `needle`.
 fn assert_fails(o: &Output, code: i32, needle: &str) {

@@ -2,6 +2,10 @@
 //! and every way loading it can fail, bad input (exit code 2, one line, no panic), and the
 //! baselines reported honestly.
 
+mod common;
+
+use common::text;
+
 use driftless::drift::model::DriftModel;
 use driftless::io::model_file::read_model;
 use driftless::io::write_table;
@@ -34,13 +38,6 @@ fn train(input: &Path, out: &Path, extra: &[&str]) -> Output {
         c.args(["--train", "12000", "--test", "2000"]);
     }
     c.output().unwrap()
-}
-
-fn text(o: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
 }
 
 /// A failed run: exit code 2, one line on stderr containing `want`, no panic.

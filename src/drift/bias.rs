@@ -790,7 +790,7 @@ impl DelayWindow {
         filter: &mut BiasFilter,
     ) {
         let d = self.ring.len();
-        if self.pending > 0 && d > 0 && var > 0.0 && moving.is_finite() && bias.is_finite() {
+        if self.pending > 0 && var > 0.0 && moving.is_finite() && bias.is_finite() {
             let inv_sd = 1.0 / var.sqrt();
             let newest = (self.head + d - 1) % d;
             let ring = &self.ring;
@@ -1136,6 +1136,16 @@ mod tests {
         assert!((f.variance() - 1.0 / (5.0 / r + 1.0)).abs() < 1e-12);
     }
 
+    /// The true rate at sample `k` (100 Hz) of 30 s still, then a slow ramp to 5 deg/s over 2 s.
+    fn still_then_ramp(k: usize) -> f64 {
+        let tt = k as f64 / 100.0;
+        if tt < 30.0 {
+            0.0
+        } else {
+            5.0 * ((tt - 30.0) / 2.0).min(1.0)
+        }
+    }
+
     #[test]
     fn onset_does_not_leak_and_the_mode_is_truthful() {
         let t = terms();
@@ -1144,13 +1154,7 @@ mod tests {
         // 30 s still (constant input: no noise), then a slow ramp to 5 deg/s over 2 s, 20 s moving.
         let mut steps = Vec::new();
         for k in 0..5200 {
-            let tt = k as f64 / 100.0;
-            let motion = if tt < 30.0 {
-                0.0
-            } else {
-                5.0 * ((tt - 30.0) / 2.0).min(1.0)
-            };
-            steps.push(tr.push(bias + motion));
+            steps.push(tr.push(bias + still_then_ramp(k)));
         }
         assert_eq!(steps[0].mode, BiasMode::Warming);
         assert!(!steps[0].informed);
@@ -1185,13 +1189,7 @@ mod tests {
         let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
         let mut last = None;
         for k in 0..5200 {
-            let tt = k as f64 / 100.0;
-            let motion = if tt < 30.0 {
-                0.0
-            } else {
-                5.0 * ((tt - 30.0) / 2.0).min(1.0)
-            };
-            last = Some(tr.push(0.4 + motion));
+            last = Some(tr.push(0.4 + still_then_ramp(k)));
         }
         assert!((last.unwrap().bias - 0.4).abs() > 1e-4);
     }

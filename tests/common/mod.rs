@@ -61,6 +61,22 @@ pub fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_driftless")
 }
 
+/// The real binary run with `args` to its end.
+pub fn driftless(args: &[&str]) -> std::process::Output {
+    Command::new(bin())
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A run's stdout and stderr as text.
+pub fn text(o: &std::process::Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
 /// A folder holding a pipeline file (and its data).
 pub struct Dir {
     pub dir: tempfile::TempDir,
