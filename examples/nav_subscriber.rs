@@ -92,7 +92,8 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
         Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3).map_err(|e| e.to_string())?;
     let (mut received, mut lost) = (0u64, 0u64);
     let mut heading_deg = 0.0f64;
-    let mut last: Option<(u64, u64)> = None; // (seq, t_ns)
+    let mut last: Option<(u32, u64, u64)> = None; // (epoch, seq, t_ns)
+    let mut epochs = 0u64;
     let end = o.duration.map(|d| Instant::now() + d);
     let mut tick = Instant::now();
     while !stop.load(Ordering::Relaxed) && end.is_none_or(|e| Instant::now() < e) {
@@ -103,14 +104,18 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
             if s.flags & FLAG_FLUSHED == 0 {
                 latency.saturating_record(now.saturating_sub(s.ingest_ns).max(1));
             }
-            if let Some((seq, t_ns)) = last {
-                if s.seq > seq + 1 {
-                    lost += s.seq - seq - 1;
+            match last {
+                // `seq` and time count within one epoch (one daemon run, one source run).
+                Some((epoch, seq, t_ns)) if epoch == s.epoch => {
+                    if s.seq > seq + 1 {
+                        lost += s.seq - seq - 1;
+                    }
+                    let dt = s.t_ns.saturating_sub(t_ns) as f64 * 1e-9;
+                    heading_deg += s.rate[2].to_degrees() * dt;
                 }
-                let dt = s.t_ns.saturating_sub(t_ns) as f64 * 1e-9;
-                heading_deg += s.rate[2].to_degrees() * dt;
+                _ => epochs += 1,
             }
-            last = Some((s.seq, s.t_ns));
+            last = Some((s.epoch, s.seq, s.t_ns));
         }
         if tick.elapsed() >= Duration::from_secs(1) {
             eprintln!(
@@ -124,7 +129,7 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     }
     let q = |p: f64| latency.value_at_quantile(p);
     println!(
-        "nav_subscriber: {received} received, {lost} lost; heading {heading_deg:+.3} deg; latency (ingest to receipt) p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
+        "nav_subscriber: {received} received, {lost} lost, {epochs} epochs; heading {heading_deg:+.3} deg; latency (ingest to receipt) p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
         q(0.5),
         q(0.99),
         q(0.999),
@@ -132,7 +137,7 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     );
     if let Some(path) = &o.report {
         let json = format!(
-            "{{\"received\":{received},\"lost\":{lost},\"heading_deg\":{heading_deg},\"latency_ns\":{{\"count\":{},\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}}}}\n",
+            "{{\"received\":{received},\"lost\":{lost},\"epochs\":{epochs},\"heading_deg\":{heading_deg},\"latency_ns\":{{\"count\":{},\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}}}}\n",
             latency.len(),
             q(0.5),
             q(0.99),

@@ -102,6 +102,8 @@ fn publish(
     cfg.axes = 3;
     cfg.motion = Motion::Sines;
     let mut sim = Simulator::new(&cfg).map_err(|e| e.to_string())?;
+    // This run's id: a daemon that outlives the driver tells a restart from lost samples.
+    let epoch = rand::random::<u32>().max(1);
     let start = Instant::now();
     let mut k = 0u64;
     while !stop.load(Ordering::Relaxed) && duration.is_none_or(|d| start.elapsed() < d) {
@@ -116,7 +118,7 @@ fn publish(
             seq: k,
             rate: s.measured,
             flags: 0,
-            reserved: 0,
+            epoch,
         };
         out.send(&raw).map_err(|e| e.to_string())?;
         out.notify();

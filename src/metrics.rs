@@ -209,6 +209,10 @@ pub struct Counters {
     pub backwards: AtomicU64,
     /// Outputs repaired by the publish guard.
     pub repaired: AtomicU64,
+    /// The stream's first epoch (set once before the segments start).
+    pub epoch: AtomicU64,
+    /// Source restarts (each started a new epoch).
+    pub restarts: AtomicU64,
 }
 
 fn get(a: &AtomicU64) -> u64 {
@@ -334,8 +338,13 @@ pub struct Report {
     pub deadline_misses: u64,
     /// Records the reporter could not take (histograms then miss those samples).
     pub metric_drops: u64,
-    /// Samples lost by subscribers, all services.
+    /// Samples lost anywhere: by subscribers of every service (full buffers) and before the
+    /// ingest (sequence numbers missing from the source, `flagged.missing`).
     pub lost: u64,
+    /// The stream's epoch at start ([`crate::transport::GyroSample::epoch`]).
+    pub epoch: u32,
+    /// Source restarts seen (each started the next epoch).
+    pub source_restarts: u64,
     /// Flagged input.
     pub flagged: Flagged,
     /// End to end: ingest of the completing sample to publish, ns.
@@ -354,7 +363,7 @@ impl Report {
         let mut s = String::new();
         s.push_str(&format!(
             "pipeline {}: {} in, {} out in {:.2} s ({:.0} Hz); deadline {} us, {} missed; \
-             algorithmic delay {} us\n",
+             algorithmic delay {} us; epoch {}{}\n",
             self.pipeline,
             self.samples_in,
             self.samples_out,
@@ -362,7 +371,12 @@ impl Report {
             self.rate_hz,
             us(self.deadline_ns),
             self.deadline_misses,
-            us(self.algorithmic_delay_ns)
+            us(self.algorithmic_delay_ns),
+            self.epoch,
+            match self.source_restarts {
+                0 => String::new(),
+                n => format!(" then {n} more (source restarts)"),
+            }
         ));
         s.push_str(&format!(
             "{:<14} {:<16} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
@@ -397,7 +411,7 @@ impl Report {
         ));
         let f = &self.flagged;
         s.push_str(&format!(
-            "flagged: {} invalid, {} gaps ({} missing), {} time backwards, {} repaired; metric drops {}\n",
+            "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} time backwards, {} repaired; metric drops {}\n",
             f.invalid, f.gaps, f.missing, f.time_backwards, f.repaired_outputs, self.metric_drops
         ));
         if let Some(h) = &self.heading {
@@ -537,8 +551,9 @@ impl Reporter {
         line + &heading
     }
 
+    /// Losses in every service plus the samples missing from the source.
     fn lost_total(&self) -> u64 {
-        self.lost.iter().map(|l| get(l)).sum()
+        self.lost.iter().map(|l| get(l)).sum::<u64>() + get(&self.counters.missing)
     }
 
     fn flagged(&self) -> Flagged {
@@ -603,6 +618,8 @@ impl Reporter {
             deadline_misses: get(&c.deadline_misses),
             metric_drops: get(&c.metric_drops),
             lost: self.lost_total(),
+            epoch: get(&c.epoch) as u32,
+            source_restarts: get(&c.restarts),
             flagged: self.flagged(),
             end_to_end_ns: Pct::of(&self.e2e),
             stages: self

@@ -77,7 +77,7 @@ pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
 /// | 8 | u64 | `seq` sequence number |
 /// | 16 | `[f64; 3]` | `rate` x, y, z in the pipeline's `input_units` |
 /// | 40 | u32 | `flags` (bit 0: [`RAW_INVALID`]) |
-/// | 44 | u32 | reserved, 0 |
+/// | 44 | u32 | `epoch` the publisher's run id (see [`GyroSample::epoch`]); a driver may leave it 0 |
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
 #[type_name("driftless::RawSample")]
@@ -90,8 +90,10 @@ pub struct RawSample {
     pub rate: [f64; 3],
     /// Validity flags (bit 0: invalid).
     pub flags: u32,
-    /// Reserved, 0.
-    pub reserved: u32,
+    /// The publisher's run id: when it changes, `seq` starts again (see [`GyroSample::epoch`]).
+    /// A driver that sets it (any non-zero value per driver start) lets the daemon tell a
+    /// driver restart from lost samples; 0 means "not given".
+    pub epoch: u32,
 }
 
 /// A processed gyro sample: every hop after the ingest carries one (104 bytes, 8-byte aligned).
@@ -105,7 +107,7 @@ pub struct RawSample {
 /// | 48 | `[f64; 3]` | `drift` drift estimate, rad/s |
 /// | 72 | `[f64; 3]` | `denoised` denoised rate, rad/s |
 /// | 96 | u32 | `flags` ([`FLAG_WARMING_UP`], [`FLAG_INPUT_INVALID`], ...) |
-/// | 100 | u32 | reserved, 0 |
+/// | 100 | u32 | `epoch` the stream's run id: `seq` counts within one epoch |
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
 #[type_name("driftless::GyroSample")]
@@ -125,8 +127,11 @@ pub struct GyroSample {
     pub denoised: [f64; 3],
     /// Flags, see the `FLAG_*` constants.
     pub flags: u32,
-    /// Reserved, 0.
-    pub reserved: u32,
+    /// The stream's run id, never 0 from the daemon: random at each daemon start, +1 whenever
+    /// the source restarts (a driver's own `epoch` changes, or its `seq` returns to 0). `seq`
+    /// counts within one epoch: a subscriber that sees the epoch change starts counting again,
+    /// instead of taking the new run's samples for duplicates or reordered ones.
+    pub epoch: u32,
 }
 
 /// Latency percentiles of one histogram, in nanoseconds.
@@ -236,6 +241,25 @@ pub enum TransportError {
         name: String,
         /// iceoryx2's error.
         reason: String,
+    },
+    /// An existing input service, created by another process, would lose samples silently.
+    #[error(
+        "service {name:?} was created by another process with a subscriber buffer of {buffer} \
+         and safe overflow {overflow}: it would lose samples silently. driftless needs a buffer \
+         of at least {need} (the pipeline's buffer_size) and safe overflow off: start the daemon \
+         first (it creates the service), or create it with subscriber_max_buffer_size >= {need} \
+         and enable_safe_overflow(false)",
+        overflow = if *safe_overflow { "on" } else { "off" }
+    )]
+    Qos {
+        /// The service.
+        name: String,
+        /// Its creator's subscriber buffer limit.
+        buffer: usize,
+        /// Whether its creator enabled safe overflow (new samples overwrite unread ones).
+        safe_overflow: bool,
+        /// The buffer the pipeline asks for.
+        need: usize,
     },
     /// Sending or receiving failed at run time.
     #[error("{what}: {reason}")]
@@ -502,30 +526,38 @@ impl Transport {
         Ok(Input { subscriber })
     }
 
-    /// A subscriber to a service another process publishes (a sensor driver): opened without
-    /// requirements if it exists (whatever QoS its creator chose; the buffer is the smaller of
-    /// ours and the service's maximum), created with our QoS otherwise.
+    /// A subscriber to a service another process publishes (a sensor driver, an external
+    /// stage): created with our QoS if it does not exist yet; if it does, its creator's settings
+    /// are checked, because a small buffer or safe overflow (iceoryx2's defaults: 2 samples,
+    /// overwrite the oldest) loses samples under ordinary jitter without the publisher
+    /// knowing. Refused ([`TransportError::Qos`]) unless it holds our buffer with safe overflow
+    /// off.
     pub fn external_input<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
         name: &str,
     ) -> Result<Input<T>, TransportError> {
-        let sn = service_name(name)?;
-        let exists =
-            ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
-                .map_err(|e| setup("service lookup", name, e))?;
-        if !exists {
+        if !self.service_exists::<T>(name)? {
             return self.input(name);
         }
         let service = self
             .node
-            .service_builder(&sn)
+            .service_builder(&service_name(name)?)
             .publish_subscribe::<T>()
             .open()
             .map_err(|e| setup("service", name, e))?;
-        let max = service.static_config().subscriber_max_buffer_size();
+        let cfg = service.static_config();
+        let (buffer, safe_overflow) = (cfg.subscriber_max_buffer_size(), cfg.has_safe_overflow());
+        if buffer < self.qos.buffer_size || safe_overflow {
+            return Err(TransportError::Qos {
+                name: name.to_string(),
+                buffer,
+                safe_overflow,
+                need: self.qos.buffer_size,
+            });
+        }
         let subscriber = service
             .subscriber_builder()
-            .buffer_size(self.qos.buffer_size.min(max))
+            .buffer_size(self.qos.buffer_size)
             .create()
             .map_err(|e| setup("subscriber", name, e))?;
         Ok(Input { subscriber })

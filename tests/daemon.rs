@@ -228,6 +228,12 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     assert_eq!(r["flagged"]["gaps"], 1);
     assert_eq!(r["flagged"]["missing"], 4);
     assert_eq!(r["flagged"]["time_backwards"], 1);
+    assert_eq!(r["lost"], 4, "samples missing from the source are lost");
+    let epoch = got[0].epoch;
+    assert_ne!(epoch, 0);
+    assert!(got.iter().all(|s| s.epoch == epoch), "one run, one epoch");
+    assert_eq!(r["epoch"], epoch);
+    assert_eq!(r["source_restarts"], 0);
 }
 
 #[test]
@@ -591,12 +597,43 @@ fn a_subscriber_that_dies_never_blocks_the_daemon_and_is_cleaned_up() {
 }
 
 #[test]
-fn a_driver_service_created_with_other_settings_is_still_read() {
+fn a_driver_service_with_iceoryx2_defaults_is_refused_and_ours_is_read() {
     let prefix = Prefix::new("drvqos");
     let dir = Dir::new();
     let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
-    // The driver starts first and creates its service with a small buffer (8, not 256).
-    let driver = Transport::new(&prefix.0, "driver", qos(8)).expect("node");
+
+    // A driver written from iceoryx2's examples starts first: its service has iceoryx2's
+    // defaults (a subscriber buffer of 2, safe overflow on), which lose samples silently.
+    use iceoryx2::prelude::{ipc, FileName, NodeBuilder, SemanticString as _};
+    let mut cfg = iceoryx2::config::Config::default();
+    cfg.global.prefix = FileName::new(prefix.0.as_bytes()).expect("prefix");
+    let node = NodeBuilder::new()
+        .config(&cfg)
+        .create::<ipc::Service>()
+        .expect("node");
+    let naive = node
+        .service_builder(&"t/sensor".try_into().expect("name"))
+        .publish_subscribe::<RawSample>()
+        .open_or_create()
+        .expect("service with iceoryx2's defaults");
+    let child = start(&file, &prefix, &[]);
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(1), "refused at start: {err}");
+    for part in [
+        "\"t/sensor\"",
+        "buffer of 2",
+        "safe overflow on",
+        "at least 256",
+        "start the daemon first",
+    ] {
+        assert!(err.contains(part), "{part:?} missing from: {err}");
+    }
+    drop(naive);
+    drop(node);
+
+    // A driver that creates the service as driftless does (buffer >= the pipeline's, safe
+    // overflow off) may start first.
+    let driver = Transport::new(&prefix.0, "driver", qos(512)).expect("node");
     let sensor = driver
         .output::<RawSample>("t/sensor", true)
         .expect("sensor publisher");
@@ -622,6 +659,55 @@ fn a_driver_service_created_with_other_settings_is_still_read() {
         got.iter().map(|s| s.seq).collect::<Vec<_>>(),
         [0, 1, 2, 3, 4]
     );
+}
+
+#[test]
+fn daemon_and_driver_restarts_each_start_a_new_epoch() {
+    let prefix = Prefix::new("epoch");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+    let report_path = dir.path("report.json");
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    // This subscriber and the driver outlive both daemon runs.
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let sensor = me
+        .output::<RawSample>("t/sensor", true)
+        .expect("sensor publisher");
+    let run = |seqs: &[u64]| {
+        let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+        wait_ready(&prefix, "t/stats", &mut child);
+        for &i in seqs {
+            sensor
+                .send(&raw(i, i * 1000, [1.0, 2.0, 3.0]))
+                .expect("send");
+            sensor.notify();
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let got = collect(&corrected, seqs.len(), Duration::from_secs(10));
+        signal(&child, SIGTERM);
+        let (code, err) = finish(child, Duration::from_secs(10));
+        assert_eq!(code, Some(0), "stderr: {err}");
+        (got, report(&dir))
+    };
+    let (first, _) = run(&[0, 1, 2]);
+    // The second daemon run; within it the driver restarts (its seq returns to 0).
+    let (second, r) = run(&[0, 1, 2, 0, 1]);
+    let epochs = |v: &[GyroSample]| v.iter().map(|s| s.epoch).collect::<Vec<_>>();
+    let (a, b) = (first[0].epoch, second[0].epoch);
+    assert_ne!(a, b, "a daemon restart starts a new epoch");
+    assert_eq!(epochs(&first), [a; 3]);
+    assert_eq!(epochs(&second), [b, b, b, b + 1, b + 1]);
+    assert_eq!(
+        second.iter().map(|s| s.seq).collect::<Vec<_>>(),
+        [0, 1, 2, 0, 1]
+    );
+    assert!(
+        second.iter().all(|s| s.flags & FLAG_GAP_BEFORE == 0),
+        "a restart is not a gap: {second:?}"
+    );
+    assert_eq!(r["epoch"], b);
+    assert_eq!(r["source_restarts"], 1);
+    assert_eq!(r["lost"], 0);
 }
 
 #[test]

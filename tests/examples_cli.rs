@@ -164,6 +164,7 @@ fn raw_driver_feeds_the_daemon_and_nav_subscriber_reads_it() {
         "{received} of {published}: {v}"
     );
     assert_eq!(v["lost"], 0, "{v}");
+    assert_eq!(v["epochs"], 1, "one daemon run, one driver run: {v}");
     common::signal(&daemon, 2);
     let (code, err) = common::finish(daemon, std::time::Duration::from_secs(10));
     assert_eq!(code, Some(0), "{err}");

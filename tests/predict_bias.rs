@@ -74,7 +74,7 @@ fn run(
             seq: i as u64,
             rate: s.measured,
             flags: 0,
-            reserved: 0,
+            epoch: 0,
         };
         let [m0, m1, m2] = s.measured;
         let [t0, t1, t2] = s.truth;

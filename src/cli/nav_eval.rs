@@ -331,7 +331,7 @@ fn run_chain(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, CliError>
                 seq: k as u64,
                 rate,
                 flags: 0,
-                reserved: 0,
+                epoch: 0,
             };
             off.push(&raw, &mut put);
         }

@@ -1,7 +1,8 @@
 //! The input guard between the ingest and the first processing stage: units to rad/s, and the
 //! checks on every raw sample (non-finite or driver-invalid values, sequence gaps, timestamps
 //! going backwards). A bad value is replaced by the last good one, flagged and counted: no NaN
-//! or Inf ever enters a stage.
+//! or Inf ever enters a stage. It also keeps the stream's epoch ([`GyroSample::epoch`]): a
+//! source restart starts a new epoch instead of counting as a gap.
 
 use crate::pipeline::config::Units;
 use crate::transport::{
@@ -19,6 +20,8 @@ pub struct GuardCounts {
     pub missing: u64,
     /// Timestamps that went backwards.
     pub backwards: u64,
+    /// Source restarts (each started a new epoch).
+    pub restarts: u64,
 }
 
 /// Turns raw samples into [`GyroSample`]s in rad/s.
@@ -29,20 +32,51 @@ pub struct Guard {
     last_good: [f64; 3],
     last_seq: Option<u64>,
     last_t: Option<u64>,
+    epoch: u32,
+    source_epoch: Option<u32>,
     /// What was flagged so far.
     pub counts: GuardCounts,
 }
 
 impl Guard {
-    /// A guard for `axes` axes in `units`.
-    pub fn new(units: Units, axes: usize) -> Self {
+    /// A guard for `axes` axes in `units`, whose stream starts at `epoch` (0 is taken as 1).
+    pub fn new(units: Units, axes: usize, epoch: u32) -> Self {
         Guard {
             scale: units.to_rad_per_sec(),
             axes: axes.clamp(1, 3),
             last_good: [0.0; 3],
             last_seq: None,
             last_t: None,
+            epoch: epoch.max(1),
+            source_epoch: None,
             counts: GuardCounts::default(),
+        }
+    }
+
+    /// The current epoch.
+    pub fn epoch(&self) -> u32 {
+        self.epoch
+    }
+
+    /// `raw` with the stream's epoch in place of the source's; call it before [`Guard::admit`]
+    /// (the daemon republishes the stamped sample on the ingest's output). A source restart (its
+    /// own non-zero epoch changed, or its `seq` went back to 0) starts the next epoch and
+    /// forgets the old run's sequence and time, so neither counts as a gap or a step back.
+    pub fn stamp(&mut self, raw: &RawSample) -> RawSample {
+        let new_source_run = raw.epoch != 0 && self.source_epoch.is_some_and(|e| e != raw.epoch);
+        let seq_restarted = raw.seq == 0 && self.last_seq.is_some();
+        if new_source_run || seq_restarted {
+            self.epoch = self.epoch.checked_add(1).unwrap_or(1);
+            self.counts.restarts += 1;
+            self.last_seq = None;
+            self.last_t = None;
+        }
+        if raw.epoch != 0 {
+            self.source_epoch = Some(raw.epoch);
+        }
+        RawSample {
+            epoch: self.epoch,
+            ..*raw
         }
     }
 
@@ -88,7 +122,7 @@ impl Guard {
             drift: [0.0; 3],
             denoised: rate,
             flags,
-            reserved: 0,
+            epoch: raw.epoch,
         }
     }
 }
@@ -103,13 +137,13 @@ mod tests {
             seq,
             rate: [x, 1.0, 2.0],
             flags: 0,
-            reserved: 0,
+            epoch: 0,
         }
     }
 
     #[test]
     fn flags_and_counts_bad_samples() {
-        let mut g = Guard::new(Units::RadPerSec, 3);
+        let mut g = Guard::new(Units::RadPerSec, 3, 7);
         assert_eq!(g.admit(&raw(0, 10, 1.0), 0).flags, 0);
         let s = g.admit(&raw(1, 20, f64::NAN), 0);
         assert_eq!(s.flags, FLAG_INPUT_INVALID);
@@ -124,16 +158,45 @@ mod tests {
                 invalid: 2,
                 gaps: 1,
                 missing: 2,
-                backwards: 1
+                backwards: 1,
+                restarts: 0,
             }
         );
     }
 
     #[test]
     fn converts_degrees() {
-        let mut g = Guard::new(Units::DegPerSec, 1);
+        let mut g = Guard::new(Units::DegPerSec, 1, 7);
         let s = g.admit(&raw(0, 0, 180.0), 0);
         assert!((s.rate[0] - std::f64::consts::PI).abs() < 1e-15);
         assert_eq!(s.rate[1], 0.0);
+    }
+
+    #[test]
+    fn a_source_restart_starts_a_new_epoch_instead_of_a_gap() {
+        let mut g = Guard::new(Units::RadPerSec, 3, 7);
+        let mut admit = |r: RawSample| {
+            let stamped = g.stamp(&r);
+            g.admit(&stamped, 0)
+        };
+        assert_eq!(admit(raw(0, 10, 1.0)).epoch, 7);
+        assert_eq!(admit(raw(1, 20, 1.0)).epoch, 7);
+        // The driver restarts: seq and time begin again.
+        let s = admit(raw(0, 5, 1.0));
+        assert_eq!((s.epoch, s.flags), (8, 0));
+        // A driver that stamps its own run id: a change is a restart even without seq 0.
+        let run = |seq, id| RawSample {
+            epoch: id,
+            ..raw(seq, 100 + seq, 1.0)
+        };
+        assert_eq!(admit(run(1, 42)).epoch, 8);
+        assert_eq!(admit(run(2, 42)).epoch, 8);
+        let s = admit(run(1, 43));
+        assert_eq!((s.epoch, s.flags), (9, 0));
+        // A jump within a run is still a gap.
+        assert_eq!(admit(run(5, 43)).flags, FLAG_GAP_BEFORE);
+        assert_eq!(g.counts.gaps, 1);
+        assert_eq!(g.counts.missing, 3);
+        assert_eq!(g.counts.restarts, 2);
     }
 }

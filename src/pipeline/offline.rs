@@ -10,6 +10,9 @@ use crate::pipeline::guard::Guard;
 use crate::pipeline::stage::{Role, Stage};
 use crate::transport::{GyroSample, RawSample};
 
+/// The epoch of an offline run's samples (a daemon picks a random one per start).
+pub const OFFLINE_EPOCH: u32 = 1;
+
 /// A pipeline's guard and stages (everything after the ingest), run in the caller's thread.
 pub struct Offline {
     guard: Guard,
@@ -36,7 +39,7 @@ impl Offline {
             );
         }
         Ok(Offline {
-            guard: Guard::new(p.input_units, p.axes),
+            guard: Guard::new(p.input_units, p.axes, OFFLINE_EPOCH),
             stages,
         })
     }
@@ -44,7 +47,8 @@ impl Offline {
     /// One raw sample through the guard and every stage; `out` receives what the last stage
     /// publishes (nothing while a lagged stage fills up).
     pub fn push(&mut self, raw: &RawSample, out: &mut impl FnMut(GyroSample)) {
-        let s = self.guard.admit(raw, 0);
+        let raw = self.guard.stamp(raw);
+        let s = self.guard.admit(&raw, 0);
         self.run_from(0, s, out);
     }
 

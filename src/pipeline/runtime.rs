@@ -44,7 +44,7 @@ use crate::pipeline::stage::Role;
 use crate::pipeline::stage::{Poll, Source, Stage};
 use crate::transport::{
     monotonic_ns, remove_prefix_leftovers, GyroSample, Input, NodeHolder, Output, Qos, RawSample,
-    StatsSnapshot, Transport, TransportError, FLAG_FLUSHED, FLAG_OUTPUT_REPAIRED,
+    StatsSnapshot, Transport, TransportError, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
 };
 
 /// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
@@ -159,7 +159,7 @@ impl Chain {
             return Ok(());
         };
         let mut rec = Record::default();
-        raw_out.send(raw)?;
+        raw_out.send(&self.guard.stamp(raw))?;
         let received = raw_in.receive()?;
         self.local.stage_in[0] += 1;
         self.local.stage_out[0] += 1;
@@ -302,6 +302,7 @@ impl Chain {
             c.gaps.store(g.gaps, Ordering::Relaxed);
             c.missing.store(g.missing, Ordering::Relaxed);
             c.backwards.store(g.backwards, Ordering::Relaxed);
+            c.restarts.store(g.restarts, Ordering::Relaxed);
         }
     }
 
@@ -469,7 +470,11 @@ fn build_segment(
     let end_in = if span.is_final { span.hi } else { span.hi + 1 };
     let chain = Chain {
         head: None,
-        guard: Guard::new(p.input_units, p.axes),
+        guard: Guard::new(
+            p.input_units,
+            p.axes,
+            counters.epoch.load(Ordering::Relaxed) as u32,
+        ),
         first: span.lo,
         stages: stage_objs,
         outs,
@@ -557,7 +562,8 @@ fn run_segment(
                 Ok(Some(s)) => {
                     chain.local.stage_out[span.lo - 1] += 1;
                     if let Some(expected) = next_seq {
-                        if s.seq > expected {
+                        // A sensor's own gap is flagged (and counted as lost) at the ingest.
+                        if s.seq > expected && s.flags & FLAG_GAP_BEFORE == 0 {
                             external_lost.fetch_add(s.seq - expected, Ordering::Relaxed);
                         }
                     }
@@ -620,6 +626,10 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     let raw_in = transport.input::<RawSample>(raw_service)?;
     let spans = segments(p);
     let counters = Arc::new(Counters::default());
+    // A fresh epoch per start, so a subscriber that outlives a restart can tell the runs apart.
+    counters
+        .epoch
+        .store(u64::from(rand::random::<u32>().max(1)), Ordering::Relaxed);
     let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
     let (mut chain, head_lost, mut lag_total) =
         build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;

@@ -251,7 +251,7 @@ impl Source for CsvReplay {
             seq: self.seq,
             rate: self.params.rates[self.next],
             flags: 0,
-            reserved: 0,
+            epoch: 0,
         };
         self.next += 1;
         self.seq += 1;

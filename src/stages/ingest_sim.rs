@@ -166,7 +166,7 @@ impl Source for SimSource {
             seq: self.k,
             rate: s.measured,
             flags: 0,
-            reserved: 0,
+            epoch: 0,
         };
         self.k += 1;
         Poll::Sample(raw, monotonic_ns())

@@ -185,7 +185,7 @@ pub fn raw(seq: u64, t_ns: u64, rate: [f64; 3]) -> RawSample {
         seq,
         rate,
         flags: 0,
-        reserved: 0,
+        epoch: 0,
     }
 }
 
