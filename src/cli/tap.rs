@@ -110,7 +110,7 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     let mut out = stdout.lock();
     let end = args.duration.map(|d| Instant::now() + d);
     let (mut total, mut window, mut gaps) = (0u64, 0u64, 0u64);
-    let mut last_seq: Option<u64> = None;
+    let mut last_seq: Option<(u32, u64)> = None; // (epoch, seq)
     let mut tick = Instant::now();
     while !stop.load(Ordering::Relaxed) && end.is_none_or(|e| Instant::now() < e) {
         let got = match &tapped {
@@ -118,12 +118,12 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
                 .receive()
                 .ok()
                 .flatten()
-                .map(|s| (Some(s.seq), line_gyro(&s))),
+                .map(|s| (Some((s.epoch, s.seq)), line_gyro(&s))),
             Tapped::Raw(i) => i
                 .receive()
                 .ok()
                 .flatten()
-                .map(|s| (Some(s.seq), line_raw(&s))),
+                .map(|s| (Some((s.epoch, s.seq)), line_raw(&s))),
             Tapped::Stats(i) => i
                 .receive()
                 .ok()
@@ -134,8 +134,9 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
             Some((seq, line)) => {
                 total += 1;
                 window += 1;
-                if let (Some(seq), Some(prev)) = (seq, last_seq) {
-                    if seq > prev + 1 {
+                // Sequence numbers count within one epoch (a daemon or source restart).
+                if let (Some((epoch, seq)), Some((prev_epoch, prev))) = (seq, last_seq) {
+                    if epoch == prev_epoch && seq > prev + 1 {
                         gaps += seq - prev - 1;
                     }
                 }
