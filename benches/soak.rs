@@ -1,0 +1,319 @@
+//! Soak: `pipelines/demo.toml` at 1 kHz while subscribers in other processes join, stall
+//! (SIGSTOP / SIGCONT), die (SIGKILL) and rejoin every few seconds.
+//!
+//! ```text
+//! cargo bench --bench soak                               # 60 s
+//! DRIFTLESS_SOAK_SECONDS=3600 cargo bench --bench soak   # the hour of issue 13
+//! DRIFTLESS_SOAK_SEED=7 ...                              # another schedule of abuse
+//! ```
+//!
+//! Two phases of equal length. In the first, subscribers only join, stall and leave cleanly:
+//! each reports what it saw (received, lost, duplicated, reordered, from `seq` within one
+//! epoch), and the daemon's count of the corrected service's losses (its stats snapshot) must
+//! equal the sum of theirs exactly. In the second, subscribers are also killed: their losses
+//! are known only to the daemon (a dead subscriber's buffer fills until the daemon's periodic
+//! clean-up removes it), so the check is that the daemon keeps its deadline and its memory.
+//! Throughout: the daemon's resident memory is sampled every second (flat after the first
+//! tenth of the run), and its final report must show no deadline miss.
+//!
+//! The subscribers are this same executable, started again with `--subscriber`.
+
+use std::io::Read as _;
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use driftless::transport::{GyroSample, Qos, StatsSnapshot, Transport};
+use rand::{Rng, SeedableRng};
+use serde_json::Value;
+
+const PIPELINE: &str = "pipelines/demo.toml";
+const SERVICE: &str = "demo/corrected";
+const STATS: &str = "demo/stats";
+/// Soak subscribers at most (the demo allows 8 per service).
+const MAX_SUBSCRIBERS: usize = 5;
+
+fn env_u64(name: &str, default: u64) -> u64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// What a subscriber saw, counted from `seq` within one epoch.
+#[derive(Debug, Default, Clone, Copy)]
+struct Seen {
+    received: u64,
+    lost: u64,
+    duplicated: u64,
+    reordered: u64,
+}
+
+/// Subscriber mode: read `SERVICE` until SIGINT/SIGTERM, then print what was seen as JSON.
+fn subscriber(prefix: &str) {
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, Arc::clone(&stop)).expect("signal handler");
+    }
+    let node = Transport::new(
+        prefix,
+        &format!("soak-sub-{}", std::process::id()),
+        Qos::default(),
+    )
+    .expect("node");
+    let input = node.open_input::<GyroSample>(SERVICE).expect("subscriber");
+    let waker = node.waker(SERVICE).expect("waker");
+    let mut seen = Seen::default();
+    let mut last: Option<(u32, u64)> = None;
+    while !stop.load(Ordering::Relaxed) {
+        let _ = waker.wait(Duration::from_millis(50));
+        while let Ok(Some(s)) = input.receive() {
+            seen.received += 1;
+            if let Some((epoch, seq)) = last {
+                if epoch == s.epoch {
+                    if s.seq > seq + 1 {
+                        seen.lost += s.seq - seq - 1;
+                    } else if s.seq == seq {
+                        seen.duplicated += 1;
+                    } else if s.seq < seq {
+                        seen.reordered += 1;
+                    }
+                }
+            }
+            last = Some((s.epoch, s.seq));
+        }
+    }
+    println!(
+        "{{\"received\":{},\"lost\":{},\"duplicated\":{},\"reordered\":{}}}",
+        seen.received, seen.lost, seen.duplicated, seen.reordered
+    );
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: kill has no memory-safety preconditions.
+    unsafe {
+        libc::kill(child.id() as i32, sig);
+    }
+}
+
+fn rss_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// The daemon's count of losses on the corrected service (the publish stage's output).
+fn corrected_lost(stats: &driftless::transport::Input<StatsSnapshot>) -> Option<u64> {
+    let mut latest = None;
+    while let Ok(Some(s)) = stats.receive() {
+        latest = Some(s);
+    }
+    let s = latest?;
+    let last = (s.stage_count as usize).checked_sub(1)?;
+    Some(s.stages[last].lost)
+}
+
+struct Sub {
+    child: Child,
+    stopped_until: Option<Instant>,
+}
+
+/// Stop a subscriber cleanly (resumed first if stalled) and read its report.
+fn leave(mut sub: Sub) -> Seen {
+    if sub.stopped_until.is_some() {
+        signal(&sub.child, libc::SIGCONT);
+    }
+    // Let it drain what its buffer holds before it is asked to go.
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&sub.child, libc::SIGINT);
+    let mut out = String::new();
+    if let Some(mut o) = sub.child.stdout.take() {
+        let _ = o.read_to_string(&mut out);
+    }
+    let _ = sub.child.wait();
+    let v: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| {
+        panic!("subscriber report {out:?}: {e}");
+    });
+    let get = |k: &str| v[k].as_u64().expect("count");
+    Seen {
+        received: get("received"),
+        lost: get("lost"),
+        duplicated: get("duplicated"),
+        reordered: get("reordered"),
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(i) = args.iter().position(|a| a == "--subscriber") {
+        subscriber(&args[i + 1]);
+        return;
+    }
+    if args.iter().any(|a| a == "--list") {
+        return; // `cargo bench -- --list`
+    }
+    let secs = env_u64("DRIFTLESS_SOAK_SECONDS", 60).max(20);
+    let seed = env_u64("DRIFTLESS_SOAK_SEED", 1);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let prefix = format!("dlsoak{}_", std::process::id());
+    let report = std::env::temp_dir().join(format!("{prefix}report.json"));
+    let me = std::env::current_exe().expect("own path");
+
+    let mut daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("run")
+        .arg(root.join(PIPELINE))
+        .args(["--prefix", &prefix, "--quiet", "--report"])
+        .arg(&report)
+        .args(["--duration", &format!("{}s", secs + 5)])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn driftless");
+    let watcher = Transport::new(&prefix, "soak-watch", Qos::default()).expect("node");
+    let start = Instant::now();
+    let stats = loop {
+        if let Ok(s) = watcher.open_input::<StatsSnapshot>(STATS) {
+            break s;
+        }
+        assert!(start.elapsed() < Duration::from_secs(20), "daemon not up");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let spawn = || Sub {
+        child: Command::new(&me)
+            .args(["--subscriber", &prefix])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn subscriber"),
+        stopped_until: None,
+    };
+
+    let t0 = Instant::now();
+    let phase = Duration::from_secs(secs / 2);
+    let mut subs: Vec<Sub> = Vec::new();
+    let mut seen = Seen::default();
+    let (mut joins, mut stalls, mut kills, mut leaves) = (0u64, 0u64, 0u64, 0u64);
+    let mut rss: Vec<(f64, u64)> = Vec::new();
+    let mut next_action = Instant::now();
+    let mut next_rss = Instant::now();
+    let mut phase_a_daemon_lost = None;
+    while t0.elapsed() < 2 * phase {
+        let now = Instant::now();
+        let killing = t0.elapsed() >= phase;
+        if killing && phase_a_daemon_lost.is_none() {
+            // End of phase A: every subscriber leaves cleanly and reports.
+            for s in subs.drain(..) {
+                seen = add(seen, leave(s));
+                leaves += 1;
+            }
+            // Two report intervals: the snapshot then holds every loss of phase A.
+            std::thread::sleep(Duration::from_secs(5));
+            phase_a_daemon_lost = corrected_lost(&stats);
+        }
+        for s in &mut subs {
+            if s.stopped_until.is_some_and(|u| now >= u) {
+                signal(&s.child, libc::SIGCONT);
+                s.stopped_until = None;
+            }
+        }
+        if now >= next_action {
+            let roll: f64 = rng.random();
+            if subs.len() < 2 || (roll < 0.35 && subs.len() < MAX_SUBSCRIBERS) {
+                subs.push(spawn());
+                joins += 1;
+            } else if roll < 0.65 {
+                let i = rng.random_range(0..subs.len());
+                if subs[i].stopped_until.is_none() {
+                    signal(&subs[i].child, libc::SIGSTOP);
+                    subs[i].stopped_until =
+                        Some(now + Duration::from_millis(rng.random_range(100..3000)));
+                    stalls += 1;
+                }
+            } else if killing && roll < 0.85 {
+                let i = rng.random_range(0..subs.len());
+                let mut s = subs.swap_remove(i);
+                signal(&s.child, libc::SIGKILL);
+                let _ = s.child.wait();
+                kills += 1;
+            } else {
+                let i = rng.random_range(0..subs.len());
+                let s = subs.swap_remove(i);
+                let got = leave(s);
+                if !killing {
+                    seen = add(seen, got);
+                }
+                leaves += 1;
+            }
+            next_action = now + Duration::from_millis(rng.random_range(500..3000));
+        }
+        if now >= next_rss {
+            if let Some(kib) = rss_kib(daemon.id()) {
+                rss.push((t0.elapsed().as_secs_f64(), kib));
+            }
+            next_rss = now + Duration::from_secs(1);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    for s in subs.drain(..) {
+        signal(&s.child, libc::SIGKILL);
+        let mut s = s;
+        let _ = s.child.wait();
+    }
+    signal(&daemon, libc::SIGINT);
+    let _ = daemon.wait();
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&report).expect("report"))
+        .expect("report JSON");
+    let _ = std::fs::remove_file(&report);
+
+    let warm = rss
+        .iter()
+        .filter(|(t, _)| *t >= secs as f64 / 10.0)
+        .map(|(_, k)| *k);
+    let (lo, hi) = warm.fold((u64::MAX, 0), |(lo, hi), k| (lo.min(k), hi.max(k)));
+    let misses = r["deadline_misses"].as_u64().unwrap_or(u64::MAX);
+    let daemon_a = phase_a_daemon_lost.unwrap_or(u64::MAX);
+    println!(
+        "soak: {secs} s of pipelines/demo.toml at 1 kHz, seed {seed}; {joins} joins, {stalls} stalls \
+         (SIGSTOP 0.1-3 s), {kills} kills (second half only), {leaves} clean leaves"
+    );
+    println!(
+        "  daemon: {} samples in, {} out, e2e p99 {:.1} us, max {:.1} us, deadline misses {misses}, lost {} in all",
+        r["samples_in"],
+        r["samples_out"],
+        r["end_to_end_ns"]["p99"].as_f64().unwrap_or(f64::NAN) / 1e3,
+        r["end_to_end_ns"]["max"].as_f64().unwrap_or(f64::NAN) / 1e3,
+        r["lost"]
+    );
+    println!(
+        "  resident memory after the first tenth: {lo} .. {hi} KiB ({} samples)",
+        rss.len()
+    );
+    println!(
+        "  phase 1 (no kills): subscribers received {}, lost {}, duplicated {}, reordered {}; the daemon counted {daemon_a} lost",
+        seen.received, seen.lost, seen.duplicated, seen.reordered
+    );
+    let goals = [
+        ("no deadline miss", misses == 0),
+        ("memory flat (growth < 1 MiB)", hi.saturating_sub(lo) < 1024),
+        (
+            "no duplicate or reordered sample",
+            seen.duplicated == 0 && seen.reordered == 0,
+        ),
+        ("every loss counted exactly", daemon_a == seen.lost),
+    ];
+    for (goal, ok) in goals {
+        println!("  goal {goal}: {ok}");
+    }
+}
+
+fn add(a: Seen, b: Seen) -> Seen {
+    Seen {
+        received: a.received + b.received,
+        lost: a.lost + b.lost,
+        duplicated: a.duplicated + b.duplicated,
+        reordered: a.reordered + b.reordered,
+    }
+}
