@@ -1,5 +1,6 @@
 //! `ingest.sim`: the built-in gyro simulator ([`crate::sim`]), paced in real time from the
-//! monotonic clock. Sensor timestamps are `k / rate` in ns; rates are in deg/s.
+//! monotonic clock, or as fast as possible (`pace = "asap"`: throughput and delivery tests).
+//! Sensor timestamps are `k / rate` in ns either way; rates are in deg/s.
 //!
 //! ```toml
 //! [[stage]]
@@ -10,6 +11,7 @@
 //! motion = "sines"         # true motion: none, sines (default), steps, turn
 //! seed = 1
 //! # samples = 60000        # stop after this many (default: run until stopped)
+//! # pace = "asap"          # as fast as possible (default "realtime")
 //! ```
 
 use std::sync::atomic::AtomicBool;
@@ -46,12 +48,19 @@ const SAMPLES: Key = Key {
     doc: "stop after this many samples",
 };
 
+const PACE: Key = Key {
+    name: "pace",
+    ty: Type::Choice(&["realtime", "asap"]),
+    default: "\"realtime\"",
+    doc: "at rate_hz, or as fast as possible",
+};
+
 /// `ingest.sim`.
 pub const KIND: Kind = Kind {
     name: "ingest.sim",
     role: Role::Ingest { has_input: false },
-    summary: "the built-in gyro simulator, paced in real time; needs input_units = \"deg/s\"",
-    keys: &[PROFILE, SEED, MOTION, SAMPLES],
+    summary: "the built-in gyro simulator, in real time or as fast as possible; needs input_units = \"deg/s\"",
+    keys: &[PROFILE, SEED, MOTION, SAMPLES, PACE],
     parse,
 };
 
@@ -66,6 +75,8 @@ pub struct SimParams {
     pub motion: String,
     /// Stop after this many samples (None: run until stopped).
     pub samples: Option<u64>,
+    /// As fast as possible instead of at the pipeline's rate.
+    pub asap: bool,
 }
 
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
@@ -73,6 +84,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let seed = t.int(&SEED)?;
     let motion = t.choice(&MOTION, "motion", false)?;
     let samples = t.int(&SAMPLES)?;
+    let pace = t.choice(&PACE, "pace", true)?;
     if t.cx.units != Units::DegPerSec {
         return Err(t.src.at(
             t.kind_at,
@@ -84,6 +96,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         seed: seed.map_or(1, |s| s as u64),
         motion: motion.unwrap_or_else(|| "sines".into()),
         samples: samples.map(|s| s as u64),
+        asap: pace.as_deref() == Some("asap"),
     };
     sim_config(&params, t.cx.rate_hz, t.cx.axes)
         .map_err(|e| t.error(format!("ingest.sim: {e}")))?;
@@ -132,6 +145,7 @@ pub struct SimSource {
     sim: Simulator,
     rate_hz: f64,
     limit: Option<u64>,
+    asap: bool,
     k: u64,
     start: Option<Instant>,
 }
@@ -144,6 +158,7 @@ impl SimSource {
             sim: Simulator::new(&cfg).map_err(|e| e.to_string())?,
             rate_hz,
             limit: p.samples,
+            asap: p.asap,
             k: 0,
             start: None,
         })
@@ -155,10 +170,12 @@ impl Source for SimSource {
         if self.limit.is_some_and(|n| self.k >= n) {
             return Poll::End;
         }
-        let start = *self.start.get_or_insert_with(Instant::now);
-        let due = start + Duration::from_secs_f64(self.k as f64 / self.rate_hz);
-        if !crate::stages::sleep_until(due, stop) {
-            return Poll::Idle;
+        if !self.asap {
+            let start = *self.start.get_or_insert_with(Instant::now);
+            let due = start + Duration::from_secs_f64(self.k as f64 / self.rate_hz);
+            if !crate::stages::sleep_until(due, stop) {
+                return Poll::Idle;
+            }
         }
         let s = self.sim.next_sample();
         let raw = RawSample {
