@@ -649,49 +649,108 @@ pub fn stage_name(s: &StageStats) -> String {
 
 /// Format a snapshot for `driftless stats`.
 pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
+    // Fits an 80-column terminal: three summary lines and a 76-column table.
     let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
     let mut out = format!(
-        "{name}: up {:.1} s, {} in, {} out, {:.0} Hz; deadline {} us, {} missed; lost {}, flagged {}, gap samples {}, metric drops {}\n",
+        "{name}: up {:.1} s, {:.0} Hz; deadline {} us, {} missed\n\
+         samples: {} in, {} out, {} lost ({} missing from the source)\n\
+         flagged {}; metric drops {}\n",
         s.uptime_ns as f64 / 1e9,
-        s.samples_in,
-        s.samples_out,
         s.rate_hz,
         us(s.deadline_ns),
         s.deadline_misses,
+        s.samples_in,
+        s.samples_out,
         s.lost,
-        s.flagged,
         s.gap_samples,
+        s.flagged,
         s.metric_drops
     );
-    out.push_str(&format!(
-        "{:<14} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
-        "stage", "in", "out", "lost", "p50 us", "p99 us", "p99.9 us", "max us"
-    ));
+    let row = |out: &mut String, cells: [&str; 8]| {
+        let [name, a, b, c, d, e, f, g] = cells;
+        out.push_str(&format!(
+            "{name:<12} {a:>9} {b:>9} {c:>7} {d:>8} {e:>8} {f:>8} {g:>8}\n"
+        ));
+    };
+    row(
+        &mut out,
+        [
+            "stage", "in", "out", "lost", "p50 us", "p99 us", "p99.9 us", "max us",
+        ],
+    );
     let n = (s.stage_count as usize).min(MAX_STATS_STAGES);
     for st in &s.stages[..n] {
-        out.push_str(&format!(
-            "{:<14} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
-            stage_name(st),
-            st.samples_in,
-            st.samples_out,
-            st.lost,
-            us(st.compute.p50),
-            us(st.compute.p99),
-            us(st.compute.p999),
-            us(st.compute.max)
-        ));
+        let c = &st.compute;
+        row(
+            &mut out,
+            [
+                &stage_name(st),
+                &st.samples_in.to_string(),
+                &st.samples_out.to_string(),
+                &st.lost.to_string(),
+                &us(c.p50),
+                &us(c.p99),
+                &us(c.p999),
+                &us(c.max),
+            ],
+        );
     }
     let e = &s.end_to_end;
-    out.push_str(&format!(
-        "{:<14} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
-        "end-to-end",
-        e.count,
-        "",
-        "",
-        us(e.p50),
-        us(e.p99),
-        us(e.p999),
-        us(e.max)
-    ));
+    row(
+        &mut out,
+        [
+            "end-to-end",
+            &e.count.to_string(),
+            "",
+            "",
+            &us(e.p50),
+            &us(e.p99),
+            &us(e.p999),
+            &us(e.max),
+        ],
+    );
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_snapshot_fits_80_columns_even_with_large_counts() {
+        let mut s = StatsSnapshot {
+            uptime_ns: 86_400_000_000_000,
+            samples_in: 86_400_000,
+            samples_out: 86_399_936,
+            rate_hz: 1000.0,
+            deadline_ns: 1_000_000,
+            deadline_misses: 12,
+            lost: 123_456,
+            flagged: 1_000,
+            gap_samples: 500,
+            metric_drops: 7,
+            stage_count: 4,
+            ..StatsSnapshot::default()
+        };
+        for (i, name) in ["sensor", "denoise", "predict", "publish"]
+            .iter()
+            .enumerate()
+        {
+            let st = &mut s.stages[i];
+            st.name[..name.len()].copy_from_slice(name.as_bytes());
+            st.samples_in = 86_400_000;
+            st.samples_out = 86_400_000;
+            st.lost = 99_999;
+            st.compute.p50 = 12_300;
+            st.compute.max = 99_999_900;
+        }
+        s.end_to_end.count = 86_400_000;
+        s.end_to_end.max = 99_999_900;
+        let text = format_snapshot("demo", &s);
+        assert_eq!(text.lines().count(), 3 + 1 + 4 + 1, "{text}");
+        for line in text.lines() {
+            assert!(line.len() <= 80, "{} columns: {line:?}", line.len());
+        }
+        assert!(text.contains("denoise"), "{text}");
+    }
 }
