@@ -8,13 +8,15 @@
 //! ([`crate::nav::eval::Method`]), plus pipelines run through the daemon's own stage code
 //! ([`crate::pipeline::offline::Offline`]): the product's chain `denoise.wavelet ->
 //! predict.bias` built in at the log's rate with the axis' terms; with `--model`, the paper's
-//! `denoise.wavelet -> predict.rbf`; and any `--pipeline FILE`.
+//! `denoise.wavelet -> predict.rbf` and the same with the model's AR(p) in the network's place;
+//! and any `--pipeline FILE`.
 
 use super::duration::parse_seconds;
 use super::simulate::parse_number;
 use super::CliError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
 use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
+use crate::drift::PredictorKind;
 use crate::io::csv_table::read_table;
 use crate::io::plot::{self, Panel, Series};
 use crate::io::truth::read_truth;
@@ -73,7 +75,8 @@ pub struct Args {
     #[arg(long, default_value = "0")]
     pub lsb: String,
     /// RBF drift models (`driftless train`, at the log's rate): adds the paper's chain
-    /// `denoise.wavelet -> predict.rbf` as a method. One model for every axis, or one per axis
+    /// `denoise.wavelet -> predict.rbf` as a method, and the same chain with the model's AR(p)
+    /// baseline in the network's place (`predictor = "ar"`). One model for every axis, or one per axis
     /// in column order (repeat the option): the network works on the drift's levels, so a
     /// model trained on one axis does not carry to another axis' bias.
     #[arg(long = "model", value_name = "MODEL.json")]
@@ -250,8 +253,13 @@ fn bias_chain(src: &Source) -> Result<Chain, CliError> {
     })
 }
 
-/// The paper's chain, `denoise.wavelet -> predict.rbf`: one model for every axis, or one each.
-fn rbf_chain(src: &Source, models: &[PathBuf]) -> Result<Chain, CliError> {
+/// The paper's chain, `denoise.wavelet -> predict.rbf`, with the network or (`predictor =
+/// "ar"`) the models' AR(p) baselines in its place: one model for every axis, or one each.
+fn rbf_chain(
+    src: &Source,
+    models: &[PathBuf],
+    predictor: PredictorKind,
+) -> Result<Chain, CliError> {
     let axes = src.axes.len();
     if models.len() != 1 && models.len() != axes {
         return Err(CliError::input(format!(
@@ -259,20 +267,24 @@ fn rbf_chain(src: &Source, models: &[PathBuf]) -> Result<Chain, CliError> {
             models.len()
         )));
     }
+    let name = predictor.name();
     let pipelines = (0..axes)
         .map(|a| {
             let m = &models[a.min(models.len() - 1)];
             let path = std::path::absolute(m)
                 .map_err(|e| CliError::input(format!("{}: {e}", m.display())))?;
             let keys = format!(
-                "kind = \"predict.rbf\"\nmodel = {:?}",
+                "kind = \"predict.rbf\"\nmodel = {:?}\npredictor = \"{name}\"",
                 path.display().to_string()
             );
             builtin_pipeline(src.rate, &keys, &format!("--model {}", m.display()))
         })
         .collect::<Result<_, _>>()?;
     Ok(Chain {
-        label: "denoise.wavelet -> predict.rbf (stages)".into(),
+        label: match predictor {
+            PredictorKind::Rbf => "denoise.wavelet -> predict.rbf (stages)".into(),
+            PredictorKind::Ar => "denoise.wavelet -> predict.rbf, predictor ar (stages)".into(),
+        },
         pipelines,
     })
 }
@@ -503,7 +515,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
     };
     let mut chains = vec![bias_chain(&src)?];
     if !args.models.is_empty() {
-        chains.push(rbf_chain(&src, &args.models)?);
+        chains.push(rbf_chain(&src, &args.models, PredictorKind::Rbf)?);
+        chains.push(rbf_chain(&src, &args.models, PredictorKind::Ar)?);
     }
     for p in &args.pipelines {
         chains.push(file_chain(p, rate)?);
