@@ -76,9 +76,9 @@ pub struct Args {
     pub lsb: String,
     /// RBF drift models (`driftless train`, at the log's rate): adds the paper's chain
     /// `denoise.wavelet -> predict.rbf` as a method, and the same chain with the model's AR(p)
-    /// baseline in the network's place (`predictor = "ar"`). One model for every axis, or one per axis
-    /// in column order (repeat the option): the network works on the drift's levels, so a
-    /// model trained on one axis does not carry to another axis' bias.
+    /// baseline in the network's place (`predictor = "ar"`). One model for every axis, or one
+    /// per axis in column order (repeat the option): the network works on the drift's levels,
+    /// so a model trained on one axis does not carry to another axis' bias.
     #[arg(long = "model", value_name = "MODEL.json")]
     pub models: Vec<PathBuf>,
     /// A pipeline file whose stages after its ingest run offline as one more method
@@ -457,7 +457,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "--rate {rate} must be in (0, 1e6] Hz"
         )));
     }
-    // A truth file is read first: its length is the window's.
+    // Profiles before the log, so a typo fails at once; a truth file too: its length is the
+    // window's.
+    let profiles = parse_profiles(args.motion.as_deref().unwrap_or("all"))?;
     let truth = match &args.truth {
         Some(path) => Some(read_truth(path, rate)?),
         None => None,
@@ -508,10 +510,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             ),
             traces: t.traces(src.axes.len(), rate)?,
         }],
-        None => parse_profiles(args.motion.as_deref().unwrap_or("all"))?
-            .into_iter()
-            .map(Motion::Profile)
-            .collect(),
+        None => profiles.into_iter().map(Motion::Profile).collect(),
     };
     let mut chains = vec![bias_chain(&src)?];
     if !args.models.is_empty() {
