@@ -42,8 +42,8 @@ fn push_allocates_nothing_in_any_mode() {
     assert_eq!(allocations, 0, "allocations during push");
 }
 
-/// The `predict.rbf` stage as the daemon builds it from a pipeline file: `process` allocates
-/// nothing per sample either.
+/// The `predict.rbf` stage as the daemon builds it from a pipeline file, with the network or the
+/// model's AR(p) in its place: `process` allocates nothing per sample either.
 #[test]
 fn the_predict_rbf_stage_allocates_nothing_per_sample() {
     use driftless::pipeline::config;
@@ -91,25 +91,35 @@ kind = "publish"
 input = "a/predicted"
 output = "a/corrected"
 "#;
-    let file = dir.path().join("p.toml");
-    std::fs::write(&file, text).unwrap();
-    let p = config::load(&file).expect("valid pipeline");
-    let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
-    let mut stage = driftless::stages::build(spec, &p).expect("stage");
-    let (allocations, n) = alloc_counter::allocations_during(|| {
-        let mut n = 0;
-        for t in 0..5000u64 {
-            let mut s = GyroSample {
-                seq: t,
-                ..GyroSample::default()
-            };
-            s.denoised[0] = 0.01 + if (2000..3000).contains(&t) { 0.2 } else { 0.0 };
-            if stage.process(&s).is_some() {
-                n += 1;
+    // The network and the model's AR baseline in its place.
+    for predictor in ["rbf", "ar"] {
+        let text = text.replace(
+            "model = \"m.json\"",
+            &format!("model = \"m.json\"\npredictor = \"{predictor}\""),
+        );
+        let file = dir.path().join("p.toml");
+        std::fs::write(&file, &text).unwrap();
+        let p = config::load(&file).expect("valid pipeline");
+        let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
+        let mut stage = driftless::stages::build(spec, &p).expect("stage");
+        let (allocations, n) = alloc_counter::allocations_during(|| {
+            let mut n = 0;
+            for t in 0..5000u64 {
+                let mut s = GyroSample {
+                    seq: t,
+                    ..GyroSample::default()
+                };
+                s.denoised[0] = 0.01 + if (2000..3000).contains(&t) { 0.2 } else { 0.0 };
+                if stage.process(&s).is_some() {
+                    n += 1;
+                }
             }
-        }
-        n
-    });
-    assert_eq!(n, 5000);
-    assert_eq!(allocations, 0, "allocations in predict.rbf process");
+            n
+        });
+        assert_eq!(n, 5000);
+        assert_eq!(
+            allocations, 0,
+            "allocations in predict.rbf process, predictor {predictor}"
+        );
+    }
 }

@@ -344,3 +344,84 @@ fn bad_input_is_refused_with_exit_code_2() {
     assert!(!out.exists(), "a model was written for bad input");
     // A model trained at 50 Hz does not go into a 100 Hz daemon either: see tests/daemon.rs.
 }
+
+/// `predict.rbf` with `predictor = "ar"` is the model file's AR(p) baseline in the network's
+/// place, in the same compensator (same low band, stillness gating, step limit): the stage's
+/// drift is that compensator's, sample for sample, and not the network's. An unknown predictor is
+/// refused at its place in the pipeline file.
+#[test]
+fn predict_rbf_with_the_ar_predictor_is_the_models_ar_in_the_same_compensator() {
+    use driftless::drift::compensator::Compensator;
+    use driftless::pipeline::config;
+    use driftless::transport::GyroSample;
+    let dir = tempfile::tempdir().unwrap();
+    let log = sim_log(dir.path(), "log.csv", 15_000, 5);
+    let model_path = dir.path().join("m.json");
+    let o = train(&log, &model_path, &[]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    let model = read_model(&model_path).unwrap();
+    let pipeline = |predictor: &str| {
+        format!(
+            "name = \"a\"\nrate_hz = 50.0\naxes = 1\ninput_units = \"deg/s\"\n\
+             [[stage]]\nname = \"sensor\"\nkind = \"ingest.sim\"\noutput = \"a/raw\"\n\
+             [[stage]]\nname = \"predict\"\nkind = \"predict.rbf\"\nmodel = \"m.json\"\n{predictor}\n\
+             input = \"a/raw\"\noutput = \"a/predicted\"\n\
+             [[stage]]\nname = \"publish\"\nkind = \"publish\"\ninput = \"a/predicted\"\noutput = \"a/corrected\"\n"
+        )
+    };
+    // Still with a bias, a 20 deg/s turn, still: every mode of the compensator.
+    let input: Vec<f64> = (0..6000)
+        .map(|t| {
+            0.4 + 0.01 * ((t * 7919 % 11) as f64 - 5.0)
+                + if (2500..3500).contains(&t) { 20.0 } else { 0.0 }
+        })
+        .collect();
+    let drifts = |predictor: &str| -> Vec<f64> {
+        let file = dir.path().join("p.toml");
+        std::fs::write(&file, pipeline(predictor)).unwrap();
+        let p = config::load(&file).expect("valid pipeline");
+        let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
+        let mut stage = driftless::stages::build(spec, &p).expect("stage");
+        input
+            .iter()
+            .enumerate()
+            .map(|(t, &x)| {
+                let mut s = GyroSample {
+                    seq: t as u64,
+                    ..GyroSample::default()
+                };
+                s.denoised[0] = x.to_radians();
+                stage.process(&s).unwrap().drift[0].to_degrees()
+            })
+            .collect()
+    };
+    let ar = drifts("predictor = \"ar\"");
+    let mut c = Compensator::new(
+        model.baselines.ar.clone(),
+        model.lowband().unwrap(),
+        model.stillness,
+        model.max_step,
+    )
+    .unwrap();
+    for (t, (&x, &d)) in input.iter().zip(&ar).enumerate() {
+        let want = c.push(x).drift;
+        assert!(
+            (d - want).abs() <= 1e-9 * want.abs().max(1e-3),
+            "sample {t}: {d} vs {want}"
+        );
+    }
+    assert!(ar[1000..].iter().any(|&d| d != 0.0), "the AR compensated");
+    let rbf = drifts("");
+    assert_eq!(rbf, drifts("predictor = \"rbf\""), "rbf is the default");
+    assert!(
+        rbf.iter().zip(&ar).any(|(a, b)| (a - b).abs() > 1e-9),
+        "the network and the AR give the same drift: the key did nothing"
+    );
+    let file = dir.path().join("p.toml");
+    std::fs::write(&file, pipeline("predictor = \"arma\"")).unwrap();
+    let e = config::load(&file).unwrap_err().to_string();
+    assert!(
+        e.contains("p.toml:13:13: unknown predictor \"arma\" (valid: \"rbf\", \"ar\")"),
+        "{e}"
+    );
+}

@@ -146,6 +146,84 @@ fn on_the_real_log_the_product_beats_the_navigators_own_baselines() {
     assert!(text.starts_with("<svg") && text.contains("ZARU oracle"));
 }
 
+/// `--model` adds the paper's chain twice: with the network, and with the model's AR(p) in its
+/// place; the AR method is exactly the `predict.rbf` stage with `predictor = "ar"` that a
+/// pipeline file would run.
+#[test]
+fn with_a_model_the_rbf_and_its_ar_are_judged_side_by_side() {
+    let dir = Dir::new();
+    let log = dir.path("static.csv");
+    let model = dir.path("m.json");
+    for args in [
+        vec![
+            "simulate",
+            "--profile",
+            "adis16405",
+            "--axes",
+            "1",
+            "--seed",
+            "7",
+            "--duration",
+            "200s",
+            "-o",
+            log.to_str().unwrap(),
+        ],
+        vec![
+            "train",
+            log.to_str().unwrap(),
+            "--rate",
+            "100",
+            "--train",
+            "15000",
+            "--test",
+            "2000",
+            "-o",
+            model.to_str().unwrap(),
+        ],
+    ] {
+        let out = common::driftless(&args);
+        assert!(out.status.success(), "{args:?}: {}", common::text(&out).1);
+    }
+    let ar_file = dir.write(
+        "ar.toml",
+        &PASS_THROUGH
+            .replace("\"denoise.none\"", "\"denoise.wavelet\"")
+            .replace("\"rad/s\"", "\"deg/s\"")
+            .replace(
+                "kind = \"predict.none\"",
+                "kind = \"predict.rbf\"\nmodel = \"m.json\"\npredictor = \"ar\"",
+            ),
+    );
+    let v = json(&nav_eval(&[
+        "--sim",
+        "adis16405",
+        "--windows",
+        "1",
+        "--window",
+        "3min",
+        "--motion",
+        "stop-and-go",
+        "--json",
+        "--model",
+        model.to_str().unwrap(),
+        "--pipeline",
+        ar_file.to_str().unwrap(),
+    ]));
+    let s = &v["sections"][0];
+    let rbf = method(s, "denoise.wavelet -> predict.rbf (stages)");
+    let ar = method(s, "denoise.wavelet -> predict.rbf, predictor ar (stages)");
+    let file = method(s, "ar.toml (denoise.wavelet -> predict.rbf -> publish)");
+    for key in ["rms_heading_deg", "final_heading_deg", "rms_rate_degps"] {
+        assert_eq!(med(ar, key), med(file, key), "{key}");
+        assert!(med(ar, key).is_finite() && med(rbf, key).is_finite());
+    }
+    assert_ne!(
+        med(ar, "rms_heading_deg"),
+        med(rbf, "rms_heading_deg"),
+        "the AR method ran the network"
+    );
+}
+
 #[test]
 fn bad_input_is_one_line_and_exit_2() {
     let dir = Dir::new();

@@ -1,20 +1,25 @@
-//! `driftless nav-eval`: the heading benchmark. Known motion ([`crate::nav::profiles`]) is added
-//! to a static gyro log (or to the simulator's noise), every method corrects the sum, and each is
-//! judged by the heading error a navigator integrating it would see, window by window, against
-//! ZARU with the true stops.
+//! `driftless nav-eval`: the heading benchmark. Known motion (a built-in profile,
+//! [`crate::nav::profiles`], or a truth file, [`crate::io::truth`]) is added to a static gyro log
+//! (or to the simulator's noise), every method corrects the sum, and each is judged by the
+//! heading error a navigator integrating it would see, window by window, against ZARU with the
+//! true stops.
 //!
 //! Methods: the baselines a navigator already has and the library's estimators
 //! ([`crate::nav::eval::Method`]), plus pipelines run through the daemon's own stage code
 //! ([`crate::pipeline::offline::Offline`]): the product's chain `denoise.wavelet ->
-//! predict.bias` built in at the log's rate with the axis' terms, and any `--pipeline FILE`.
+//! predict.bias` built in at the log's rate with the axis' terms; with `--model`, the paper's
+//! `denoise.wavelet -> predict.rbf` and the same with the model's AR(p) in the network's place;
+//! and any `--pipeline FILE`.
 
 use super::duration::parse_seconds;
 use super::simulate::parse_number;
 use super::CliError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
 use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
+use crate::drift::PredictorKind;
 use crate::io::csv_table::read_table;
 use crate::io::plot::{self, Panel, Series};
+use crate::io::truth::read_truth;
 use crate::nav::{
     evaluate, format_table_labelled, generate, heading_error, summarize_methods, BiasEstimator,
     HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile, Setup, Zaru,
@@ -44,12 +49,20 @@ pub struct Args {
     /// Windows per axis with `--sim`.
     #[arg(long, default_value = "6")]
     pub windows: usize,
-    /// Motion profiles, comma separated (stop-and-go, vehicle, continuous, pedestrian) or `all`.
-    #[arg(long, default_value = "all")]
-    pub motion: String,
-    /// Length of each window (e.g. 10min, 600s).
-    #[arg(long, default_value = "10min")]
-    pub window: String,
+    /// Motion profiles, comma separated (stop-and-go, vehicle, continuous, pedestrian) or `all`
+    /// (the default without `--truth`).
+    #[arg(long, conflicts_with = "truth")]
+    pub motion: Option<String>,
+    /// Instead of the profiles: a CSV of the true rate (deg/s) at the log's rate, added to every
+    /// window. Rate columns: one for every axis, or one per axis in column order; optional
+    /// `still...` columns (0/1; one for every rate column or one each) give the oracle's stops,
+    /// else still is a rate of exactly 0; an optional time column must step at the log's rate.
+    /// Its rows are the window: exactly `--window` samples when that is given.
+    #[arg(long, value_name = "FILE.csv")]
+    pub truth: Option<PathBuf>,
+    /// Length of each window (e.g. 10min, 600s; default 10min, or the `--truth` file's length).
+    #[arg(long)]
+    pub window: Option<String>,
     /// The start of the log that the Allan fit characterises (`--terms fit`); the windows come
     /// after it, so they are held out.
     #[arg(long, default_value = "33min")]
@@ -62,9 +75,10 @@ pub struct Args {
     #[arg(long, default_value = "0")]
     pub lsb: String,
     /// RBF drift models (`driftless train`, at the log's rate): adds the paper's chain
-    /// `denoise.wavelet -> predict.rbf` as a method. One model for every axis, or one per axis
-    /// in column order (repeat the option): the network works on the drift's levels, so a
-    /// model trained on one axis does not carry to another axis' bias.
+    /// `denoise.wavelet -> predict.rbf` as a method, and the same chain with the model's AR(p)
+    /// baseline in the network's place (`predictor = "ar"`). One model for every axis, or one
+    /// per axis in column order (repeat the option): the network works on the drift's levels,
+    /// so a model trained on one axis does not carry to another axis' bias.
     #[arg(long = "model", value_name = "MODEL.json")]
     pub models: Vec<PathBuf>,
     /// A pipeline file whose stages after its ingest run offline as one more method
@@ -239,8 +253,13 @@ fn bias_chain(src: &Source) -> Result<Chain, CliError> {
     })
 }
 
-/// The paper's chain, `denoise.wavelet -> predict.rbf`: one model for every axis, or one each.
-fn rbf_chain(src: &Source, models: &[PathBuf]) -> Result<Chain, CliError> {
+/// The paper's chain, `denoise.wavelet -> predict.rbf`, with the network or (`predictor =
+/// "ar"`) the models' AR(p) baselines in its place: one model for every axis, or one each.
+fn rbf_chain(
+    src: &Source,
+    models: &[PathBuf],
+    predictor: PredictorKind,
+) -> Result<Chain, CliError> {
     let axes = src.axes.len();
     if models.len() != 1 && models.len() != axes {
         return Err(CliError::input(format!(
@@ -248,20 +267,24 @@ fn rbf_chain(src: &Source, models: &[PathBuf]) -> Result<Chain, CliError> {
             models.len()
         )));
     }
+    let name = predictor.name();
     let pipelines = (0..axes)
         .map(|a| {
             let m = &models[a.min(models.len() - 1)];
             let path = std::path::absolute(m)
                 .map_err(|e| CliError::input(format!("{}: {e}", m.display())))?;
             let keys = format!(
-                "kind = \"predict.rbf\"\nmodel = {:?}",
+                "kind = \"predict.rbf\"\nmodel = {:?}\npredictor = \"{name}\"",
                 path.display().to_string()
             );
             builtin_pipeline(src.rate, &keys, &format!("--model {}", m.display()))
         })
         .collect::<Result<_, _>>()?;
     Ok(Chain {
-        label: "denoise.wavelet -> predict.rbf (stages)".into(),
+        label: match predictor {
+            PredictorKind::Rbf => "denoise.wavelet -> predict.rbf (stages)".into(),
+            PredictorKind::Ar => "denoise.wavelet -> predict.rbf, predictor ar (stages)".into(),
+        },
         pipelines,
     })
 }
@@ -341,9 +364,46 @@ fn run_chain(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, CliError>
     Ok(out)
 }
 
-/// One evaluated case: a window of one axis under one profile.
+/// The motion added to the windows: a built-in profile, drawn anew for each window and axis
+/// (seed `3 w + axis`), or a truth file's motion, the same for every window.
+enum Motion {
+    Profile(Profile),
+    Truth {
+        label: String,
+        /// One per axis.
+        traces: Vec<MotionTrace>,
+    },
+}
+
+impl Motion {
+    fn label(&self) -> String {
+        match self {
+            Motion::Profile(p) => p.to_string(),
+            Motion::Truth { label, .. } => label.clone(),
+        }
+    }
+
+    /// The motion of each of `axes` axes in window `w`.
+    fn traces(
+        &self,
+        rate: f64,
+        window_s: f64,
+        w: usize,
+        axes: usize,
+    ) -> Result<Vec<MotionTrace>, CliError> {
+        match self {
+            Motion::Profile(p) => (0..axes)
+                .map(|a| generate(*p, rate, window_s, (w * 3 + a) as u64))
+                .collect::<Result<_, _>>()
+                .map_err(|e| CliError::internal(e.to_string())),
+            Motion::Truth { traces, .. } => Ok(traces.clone()),
+        }
+    }
+}
+
+/// One evaluated case: a window of one axis under one motion (an index into the motions).
 struct Case {
-    profile: Profile,
+    motion: usize,
     window: usize,
     axis: usize,
     metrics: Vec<HeadingMetrics>,
@@ -397,13 +457,37 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "--rate {rate} must be in (0, 1e6] Hz"
         )));
     }
-    let window_s =
-        parse_seconds(&args.window).map_err(|e| CliError::input(format!("--window {e}")))?;
-    let window = (window_s * rate).round() as usize;
+    // Profiles before the log, so a typo fails at once; a truth file too: its length is the
+    // window's.
+    let profiles = parse_profiles(args.motion.as_deref().unwrap_or("all"))?;
+    let truth = match &args.truth {
+        Some(path) => Some(read_truth(path, rate)?),
+        None => None,
+    };
+    let window = match (&args.window, &truth) {
+        (Some(w), _) => {
+            let window_s =
+                parse_seconds(w).map_err(|e| CliError::input(format!("--window {e}")))?;
+            (window_s * rate).round() as usize
+        }
+        (None, Some(t)) => t.rows(),
+        (None, None) => (600.0 * rate).round() as usize,
+    };
     if window < 2 {
         return Err(CliError::input("--window holds fewer than 2 samples"));
     }
-    let profiles = parse_profiles(&args.motion)?;
+    // Whole samples: a truth file's motion is exactly one row per sample.
+    let window_s = window as f64 / rate;
+    if let Some(t) = &truth {
+        if t.rows() != window {
+            return Err(CliError::input(format!(
+                "{}: {} rows, but a window of {} s at {rate} Hz is {window} samples: a truth file holds exactly one window (leave out --window to take its length)",
+                t.path.display(),
+                t.rows(),
+                window_s
+            )));
+        }
+    }
     let src = match (&args.input, &args.sim) {
         (Some(p), None) => log_source(p, &args, rate, window)?,
         (None, Some(s)) => {
@@ -415,9 +499,23 @@ pub fn run(args: Args) -> Result<(), CliError> {
         (Some(_), Some(_)) => return Err(CliError::input("give a log or --sim, not both")),
         (None, None) => return Err(CliError::input("give a static log, or --sim SENSOR")),
     };
+    let motions: Vec<Motion> = match &truth {
+        Some(t) => vec![Motion::Truth {
+            label: format!(
+                "truth {}",
+                t.path.file_name().map_or_else(
+                    || t.path.display().to_string(),
+                    |f| f.to_string_lossy().into_owned()
+                )
+            ),
+            traces: t.traces(src.axes.len(), rate)?,
+        }],
+        None => profiles.into_iter().map(Motion::Profile).collect(),
+    };
     let mut chains = vec![bias_chain(&src)?];
     if !args.models.is_empty() {
-        chains.push(rbf_chain(&src, &args.models)?);
+        chains.push(rbf_chain(&src, &args.models, PredictorKind::Rbf)?);
+        chains.push(rbf_chain(&src, &args.models, PredictorKind::Ar)?);
     }
     for p in &args.pipelines {
         chains.push(file_chain(p, rate)?);
@@ -441,17 +539,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let dt = 1.0 / rate;
     let mut cases: Vec<Case> = Vec::new();
     let mut plot_traces: Option<(Vec<f64>, Vec<Vec<f64>>)> = None;
-    for &profile in &profiles {
+    for (mi, motion) in motions.iter().enumerate() {
         for w in 0..windows {
             let start = src.first_window + w * window;
-            let motions: Vec<MotionTrace> = (0..src.axes.len())
-                .map(|a| generate(profile, rate, window_s, (w * 3 + a) as u64))
-                .collect::<Result<_, _>>()
-                .map_err(|e| CliError::internal(e.to_string()))?;
+            let motion_traces = motion.traces(rate, window_s, w, src.axes.len())?;
             let measured: Vec<Vec<f64>> = src
                 .axes
                 .iter()
-                .zip(&motions)
+                .zip(&motion_traces)
                 .map(|((_, y), m)| {
                     y[start..start + window]
                         .iter()
@@ -474,7 +569,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     chain_out.push(run_chain(&c.pipelines[0], &inputs)?);
                 }
             }
-            for (a, m) in motions.iter().enumerate() {
+            for (a, m) in motion_traces.iter().enumerate() {
                 let mut setup = Setup::new(src.terms[a], rate);
                 if let Some(cfg) = &src.floor {
                     setup.floor = Some(
@@ -491,7 +586,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     plot_traces = Some(traces(&measured[a], m, &chain_out, a, &setup)?);
                 }
                 cases.push(Case {
-                    profile,
+                    motion: mi,
                     window: w,
                     axis: a,
                     metrics,
@@ -516,11 +611,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
             summarize_methods(&all, &res, Method::ZaruOracle),
         )
     };
-    let mut sections: Vec<(String, Vec<MethodSummary>)> = profiles
+    let mut sections: Vec<(String, Vec<MethodSummary>)> = motions
         .iter()
-        .map(|&p| table(&format!("{p}"), &|c: &Case| c.profile == p))
+        .enumerate()
+        .map(|(i, m)| table(&m.label(), &|c: &Case| c.motion == i))
         .collect();
-    if profiles.len() > 1 {
+    if motions.len() > 1 {
         sections.push(table("all profiles", &|_| true));
     }
 
@@ -534,7 +630,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
         let panel = Panel {
             title: format!(
                 "heading error, {} motion, first window of {} ({})",
-                profiles[0], src.axes[0].0, src.name
+                motions[0].label(),
+                src.axes[0].0,
+                src.name
             ),
             x_label: "time (s)".into(),
             y_label: "heading error (deg)".into(),
@@ -584,7 +682,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                                "rms_rate_degps": m.rms_rate})
                     })
                     .collect();
-                json!({"profile": c.profile.to_string(), "window": c.window,
+                json!({"profile": motions[c.motion].label(), "window": c.window,
                        "start_s": (src.first_window + c.window * window) as f64 / rate,
                        "axis": src.axes[c.axis].0, "methods": methods})
             })

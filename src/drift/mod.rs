@@ -35,7 +35,7 @@ pub use baselines::Predictor;
 pub use bias::{BiasMode, BiasStep, BiasTerms, BiasTracker, TrackerConfig};
 pub use compensator::{Compensator, Mode as CompMode, Step};
 pub use lowband::LowBand;
-pub use model::{DriftModel, ModelError};
+pub use model::{DriftModel, ModelError, ModelPredictor, PredictorKind};
 pub use rbf::{InputForm, Rbf, Target};
 pub use stillness::{StillnessConfig, StillnessDetector};
 pub use training::{train, TrainConfig, TrainError};

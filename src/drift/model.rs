@@ -13,7 +13,7 @@
 //! ranges, and says which check failed. Reading and writing files is in
 //! [`crate::io::model_file`].
 
-use super::baselines::{Ar, Score};
+use super::baselines::{Ar, Predictor, Score};
 use super::lowband::LowBand;
 use super::rbf::Rbf;
 use super::stillness::StillnessConfig;
@@ -122,6 +122,64 @@ pub struct DriftModel {
     pub provenance: Provenance,
 }
 
+/// Which of a model file's predictors drives the compensator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PredictorKind {
+    /// The RBF network (the paper's method).
+    #[default]
+    Rbf,
+    /// The AR(p) baseline fitted by least squares on the same training drift and lags.
+    Ar,
+}
+
+impl PredictorKind {
+    /// The names a pipeline file uses (`predictor = "..."`), in [`PredictorKind`] order.
+    pub const NAMES: [&'static str; 2] = ["rbf", "ar"];
+
+    /// Its name in a pipeline file.
+    pub fn name(self) -> &'static str {
+        match self {
+            PredictorKind::Rbf => Self::NAMES[0],
+            PredictorKind::Ar => Self::NAMES[1],
+        }
+    }
+
+    /// The kind named `name` (one of [`PredictorKind::NAMES`]).
+    pub fn from_name(name: &str) -> Option<PredictorKind> {
+        match name {
+            "rbf" => Some(PredictorKind::Rbf),
+            "ar" => Some(PredictorKind::Ar),
+            _ => None,
+        }
+    }
+}
+
+/// A model file's predictor, the network or its AR baseline, as one type: a stage holds either
+/// without boxing, and the choice costs one branch per prediction.
+#[derive(Debug, Clone)]
+pub enum ModelPredictor {
+    /// The network.
+    Rbf(Rbf),
+    /// The AR(p) baseline.
+    Ar(Ar),
+}
+
+impl Predictor for ModelPredictor {
+    fn lags(&self) -> usize {
+        match self {
+            ModelPredictor::Rbf(r) => r.lags(),
+            ModelPredictor::Ar(a) => a.lags(),
+        }
+    }
+
+    fn predict(&self, hist: &[f64]) -> f64 {
+        match self {
+            ModelPredictor::Rbf(r) => r.predict(hist),
+            ModelPredictor::Ar(a) => a.predict(hist),
+        }
+    }
+}
+
 /// Why a model file was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
@@ -208,6 +266,14 @@ impl DriftModel {
             return Err("a baseline parameter is NaN or infinite".into());
         }
         Ok(())
+    }
+
+    /// The predictor of `kind` (a copy: a compensator owns its predictor).
+    pub fn predictor(&self, kind: PredictorKind) -> ModelPredictor {
+        match kind {
+            PredictorKind::Rbf => ModelPredictor::Rbf(self.network.clone()),
+            PredictorKind::Ar => ModelPredictor::Ar(self.baselines.ar.clone()),
+        }
     }
 
     /// The low band this model's drift is measured with.

@@ -102,12 +102,12 @@ impl Table {
     }
 }
 
-fn parse_cell(cell: &[u8]) -> Option<f64> {
+pub(crate) fn parse_cell(cell: &[u8]) -> Option<f64> {
     std::str::from_utf8(cell).ok()?.trim().parse::<f64>().ok()
 }
 
 /// 1-based character column of field `i` in a record read without quoting surprises.
-fn field_column(record: &csv::ByteRecord, i: usize) -> u64 {
+pub(crate) fn field_column(record: &csv::ByteRecord, i: usize) -> u64 {
     let start = record.range(i).map_or(0, |r| r.start);
     (start + i + 1) as u64
 }
@@ -154,7 +154,7 @@ fn read_table_impl(path: &Path, wanted: &[String], keep_time: bool) -> Result<Ta
     result
 }
 
-fn csv_error(path: &Path, e: csv::Error) -> InputError {
+pub(crate) fn csv_error(path: &Path, e: csv::Error) -> InputError {
     let shown = path.display().to_string();
     let line = e.position().map(|p| p.line());
     match (e.kind(), line) {

@@ -1,4 +1,5 @@
-//! Files and terminals: CSV tables with positioned errors, atomic output, progress bars, plots.
+//! Files and terminals: CSV tables with positioned errors, atomic output, progress bars, plots,
+//! truth files for the heading benchmark.
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
@@ -7,6 +8,7 @@ pub mod csv_table;
 pub mod model_file;
 pub mod plot;
 pub mod progress;
+pub mod truth;
 
 pub use csv_table::{
     read_table, read_table_keeping_time, write_table, write_table_with_time, InputError, Table,

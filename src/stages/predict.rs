@@ -9,6 +9,7 @@
 //! output = "demo/predicted"
 //! model = "models/adis-x.json"    # one model for every axis, or
 //! # models = ["x.json", "y.json", "z.json"]   # one per axis
+//! # predictor = "ar"   # the model's AR(p) baseline in the network's place (default "rbf")
 //! # Stillness overrides (default: the model's calibrated thresholds), in input_units:
 //! # still_window = 50, settle = 342, var_enter = 1e-4, var_exit = 5e-5,
 //! # mean_enter = 0.02, mean_exit = 0.01
@@ -19,7 +20,7 @@ use std::path::PathBuf;
 use toml::Spanned;
 
 use crate::drift::compensator::{Compensator, Mode};
-use crate::drift::Rbf;
+use crate::drift::{ModelPredictor, PredictorKind};
 use crate::io::InputError;
 use crate::pipeline::schema::{Context, Key, StageTable, Type};
 use crate::pipeline::stage::{Kind, Params, Role, Stage};
@@ -36,6 +37,12 @@ const MODELS: Key = Key {
     ty: Type::StrList("one model file per axis"),
     default: "required, or `model`",
     doc: "one drift model per axis",
+};
+const PREDICTOR: Key = Key {
+    name: "predictor",
+    ty: Type::Choice(&PredictorKind::NAMES),
+    default: "rbf",
+    doc: "what predicts the drift: the model's network, or the AR(p) baseline fitted on the same training drift and lags (the same gating and free run)",
 };
 const STILL_WINDOW: Key = Key {
     name: "still_window",
@@ -83,14 +90,15 @@ pub const NONE_KIND: Kind = Kind {
     parse: |_| Ok(Box::new(NoDriftParams)),
 };
 
-/// `predict.rbf`.
+/// `predict.rbf` (with `predictor = "ar"`: the model's AR(p) baseline in the network's place).
 pub const RBF_KIND: Kind = Kind {
     name: "predict.rbf",
     role: Role::Process,
-    summary: "the paper's RBF drift model (`driftless train`), anchored while still, free-running while moving; models must match rate_hz and input_units",
+    summary: "the paper's RBF drift model (`driftless train`; or the model's AR(p) baseline in its place), anchored while still, free-running while moving; models must match rate_hz and input_units",
     keys: &[
         MODEL,
         MODELS,
+        PREDICTOR,
         STILL_WINDOW,
         SETTLE,
         VAR_ENTER,
@@ -121,6 +129,8 @@ pub struct RbfParams {
     pub models: Vec<crate::drift::DriftModel>,
     /// The stillness thresholds of each axis (the model's, with the overrides applied).
     pub stillness: Vec<crate::drift::StillnessConfig>,
+    /// The network, or the models' AR(p) baselines in its place.
+    pub predictor: PredictorKind,
 }
 
 impl Params for RbfParams {
@@ -134,13 +144,19 @@ impl Params for RbfParams {
             .zip(&self.models)
             .enumerate()
             .map(|(axis, (path, m))| {
+                let predictor = match self.predictor {
+                    PredictorKind::Rbf => format!(
+                        "{} lags, {} centres",
+                        m.network.lags,
+                        m.network.centre_count()
+                    ),
+                    PredictorKind::Ar => format!("its AR({}) baseline", m.baselines.ar.coef.len()),
+                };
                 format!(
-                    "axis {axis}: model {} ({} Hz, {}, {} lags, {} centres, trained on {} [{}])",
+                    "axis {axis}: model {} ({} Hz, {}, {predictor}, trained on {} [{}])",
                     path.display(),
                     m.rate_hz,
                     m.units,
-                    m.network.lags,
-                    m.network.centre_count(),
                     m.provenance.file,
                     m.provenance.column
                 )
@@ -154,6 +170,10 @@ impl Params for RbfParams {
 fn parse_rbf(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let model = t.get::<String>(&MODEL)?;
     let models = t.get::<Vec<Spanned<String>>>(&MODELS)?;
+    let predictor = t
+        .choice(&PREDICTOR, "predictor", true)?
+        .and_then(|name| PredictorKind::from_name(&name))
+        .unwrap_or_default();
     let still_window = t.int(&STILL_WINDOW)?;
     let settle = t.int(&SETTLE)?;
     let mut thresholds = [None; 4];
@@ -249,6 +269,7 @@ fn parse_rbf(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> 
         paths,
         models: loaded,
         stillness,
+        predictor,
     }))
 }
 
@@ -264,13 +285,14 @@ impl Stage for NoDrift {
     }
 }
 
-/// `predict.rbf`: one compensator per axis. The published rate is the denoised rate minus the
+/// `predict.rbf`: one compensator per axis, around the model's network or its AR(p) baseline
+/// (`predictor`). The published rate is the denoised rate minus the
 /// predicted drift. Flags: [`FLAG_STILL`] when every axis is still, [`FLAG_MOVING`] when any axis
 /// is moving (before its first stop too), [`FLAG_WARMING_UP`] while an axis has never been still
 /// (nothing subtracted there).
 /// The models work in the pipeline's input units; samples arrive in rad/s and are scaled.
 pub struct RbfDrift {
-    comps: Vec<Compensator<Rbf>>,
+    comps: Vec<Compensator<ModelPredictor>>,
     /// rad/s per model unit.
     scale: f64,
 }
@@ -281,7 +303,7 @@ impl RbfDrift {
         let mut comps = Vec::with_capacity(p.models.len());
         for (m, s) in p.models.iter().zip(&p.stillness) {
             comps.push(Compensator::new(
-                m.network.clone(),
+                m.predictor(p.predictor),
                 m.lowband()?,
                 *s,
                 m.max_step,
