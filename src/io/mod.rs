@@ -3,12 +3,13 @@
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
 pub mod atomic;
+mod csv_fast;
 pub mod csv_table;
 pub mod model_file;
 pub mod plot;
 pub mod progress;
 
 pub use csv_table::{
-    read_table, read_table_keeping_time, write_table, write_table_with_time, InputError, Table,
-    TimeColumn, TIME_COLUMNS,
+    read_table, read_table_keeping_time, write_table, write_table_with_time, InputError, RowRead,
+    RowReader, Table, TimeColumn, TIME_COLUMNS,
 };
