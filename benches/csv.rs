@@ -1,12 +1,14 @@
 //! CSV input speed: `read_table` on a 10^6-row log as `driftless simulate -o` writes it (a time
 //! column and three rate columns, shortest round-trip floats), plain and gzip-compressed, in MB/s
-//! of CSV text; and `write_table` of the same columns.
+//! of CSV text; the same through the reference path alone (the csv crate and `str::parse::<f64>`
+//! on every row, how every file was read before the fast path); and `write_table` of the same
+//! columns.
 //!
 //! `cargo bench --bench csv`. The goal is >= 500 MB/s of plain CSV input on this 2-core
 //! machine; gzip input is bound by decompression.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use driftless::io::{read_table, write_table};
+use driftless::io::{read_table, read_table_reference, write_table};
 use std::hint::black_box;
 use std::path::Path;
 
@@ -47,6 +49,7 @@ fn bench(c: &mut Criterion) {
     // Same values back, bit for bit (the time column is left out as `allan` does).
     let t = read_table(&plain, &[]).expect("read");
     assert_eq!(t.columns, cols[1..], "read back exactly");
+    assert_eq!(read_table_reference(&plain, &[]).expect("read"), t);
 
     let mut g = c.benchmark_group("csv");
     g.sample_size(10);
@@ -54,8 +57,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("read_plain_1e6_rows", |b| {
         b.iter(|| read_table(black_box(&plain), &[]).expect("read"))
     });
+    g.bench_function("read_plain_1e6_rows_reference_path", |b| {
+        b.iter(|| read_table_reference(black_box(&plain), &[]).expect("read"))
+    });
     g.bench_function("read_gzip_1e6_rows", |b| {
         b.iter(|| read_table(black_box(&gz), &[]).expect("read"))
+    });
+    g.bench_function("read_gzip_1e6_rows_reference_path", |b| {
+        b.iter(|| read_table_reference(black_box(&gz), &[]).expect("read"))
     });
     let out = dir.path().join("out.csv");
     g.bench_function("write_plain_1e6_rows", |b| b.iter(|| write(&out, &cols)));

@@ -62,25 +62,30 @@ impl Rows {
 
 /// A finite number exactly as `str::parse::<f64>` reads the cell after trimming ASCII spaces and
 /// tabs, or `None` when `fast-float2` does not take it (then the reference path decides).
-#[inline]
 pub(crate) fn fast_number(cell: &[u8]) -> Option<f64> {
-    let cell = trim_blanks(cell);
-    // fast-float2 also reads "inf" and "nan"; the reference path rejects them with a message.
-    match fast_float2::parse::<f64, _>(cell) {
-        Ok(v) if v.is_finite() => Some(v),
+    let start = skip_blanks(cell, 0);
+    let (v, end) = number_at(cell, start)?;
+    (skip_blanks(cell, end) == cell.len()).then_some(v)
+}
+
+/// The finite number starting at `at` and where it ends: the longest prefix `fast-float2` reads.
+/// The caller checks that only blanks and a delimiter follow, so that the cell is exactly that
+/// prefix (what `fast_number` checks, and the tests compare with `str::parse`).
+#[inline]
+fn number_at(bytes: &[u8], at: usize) -> Option<(f64, usize)> {
+    match fast_float2::parse_partial::<f64, _>(&bytes[at..]) {
+        // fast-float2 also reads "inf" and "nan"; the reference path rejects them with a message.
+        Ok((v, n)) if n > 0 && v.is_finite() => Some((v, at + n)),
         _ => None,
     }
 }
 
 #[inline]
-fn trim_blanks(mut s: &[u8]) -> &[u8] {
-    while let [b' ' | b'\t', rest @ ..] = s {
-        s = rest;
+fn skip_blanks(bytes: &[u8], mut at: usize) -> usize {
+    while let Some(b' ' | b'\t') = bytes.get(at) {
+        at += 1;
     }
-    while let [rest @ .., b' ' | b'\t'] = s {
-        s = rest;
-    }
-    s
+    at
 }
 
 /// Whether `bytes` may be read line by line: no quote (csv quoting may join lines) and every
@@ -94,52 +99,65 @@ fn plain_lines(bytes: &[u8]) -> bool {
 }
 
 /// Parse every line of `bytes` (its last line may lack its `\n`) into `out`.
+///
+/// One pass over the bytes: a number is read where it stands (no search for its delimiter
+/// first), then only blanks and the delimiter may follow.
 pub(crate) fn parse_lines(bytes: &[u8], fields: &[Field], out: &mut Rows) -> Result<(), Bail> {
     if fields.is_empty() || !plain_lines(bytes) {
         return Err(Bail);
     }
-    let mut rest = bytes;
-    while !rest.is_empty() {
-        let (line, next) = match memchr(b'\n', rest) {
-            Some(end) => (&rest[..end], &rest[end + 1..]),
-            None => (rest, &rest[rest.len()..]),
-        };
-        rest = next;
-        let line = line.strip_suffix(b"\r").unwrap_or(line);
-        // Blank lines and comment lines are no records to the csv crate.
-        if line.is_empty() || line[0] == b'#' {
-            continue;
-        }
-        parse_line(line, fields, out)?;
-    }
-    Ok(())
-}
-
-#[inline]
-fn parse_line(line: &[u8], fields: &[Field], out: &mut Rows) -> Result<(), Bail> {
     let last = fields.len() - 1;
-    let mut rest = line;
-    for (i, field) in fields.iter().enumerate() {
-        let (cell, next) = if i == last {
-            (rest, &rest[rest.len()..])
-        } else {
-            match rest.iter().position(|&b| b == b',') {
-                Some(end) => (&rest[..end], &rest[end + 1..]),
-                None => return Err(Bail), // too few fields
+    let len = bytes.len();
+    let mut p = 0;
+    while p < len {
+        match bytes[p] {
+            // Blank lines and comment lines are no records to the csv crate.
+            b'\n' => {
+                p += 1;
+                continue;
             }
-        };
-        rest = next;
-        match *field {
-            Field::Value(k) => out.columns[k].push(fast_number(cell).ok_or(Bail)?),
-            Field::Skip if i == last && memchr(b',', cell).is_some() => return Err(Bail),
-            Field::Skip => {}
-            Field::Time => {
-                if i == last && memchr(b',', cell).is_some() {
-                    return Err(Bail);
+            b'\r' => {
+                p += 2; // plain_lines: a \r is always followed by \n
+                continue;
+            }
+            b'#' => {
+                p = memchr(b'\n', &bytes[p..]).map_or(len, |i| p + i + 1);
+                continue;
+            }
+            _ => {}
+        }
+        for (i, field) in fields.iter().enumerate() {
+            match *field {
+                Field::Value(k) => {
+                    let (v, end) = number_at(bytes, skip_blanks(bytes, p)).ok_or(Bail)?;
+                    out.columns[k].push(v);
+                    p = skip_blanks(bytes, end);
                 }
-                // As the reference path: the csv crate's ASCII trim, then lossy UTF-8.
-                out.time
-                    .push(String::from_utf8_lossy(cell.trim_ascii()).into_owned());
+                Field::Skip | Field::Time => {
+                    let start = p;
+                    while p < len && !matches!(bytes[p], b',' | b'\n' | b'\r') {
+                        p += 1;
+                    }
+                    if *field == Field::Time {
+                        // As the reference path: the csv crate's ASCII trim, then lossy UTF-8.
+                        let cell = bytes[start..p].trim_ascii();
+                        out.time.push(String::from_utf8_lossy(cell).into_owned());
+                    }
+                }
+            }
+            // The delimiter: a comma between fields, a line end (or the end) after the last.
+            if i < last {
+                if bytes.get(p) != Some(&b',') {
+                    return Err(Bail); // too few fields, or not a number
+                }
+                p += 1;
+            } else {
+                match bytes.get(p) {
+                    None => {}
+                    Some(b'\n') => p += 1,
+                    Some(b'\r') => p += 2,
+                    Some(_) => return Err(Bail), // too many fields, or not a number
+                }
             }
         }
     }

@@ -10,6 +10,6 @@ pub mod plot;
 pub mod progress;
 
 pub use csv_table::{
-    read_table, read_table_keeping_time, write_table, write_table_with_time, InputError, RowRead,
-    RowReader, Table, TimeColumn, TIME_COLUMNS,
+    read_table, read_table_keeping_time, read_table_reference, write_table, write_table_with_time,
+    InputError, RowRead, RowReader, Table, TimeColumn, TIME_COLUMNS,
 };
