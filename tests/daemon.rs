@@ -411,6 +411,88 @@ fn a_stalled_subscriber_never_blocks_the_pipeline_and_its_losses_are_counted() {
     drop(stalled);
 }
 
+/// `csv(n)` with row `row` (1-based data row) replaced by `line`.
+fn csv_with_row(n: usize, row: usize, line: &str) -> String {
+    let text = csv(n);
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines[row] = line;
+    lines.join("\n") + "\n"
+}
+
+#[test]
+fn a_bad_row_in_the_replayed_stream_is_flagged_with_its_position_never_dropped() {
+    // Past the rows checked at validation: the replay meets them while running.
+    const N: usize = 3000;
+    let prefix = Prefix::new("badrow");
+    let dir = Dir::new();
+    let mut text = csv_with_row(N, 2000, "1.999,0.5,abc,0.25");
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[2500] = "2.499,0.5".into(); // ragged
+    lines[2700] = "2.699,NaN,1,2".into();
+    text = lines.join("\n") + "\n";
+    dir.write("data.csv", &text);
+    // Paced, so that this subscriber reads while the daemon still publishes.
+    let file = dir.write("p.toml", &csv_pipeline("realtime", false, 4096));
+    let report_path = dir.path("report.json");
+    let me = Transport::new(&prefix.0, "test", qos(4096)).expect("node");
+    let corrected = me.input::<GyroSample>("c/corrected").expect("subscriber");
+    let child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    let got = collect(&corrected, N, Duration::from_secs(20));
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let csv_path = dir.path("data.csv").display().to_string();
+    for want in [
+        format!("{csv_path}:2001:11: column 'y': 'abc' is not a number"),
+        format!("{csv_path}:2501:1: this row has 2 fields, the first row has 4"),
+        format!("{csv_path}:2701:7: column 'x': NaN is not a finite sample"),
+        format!("{csv_path}: 3 bad row(s) replayed as invalid samples"),
+    ] {
+        assert!(err.contains(&want), "{want} in {err}");
+    }
+    let r = report(&dir);
+    assert_eq!(r["samples_out"], N as u64, "no sample dropped");
+    assert_eq!(r["flagged"]["invalid"], 3);
+    assert_eq!(r["flagged"]["gaps"], 0);
+    assert_eq!(got.len(), N);
+    for (i, s) in got.iter().enumerate() {
+        assert_eq!(s.seq, i as u64);
+        let bad = [1999, 2499, 2699].contains(&i);
+        assert_eq!(s.flags & FLAG_INPUT_INVALID != 0, bad, "sample {i}");
+        assert!(s.rate.iter().all(|v| v.is_finite()));
+        if bad {
+            // The last good rate held, the time held.
+            assert_eq!(s.rate, got[i - 1].rate, "sample {i}");
+            assert_eq!(s.t_ns, got[i - 1].t_ns, "sample {i}");
+        } else {
+            assert_eq!(s.t_ns, i as u64 * 1_000_000, "sample {i}");
+        }
+    }
+    // Within the rows checked at validation: the pipeline is refused, positioned, exit 2.
+    let prefix = Prefix::new("badrowv");
+    dir.write("data.csv", &csv_with_row(N, 500, "0.499,0.5,abc,0.25"));
+    for cmd in ["validate", "run"] {
+        let out = std::process::Command::new(common::bin())
+            .arg(cmd)
+            .arg(&file)
+            .args(if cmd == "run" {
+                vec!["--prefix", prefix.0.as_str()]
+            } else {
+                vec![]
+            })
+            .output()
+            .expect("run driftless");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd}: {err}");
+        assert!(
+            err.contains(&format!(
+                "{csv_path}:501:11: column 'y': 'abc' is not a number"
+            )),
+            "{cmd}: {err}"
+        );
+    }
+    assert!(prefix.leftovers().is_empty(), "nothing started");
+}
+
 #[test]
 fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
     let prefix = Prefix::new("cfg");

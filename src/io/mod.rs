@@ -4,6 +4,7 @@
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
 pub mod atomic;
+mod csv_fast;
 pub mod csv_table;
 pub mod model_file;
 pub mod plot;
@@ -11,6 +12,6 @@ pub mod progress;
 pub mod truth;
 
 pub use csv_table::{
-    read_table, read_table_keeping_time, write_table, write_table_with_time, InputError, Table,
-    TimeColumn, TIME_COLUMNS,
+    read_table, read_table_keeping_time, read_table_reference, write_table, write_table_with_time,
+    InputError, RowRead, RowReader, Table, TimeColumn, TIME_COLUMNS,
 };

@@ -1,5 +1,11 @@
-//! `ingest.csv`: replay a CSV file (loaded at validation) at its own rate or as fast as possible,
-//! optionally looping. Sequence numbers count from 0 across loops; timestamps keep increasing.
+//! `ingest.csv`: replay a CSV file at its own rate or as fast as possible, optionally looping.
+//! Sequence numbers count from 0 across loops; timestamps keep increasing.
+//!
+//! Validation reads the header and the first [`CHECKED_ROWS`] rows (a wrong file fails there with
+//! file:line:col); the run streams the file from a reader thread in blocks of samples, so memory
+//! stays bounded however long the log. A bad row found while replaying is not dropped: it is
+//! replayed as a sample marked invalid (the guard holds the last good rate, flags and counts it)
+//! and its file:line:col is printed on stderr.
 //!
 //! ```toml
 //! [[stage]]
@@ -19,16 +25,18 @@ use std::time::{Duration, Instant};
 
 use toml::Spanned;
 
-use crate::io::InputError;
+use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
+
+use crate::io::{InputError, RowRead, RowReader};
 use crate::pipeline::schema::{Context, Key, StageTable, Type};
 use crate::pipeline::stage::{Kind, Params, Poll, Role, Source};
-use crate::transport::{monotonic_ns, RawSample};
+use crate::transport::{monotonic_ns, RawSample, RAW_INVALID};
 
 const FILE: Key = Key {
     name: "file",
     ty: Type::Str("a CSV file, relative to the pipeline file; .gz works"),
     default: "required",
-    doc: "the log to replay; read and checked at validation",
+    doc: "the log to replay; its header and first 1000 rows checked at validation, then streamed",
 };
 const COLUMNS: Key = Key {
     name: "columns",
@@ -73,20 +81,32 @@ pub enum Pace {
     Asap,
 }
 
-/// A CSV replay, loaded at validation.
+/// A CSV replay: checked at validation (the header and the first [`CHECKED_ROWS`] rows), then
+/// streamed from the file while it runs.
 #[derive(Debug, Clone)]
 pub struct CsvParams {
     /// The file.
     pub file: PathBuf,
-    /// Sensor timestamps, ns (from the time column, or `i / rate_hz`).
-    pub t_ns: Vec<u64>,
-    /// The rates, one row per sample (unused axes 0).
-    pub rates: Vec<[f64; 3]>,
+    /// The rate columns, one per axis.
+    pub columns: Vec<String>,
+    /// The time column (seconds), if any; else `t = i / rate_hz`.
+    pub time_column: Option<String>,
     /// Pacing.
     pub pace: Pace,
     /// Replay again from the start at the end of the file.
     pub looped: bool,
 }
+
+/// Data rows checked at validation, so that a wrong file fails there with its position; later
+/// rows are checked as they are replayed (a bad one becomes a flagged invalid sample).
+pub const CHECKED_ROWS: usize = 1000;
+
+/// Samples per block the reader thread hands to the hot thread.
+const BLOCK_ROWS: usize = 4096;
+/// Blocks read ahead: 16k samples (16 ms at 1 kHz flat out, 16 s at 1 kHz real time).
+const BLOCKS_AHEAD: usize = 4;
+/// Bad rows reported one by one on stderr before only their count is.
+const REPORTED_BAD_ROWS: u64 = 10;
 
 impl Params for CsvParams {
     fn source(
@@ -95,7 +115,7 @@ impl Params for CsvParams {
         _transport: &crate::transport::Transport,
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
-        Ok(Box::new(CsvReplay::new(self.clone(), cx.rate_hz)))
+        Ok(Box::new(CsvReplay::new(self.clone(), cx.rate_hz)?))
     }
 }
 
@@ -105,7 +125,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let time_key = t.get::<String>(&TIME_COLUMN)?;
     let pace = t.choice(&PACE, "pace", true)?;
     let looped = t.get::<bool>(&LOOP)?.is_some_and(Spanned::into_inner);
-    let (src, rate_hz, axes) = (t.src, t.cx.rate_hz, t.cx.axes);
+    let (src, axes) = (t.src, t.cx.axes);
     let file = src.resolve(file_key.get_ref());
     if !file.is_file() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
@@ -132,129 +152,227 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     if let Some(t) = &time_key {
         wanted.push(t.get_ref().clone());
     }
-    let table = crate::io::read_table(&file, &wanted)?;
-    let mut cols = Vec::with_capacity(axes);
-    for name in &columns {
-        match table.column(name) {
-            Some(c) => cols.push(c),
-            None => {
-                let at = columns_key
-                    .as_ref()
-                    .map_or(file_key.span().start, |c| c.span().start);
-                return Err(src.at(
-                    at,
-                    format!(
-                        "{} has no column {name:?} (columns: {})",
-                        file.display(),
-                        table.names.join(", ")
-                    ),
+    // The header, and the first rows as the replay will read them: a wrong file fails here.
+    let mut rows = RowReader::open(&file, &wanted)?;
+    let mut values = vec![0.0; wanted.len()];
+    let mut n = 0;
+    while n < CHECKED_ROWS {
+        match rows.next_row(&mut values)? {
+            RowRead::Row => {}
+            RowRead::Bad(e) => return Err(e),
+            RowRead::End => break,
+        }
+        n += 1;
+        if let Some(t) = &time_key {
+            if values[axes] < 0.0 {
+                return Err(src.span(
+                    t,
+                    format!("time column {:?} is negative at data row {n}", t.get_ref()),
                 ));
             }
         }
     }
-    let n = table.rows();
     if n == 0 {
         return Err(src.span(&file_key, format!("{} has no data rows", file.display())));
     }
-    let mut rates = vec![[0.0; 3]; n];
-    for (axis, col) in cols.iter().enumerate() {
-        for (row, v) in col.iter().enumerate() {
-            rates[row][axis] = *v;
-        }
-    }
-    let t_ns: Vec<u64> = match &time_key {
-        Some(t) => {
-            let Some(col) = table.column(t.get_ref()) else {
-                return Err(src.span(
-                    t,
-                    format!("{} has no column {:?}", file.display(), t.get_ref()),
-                ));
-            };
-            let mut out = Vec::with_capacity(n);
-            for (row, &s) in col.iter().enumerate() {
-                if s < 0.0 {
-                    return Err(src.span(
-                        t,
-                        format!(
-                            "time column {:?} is negative at data row {}",
-                            t.get_ref(),
-                            row + 1
-                        ),
-                    ));
-                }
-                out.push((s * 1e9).round() as u64);
-            }
-            out
-        }
-        None => (0..n as u64)
-            .map(|i| (i as f64 * 1e9 / rate_hz).round() as u64)
-            .collect(),
-    };
     let pace = match pace.as_deref() {
         Some("asap") => Pace::Asap,
         _ => Pace::Realtime,
     };
     Ok(Box::new(CsvParams {
         file,
-        t_ns,
-        rates,
+        columns,
+        time_column: time_key.map(Spanned::into_inner),
         pace,
         looped,
     }))
 }
 
-/// A CSV replay.
+/// A CSV replay: a reader thread streams the file in blocks of samples over a bounded channel;
+/// the hot thread takes them in turn and hands the spent blocks back, so neither allocates
+/// per sample and memory stays bounded whatever the file's length.
 pub struct CsvReplay {
-    params: CsvParams,
+    blocks: Receiver<Vec<RawSample>>,
+    spent: Sender<Vec<RawSample>>,
+    block: Vec<RawSample>,
     next: usize,
-    seq: u64,
-    loop_offset_ns: u64,
-    period_ns: u64,
+    pace: Pace,
     start: Option<(Instant, u64)>,
 }
 
 impl CsvReplay {
-    /// A replay of validated parameters at `rate_hz` (used for the loop seam).
-    pub fn new(params: CsvParams, rate_hz: f64) -> Self {
-        CsvReplay {
-            params,
+    /// Start replaying validated parameters at `rate_hz` (the pacing without a time column and
+    /// the loop seam): the reader thread starts reading now.
+    pub fn new(params: CsvParams, rate_hz: f64) -> Result<Self, String> {
+        let (tx, blocks) = bounded(BLOCKS_AHEAD);
+        // Room for every block there is: handing one back never blocks the hot thread.
+        let (spent, spare) = bounded(BLOCKS_AHEAD + 2);
+        let pace = params.pace;
+        std::thread::Builder::new()
+            .name("driftless-csv".into())
+            .spawn(move || read_blocks(&params, rate_hz, &tx, &spare))
+            .map_err(|e| format!("cannot start the CSV reader thread: {e}"))?;
+        Ok(CsvReplay {
+            blocks,
+            spent,
+            block: Vec::new(),
             next: 0,
-            seq: 0,
-            loop_offset_ns: 0,
-            period_ns: (1e9 / rate_hz).round() as u64,
+            pace,
             start: None,
-        }
+        })
     }
+}
+
+/// The reader thread: the file's rows as raw samples (sequence numbers from 0 across loops,
+/// timestamps increasing across loops), a bad row as a sample marked invalid with its position
+/// on stderr. Ends at the end of the file (without `loop`), at a read error, or when the replay
+/// is dropped.
+fn read_blocks(
+    params: &CsvParams,
+    rate_hz: f64,
+    tx: &Sender<Vec<RawSample>>,
+    spare: &Receiver<Vec<RawSample>>,
+) {
+    let shown = params.file.display();
+    let period_ns = (1e9 / rate_hz).round() as u64;
+    let axes = params.columns.len().min(3);
+    let mut wanted = params.columns.clone();
+    wanted.extend(params.time_column.iter().cloned());
+    let mut values = vec![0.0; wanted.len()];
+    let mut block: Vec<RawSample> = Vec::with_capacity(BLOCK_ROWS);
+    let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
+    loop {
+        let mut rows = match RowReader::open(&params.file, &wanted) {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("driftless: error: {e} (the replay ends here)");
+                break;
+            }
+        };
+        let (mut i, mut first_t, mut last_t) = (0u64, None::<u64>, 0u64);
+        loop {
+            let read = match rows.next_row(&mut values) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("driftless: error: {e} (the replay ends here)");
+                    let _ = send(tx, &mut block, spare);
+                    return;
+                }
+            };
+            let mut sample = RawSample {
+                t_ns: last_t,
+                seq,
+                rate: [0.0; 3],
+                flags: 0,
+                epoch: 0,
+            };
+            let time = match params.time_column {
+                Some(_) => values[axes],
+                None => i as f64 / rate_hz,
+            };
+            match read {
+                RowRead::End => break,
+                RowRead::Row if time >= 0.0 => {
+                    sample.rate[..axes].copy_from_slice(&values[..axes]);
+                    sample.t_ns = if params.time_column.is_some() {
+                        (time * 1e9).round() as u64
+                    } else {
+                        (i as f64 * 1e9 / rate_hz).round() as u64
+                    };
+                }
+                // Not dropped: the sample is replayed marked invalid (the guard holds the last
+                // good rate, flags and counts it), its time held, its position on stderr.
+                other => {
+                    sample.rate = [f64::NAN; 3];
+                    sample.flags = RAW_INVALID;
+                    if pass == 0 {
+                        bad += 1;
+                        if bad <= REPORTED_BAD_ROWS {
+                            let why = match other {
+                                RowRead::Bad(e) => e.to_string(),
+                                _ => format!("{shown}: data row {}: negative time", i + 1),
+                            };
+                            eprintln!(
+                                "driftless: warning: {why} (replayed as an invalid sample: flagged)"
+                            );
+                        }
+                        if bad == REPORTED_BAD_ROWS + 1 {
+                            eprintln!(
+                                "driftless: warning: {shown}: more bad rows, flagged but not listed"
+                            );
+                        }
+                    }
+                }
+            }
+            first_t.get_or_insert(sample.t_ns);
+            last_t = sample.t_ns;
+            sample.t_ns += loop_offset_ns;
+            block.push(sample);
+            i += 1;
+            seq += 1;
+            if block.len() == BLOCK_ROWS && !send(tx, &mut block, spare) {
+                return;
+            }
+        }
+        let Some(first_t) = first_t else { break };
+        if !params.looped {
+            break;
+        }
+        loop_offset_ns += last_t.saturating_sub(first_t) + period_ns;
+        pass = pass.saturating_add(1);
+    }
+    if bad > 0 {
+        eprintln!("driftless: warning: {shown}: {bad} bad row(s) replayed as invalid samples");
+    }
+    let _ = send(tx, &mut block, spare);
+}
+
+/// Hand a filled block to the hot thread and take an empty one; false when the replay is gone.
+fn send(
+    tx: &Sender<Vec<RawSample>>,
+    block: &mut Vec<RawSample>,
+    spare: &Receiver<Vec<RawSample>>,
+) -> bool {
+    if block.is_empty() {
+        return true;
+    }
+    let mut next = spare
+        .try_recv()
+        .unwrap_or_else(|_| Vec::with_capacity(BLOCK_ROWS));
+    next.clear();
+    tx.send(std::mem::replace(block, next)).is_ok()
 }
 
 impl Source for CsvReplay {
     fn poll(&mut self, stop: &AtomicBool) -> Poll {
-        if self.next == self.params.rates.len() {
-            if !self.params.looped {
-                return Poll::End;
+        if self.next == self.block.len() {
+            let spent = std::mem::take(&mut self.block);
+            if spent.capacity() > 0 {
+                let _ = self.spent.try_send(spent);
             }
-            let first = self.params.t_ns[0];
-            let last = self.params.t_ns[self.params.t_ns.len() - 1];
-            self.loop_offset_ns += last.saturating_sub(first) + self.period_ns;
             self.next = 0;
+            // Normally a block is waiting; flat out the reader may be behind for a moment.
+            self.block = match self.blocks.try_recv() {
+                Ok(b) => b,
+                Err(TryRecvError::Disconnected) => return Poll::End,
+                Err(TryRecvError::Empty) => {
+                    match self.blocks.recv_timeout(Duration::from_millis(20)) {
+                        Ok(b) => b,
+                        Err(RecvTimeoutError::Timeout) => return Poll::Idle,
+                        Err(RecvTimeoutError::Disconnected) => return Poll::End,
+                    }
+                }
+            };
         }
-        let t_ns = self.params.t_ns[self.next] + self.loop_offset_ns;
-        if self.params.pace == Pace::Realtime {
-            let (t0, first_t) = *self.start.get_or_insert((Instant::now(), t_ns));
-            let due = t0 + Duration::from_nanos(t_ns.saturating_sub(first_t));
+        let sample = self.block[self.next];
+        if self.pace == Pace::Realtime {
+            let (t0, first_t) = *self.start.get_or_insert((Instant::now(), sample.t_ns));
+            let due = t0 + Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
             if !crate::stages::sleep_until(due, stop) {
                 return Poll::Idle;
             }
         }
-        let sample = RawSample {
-            t_ns,
-            seq: self.seq,
-            rate: self.params.rates[self.next],
-            flags: 0,
-            epoch: 0,
-        };
         self.next += 1;
-        self.seq += 1;
         Poll::Sample(sample, monotonic_ns())
     }
 }
