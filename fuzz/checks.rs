@@ -47,3 +47,32 @@ pub fn check_model_json(data: &[u8]) {
     let again = DriftModel::from_json(&written).expect("a loaded model writes a loadable file");
     assert_eq!(again.to_json(), written, "load and save round-trip");
 }
+
+/// A CSV log: the fast reader (memory map, parallel chunks, fast-float) and the reference
+/// reader (the csv crate and `str::parse::<f64>`) agree bit for bit, or both refuse the file
+/// with the same message (which names file, line and column).
+pub fn check_csv(data: &[u8]) {
+    use driftless::io::csv_table::{read_table, read_table_reference};
+    thread_local! {
+        static PATH: std::path::PathBuf = std::env::temp_dir()
+            .join(format!("driftless-fuzz-{}-{:?}.csv", std::process::id(), std::thread::current().id()));
+    }
+    PATH.with(|path| {
+        std::fs::write(path, data).expect("temporary file");
+        let fast = read_table(path, &[]);
+        let reference = read_table_reference(path, &[]);
+        match (fast, reference) {
+            (Ok(a), Ok(b)) => {
+                assert_eq!(a.names, b.names, "column names");
+                assert_eq!(a.has_header, b.has_header);
+                assert_eq!(a.columns.len(), b.columns.len());
+                for (x, y) in a.columns.iter().zip(&b.columns) {
+                    let bits = |c: &[f64]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(x), bits(y), "values, bit for bit");
+                }
+            }
+            (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "the same refusal"),
+            (a, b) => panic!("the readers disagree: fast {a:?}, reference {b:?}"),
+        }
+    });
+}

@@ -41,3 +41,8 @@ fn pipeline_files_of_the_corpus_and_past_crashes() {
 fn model_files_of_the_corpus_and_past_crashes() {
     run_all("model_json", check_model_json);
 }
+
+#[test]
+fn csv_logs_of_the_corpus_and_past_crashes() {
+    run_all("csv", check_csv);
+}
