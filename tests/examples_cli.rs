@@ -128,7 +128,17 @@ fn raw_driver_feeds_the_daemon_and_nav_subscriber_reads_it() {
         .args(["--duration", "3s", "--report"])
         .arg(&report)
         .output_later();
-    // Time to subscribe: what is published before is not seen (and not counted as lost).
+    // What is published before it subscribes is not seen (and not counted as lost): wait for
+    // its node (a loaded machine can take seconds to start it), then for its port.
+    let node = format!("nav-subscriber-{}", nav.id());
+    let until = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while driftless::transport::Transport::live_nodes_named(&prefix.0, &node).unwrap_or(0) == 0 {
+        assert!(
+            std::time::Instant::now() < until,
+            "nav_subscriber never started"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
     std::thread::sleep(std::time::Duration::from_millis(300));
     let driver = run(
         "raw_driver",
