@@ -104,15 +104,18 @@ fn rss_kib(pid: u32) -> Option<u64> {
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
-/// The daemon's count of losses on the corrected service (the publish stage's output).
-fn corrected_lost(stats: &driftless::transport::Input<StatsSnapshot>) -> Option<u64> {
-    let mut latest = None;
+/// Drain the stats subscriber (it must be drained often: a full buffer keeps the oldest
+/// snapshots and loses the new ones) and keep the daemon's latest count of losses on the
+/// corrected service (the publish stage's output).
+fn drain_corrected_lost(
+    stats: &driftless::transport::Input<StatsSnapshot>,
+    lost: &mut Option<u64>,
+) {
     while let Ok(Some(s)) = stats.receive() {
-        latest = Some(s);
+        if let Some(last) = (s.stage_count as usize).checked_sub(1) {
+            *lost = Some(s.stages[last].lost);
+        }
     }
-    let s = latest?;
-    let last = (s.stage_count as usize).checked_sub(1)?;
-    Some(s.stages[last].lost)
 }
 
 struct Sub {
@@ -200,6 +203,7 @@ fn main() {
     let mut next_action = Instant::now();
     let mut next_rss = Instant::now();
     let mut phase_a_daemon_lost = None;
+    let mut daemon_lost = None;
     while t0.elapsed() < 2 * phase {
         let now = Instant::now();
         let killing = t0.elapsed() >= phase;
@@ -211,8 +215,10 @@ fn main() {
             }
             // Two report intervals: the snapshot then holds every loss of phase A.
             std::thread::sleep(Duration::from_secs(5));
-            phase_a_daemon_lost = corrected_lost(&stats);
+            drain_corrected_lost(&stats, &mut daemon_lost);
+            phase_a_daemon_lost = daemon_lost;
         }
+        drain_corrected_lost(&stats, &mut daemon_lost);
         for s in &mut subs {
             if s.stopped_until.is_some_and(|u| now >= u) {
                 signal(&s.child, libc::SIGCONT);
