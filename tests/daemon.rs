@@ -471,16 +471,7 @@ fn a_bad_row_in_the_replayed_stream_is_flagged_with_its_position_never_dropped()
     let prefix = Prefix::new("badrowv");
     dir.write("data.csv", &csv_with_row(N, 500, "0.499,0.5,abc,0.25"));
     for cmd in ["validate", "run"] {
-        let out = std::process::Command::new(common::bin())
-            .arg(cmd)
-            .arg(&file)
-            .args(if cmd == "run" {
-                vec!["--prefix", prefix.0.as_str()]
-            } else {
-                vec![]
-            })
-            .output()
-            .expect("run driftless");
+        let out = validate_or_run(cmd, &file, &prefix);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{cmd}: {err}");
         assert!(
@@ -491,6 +482,16 @@ fn a_bad_row_in_the_replayed_stream_is_flagged_with_its_position_never_dropped()
         );
     }
     assert!(prefix.leftovers().is_empty(), "nothing started");
+}
+
+/// `driftless validate FILE`, or `driftless run FILE` under `prefix`.
+fn validate_or_run(cmd: &str, file: &std::path::Path, prefix: &Prefix) -> std::process::Output {
+    let mut c = std::process::Command::new(common::bin());
+    c.arg(cmd).arg(file);
+    if cmd == "run" {
+        c.args(["--prefix", &prefix.0]);
+    }
+    c.output().expect("run driftless")
 }
 
 #[test]
@@ -525,16 +526,7 @@ fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
     for (name, text, message) in cases {
         let file = dir.write(&format!("{name}.toml"), &text);
         for cmd in ["validate", "run"] {
-            let out = std::process::Command::new(common::bin())
-                .arg(cmd)
-                .arg(&file)
-                .args(if cmd == "run" {
-                    vec!["--prefix", prefix.0.as_str()]
-                } else {
-                    vec![]
-                })
-                .output()
-                .expect("run driftless");
+            let out = validate_or_run(cmd, &file, &prefix);
             let err = String::from_utf8_lossy(&out.stderr);
             assert_eq!(out.status.code(), Some(2), "{name} {cmd}: {err}");
             let shown = format!("{}:", file.display());
