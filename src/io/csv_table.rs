@@ -737,9 +737,9 @@ pub fn write_table_with_time(
 }
 
 /// Append `v` exactly as `{}` prints an f64 (the shortest text that parses back to the same
-/// value, never an exponent), several times faster: `ryu` finds the shortest digits (the same
-/// digits: both give the shortest, closest round-tripping ones), and they are laid out here
-/// as `Display` does.
+/// value, never an exponent), several times faster: `ryu` finds the shortest digits, laid out
+/// here as `Display` does; 17-digit values, where the two may break a tie differently, go
+/// through `Display` itself.
 fn push_display(out: &mut String, v: f64, buf: &mut ryu::Buffer) {
     if !v.is_finite() {
         use std::fmt::Write as _;
@@ -775,6 +775,15 @@ fn push_display(out: &mut String, v: f64, buf: &mut ryu::Buffer) {
         n -= 1;
     }
     let digits = &digits[first..n];
+    if digits.len() >= 17 {
+        // Only a 17-digit value can lie exactly halfway between two shortest candidates (a
+        // shorter decimal step is wider than the rounding interval), and there ryu and
+        // `Display` break the tie differently (-1295194815783816.25: ryu ...816.3, `{}`
+        // ...816.2; found by the proptest below). `{}` is the reference.
+        use std::fmt::Write as _;
+        let _ = write!(out, "{v}");
+        return;
+    }
     if digits == b"0" {
         out.push_str(if negative { "-0" } else { "0" });
         return;
