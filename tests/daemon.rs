@@ -172,17 +172,53 @@ fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
     assert_eq!(r["stages"].as_array().unwrap().len(), 4);
 }
 
+/// The external pipeline (no denoising) with this test process as its sensor driver and as a
+/// subscriber of its corrected output.
+struct Rig {
+    prefix: Prefix,
+    dir: Dir,
+    file: std::path::PathBuf,
+    report_path: std::path::PathBuf,
+    corrected: driftless::transport::Input<GyroSample>,
+    sensor: driftless::transport::Output<RawSample>,
+    _node: Transport,
+}
+
+impl Rig {
+    fn new(tag: &str) -> Self {
+        let prefix = Prefix::new(tag);
+        let dir = Dir::new();
+        let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+        let report_path = dir.path("report.json");
+        let node = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+        let corrected = node.input::<GyroSample>("t/corrected").expect("subscriber");
+        let sensor = node
+            .output::<RawSample>("t/sensor", true)
+            .expect("sensor publisher");
+        Rig {
+            prefix,
+            dir,
+            file,
+            report_path,
+            corrected,
+            sensor,
+            _node: node,
+        }
+    }
+}
+
 #[test]
 fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
-    let prefix = Prefix::new("bad");
-    let dir = Dir::new();
-    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
-    let report_path = dir.path("report.json");
-    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
-    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
-    let sensor = me
-        .output::<RawSample>("t/sensor", true)
-        .expect("sensor publisher");
+    // Dropped in reverse: the ports before their node, the node before the prefix's clean-up.
+    let Rig {
+        prefix,
+        dir,
+        _node,
+        file,
+        report_path,
+        corrected,
+        sensor,
+    } = Rig::new("bad");
     let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
     wait_ready(&prefix, "t/stats", &mut child);
 
@@ -737,16 +773,17 @@ fn a_driver_service_with_iceoryx2_defaults_is_refused_and_ours_is_read() {
 
 #[test]
 fn daemon_and_driver_restarts_each_start_a_new_epoch() {
-    let prefix = Prefix::new("epoch");
-    let dir = Dir::new();
-    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
-    let report_path = dir.path("report.json");
-    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
     // This subscriber and the driver outlive both daemon runs.
-    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
-    let sensor = me
-        .output::<RawSample>("t/sensor", true)
-        .expect("sensor publisher");
+    // Dropped in reverse: the ports before their node, the node before the prefix's clean-up.
+    let Rig {
+        prefix,
+        dir,
+        _node,
+        file,
+        report_path,
+        corrected,
+        sensor,
+    } = Rig::new("epoch");
     let run = |seqs: &[u64]| {
         let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
         wait_ready(&prefix, "t/stats", &mut child);
