@@ -175,13 +175,15 @@ fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
 /// The external pipeline (no denoising) with this test process as its sensor driver and as a
 /// subscriber of its corrected output.
 struct Rig {
-    prefix: Prefix,
-    dir: Dir,
-    file: std::path::PathBuf,
-    report_path: std::path::PathBuf,
+    // Fields drop in this order: the ports before their node, the node before the prefix's
+    // clean-up.
     corrected: driftless::transport::Input<GyroSample>,
     sensor: driftless::transport::Output<RawSample>,
     _node: Transport,
+    file: std::path::PathBuf,
+    report_path: std::path::PathBuf,
+    dir: Dir,
+    prefix: Prefix,
 }
 
 impl Rig {
@@ -209,18 +211,13 @@ impl Rig {
 
 #[test]
 fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
-    // Dropped in reverse: the ports before their node, the node before the prefix's clean-up.
-    let Rig {
-        prefix,
-        dir,
-        _node,
-        file,
-        report_path,
-        corrected,
-        sensor,
-    } = Rig::new("bad");
-    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
-    wait_ready(&prefix, "t/stats", &mut child);
+    let rig = Rig::new("bad");
+    let mut child = start(
+        &rig.file,
+        &rig.prefix,
+        &["--report", rig.report_path.to_str().unwrap()],
+    );
+    wait_ready(&rig.prefix, "t/stats", &mut child);
 
     let mut invalid = raw(4, 4_000, [1.0, 1.0, 1.0]);
     invalid.flags = RAW_INVALID;
@@ -233,9 +230,9 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
         raw(9, 9_000, [7.0, 8.0, 9.0]), // gap of 4
     ];
     for s in &samples {
-        sensor.send(s).expect("send");
+        rig.sensor.send(s).expect("send");
     }
-    let got = collect(&corrected, samples.len(), Duration::from_secs(10));
+    let got = collect(&rig.corrected, samples.len(), Duration::from_secs(10));
     signal(&child, SIGTERM);
     let (code, err) = finish(child, Duration::from_secs(10));
     assert_eq!(
@@ -259,7 +256,7 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     assert_eq!(got[4].flags, FLAG_INPUT_INVALID);
     assert_eq!(got[5].flags, FLAG_GAP_BEFORE);
     assert_eq!(got[5].seq, 9);
-    let r = report(&dir);
+    let r = report(&rig.dir);
     assert_eq!(r["flagged"]["invalid"], 3);
     assert_eq!(r["flagged"]["gaps"], 1);
     assert_eq!(r["flagged"]["missing"], 4);
@@ -774,31 +771,26 @@ fn a_driver_service_with_iceoryx2_defaults_is_refused_and_ours_is_read() {
 #[test]
 fn daemon_and_driver_restarts_each_start_a_new_epoch() {
     // This subscriber and the driver outlive both daemon runs.
-    // Dropped in reverse: the ports before their node, the node before the prefix's clean-up.
-    let Rig {
-        prefix,
-        dir,
-        _node,
-        file,
-        report_path,
-        corrected,
-        sensor,
-    } = Rig::new("epoch");
+    let rig = Rig::new("epoch");
     let run = |seqs: &[u64]| {
-        let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
-        wait_ready(&prefix, "t/stats", &mut child);
+        let mut child = start(
+            &rig.file,
+            &rig.prefix,
+            &["--report", rig.report_path.to_str().unwrap()],
+        );
+        wait_ready(&rig.prefix, "t/stats", &mut child);
         for &i in seqs {
-            sensor
+            rig.sensor
                 .send(&raw(i, i * 1000, [1.0, 2.0, 3.0]))
                 .expect("send");
-            sensor.notify();
+            rig.sensor.notify();
             std::thread::sleep(Duration::from_millis(2));
         }
-        let got = collect(&corrected, seqs.len(), Duration::from_secs(10));
+        let got = collect(&rig.corrected, seqs.len(), Duration::from_secs(10));
         signal(&child, SIGTERM);
         let (code, err) = finish(child, Duration::from_secs(10));
         assert_eq!(code, Some(0), "stderr: {err}");
-        (got, report(&dir))
+        (got, report(&rig.dir))
     };
     let (first, _) = run(&[0, 1, 2]);
     // The second daemon run; within it the driver restarts (its seq returns to 0).
