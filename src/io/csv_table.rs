@@ -130,15 +130,26 @@ pub fn read_table_reference(path: &Path, wanted: &[String]) -> Result<Table, Inp
         source,
     })?;
     let raw = BufReader::with_capacity(1 << 20, file);
-    if super::atomic::is_gzip(path) {
+    read_reference(raw, super::atomic::is_gzip(path), path, wanted, false)
+}
+
+/// The reference path over an opened file, decompressed when `gz`.
+fn read_reference<R: std::io::BufRead>(
+    raw: R,
+    gz: bool,
+    path: &Path,
+    wanted: &[String],
+    keep_time: bool,
+) -> Result<Table, InputError> {
+    if gz {
         read_from(
             flate2::bufread::MultiGzDecoder::new(raw),
             path,
             wanted,
-            false,
+            keep_time,
         )
     } else {
-        read_from(raw, path, wanted, false)
+        read_from(raw, path, wanted, keep_time)
     }
 }
 
@@ -297,16 +308,7 @@ fn read_streamed(
     let file = File::open(path).map_err(io_err)?;
     progress.set_position(0);
     let raw = BufReader::with_capacity(1 << 20, progress.wrap_read(file));
-    if gz {
-        read_from(
-            flate2::bufread::MultiGzDecoder::new(raw),
-            path,
-            wanted,
-            keep_time,
-        )
-    } else {
-        read_from(raw, path, wanted, keep_time)
-    }
+    read_reference(raw, gz, path, wanted, keep_time)
 }
 
 pub(crate) fn csv_error(path: &Path, e: csv::Error) -> InputError {
