@@ -213,6 +213,8 @@ pub struct Counters {
     pub epoch: AtomicU64,
     /// Source restarts (each started a new epoch).
     pub restarts: AtomicU64,
+    /// Published outputs carrying each of [`Outputs::FLAGS`].
+    pub outputs: [AtomicU64; 4],
 }
 
 fn get(a: &AtomicU64) -> u64 {
@@ -317,6 +319,40 @@ pub struct Flagged {
     pub repaired_outputs: u64,
 }
 
+/// What the published outputs were, by their flags (one output may be both moving and warming
+/// up: a drift stage flags motion while it waits for its first stop).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Outputs {
+    /// Flagged still ([`crate::transport::FLAG_STILL`]): the drift estimate was re-measured.
+    pub still: u64,
+    /// Flagged moving ([`crate::transport::FLAG_MOVING`]): the estimate was held.
+    pub moving: u64,
+    /// Flagged warming up ([`crate::transport::FLAG_WARMING_UP`]).
+    pub warming_up: u64,
+    /// Flushed at shutdown ([`crate::transport::FLAG_FLUSHED`]): held in the chain's delay when
+    /// the input ended; published but not timed end to end.
+    pub flushed: u64,
+}
+
+impl Outputs {
+    /// The flags counted, in the order of [`Counters::outputs`].
+    pub const FLAGS: [u32; 4] = [
+        crate::transport::FLAG_STILL,
+        crate::transport::FLAG_MOVING,
+        crate::transport::FLAG_WARMING_UP,
+        crate::transport::FLAG_FLUSHED,
+    ];
+
+    fn from_counts([still, moving, warming_up, flushed]: [u64; 4]) -> Self {
+        Outputs {
+            still,
+            moving,
+            warming_up,
+            flushed,
+        }
+    }
+}
+
 /// The final report (`--report FILE` writes it as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
@@ -347,6 +383,8 @@ pub struct Report {
     pub source_restarts: u64,
     /// Flagged input.
     pub flagged: Flagged,
+    /// The published outputs by their flags.
+    pub outputs: Outputs,
     /// End to end: ingest of the completing sample to publish, ns.
     pub end_to_end_ns: Pct,
     /// Per stage.
@@ -414,6 +452,7 @@ impl Report {
             "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} time backwards, {} repaired; metric drops {}\n",
             f.invalid, f.gaps, f.missing, f.time_backwards, f.repaired_outputs, self.metric_drops
         ));
+        s.push_str(&self.outputs_line());
         if let Some(h) = &self.heading {
             s.push_str(
                 "heading error vs the simulator's truth, deg (final / rms / max per axis):\n",
@@ -431,7 +470,69 @@ impl Report {
                 s.push_str(&format!("  {:<10} {}\n", name, cells.join("  |  ")));
             }
         }
+        s.push_str(&self.verdict());
+        s.push('\n');
         s
+    }
+
+    /// What the outputs were (still, moving, warming up) and why fewer were timed end to end
+    /// than published.
+    fn outputs_line(&self) -> String {
+        let o = &self.outputs;
+        let n = self.samples_out;
+        let pct = |k: u64| 100.0 * k as f64 / n.max(1) as f64;
+        // A sample is judged still or moving, or neither (no drift stage, or nothing to judge
+        // on yet); warming up overlaps them.
+        let neither = n.saturating_sub(o.still + o.moving);
+        let mut s = format!(
+            "outputs: {n} published: {} still ({:.1}%), {} moving ({:.1}%), {neither} neither \
+             ({:.1}%); {} warming up ({:.1}%)\n",
+            o.still,
+            pct(o.still),
+            o.moving,
+            pct(o.moving),
+            pct(neither),
+            o.warming_up,
+            pct(o.warming_up),
+        );
+        let timed = self.end_to_end_ns.count;
+        if timed != n {
+            s.push_str(&format!(
+                "end-to-end timed {timed} of {n}: {} flushed at shutdown are not timed (the \
+                 chain's delay held them when the input ended){}\n",
+                o.flushed,
+                match self.metric_drops {
+                    0 => String::new(),
+                    d => format!(", {d} records the reporter could not take"),
+                }
+            ));
+        }
+        s
+    }
+
+    /// One line: whether the deadline held and nothing was lost.
+    pub fn verdict(&self) -> String {
+        let e = &self.end_to_end_ns;
+        let deadline = format!("{:.1} us", self.deadline_ns as f64 / 1e3);
+        let max = format!("max {:.1} us", e.max as f64 / 1e3);
+        let timing = if e.count == 0 {
+            "deadline not measured (nothing published end to end)".to_string()
+        } else if self.deadline_misses == 0 {
+            format!(
+                "deadline held: 0 of {} outputs over {deadline} ({max})",
+                e.count
+            )
+        } else {
+            format!(
+                "deadline MISSED: {} of {} outputs over {deadline} ({max})",
+                self.deadline_misses, e.count
+            )
+        };
+        let loss = match self.lost {
+            0 => "nothing lost".to_string(),
+            n => format!("{n} samples LOST"),
+        };
+        format!("verdict: {timing}; {loss}")
     }
 }
 
@@ -621,6 +722,7 @@ impl Reporter {
             epoch: get(&c.epoch) as u32,
             source_restarts: get(&c.restarts),
             flagged: self.flagged(),
+            outputs: Outputs::from_counts(c.outputs.each_ref().map(get)),
             end_to_end_ns: Pct::of(&self.e2e),
             stages: self
                 .layout

@@ -9,8 +9,8 @@ use common::{
     collect, csv, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
 };
 use driftless::transport::{
-    GyroSample, RawSample, Transport, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID, FLAG_TIME_BACKWARDS,
-    RAW_INVALID,
+    GyroSample, RawSample, Transport, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
+    FLAG_MOVING, FLAG_STILL, FLAG_TIME_BACKWARDS, FLAG_WARMING_UP, RAW_INVALID,
 };
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
@@ -811,6 +811,97 @@ fn daemon_and_driver_restarts_each_start_a_new_epoch() {
     assert_eq!(r["epoch"], b);
     assert_eq!(r["source_restarts"], 1);
     assert_eq!(r["lost"], 0);
+}
+
+#[test]
+fn run_names_its_services_counts_what_it_published_and_ends_with_a_verdict() {
+    const N: usize = 3000;
+    let prefix = Prefix::new("verdict");
+    let dir = Dir::new();
+    let demo = include_str!("../pipelines/demo.toml");
+    let text = demo.replace("seed = 1\n", &format!("seed = 1\nsamples = {N}\n"));
+    assert_ne!(text, demo, "the demo's simulator made finite");
+    let file = dir.write("p.toml", &text);
+    let me = Transport::new(&prefix.0, "test", qos(256)).expect("node");
+    let corrected = me
+        .input::<GyroSample>("demo/corrected")
+        .expect("subscriber");
+    let report_path = dir.path("report.json");
+    // Not `start`: without --quiet, as a user runs it.
+    let child = std::process::Command::new(common::bin())
+        .arg("run")
+        .arg(&file)
+        .args([
+            "--prefix",
+            &prefix.0,
+            "--report",
+            report_path.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn driftless");
+    let got = collect(&corrected, N, Duration::from_secs(30));
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert_eq!(got.len(), N);
+
+    let start_line = err
+        .lines()
+        .find(|l| l.starts_with("pipeline demo running under prefix"))
+        .unwrap_or_else(|| panic!("no start line: {err}"));
+    for service in [
+        "demo/raw (RawSample)",
+        "demo/denoised",
+        "demo/predicted",
+        "demo/corrected (GyroSample)",
+        "demo/stats (StatsSnapshot)",
+        "driftless tap demo/corrected",
+    ] {
+        assert!(start_line.contains(service), "{service} in {start_line}");
+    }
+
+    // The report's counts are what this subscriber received.
+    let r = report(&dir);
+    let count = |flag: u32| got.iter().filter(|s| s.flags & flag != 0).count() as u64;
+    let outputs = &r["outputs"];
+    for (key, flag) in [
+        ("still", FLAG_STILL),
+        ("moving", FLAG_MOVING),
+        ("warming_up", FLAG_WARMING_UP),
+        ("flushed", FLAG_FLUSHED),
+    ] {
+        assert_eq!(outputs[key], count(flag), "{key}: {outputs}");
+        assert!(count(flag) > 0, "stop-and-go motion shows {key}");
+    }
+    let (still, moving) = (count(FLAG_STILL), count(FLAG_MOVING));
+    let neither = N as u64 - still - moving;
+    assert!(
+        err.contains(&format!("{still} still (")) && err.contains(&format!("{neither} neither")),
+        "{err}"
+    );
+    // Why fewer outputs are timed than published.
+    let timed = r["end_to_end_ns"]["count"].as_u64().unwrap();
+    let drops = r["metric_drops"].as_u64().unwrap();
+    assert_eq!(timed + count(FLAG_FLUSHED) + drops, N as u64);
+    assert!(
+        err.contains(&format!(
+            "end-to-end timed {timed} of {N}: {} flushed at shutdown",
+            count(FLAG_FLUSHED)
+        )),
+        "{err}"
+    );
+
+    let verdict = err.lines().last().unwrap();
+    let misses = r["deadline_misses"].as_u64().unwrap();
+    let expected = if misses == 0 {
+        format!("verdict: deadline held: 0 of {timed} outputs over 1000.0 us")
+    } else {
+        format!("verdict: deadline MISSED: {misses} of {timed} outputs over 1000.0 us")
+    };
+    assert!(verdict.starts_with(&expected), "{verdict}");
+    assert_eq!(r["lost"], 0);
+    assert!(verdict.ends_with("; nothing lost"), "{verdict}");
 }
 
 #[test]

@@ -26,7 +26,7 @@ pub struct Args {
     /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX and the pipeline's setting.
     #[arg(long)]
     pub prefix: Option<String>,
-    /// No periodic summary line on stderr (the final table is still printed).
+    /// No start line and no periodic summary line on stderr (the final table is still printed).
     #[arg(long, short)]
     pub quiet: bool,
 }

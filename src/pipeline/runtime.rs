@@ -36,7 +36,7 @@ use std::time::Duration;
 use crossbeam_channel::{bounded, Sender};
 
 use crate::metrics::{
-    Batch, Counters, HeadingTracker, Layout, Record, Report, Reporter, BATCH, MAX_STAGES,
+    Batch, Counters, HeadingTracker, Layout, Outputs, Record, Report, Reporter, BATCH, MAX_STAGES,
 };
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
@@ -112,6 +112,8 @@ struct Local {
     stage_out: [u64; MAX_STAGES],
     misses: u64,
     repaired: u64,
+    /// Published outputs carrying each of [`Outputs::FLAGS`].
+    outputs: [u64; 4],
     metric_drops: u64,
     metric_drops_stored: u64,
 }
@@ -246,6 +248,9 @@ impl Chain {
                 if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
                     self.local.repaired += 1;
                 }
+                for (n, flag) in self.local.outputs.iter_mut().zip(Outputs::FLAGS) {
+                    *n += u64::from(out.flags & flag != 0);
+                }
                 if let Some(h) = &mut self.heading {
                     h.published(out);
                 }
@@ -291,6 +296,9 @@ impl Chain {
         if self.is_final {
             c.deadline_misses.store(l.misses, Ordering::Relaxed);
             c.repaired.store(l.repaired, Ordering::Relaxed);
+            for (c, l) in c.outputs.iter().zip(l.outputs) {
+                c.store(l, Ordering::Relaxed);
+            }
         }
         // Every segment may drop records: add, do not overwrite.
         c.metric_drops
@@ -328,6 +336,33 @@ impl Chain {
         self.send_batch();
         Ok(())
     }
+}
+
+/// The start line: the services this daemon publishes, with their types, and how to watch them.
+pub fn services_line(p: &Pipeline, prefix: &str) -> String {
+    let mut raw = Vec::new();
+    let mut gyro = Vec::new();
+    for (i, s) in p.stages.iter().enumerate() {
+        // An external stage's output is another process's service.
+        if s.kind.role == Role::External {
+            continue;
+        }
+        if i == 0 {
+            raw.push(s.output.as_str());
+        } else {
+            gyro.push(s.output.as_str());
+        }
+    }
+    let last = &p.stages[p.stages.len() - 1].output;
+    format!(
+        "pipeline {} running under prefix {prefix:?}: publishes {} (RawSample), {} (GyroSample), \
+         {} (StatsSnapshot); watch with `driftless tap {last}` or `driftless stats {}`",
+        p.name,
+        raw.join(", "),
+        gyro.join(", "),
+        p.iceoryx2.stats_service,
+        p.path.display()
+    )
 }
 
 fn build_source(p: &Pipeline, transport: &Transport) -> Result<Box<dyn Source>, RunError> {
@@ -770,6 +805,9 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
 
     // After the reporter thread is spawned, so only the hot thread gets these settings.
     schedule_hot_thread(p);
+    if opts.print_summary {
+        let _ = writeln!(std::io::stderr(), "{}", services_line(p, &opts.prefix));
+    }
     let stop = &opts.stop;
     // The end of --duration on the clock the ingest stamps samples with (no extra clock read
     // per sample); a sample already taken from the source is always processed.
