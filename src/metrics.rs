@@ -749,6 +749,33 @@ pub fn stage_name(s: &StageStats) -> String {
     String::from_utf8_lossy(&s.name[..end]).into_owned()
 }
 
+/// A snapshot as JSON (`stats --json`, `tap --format json`): every field, times in ns.
+pub fn snapshot_json(s: &StatsSnapshot) -> serde_json::Value {
+    let pct = |p: &Percentiles| serde_json::json!({"count": p.count, "p50": p.p50, "p99": p.p99, "p999": p.p999, "max": p.max});
+    let n = (s.stage_count as usize).min(MAX_STATS_STAGES);
+    serde_json::json!({
+        "uptime_ns": s.uptime_ns,
+        "samples_in": s.samples_in,
+        "samples_out": s.samples_out,
+        "rate_hz": s.rate_hz,
+        "deadline_ns": s.deadline_ns,
+        "deadline_misses": s.deadline_misses,
+        "lost": s.lost,
+        "flagged": s.flagged,
+        "gap_samples": s.gap_samples,
+        "metric_drops": s.metric_drops,
+        "algorithmic_delay_ns": s.algorithmic_delay_ns,
+        "end_to_end_ns": pct(&s.end_to_end),
+        "stages": s.stages[..n].iter().map(|st| serde_json::json!({
+            "name": stage_name(st),
+            "samples_in": st.samples_in,
+            "samples_out": st.samples_out,
+            "lost": st.lost,
+            "compute_ns": pct(&st.compute),
+        })).collect::<Vec<_>>(),
+    })
+}
+
 /// Format a snapshot for `driftless stats`.
 pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
     // Fits an 80-column terminal: three summary lines and a 76-column table.

@@ -62,6 +62,37 @@ pub const FLAG_STILL: u32 = 1 << 6;
 /// predictions, so the rotation is not subtracted.
 pub const FLAG_MOVING: u32 = 1 << 7;
 
+/// The output flags by name, in bit order (`tap`, `record` and reports decode them with it).
+pub const FLAG_NAMES: [(u32, &str); 8] = [
+    (FLAG_WARMING_UP, "warming_up"),
+    (FLAG_INPUT_INVALID, "input_invalid"),
+    (FLAG_GAP_BEFORE, "gap_before"),
+    (FLAG_TIME_BACKWARDS, "time_backwards"),
+    (FLAG_FLUSHED, "flushed"),
+    (FLAG_OUTPUT_REPAIRED, "output_repaired"),
+    (FLAG_STILL, "still"),
+    (FLAG_MOVING, "moving"),
+];
+
+/// Names of the flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as its hex
+/// value, so nothing is hidden.
+pub fn flag_names(flags: u32) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut rest = flags;
+    for (bit, name) in FLAG_NAMES {
+        if flags & bit != 0 {
+            names.push(name.to_string());
+            rest &= !bit;
+        }
+    }
+    for i in 0..32 {
+        if rest & (1 << i) != 0 {
+            names.push(format!("{:#x}", 1u32 << i));
+        }
+    }
+    names
+}
+
 /// Type name of [`RawSample`] on the wire.
 pub const RAW_TYPE_NAME: &str = "driftless::RawSample";
 /// Type name of [`GyroSample`] on the wire.

@@ -607,7 +607,7 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .iter()
         .map(|l| {
             l.split_whitespace()
-                .nth(1)
+                .nth(3)
                 .and_then(|v| v.parse().ok())
                 .expect("seq")
         })
@@ -618,6 +618,39 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         .output()
         .expect("tap raw");
     assert!(String::from_utf8_lossy(&raw.stdout).contains("flags"));
+    // CSV: a header naming units, then rows of as many cells.
+    let tap_as = |extra: &[&str]| {
+        let o = std::process::Command::new(common::bin())
+            .args(["tap", "c/corrected", "--prefix", &prefix.0, "--count", "3"])
+            .args(extra)
+            .output()
+            .expect("tap");
+        assert_eq!(o.status.code(), Some(0), "{extra:?}");
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let csv_out = tap_as(&["--format", "csv", "--units", "deg/s"]);
+    let rows: Vec<&str> = csv_out.lines().collect();
+    assert_eq!(rows.len(), 4, "{csv_out}");
+    assert!(
+        rows[0].starts_with("epoch,seq,t_s,rate_x_degps,"),
+        "{}",
+        rows[0]
+    );
+    let width = rows[0].split(',').count();
+    assert!(
+        rows[1..].iter().all(|r| r.split(',').count() == width),
+        "{csv_out}"
+    );
+    // JSON lines: flags decoded by name, units said.
+    for line in tap_as(&["--format", "json", "--units", "deg/s"]).lines() {
+        let v: serde_json::Value = serde_json::from_str(line).expect(line);
+        assert_eq!(v["units"], "deg/s");
+        let flags = v["flags"].as_u64().unwrap() as u32;
+        assert_eq!(
+            v["flag_names"],
+            serde_json::json!(driftless::transport::flag_names(flags))
+        );
+    }
     // `--hz`: the rate is the output asked for, on stdout; nothing on stderr.
     let hz = std::process::Command::new(common::bin())
         .args(["tap", "c/corrected", "--prefix", &prefix.0, "--hz"])
@@ -627,7 +660,9 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
     assert_eq!(hz.status.code(), Some(0));
     let hz_out = String::from_utf8_lossy(&hz.stdout);
     assert!(
-        hz_out.starts_with("c/corrected: ") && hz_out.contains(" Hz, "),
+        hz_out.starts_with("c/corrected: ")
+            && hz_out.contains(" Hz (interval min ")
+            && hz_out.contains(" ms std "),
         "{hz_out}"
     );
     assert!(
@@ -651,6 +686,39 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
     assert!(
         out.contains("end-to-end") && out.contains("denoise") && out.contains("publish"),
         "{out}"
+    );
+    let json = std::process::Command::new(common::bin())
+        .arg("stats")
+        .arg(&file)
+        .args(["--prefix", &prefix.0, "--once", "--json"])
+        .output()
+        .expect("stats --json");
+    assert_eq!(json.status.code(), Some(0));
+    let v: serde_json::Value = serde_json::from_slice(&json.stdout).expect("one JSON object");
+    assert_eq!(v["pipeline"], "c");
+    let names: Vec<&str> = v["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["sensor", "denoise", "publish"]);
+    assert!(v["samples_in"].as_u64().unwrap() > 0, "{v}");
+    // On a terminal (a pty from `script`) the snapshot is redrawn in place.
+    let command = format!(
+        "timeout -s INT 1.5 {} stats {} --prefix {}",
+        common::bin(),
+        file.display(),
+        prefix.0
+    );
+    let pty = std::process::Command::new("script")
+        .args(["-qec", &command, "/dev/null"])
+        .output()
+        .expect("script(1) runs stats on a pty");
+    let screen = String::from_utf8_lossy(&pty.stdout);
+    assert!(
+        screen.matches("\x1b[H\x1b[2J").count() >= 2 && screen.contains("end-to-end"),
+        "{screen:?}"
     );
     let missing = std::process::Command::new(common::bin())
         .args(["tap", "c/nothing", "--prefix", &prefix.0, "--count", "1"])

@@ -1,5 +1,6 @@
 //! `driftless stats PIPELINE`: show the live statistics a running daemon publishes.
 
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -21,6 +22,9 @@ pub struct Args {
     /// Print one snapshot and exit.
     #[arg(long)]
     pub once: bool,
+    /// One JSON object per snapshot, one per line (times in ns).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Print every snapshot the daemon publishes until interrupted.
@@ -55,12 +59,27 @@ fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError
         signal_hook::flag::register(sig, Arc::clone(&stop))
             .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
     }
+    // On a terminal the snapshot is redrawn in place (as `top`); piped, snapshots follow each
+    // other.
+    let redraw = !args.once && !args.json && std::io::stdout().is_terminal();
     let patience = p.report_interval * 2 + Duration::from_secs(1);
     let mut last = Instant::now();
     while !stop.load(Ordering::Relaxed) {
         match input.receive() {
             Ok(Some(s)) => {
-                let text = crate::metrics::format_snapshot(&p.name, &s);
+                let text = if args.json {
+                    let mut v = crate::metrics::snapshot_json(&s);
+                    v["pipeline"] = p.name.clone().into();
+                    format!("{v}\n")
+                } else if redraw {
+                    // Home, clear the screen, the snapshot.
+                    format!(
+                        "\x1b[H\x1b[2J{}",
+                        crate::metrics::format_snapshot(&p.name, &s)
+                    )
+                } else {
+                    crate::metrics::format_snapshot(&p.name, &s)
+                };
                 // A closed stdout (`| head`) ends the command cleanly, ports dropped.
                 if std::io::Write::write_all(&mut std::io::stdout(), text.as_bytes()).is_err() {
                     return Ok(());

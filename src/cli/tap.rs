@@ -8,7 +8,53 @@ use std::time::{Duration, Instant};
 
 use crate::cli::run::effective_prefix;
 use crate::cli::CliError;
-use crate::transport::{self, GyroSample, Input, RawSample, StatsSnapshot, Transport};
+use crate::transport::{self, GyroSample, Input, RawSample, StatsSnapshot, Transport, RAW_INVALID};
+
+/// How samples are printed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// One readable line per sample, flags by name.
+    Text,
+    /// A header, then one row per sample (not for a stats service).
+    Csv,
+    /// One JSON object per line.
+    Json,
+}
+
+/// Units the processed rates are printed in (the wire carries rad/s).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RateUnits {
+    /// Radians per second, as on the wire.
+    #[value(name = "rad/s")]
+    RadS,
+    /// Degrees per second.
+    #[value(name = "deg/s")]
+    DegS,
+}
+
+impl RateUnits {
+    fn scale(self) -> f64 {
+        match self {
+            RateUnits::RadS => 1.0,
+            RateUnits::DegS => 180.0 / std::f64::consts::PI,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            RateUnits::RadS => "rad/s",
+            RateUnits::DegS => "deg/s",
+        }
+    }
+
+    /// Column-name suffix, as `driftless simulate` names its columns.
+    fn suffix(self) -> &'static str {
+        match self {
+            RateUnits::RadS => "rads",
+            RateUnits::DegS => "degps",
+        }
+    }
+}
 
 /// Arguments of `driftless tap`.
 #[derive(Debug, clap::Args)]
@@ -18,7 +64,15 @@ pub struct Args {
     /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
     #[arg(long)]
     pub prefix: Option<String>,
-    /// Only the rate line, once a second, on stdout; no samples.
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: Format,
+    /// Units of the processed rates (rate, drift, denoised). Raw samples are printed in the
+    /// pipeline's input_units, as the driver sent them.
+    #[arg(long, value_enum, default_value = "rad/s")]
+    pub units: RateUnits,
+    /// Only the rate line, once a second, on stdout, with the interval between sample
+    /// timestamps (min / max / standard deviation), as `ros2 topic hz`; no samples.
     #[arg(long)]
     pub hz: bool,
     /// Exit after this many samples.
@@ -39,34 +93,222 @@ enum Tapped {
     Stats(Input<StatsSnapshot>),
 }
 
-fn line_gyro(s: &GyroSample) -> String {
-    format!(
-        "seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] rad/s drift [{:+.6} {:+.6} {:+.6}] denoised [{:+.6} {:+.6} {:+.6}] flags {:#x}",
-        s.seq,
-        s.t_ns as f64 * 1e-9,
-        s.rate[0],
-        s.rate[1],
-        s.rate[2],
-        s.drift[0],
-        s.drift[1],
-        s.drift[2],
-        s.denoised[0],
-        s.denoised[1],
-        s.denoised[2],
-        s.flags
-    )
+/// One received item.
+enum Item {
+    Gyro(GyroSample),
+    Raw(RawSample),
+    Stats(StatsSnapshot),
 }
 
-fn line_raw(s: &RawSample) -> String {
-    format!(
-        "seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] flags {:#x}",
-        s.seq,
-        s.t_ns as f64 * 1e-9,
-        s.rate[0],
-        s.rate[1],
-        s.rate[2],
-        s.flags
-    )
+impl Tapped {
+    fn receive(&self) -> Option<Item> {
+        match self {
+            Tapped::Gyro(i) => i.receive().ok().flatten().map(Item::Gyro),
+            Tapped::Raw(i) => i.receive().ok().flatten().map(Item::Raw),
+            Tapped::Stats(i) => i.receive().ok().flatten().map(Item::Stats),
+        }
+    }
+}
+
+impl Item {
+    /// (epoch, seq, timestamp ns) of a sample; a stats snapshot has only its uptime.
+    fn stamp(&self) -> (Option<(u32, u64)>, u64) {
+        match self {
+            Item::Gyro(s) => (Some((s.epoch, s.seq)), s.t_ns),
+            Item::Raw(s) => (Some((s.epoch, s.seq)), s.t_ns),
+            Item::Stats(s) => (None, s.uptime_ns),
+        }
+    }
+}
+
+fn raw_flag_names(flags: u32) -> Vec<String> {
+    let mut names = Vec::new();
+    if flags & RAW_INVALID != 0 {
+        names.push("invalid".to_string());
+    }
+    for i in 1..32 {
+        if flags & (1 << i) != 0 {
+            names.push(format!("{:#x}", 1u32 << i));
+        }
+    }
+    names
+}
+
+fn joined(names: &[String], sep: &str) -> String {
+    if names.is_empty() {
+        "-".into()
+    } else {
+        names.join(sep)
+    }
+}
+
+/// The printing side: format, units, and the CSV header once.
+struct Printer {
+    format: Format,
+    units: RateUnits,
+    service: String,
+    header_done: bool,
+}
+
+impl Printer {
+    fn header(&self, item: &Item) -> Option<String> {
+        if self.format != Format::Csv {
+            return None;
+        }
+        let axes = |name: &str, suffix: &str| {
+            ["x", "y", "z"]
+                .map(|a| format!("{name}_{a}_{suffix}"))
+                .join(",")
+        };
+        Some(match item {
+            Item::Gyro(_) => {
+                let u = self.units.suffix();
+                format!(
+                    "epoch,seq,t_s,{},{},{},flags,flag_names",
+                    axes("rate", u),
+                    axes("drift", u),
+                    axes("denoised", u)
+                )
+            }
+            Item::Raw(_) => format!("epoch,seq,t_s,{},flags,flag_names", axes("rate", "input")),
+            Item::Stats(_) => return None,
+        })
+    }
+
+    fn line(&self, item: &Item) -> Result<String, CliError> {
+        let k = self.units.scale();
+        let scaled = |v: [f64; 3]| v.map(|x| x * k);
+        Ok(match (self.format, item) {
+            (Format::Text, Item::Gyro(s)) => {
+                let [r, d, n] = [s.rate, s.drift, s.denoised].map(scaled);
+                format!(
+                    "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] drift [{:+.6} {:+.6} {:+.6}] \
+                     denoised [{:+.6} {:+.6} {:+.6}] {} flags {}",
+                    s.epoch,
+                    s.seq,
+                    s.t_ns as f64 * 1e-9,
+                    r[0], r[1], r[2], d[0], d[1], d[2], n[0], n[1], n[2],
+                    self.units.name(),
+                    joined(&transport::flag_names(s.flags), ",")
+                )
+            }
+            (Format::Text, Item::Raw(s)) => format!(
+                "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] (input units) flags {}",
+                s.epoch,
+                s.seq,
+                s.t_ns as f64 * 1e-9,
+                s.rate[0],
+                s.rate[1],
+                s.rate[2],
+                joined(&raw_flag_names(s.flags), ",")
+            ),
+            (Format::Text, Item::Stats(s)) => {
+                crate::metrics::format_snapshot(&self.service, s)
+            }
+            (Format::Csv, Item::Gyro(s)) => {
+                let cells: Vec<String> = [s.rate, s.drift, s.denoised]
+                    .map(scaled)
+                    .iter()
+                    .flatten()
+                    .map(|v| v.to_string())
+                    .collect();
+                format!(
+                    "{},{},{},{},{},{}",
+                    s.epoch,
+                    s.seq,
+                    s.t_ns as f64 * 1e-9,
+                    cells.join(","),
+                    s.flags,
+                    joined(&transport::flag_names(s.flags), "|")
+                )
+            }
+            (Format::Csv, Item::Raw(s)) => format!(
+                "{},{},{},{},{},{},{},{}",
+                s.epoch,
+                s.seq,
+                s.t_ns as f64 * 1e-9,
+                s.rate[0],
+                s.rate[1],
+                s.rate[2],
+                s.flags,
+                joined(&raw_flag_names(s.flags), "|")
+            ),
+            (Format::Csv, Item::Stats(_)) => {
+                return Err(CliError::input(format!(
+                    "{} carries statistics snapshots, which have no CSV form: use --format text or json",
+                    self.service
+                )))
+            }
+            (Format::Json, Item::Gyro(s)) => serde_json::json!({
+                "epoch": s.epoch,
+                "seq": s.seq,
+                "t_ns": s.t_ns,
+                "ingest_ns": s.ingest_ns,
+                "units": self.units.name(),
+                "rate": scaled(s.rate),
+                "drift": scaled(s.drift),
+                "denoised": scaled(s.denoised),
+                "flags": s.flags,
+                "flag_names": transport::flag_names(s.flags),
+            })
+            .to_string(),
+            (Format::Json, Item::Raw(s)) => serde_json::json!({
+                "epoch": s.epoch,
+                "seq": s.seq,
+                "t_ns": s.t_ns,
+                "units": "input",
+                "rate": s.rate,
+                "flags": s.flags,
+                "flag_names": raw_flag_names(s.flags),
+            })
+            .to_string(),
+            (Format::Json, Item::Stats(s)) => crate::metrics::snapshot_json(s).to_string(),
+        })
+    }
+}
+
+/// Intervals between consecutive sample timestamps within one epoch, over one display window
+/// (Welford's running mean and variance).
+#[derive(Default)]
+struct Intervals {
+    n: u64,
+    mean: f64,
+    m2: f64,
+    min: f64,
+    max: f64,
+}
+
+impl Intervals {
+    fn add(&mut self, dt: f64) {
+        self.n += 1;
+        if self.n == 1 {
+            (self.min, self.max) = (dt, dt);
+        } else {
+            self.min = self.min.min(dt);
+            self.max = self.max.max(dt);
+        }
+        let d = dt - self.mean;
+        self.mean += d / self.n as f64;
+        self.m2 += d * (dt - self.mean);
+    }
+
+    fn describe(&self) -> String {
+        if self.n == 0 {
+            return "no interval".into();
+        }
+        let std = if self.n > 1 {
+            (self.m2 / (self.n - 1) as f64).sqrt()
+        } else {
+            0.0
+        };
+        format!(
+            "interval min {:.3} ms max {:.3} ms std {:.3} ms over {}",
+            self.min * 1e3,
+            self.max * 1e3,
+            std * 1e3,
+            self.n
+        )
+    }
 }
 
 /// Subscribe to SERVICE (whichever of our wire types it carries) and print what comes.
@@ -93,6 +335,12 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     } else if let Ok(i) = node.open_input::<RawSample>(&args.service) {
         Tapped::Raw(i)
     } else if let Ok(i) = node.open_input::<StatsSnapshot>(&args.service) {
+        if args.format == Format::Csv && !args.hz {
+            return Err(CliError::input(format!(
+                "{} carries statistics snapshots, which have no CSV form: use --format text or json",
+                args.service
+            )));
+        }
         Tapped::Stats(i)
     } else {
         // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.
@@ -106,45 +354,56 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         signal_hook::flag::register(sig, Arc::clone(&stop))
             .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
     }
+    let mut printer = Printer {
+        format: args.format,
+        units: args.units,
+        service: args.service.clone(),
+        header_done: false,
+    };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let end = args.duration.map(|d| Instant::now() + d);
     let (mut total, mut window, mut gaps) = (0u64, 0u64, 0u64);
-    let mut last_seq: Option<(u32, u64)> = None; // (epoch, seq)
+    let mut intervals = Intervals::default();
+    // (epoch, seq, timestamp ns) of the last sample; epoch and seq are None for stats.
+    let mut last: Option<(Option<(u32, u64)>, u64)> = None;
     let mut tick = Instant::now();
     while !stop.load(Ordering::Relaxed) && end.is_none_or(|e| Instant::now() < e) {
-        let got = match &tapped {
-            Tapped::Gyro(i) => i
-                .receive()
-                .ok()
-                .flatten()
-                .map(|s| (Some((s.epoch, s.seq)), line_gyro(&s))),
-            Tapped::Raw(i) => i
-                .receive()
-                .ok()
-                .flatten()
-                .map(|s| (Some((s.epoch, s.seq)), line_raw(&s))),
-            Tapped::Stats(i) => i
-                .receive()
-                .ok()
-                .flatten()
-                .map(|s| (None, crate::metrics::format_snapshot(&args.service, &s))),
-        };
-        match got {
-            Some((seq, line)) => {
+        match tapped.receive() {
+            Some(item) => {
                 total += 1;
                 window += 1;
-                // Sequence numbers count within one epoch (a daemon or source restart).
-                if let (Some((epoch, seq)), Some((prev_epoch, prev))) = (seq, last_seq) {
-                    if epoch == prev_epoch && seq > prev + 1 {
-                        gaps += seq - prev - 1;
+                let (seq, t_ns) = item.stamp();
+                // Sequence numbers and timestamps count within one epoch (a daemon or source
+                // restart starts another).
+                if let Some((prev_seq, prev_t)) = last {
+                    let same_epoch = match (seq, prev_seq) {
+                        (Some((e, _)), Some((pe, _))) => e == pe,
+                        _ => true,
+                    };
+                    if same_epoch {
+                        if let (Some((_, s)), Some((_, p))) = (seq, prev_seq) {
+                            if s > p + 1 {
+                                gaps += s - p - 1;
+                            }
+                        }
+                        intervals.add(t_ns.wrapping_sub(prev_t) as i64 as f64 * 1e-9);
                     }
                 }
-                if seq.is_some() {
-                    last_seq = seq;
-                }
-                if !args.hz && writeln!(out, "{line}").is_err() {
-                    return Ok(()); // the reader went away (e.g. `| head`)
+                last = Some((seq, t_ns));
+                if !args.hz {
+                    if !printer.header_done {
+                        printer.header_done = true;
+                        if let Some(h) = printer.header(&item) {
+                            if writeln!(out, "{h}").is_err() {
+                                return Ok(());
+                            }
+                        }
+                    }
+                    let line = printer.line(&item)?;
+                    if writeln!(out, "{line}").is_err() {
+                        return Ok(()); // the reader went away (e.g. `| head`)
+                    }
                 }
                 if args.count.is_some_and(|c| total >= c) {
                     break;
@@ -155,9 +414,10 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         let dt = tick.elapsed();
         if dt >= Duration::from_secs(1) {
             let rate = format!(
-                "{}: {:.1} Hz, {} samples, {} missing (sequence gaps)",
+                "{}: {:.1} Hz ({}), {} samples, {} missing (sequence gaps)",
                 args.service,
                 window as f64 / dt.as_secs_f64(),
+                intervals.describe(),
                 total,
                 gaps
             );
@@ -170,9 +430,94 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
                 eprintln!("{rate}");
             }
             window = 0;
+            intervals = Intervals::default();
             tick = Instant::now();
         }
     }
     let _ = out.flush();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn intervals_give_min_max_and_sample_standard_deviation() {
+        let mut i = Intervals::default();
+        for dt in [0.001, 0.002, 0.003] {
+            i.add(dt);
+        }
+        assert_eq!(
+            i.describe(),
+            "interval min 1.000 ms max 3.000 ms std 1.000 ms over 3"
+        );
+        assert_eq!(Intervals::default().describe(), "no interval");
+    }
+
+    fn printer(format: Format, units: RateUnits) -> Printer {
+        Printer {
+            format,
+            units,
+            service: "t/corrected".into(),
+            header_done: false,
+        }
+    }
+
+    #[test]
+    fn deg_s_is_rad_s_times_180_over_pi_in_every_format() {
+        let s = GyroSample {
+            seq: 7,
+            t_ns: 1_500_000,
+            rate: [std::f64::consts::PI, 0.0, -1.0],
+            drift: [0.5, 0.0, 0.0],
+            denoised: [1.0, 0.0, 0.0],
+            flags: crate::transport::FLAG_STILL,
+            epoch: 3,
+            ..GyroSample::default()
+        };
+        let item = Item::Gyro(s);
+        let json: serde_json::Value =
+            serde_json::from_str(&printer(Format::Json, RateUnits::DegS).line(&item).unwrap())
+                .unwrap();
+        assert_eq!(json["rate"][0], 180.0);
+        assert_eq!(json["rate"][2], -180.0 / std::f64::consts::PI);
+        assert_eq!(json["flag_names"], serde_json::json!(["still"]));
+        let rad = printer(Format::Csv, RateUnits::RadS);
+        assert_eq!(
+            rad.header(&item).unwrap(),
+            "epoch,seq,t_s,rate_x_rads,rate_y_rads,rate_z_rads,drift_x_rads,drift_y_rads,\
+             drift_z_rads,denoised_x_rads,denoised_y_rads,denoised_z_rads,flags,flag_names"
+        );
+        assert_eq!(
+            rad.line(&item).unwrap(),
+            format!(
+                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still",
+                std::f64::consts::PI
+            )
+        );
+        let text = printer(Format::Text, RateUnits::DegS).line(&item).unwrap();
+        assert!(
+            text.contains("rate [+180.000000 +0.000000 -57.295780] drift"),
+            "{text}"
+        );
+        assert!(
+            text.contains("denoised [+57.295780 +0.000000 +0.000000] deg/s"),
+            "{text}"
+        );
+        assert!(text.ends_with("flags still"), "{text}");
+        let stats = Item::Stats(StatsSnapshot::default());
+        assert!(printer(Format::Csv, RateUnits::RadS).line(&stats).is_err());
+    }
+
+    #[test]
+    fn flags_read_by_name_and_unknown_bits_stay_visible() {
+        use crate::transport::{flag_names, FLAG_GAP_BEFORE, FLAG_STILL};
+        assert_eq!(
+            flag_names(FLAG_STILL | FLAG_GAP_BEFORE | 1 << 20),
+            ["gap_before", "still", "0x100000"]
+        );
+        assert_eq!(raw_flag_names(RAW_INVALID | 4), ["invalid", "0x4"]);
+        assert_eq!(joined(&[], ","), "-");
+    }
 }
