@@ -93,7 +93,8 @@ enum Tapped {
     Stats(Input<StatsSnapshot>),
 }
 
-/// One received item.
+/// One received item (on the stack, one at a time: its size does not matter).
+#[allow(clippy::large_enum_variant)]
 enum Item {
     Gyro(GyroSample),
     Raw(RawSample),
