@@ -394,3 +394,60 @@ fn rad_per_s_input_gives_the_same_terms_in_degree_units() {
         }
     }
 }
+
+/// The value and unit printed first on a term's line of `allan`'s text output.
+fn term(out: &str, name: &str) -> (f64, String) {
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with(&format!("{name}  ")))
+        .unwrap_or_else(|| panic!("no {name} line in {out}"));
+    let mut words = line.split_whitespace().skip(1);
+    let value = words.next().unwrap().parse().expect("a plain number");
+    (value, words.next().unwrap().to_string())
+}
+
+#[test]
+fn terms_print_in_datasheet_units_or_per_second_on_request_as_plain_decimals() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = simulate(dir.path(), &[]);
+    let run = |extra: &[&str]| {
+        let mut args = vec!["allan", &path, "--rate", "100"];
+        args.extend_from_slice(extra);
+        let o = driftless(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let datasheet = run(&[]);
+    let seconds = run(&["--term-units", "seconds"]);
+    let (n_h, unit_h) = term(&datasheet, "N");
+    let (n_s, unit_s) = term(&seconds, "N");
+    assert_eq!(
+        (unit_h.as_str(), unit_s.as_str()),
+        ("deg/sqrt(h)", "deg/sqrt(s)")
+    );
+    // Simulated with N = 1.5 deg/sqrt(h).
+    assert!((n_h - 1.5).abs() < 0.1, "{datasheet}");
+    assert!((n_h / n_s - 60.0).abs() < 0.01, "{n_h} vs {n_s}");
+    // B: too short a record for the fit; its slope read-off (after the `|`) converts alike.
+    let read_off = |out: &str| -> (f64, String) {
+        let line = out
+            .lines()
+            .find(|l| l.trim_start().starts_with("B  "))
+            .unwrap();
+        let mut words = line.split(" | ").nth(1).unwrap().split_whitespace();
+        (
+            words.next().unwrap().parse().unwrap(),
+            words.next().unwrap().into(),
+        )
+    };
+    let ((b_h, unit_h), (b_s, unit_s)) = (read_off(&datasheet), read_off(&seconds));
+    assert_eq!((unit_h.as_str(), unit_s.as_str()), ("deg/h", "deg/s"));
+    assert!((b_h / b_s - 3600.0).abs() < 1.0, "{b_h} vs {b_s}");
+    // No `e0`-style exponents in the readable range.
+    assert!(
+        !datasheet.contains("e0 ") && !datasheet.contains("e-1 "),
+        "{datasheet}"
+    );
+    let o = driftless(&["allan", &path, "--rate", "100", "--term-units", "hours"]);
+    assert_eq!(o.status.code(), Some(2));
+}

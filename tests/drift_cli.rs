@@ -104,9 +104,10 @@ fn the_rbf_is_reported_beside_persistence_and_ar_honestly() {
     let rmse = |name: &str| -> f64 {
         let line = out
             .lines()
+            .map(str::trim_start)
             .find(|l| l.starts_with(name))
             .unwrap_or_else(|| panic!("no {name} row: {out}"));
-        let cols: Vec<&str> = line[18..].split_whitespace().collect();
+        let cols: Vec<&str> = line[name.len()..].split_whitespace().collect();
         cols[0].parse().unwrap()
     };
     // Data on stdout, messages on stderr.
@@ -156,9 +157,10 @@ fn the_rbf_is_reported_beside_persistence_and_ar_honestly() {
     );
     for want in [
         "Table 3",
-        "compensated (RBF)",
-        "compensated (AR)",
-        "compensated (persistence)",
+        " RBF ",
+        " AR ",
+        " persistence ",
+        "deg/sqrt(h)",
         "0.46",
         "0.69",
         "0.61",
@@ -166,6 +168,32 @@ fn the_rbf_is_reported_beside_persistence_and_ar_honestly() {
         assert!(out.contains(want), "no '{want}' in {out}");
     }
     assert!(out.contains("samples 12000..15000 (held out"), "{out}");
+    // Table 3's terms in data-sheet units, as `allan` prints them; per second on request.
+    let n_raw = |out: &str| -> f64 {
+        let row = out
+            .lines()
+            .map(str::trim_start)
+            .find(|l| l.starts_with("N "))
+            .unwrap_or_else(|| panic!("no N row: {out}"));
+        row.split_whitespace()
+            .nth(2)
+            .unwrap()
+            .trim_end_matches('*')
+            .parse()
+            .unwrap()
+    };
+    let o = bin()
+        .arg("eval")
+        .arg(&log)
+        .arg("--model")
+        .arg(&model)
+        .args(["--term-units", "seconds"])
+        .output()
+        .unwrap();
+    let per_second = text(&o).0;
+    assert!(per_second.contains("deg/sqrt(s)"), "{per_second}");
+    let ratio = n_raw(&out) / n_raw(&per_second);
+    assert!((ratio - 60.0).abs() < 0.05, "N: {ratio}");
     let svg = dir.path().join("f.svg");
     let o = bin()
         .arg("eval")

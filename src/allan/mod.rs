@@ -22,3 +22,4 @@ pub use deviation::{allan, AllanError, AllanPoint, Kind, NoiseId, TauGrid};
 pub use fit::{fit_terms, read_offs, Estimate, FitError, NoiseFit, TermFit};
 pub use units::RateUnit;
 pub use units::Term;
+pub use units::TermUnits;

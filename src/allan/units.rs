@@ -46,6 +46,30 @@ impl fmt::Display for RateUnit {
     }
 }
 
+/// The units the noise terms are shown in: data-sheet units (per hour) or the fit's own
+/// (per second). Every command that prints terms takes the same choice (`--term-units`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TermUnits {
+    /// Q deg, N deg/sqrt(h), B deg/h, K deg/h/sqrt(h), R deg/h^2: what data sheets print.
+    #[default]
+    Datasheet,
+    /// Q deg, N deg/sqrt(s), B deg/s, K deg/s/sqrt(s), R deg/s^2: the fit's base units.
+    Seconds,
+}
+
+impl FromStr for TermUnits {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "datasheet" => Ok(TermUnits::Datasheet),
+            "seconds" => Ok(TermUnits::Seconds),
+            _ => Err(format!(
+                "unknown term units '{s}' (datasheet: deg/sqrt(h), deg/h; seconds: deg/sqrt(s), deg/s)"
+            )),
+        }
+    }
+}
+
 /// One of the five IEEE Std 952 noise terms.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Term {
@@ -96,6 +120,14 @@ impl Term {
             Term::B => ("deg/h", 3600.0),
             Term::K => ("deg/h/sqrt(h)", 3600.0 * 60.0),
             Term::R => ("deg/h^2", 3600.0 * 3600.0),
+        }
+    }
+
+    /// The unit this term is shown in under `units`, and the factor from the base unit.
+    pub fn unit_in(self, units: TermUnits) -> (&'static str, f64) {
+        match units {
+            TermUnits::Datasheet => self.display(),
+            TermUnits::Seconds => (self.base_unit(), 1.0),
         }
     }
 

@@ -4,7 +4,9 @@ use super::CliError;
 use crate::allan::deviation::{self, add_intervals, AllanPoint, NoiseId};
 use crate::allan::{
     chi2, edf, fit_terms, read_offs, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit,
+    TermUnits,
 };
+use crate::cli::num::sig;
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::{progress, read_table, write_table};
 use serde_json::{json, Map, Value};
@@ -31,6 +33,10 @@ pub struct Args {
     /// Unit of the samples: deg/s or rad/s (terms are always reported in degree units).
     #[arg(long, default_value = "deg/s")]
     pub units: String,
+    /// Units of the noise terms: datasheet (N deg/sqrt(h), B deg/h, K deg/h/sqrt(h)) or
+    /// seconds (deg/sqrt(s), deg/s, deg/s/sqrt(s)); the other is shown beside N.
+    #[arg(long, default_value = "datasheet")]
+    pub term_units: TermUnits,
     /// Print one JSON object instead of tables.
     #[arg(long)]
     pub json: bool,
@@ -237,18 +243,24 @@ fn trust(
     (line, outside)
 }
 
-fn format_term(t: &TermFit) -> String {
+fn format_term(t: &TermFit, units: TermUnits) -> String {
     match (t.estimate, &t.reason) {
         (Some(e), _) => {
-            let (unit, f) = t.term.display();
+            let (unit, f) = t.term.unit_in(units);
             let mut s = format!(
-                "{:.4e} {unit}  [{:.4e}, {:.4e}]",
-                e.value * f,
-                e.lo * f,
-                e.hi * f
+                "{} {unit}  [{}, {}]",
+                sig(e.value * f, 5),
+                sig(e.lo * f, 5),
+                sig(e.hi * f, 5)
             );
-            if let Some((alt, g)) = t.term.alternate() {
-                s.push_str(&format!("  = {:.4e} {alt}", e.value * g));
+            // A second unit where it is customary: N in the other convention, Q in arcsec.
+            let alt = match (units, t.term) {
+                (TermUnits::Seconds, Term::N) => Some(t.term.display()),
+                (TermUnits::Seconds, Term::Q) | (TermUnits::Datasheet, _) => t.term.alternate(),
+                (TermUnits::Seconds, _) => None,
+            };
+            if let Some((alt, g)) = alt {
+                s.push_str(&format!("  = {} {alt}", sig(e.value * g, 5)));
             }
             s
         }
@@ -367,8 +379,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 }
             };
             println!(
-                "{:>12.6} {:>14.6e} {:>14.6e} {:>14.6e} {:>10} {:>10.1} {:>6}",
-                p.tau, p.dev, p.lo, p.hi, p.n, p.edf, alpha
+                "{:>12.6} {:>14} {:>14} {:>14} {:>10} {:>10.1} {:>6}",
+                p.tau,
+                sig(p.dev, 7),
+                sig(p.lo, 7),
+                sig(p.hi, 7),
+                p.n,
+                p.edf,
+                alpha
             );
         }
         if let Some((lo, hi)) = widest {
@@ -386,7 +404,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
             Err(_) => println!("IEEE 952 terms | slope read-off:"),
         }
         for (t, ro) in fitted.iter().zip(&r.read_offs) {
-            println!("  {}  {}  | {}", t.term, format_term(t), format_term(ro));
+            println!(
+                "  {}  {}  | {}",
+                t.term,
+                format_term(t, args.term_units),
+                format_term(ro, args.term_units)
+            );
         }
         println!(
             "Which to trust: {}",

@@ -4,7 +4,8 @@
 
 use super::train::{check_rate, read_column};
 use super::CliError;
-use crate::allan::{self, chi2, Kind, TauGrid, Term};
+use crate::allan::{self, chi2, Kind, TauGrid, Term, TermUnits};
+use crate::cli::num::sig;
 use crate::drift::baselines::{self, Mean, Persistence, Predictor, Score};
 use crate::drift::compensator::{Compensator, Mode};
 use crate::drift::model::DriftModel;
@@ -50,6 +51,11 @@ pub struct Args {
     /// Print the results as JSON instead of tables.
     #[arg(long)]
     json: bool,
+    /// Units of the noise terms in Table 3: datasheet (N deg/sqrt(h), B deg/h, K deg/h/sqrt(h))
+    /// or seconds (deg/sqrt(s), deg/s, deg/s/sqrt(s)), as `driftless allan`. JSON keeps the
+    /// fit's base units (the log's angle unit per second).
+    #[arg(long, default_value = "datasheet")]
+    term_units: TermUnits,
 }
 
 /// One signal's Allan terms (base units; None: the fit failed).
@@ -144,19 +150,6 @@ fn mode_fractions(modes: &[Mode]) -> [f64; 3] {
         count(Mode::Moving),
         count(Mode::Warming),
     ]
-}
-
-fn units_of(units: &str) -> (&'static str, [String; 4]) {
-    let a = if units == "rad/s" { "rad" } else { "deg" };
-    (
-        a,
-        [
-            a.to_string(),
-            format!("{a}/sqrt(s)"),
-            format!("{a}/s"),
-            format!("{a}/s/sqrt(s)"),
-        ],
-    )
 }
 
 fn thin(x0: f64, dt: f64, y: &[f64]) -> Vec<(f64, f64)> {
@@ -330,7 +323,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             serde_json::to_string_pretty(&report).map_err(|e| CliError::internal(e.to_string()))?;
         println!("{text}");
     } else {
-        print_report(&report);
+        print_report(&report, args.term_units);
     }
     Ok(())
 }
@@ -344,7 +337,7 @@ fn nearest(curve: &[(f64, f64)], target: f64) -> Option<&(f64, f64)> {
     })
 }
 
-fn print_report(r: &Report) {
+fn print_report(r: &Report, term_units: TermUnits) {
     println!(
         "{}: column {}, {} Hz, samples {}..{}{}",
         r.file,
@@ -358,36 +351,52 @@ fn print_report(r: &Report) {
             _ => "",
         }
     );
-    println!("Table 3: Allan terms (IEEE 952 fit to octave OADEV), ratio to raw in brackets; * = not identified by the fit");
-    let (_, units) = units_of(&r.units);
-    print!("{:<5} {:<14}", "term", "unit");
-    for t in &r.table {
-        print!(" {:>27}", t.signal);
-    }
-    println!(" {:>12}", "paper ratio");
-    for (i, term) in TERMS.iter().enumerate() {
-        print!("{:<5} {:<14}", term.name(), units[i]);
-        let raw = r.table[0].values[i];
-        for (j, t) in r.table.iter().enumerate() {
-            let v = t.values[i];
-            let mark = if t.identified[i] { ' ' } else { '*' };
-            if j == 0 {
-                print!(" {:>26.4e}{mark}", v);
-            } else {
-                // No ratio to an unidentified (zero) raw term.
-                let ratio = if raw > 0.0 {
-                    format!("{:>6.3}", v / raw)
-                } else {
-                    format!("{:>6}", "-")
-                };
-                print!(" {:>17.4e}{mark}({ratio})", v);
-            }
+    println!(
+        "Table 3: Allan terms (IEEE 952 fit to octave OADEV), ratio to raw in brackets; \
+         * = not identified by the fit; RBF, AR, persistence: the denoised rate compensated \
+         with each predictor"
+    );
+    let mut header = vec!["term", "unit"];
+    header.extend(r.table.iter().map(|t| {
+        let s = t.signal.as_str();
+        s.strip_prefix("compensated (")
+            .and_then(|p| p.strip_suffix(')'))
+            .unwrap_or(s)
+    }));
+    header.push("paper ratio");
+    let mut table = super::table::new(&header, 2);
+    // The fit works in the log's angle unit per second; terms are shown in degrees, in the
+    // chosen convention (the same as `driftless allan`).
+    let to_deg = if r.units == "rad/s" {
+        180.0 / std::f64::consts::PI
+    } else {
+        1.0
+    };
+    let cell = |v: f64, raw: f64, first: bool, mark: &str| {
+        if first {
+            format!("{}{mark}", sig(v, 4))
+        } else if raw > 0.0 {
+            format!("{}{mark} ({:.3})", sig(v, 4), v / raw)
+        } else {
+            // No ratio to an unidentified (zero) raw term.
+            format!("{}{mark} (-)", sig(v, 4))
         }
-        let paper = PAPER_RATIOS
-            .iter()
-            .find(|(t, _)| t == term)
-            .map_or("-".to_string(), |(_, v)| format!("{v:.2}"));
-        println!(" {paper:>12}");
+    };
+    for (i, term) in TERMS.iter().enumerate() {
+        let (unit, f) = term.unit_in(term_units);
+        let raw = r.table[0].values[i] * to_deg * f;
+        let mut row = vec![term.name().to_string(), unit.to_string()];
+        for (j, t) in r.table.iter().enumerate() {
+            let mark = if t.identified[i] { "" } else { "*" };
+            row.push(cell(t.values[i] * to_deg * f, raw, j == 0, mark));
+        }
+        row.push(
+            PAPER_RATIOS
+                .iter()
+                .find(|(t, _)| t == term)
+                .map_or("-".to_string(), |(_, v)| format!("{v:.2}")),
+        );
+        table.add_row(row);
     }
     // The fit can leave a term unidentified; deviations at fixed taus always compare.
     for target in [1.0, 10.0, 100.0] {
@@ -397,25 +406,22 @@ fn print_report(r: &Report) {
         else {
             continue;
         };
-        print!("{:<20}", format!("OADEV at {tau:.3} s"));
+        let mut row = vec![format!("OADEV {} s", sig(tau, 4)), r.units.clone()];
         for (j, t) in r.table.iter().enumerate() {
             let v = nearest(&t.oadev, target).map_or(f64::NAN, |p| p.1);
-            if j == 0 {
-                print!(" {:>26.4e} ", v);
-            } else {
-                print!(" {:>17.4e} ({:>6.3})", v, v / raw);
-            }
+            row.push(cell(v, raw, j == 0, ""));
         }
-        println!();
+        row.push(String::new());
+        table.add_row(row);
     }
-    print!("{:<20}", "mode still/moving/warming");
-    for t in &r.table {
-        match t.modes {
-            Some([s, m, w]) => print!(" {:>27}", format!("{s:.3}/{m:.3}/{w:.3}")),
-            None => print!(" {:>27}", "-"),
-        }
-    }
-    println!();
+    let mut row = vec!["modes".to_string(), "still/moving/warm".to_string()];
+    row.extend(r.table.iter().map(|t| match t.modes {
+        Some([s, m, w]) => format!("{s:.3}/{m:.3}/{w:.3}"),
+        None => "-".into(),
+    }));
+    row.push(String::new());
+    table.add_row(row);
+    println!("{table}");
     println!("drift prediction on the same samples (measured drift as inputs):");
     super::train::print_scores(&r.prediction, &r.units, 1.0);
 }

@@ -3,6 +3,7 @@
 
 use super::duration::parse_seconds;
 use super::CliError;
+use crate::cli::num::sig;
 use crate::drift::baselines::{self, Ar, Mean, Persistence, Score};
 use crate::drift::model::{
     Baselines, DenoiseSettings, DriftModel, LowbandSettings, Provenance, Separation, FORMAT, UNITS,
@@ -346,17 +347,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
 /// The baselines table.
 pub fn print_scores(scores: &[Score], units: &str, horizon_s: f64) {
-    println!(
-        "{:<18} {:>14} {:>10} {:>22}",
-        "predictor",
-        format!("rmse ({units})"),
-        "skill",
-        format!("free-run rmse ({horizon_s} s)")
-    );
+    let rmse = format!("rmse ({units})");
+    let free = format!("free-run rmse ({horizon_s} s, {units})");
+    let mut t = super::table::new(&["predictor", &rmse, "skill", &free], 1);
     for s in scores {
-        println!(
-            "{:<18} {:>14.4e} {:>10.4} {:>22.4e}",
-            s.name, s.rmse, s.skill, s.free_rmse
-        );
+        t.add_row(vec![
+            s.name.clone(),
+            sig(s.rmse, 5),
+            format!("{:.4}", s.skill),
+            sig(s.free_rmse, 5),
+        ]);
     }
+    println!("{t}");
 }
