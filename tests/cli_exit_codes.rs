@@ -7,9 +7,20 @@ mod common;
 use common::{driftless, Dir, Prefix};
 use std::process::Output;
 
-const COMMANDS: [&str; 11] = [
-    "denoise", "train", "eval", "nav-eval", "run", "validate", "tap", "stats", "relay", "allan",
+const COMMANDS: [&str; 13] = [
+    "denoise",
+    "train",
+    "eval",
+    "nav-eval",
+    "run",
+    "validate",
+    "tap",
+    "stats",
+    "relay",
+    "allan",
     "simulate",
+    "completions",
+    "man",
 ];
 
 /// Exit `code`, nothing on stdout, one `driftless: error:` line containing `needle`.

@@ -15,9 +15,11 @@ use std::io::Write as _;
 use std::process::ExitCode;
 
 pub mod allan;
+pub mod completions;
 pub mod denoise;
 pub mod duration;
 pub mod eval;
+pub mod man;
 pub mod nav_eval;
 pub mod num;
 pub mod relay;
@@ -64,6 +66,10 @@ enum Command {
     Allan(allan::Args),
     /// Simulate a gyro log with known IEEE Std 952 noise terms.
     Simulate(simulate::Args),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions(completions::Args),
+    /// Print the manual page (roff), or write one page per command into a folder.
+    Man(man::Args),
 }
 
 /// A command's failure: the message for stderr and the process exit code (module docs).
@@ -177,6 +183,8 @@ pub fn main() -> ExitCode {
         Command::Relay(args) => relay::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Completions(args) => completions::run(args),
+        Command::Man(args) => man::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
