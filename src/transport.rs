@@ -28,6 +28,13 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
+/// iceoryx2's marker of a type that can live in shared memory (our wire types derive it); for
+/// code generic over them.
+pub use iceoryx2::prelude::ZeroCopySend;
+
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
+
 /// The iceoryx2 service flavour used everywhere: inter-process, even inside one process
 /// (`local` lost wake-ups at high rates on our machines).
 type Svc = ipc::Service;
@@ -163,6 +170,107 @@ pub struct GyroSample {
     /// counts within one epoch: a subscriber that sees the epoch change starts counting again,
     /// instead of taking the new run's samples for duplicates or reordered ones.
     pub epoch: u32,
+}
+
+/// A sample type that crosses a network as its documented little-endian bytes: the same layout
+/// as in shared memory (`repr(C)`, no padding), written field by field so that it holds on any
+/// host. What `driftless bridge` puts on Zenoh and takes back (docs/bridge.md).
+pub trait WireBytes: Sized {
+    /// Size of the encoded sample in bytes (its `size_of`).
+    const SIZE: usize;
+    /// The type name, as on iceoryx2 ([`RAW_TYPE_NAME`], [`GYRO_TYPE_NAME`]).
+    const TYPE_NAME: &'static str;
+    /// Append the sample's bytes to `out` (cleared first).
+    fn encode(&self, out: &mut Vec<u8>);
+    /// The sample from exactly [`WireBytes::SIZE`] bytes; `None` for any other length.
+    fn decode(bytes: &[u8]) -> Option<Self>;
+}
+
+/// Little-endian reader over a byte slice of known length.
+struct Le<'a>(&'a [u8]);
+
+impl Le<'_> {
+    fn u64(&mut self) -> u64 {
+        let (head, rest) = self.0.split_at(8);
+        self.0 = rest;
+        u64::from_le_bytes(head.try_into().expect("8 bytes"))
+    }
+    fn u32(&mut self) -> u32 {
+        let (head, rest) = self.0.split_at(4);
+        self.0 = rest;
+        u32::from_le_bytes(head.try_into().expect("4 bytes"))
+    }
+    fn f64x3(&mut self) -> [f64; 3] {
+        [(); 3].map(|_| f64::from_bits(self.u64()))
+    }
+}
+
+fn put_f64x3(out: &mut Vec<u8>, v: &[f64; 3]) {
+    for x in v {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+impl WireBytes for RawSample {
+    const SIZE: usize = 48;
+    const TYPE_NAME: &'static str = RAW_TYPE_NAME;
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&self.t_ns.to_le_bytes());
+        out.extend_from_slice(&self.seq.to_le_bytes());
+        put_f64x3(out, &self.rate);
+        out.extend_from_slice(&self.flags.to_le_bytes());
+        out.extend_from_slice(&self.epoch.to_le_bytes());
+    }
+
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::SIZE {
+            return None;
+        }
+        let mut r = Le(bytes);
+        Some(RawSample {
+            t_ns: r.u64(),
+            seq: r.u64(),
+            rate: r.f64x3(),
+            flags: r.u32(),
+            epoch: r.u32(),
+        })
+    }
+}
+
+impl WireBytes for GyroSample {
+    const SIZE: usize = 104;
+    const TYPE_NAME: &'static str = GYRO_TYPE_NAME;
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&self.t_ns.to_le_bytes());
+        out.extend_from_slice(&self.seq.to_le_bytes());
+        out.extend_from_slice(&self.ingest_ns.to_le_bytes());
+        put_f64x3(out, &self.rate);
+        put_f64x3(out, &self.drift);
+        put_f64x3(out, &self.denoised);
+        out.extend_from_slice(&self.flags.to_le_bytes());
+        out.extend_from_slice(&self.epoch.to_le_bytes());
+    }
+
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::SIZE {
+            return None;
+        }
+        let mut r = Le(bytes);
+        Some(GyroSample {
+            t_ns: r.u64(),
+            seq: r.u64(),
+            ingest_ns: r.u64(),
+            rate: r.f64x3(),
+            drift: r.f64x3(),
+            denoised: r.f64x3(),
+            flags: r.u32(),
+            epoch: r.u32(),
+        })
+    }
 }
 
 /// Latency percentiles of one histogram, in nanoseconds.
@@ -631,6 +739,19 @@ impl Transport {
         Ok(Waker { listener })
     }
 
+    /// A listener on the event service `name` if its publisher created one (the services a
+    /// daemon notifies, e.g. the corrected one); `None` otherwise, creating nothing.
+    pub fn existing_waker(&self, name: &str) -> Result<Option<Waker>, TransportError> {
+        let sn = service_name(name)?;
+        let exists = ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::Event)
+            .map_err(|e| setup("service lookup", name, e))?;
+        if exists {
+            self.waker(name).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
     /// Whether a publish-subscribe service `name` of type `T` exists under this prefix.
     pub fn service_exists<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
@@ -841,6 +962,54 @@ mod tests {
         assert_eq!(std::mem::offset_of!(GyroSample, drift), 48);
         assert_eq!(std::mem::offset_of!(GyroSample, denoised), 72);
         assert_eq!(std::mem::offset_of!(GyroSample, flags), 96);
+    }
+
+    /// The bytes a bridge sends are the bytes in shared memory (on this little-endian host),
+    /// and they decode back to the identical sample.
+    #[test]
+    fn wire_bytes_are_the_memory_layout_and_round_trip() {
+        fn memory<T>(v: &T) -> Vec<u8> {
+            // SAFETY: the wire types are repr(C) with no padding: every byte is initialised.
+            unsafe {
+                std::slice::from_raw_parts(v as *const T as *const u8, std::mem::size_of::<T>())
+            }
+            .to_vec()
+        }
+        let g = GyroSample {
+            t_ns: 1,
+            seq: u64::MAX - 3,
+            ingest_ns: 0x0102_0304_0506_0708,
+            rate: [1.5, -0.0, f64::MIN_POSITIVE],
+            drift: [f64::MAX, 2e-300, -7.25],
+            denoised: [0.1, 0.2, 0.3],
+            flags: FLAG_STILL | FLAG_GAP_BEFORE,
+            epoch: 0xdead_beef,
+        };
+        let r = RawSample {
+            t_ns: 9,
+            seq: 10,
+            rate: [-1.0, 1e-9, 3.0],
+            flags: RAW_INVALID,
+            epoch: 77,
+        };
+        let mut out = Vec::new();
+        g.encode(&mut out);
+        assert_eq!(out.len(), GyroSample::SIZE);
+        if cfg!(target_endian = "little") {
+            assert_eq!(out, memory(&g));
+        }
+        assert_eq!(&out[8..16], &g.seq.to_le_bytes());
+        assert_eq!(&out[96..100], &g.flags.to_le_bytes());
+        assert_eq!(GyroSample::decode(&out), Some(g));
+        assert_eq!(GyroSample::decode(&out[..103]), None);
+        r.encode(&mut out);
+        assert_eq!(out.len(), RawSample::SIZE);
+        if cfg!(target_endian = "little") {
+            assert_eq!(out, memory(&r));
+        }
+        assert_eq!(&out[44..48], &77u32.to_le_bytes());
+        assert_eq!(RawSample::decode(&out), Some(r));
+        assert_eq!(RawSample::decode(&[0; 104]), None);
     }
 
     #[test]

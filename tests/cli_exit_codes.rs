@@ -7,7 +7,7 @@ mod common;
 use common::{driftless, Dir, Prefix};
 use std::process::Output;
 
-const COMMANDS: [&str; 13] = [
+const COMMANDS: [&str; 14] = [
     "denoise",
     "train",
     "eval",
@@ -17,6 +17,7 @@ const COMMANDS: [&str; 13] = [
     "tap",
     "stats",
     "relay",
+    "bridge",
     "allan",
     "simulate",
     "completions",
@@ -125,6 +126,18 @@ fn bad_input_exits_2_for_daemon_commands() {
         &driftless(&["relay", "--input", "", "--output", "o/p"]),
         2,
         "--input",
+    );
+}
+
+/// Built without the `zenoh` feature, `bridge` says how to get it (the feature's own tests are
+/// tests/bridge.rs).
+#[cfg(not(feature = "zenoh"))]
+#[test]
+fn bridge_without_the_zenoh_feature_says_how_to_build_it() {
+    assert_fails(
+        &driftless(&["bridge", "demo/corrected"]),
+        2,
+        "cargo build --release --features zenoh",
     );
 }
 

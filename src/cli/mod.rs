@@ -1,7 +1,7 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
 //!
 //! Exit codes, the same for every command (README, "Command-line conventions"):
-//! - 0: done, including a daemon, `tap`, `stats` or `relay` stopped by SIGINT/SIGTERM,
+//! - 0: done, including a daemon, `tap`, `stats`, `relay` or `bridge` stopped by SIGINT/SIGTERM,
 //!   `--duration` or `--count`; `--help` and `--version`.
 //! - 1: a run-time failure: the command line and the files are fine, but the command could not
 //!   do its work: no daemon or service to read (`tap`, `stats`), the pipeline already running
@@ -15,6 +15,7 @@ use std::io::Write as _;
 use std::process::ExitCode;
 
 pub mod allan;
+pub mod bridge;
 pub mod completions;
 pub mod denoise;
 pub mod duration;
@@ -62,6 +63,9 @@ enum Command {
     /// Run a reference `external` stage in this process: read a GyroSample service, scale and
     /// offset the rates, publish (and notify) another.
     Relay(relay::Args),
+    /// Put services on Zenoh key expressions for other machines (driftless/<service>), or raw
+    /// samples from Zenoh into a service (needs the `zenoh` feature).
+    Bridge(bridge::Args),
     /// Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
     Allan(allan::Args),
     /// Simulate a gyro log with known IEEE Std 952 noise terms.
@@ -167,7 +171,7 @@ pub fn main() -> ExitCode {
     // ports, so they keep SIGPIPE ignored and handle a closed stream themselves (clean-up runs).
     if !matches!(
         cli.command,
-        Command::Run(_) | Command::Tap(_) | Command::Stats(_)
+        Command::Run(_) | Command::Tap(_) | Command::Stats(_) | Command::Bridge(_)
     ) {
         restore_default_sigpipe();
     }
@@ -181,6 +185,7 @@ pub fn main() -> ExitCode {
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
         Command::Relay(args) => relay::run(args),
+        Command::Bridge(args) => bridge::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Completions(args) => completions::run(args),

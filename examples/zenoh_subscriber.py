@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+"""A subscriber of driftless's corrected rates over Zenoh, in another language than the daemon.
+
+    pip install eclipse-zenoh==1.10.2      # the version of the Rust zenoh crate driftless uses
+    driftless run pipelines/demo.toml &
+    driftless bridge demo/corrected --listen tcp/127.0.0.1:7447 --no-multicast-scouting &
+    python3 examples/zenoh_subscriber.py --connect tcp/127.0.0.1:7447 --count 2000
+
+The payload is driftless::GyroSample's 104 little-endian bytes (README.md, "Wire types"):
+    0 u64 t_ns | 8 u64 seq | 16 u64 ingest_ns | 24 f64[3] rate | 48 f64[3] drift
+    72 f64[3] denoised | 96 u32 flags | 100 u32 epoch
+Checks that seq rises by one within each epoch (a jump is a loss, a repeat or a step back is an
+error) and prints the rate once a second. Exit 0 when --count samples came in order, 1 otherwise.
+"""
+
+import argparse
+import math
+import queue
+import struct
+import sys
+import time
+
+import zenoh
+
+GYRO = struct.Struct("<QQQ9dII")  # 104 bytes
+assert GYRO.size == 104
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--key", default="driftless/demo/corrected")
+    ap.add_argument("--connect", action="append", default=[], help="endpoint, e.g. tcp/127.0.0.1:7447")
+    ap.add_argument("--listen", action="append", default=[])
+    ap.add_argument("--count", type=int, default=0, help="exit after this many samples (0: never)")
+    ap.add_argument("--timeout", type=float, default=30.0, help="give up after this many seconds")
+    args = ap.parse_args()
+
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    if args.connect:
+        conf.insert_json5("connect/endpoints", str(args.connect).replace("'", '"'))
+    if args.listen:
+        conf.insert_json5("listen/endpoints", str(args.listen).replace("'", '"'))
+
+    samples: "queue.Queue[tuple[bytes, str]]" = queue.Queue()
+    received = missing = disorder = 0
+    last = None  # (epoch, seq)
+    deg = 180.0 / math.pi
+    with zenoh.open(conf) as session:
+        sub = session.declare_subscriber(
+            args.key, lambda s: samples.put((s.payload.to_bytes(), str(s.encoding)))
+        )
+        start = tick = time.monotonic()
+        window = 0
+        while time.monotonic() - start < args.timeout:
+            try:
+                payload, encoding = samples.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            if len(payload) != GYRO.size or not encoding.endswith("driftless::GyroSample"):
+                print(f"not a GyroSample: {len(payload)} bytes, {encoding}", file=sys.stderr)
+                return 1
+            t_ns, seq, ingest_ns, *f = GYRO.unpack(payload)
+            rate, flags, epoch = f[0:3], f[9], f[10]
+            if last is not None and last[0] == epoch:
+                if seq > last[1] + 1:
+                    missing += seq - last[1] - 1
+                elif seq <= last[1]:
+                    disorder += 1
+            last = (epoch, seq)
+            received += 1
+            window += 1
+            if time.monotonic() - tick >= 1.0:
+                print(
+                    f"{args.key}: {window / (time.monotonic() - tick):.1f} Hz, seq {seq}, "
+                    f"rate [{rate[0] * deg:+.4f} {rate[1] * deg:+.4f} {rate[2] * deg:+.4f}] deg/s, "
+                    f"flags {flags:#x}, {received} received, {missing} missing",
+                    file=sys.stderr,
+                )
+                tick, window = time.monotonic(), 0
+            if args.count and received >= args.count:
+                break
+        sub.undeclare()
+    print(f"{received} received, {missing} missing (sequence gaps), {disorder} out of order")
+    ok = disorder == 0 and missing == 0 and (not args.count or received >= args.count)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

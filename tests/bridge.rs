@@ -1,0 +1,638 @@
+//! `driftless bridge` (feature `zenoh`): a real daemon, a real bridge process and a Zenoh
+//! session in this test process, on loopback only (127.0.0.1, a free port, multicast scouting
+//! off). Each test has its own iceoryx2 prefix and its own port.
+#![cfg(feature = "zenoh")]
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
+
+use common::{finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix};
+use driftless::transport::{GyroSample, RawSample, Transport};
+use zenoh::Wait;
+
+const SIGTERM: i32 = 15;
+const SIGKILL: i32 = 9;
+
+/// A TCP port nobody listens on now.
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .expect("bind")
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// This test's Zenoh peer, listening on 127.0.0.1:`port`, no multicast scouting.
+fn session(port: u16) -> zenoh::Session {
+    let mut cfg = zenoh::Config::default();
+    cfg.insert_json5("mode", "\"peer\"").unwrap();
+    cfg.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
+        .unwrap();
+    cfg.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    zenoh::open(cfg).wait().expect("zenoh session")
+}
+
+/// What arrived on a key: payload bytes, encoding as text.
+type Got = (Vec<u8>, String, String);
+
+fn subscribe(
+    s: &zenoh::Session,
+    key: &str,
+) -> (zenoh::pubsub::Subscriber<()>, mpsc::Receiver<Got>) {
+    let (tx, rx) = mpsc::channel();
+    let sub = s
+        .declare_subscriber(key.to_string())
+        .callback(move |sample| {
+            let _ = tx.send((
+                sample.payload().to_bytes().into_owned(),
+                sample.encoding().to_string(),
+                sample.key_expr().to_string(),
+            ));
+        })
+        .wait()
+        .expect("subscriber");
+    (sub, rx)
+}
+
+/// A bridge process; its stderr lines arrive on a channel (the periodic line keeps coming).
+struct Bridge {
+    child: Child,
+    lines: mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Bridge {
+    fn start(prefix: &Prefix, args: &[&str]) -> Bridge {
+        let mut child = Command::new(common::bin())
+            .arg("bridge")
+            .args(args)
+            .args(["--prefix", &prefix.0])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("spawn bridge");
+        let err = child.stderr.take().unwrap();
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(err).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Bridge {
+            child,
+            lines,
+            seen: Vec::new(),
+        }
+    }
+
+    /// Wait until a line containing `text` came (the lines so far are kept in `seen`).
+    fn wait_for(&mut self, text: &str, timeout: Duration) {
+        let end = Instant::now() + timeout;
+        if self.seen.iter().any(|l| l.contains(text)) {
+            return;
+        }
+        while Instant::now() < end {
+            if let Ok(line) = self.lines.recv_timeout(Duration::from_millis(50)) {
+                let hit = line.contains(text);
+                self.seen.push(line);
+                if hit {
+                    return;
+                }
+            }
+            if let Ok(Some(st)) = self.child.try_wait() {
+                while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(100)) {
+                    self.seen.push(l);
+                }
+                panic!("bridge exited ({st}) before {text:?}: {:?}", self.seen);
+            }
+        }
+        panic!(
+            "no {text:?} from the bridge within {timeout:?}: {:?}",
+            self.seen
+        );
+    }
+
+    /// Wait for its exit; returns the exit code and every stderr line.
+    fn finish(mut self, timeout: Duration) -> (Option<i32>, Vec<String>) {
+        let end = Instant::now() + timeout;
+        let code = loop {
+            if let Some(st) = self.child.try_wait().unwrap() {
+                break st.code();
+            }
+            if Instant::now() > end {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                panic!("bridge did not exit within {timeout:?}");
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(500)) {
+            self.seen.push(l);
+        }
+        (code, self.seen)
+    }
+}
+
+/// Decoded at the offsets README.md documents (not with the crate's own decoder).
+fn decode_gyro(b: &[u8]) -> GyroSample {
+    assert_eq!(b.len(), 104, "a GyroSample is 104 bytes");
+    let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
+    let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    let f3 = |o: usize| [0, 1, 2].map(|i| f64::from_bits(u64_at(o + 8 * i)));
+    GyroSample {
+        t_ns: u64_at(0),
+        seq: u64_at(8),
+        ingest_ns: u64_at(16),
+        rate: f3(24),
+        drift: f3(48),
+        denoised: f3(72),
+        flags: u32_at(96),
+        epoch: u32_at(100),
+    }
+}
+
+fn bits(s: &GyroSample) -> Vec<u64> {
+    let mut v = vec![s.t_ns, s.seq, s.ingest_ns, s.flags as u64, s.epoch as u64];
+    for a in [s.rate, s.drift, s.denoised] {
+        v.extend(a.map(f64::to_bits));
+    }
+    v
+}
+
+/// sensor (this test, or the simulator) -> denoise -> predict.bias -> publish.
+fn pipeline(head: &str, units: &str, buffer: usize) -> String {
+    format!(
+        r#"
+name = "t"
+rate_hz = 1000.0
+axes = 3
+input_units = "{units}"
+report_interval_s = 0.5
+
+[iceoryx2]
+buffer_size = {buffer}
+
+[[stage]]
+name = "sensor"
+{head}
+output = "t/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+wavelet = "db4"
+level = 4
+window = 256
+lag = 32
+input = "t/raw"
+output = "t/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+profile = "adis16405"
+input = "t/denoised"
+output = "t/predicted"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "t/predicted"
+output = "t/corrected"
+"#
+    )
+}
+
+const FROM_TEST: &str = "kind = \"ingest.iceoryx2\"\ninput = \"t/sensor\"";
+const FROM_SIM: &str = "kind = \"ingest.sim\"\nprofile = \"adis16405\"\nmotion = \"stop-and-go\"";
+
+#[test]
+fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees() {
+    const N: usize = 3000;
+    const LAG: usize = 32;
+    let prefix = Prefix::new("brorder");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &pipeline(FROM_TEST, "rad/s", 4096));
+    let port = free_port();
+    let zs = session(port);
+    let (sub, far) = subscribe(&zs, "driftless/t/corrected");
+
+    let me = Transport::new(&prefix.0, "test", qos(4096)).expect("node");
+    let sensor = me.output::<RawSample>("t/sensor", true).expect("sensor");
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let report_path = dir.path("report.json");
+    let mut daemon = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "t/stats", &mut daemon);
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut bridge = Bridge::start(
+        &prefix,
+        &[
+            "t/corrected",
+            "--connect",
+            &endpoint,
+            "--no-multicast-scouting",
+        ],
+    );
+    bridge.wait_for(
+        "bridge: ready: t/corrected (driftless::GyroSample) -> driftless/t/corrected",
+        Duration::from_secs(20),
+    );
+    bridge.wait_for("a Zenoh subscriber matches", Duration::from_secs(20));
+
+    // 1 kHz, paced by this process.
+    let input = test_rates(N);
+    let t0 = Instant::now();
+    for (i, r) in input.iter().enumerate() {
+        assert_eq!(
+            sensor
+                .send(&raw(i as u64, i as u64 * 1_000_000, *r))
+                .unwrap(),
+            1
+        );
+        sensor.notify();
+        let due = t0 + Duration::from_millis(i as u64 + 1);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+    }
+    let mut near = common::collect(&corrected, N - LAG, Duration::from_secs(20));
+    assert_eq!(near.len(), N - LAG);
+    signal(&daemon, SIGTERM);
+    near.extend(common::collect(&corrected, LAG, Duration::from_secs(10)));
+    let (code, err) = finish(daemon, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(near.len(), N, "the iceoryx2 subscriber got everything");
+
+    let mut got = Vec::new();
+    let end = Instant::now() + Duration::from_secs(20);
+    while got.len() < N && Instant::now() < end {
+        if let Ok(g) = far.recv_timeout(Duration::from_millis(50)) {
+            got.push(g);
+        }
+    }
+    // Nothing beyond N (no sample twice).
+    while let Ok(g) = far.recv_timeout(Duration::from_millis(300)) {
+        got.push(g);
+    }
+    signal(&bridge.child, SIGTERM);
+    let (code, lines) = bridge.finish(Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{lines:?}");
+    let summary = format!(
+        "bridge: done: t/corrected -> driftless/t/corrected: {N} forwarded, 0 missing (sequence gaps), 0 put errors"
+    );
+    assert!(
+        lines.iter().any(|l| l == &summary),
+        "{summary:?} in {lines:?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains(" Hz, ") && l.contains("forwarded")),
+        "a rate line each second: {lines:?}"
+    );
+
+    assert_eq!(got.len(), N, "every sample across the bridge, none twice");
+    let epoch = near[0].epoch;
+    for (i, ((payload, encoding, key), mine)) in got.iter().zip(&near).enumerate() {
+        assert_eq!(key, "driftless/t/corrected");
+        assert_eq!(encoding, "application/octet-stream;driftless::GyroSample");
+        let s = decode_gyro(payload);
+        assert_eq!(
+            (s.epoch, s.seq),
+            (epoch, i as u64),
+            "in order, exactly once"
+        );
+        assert_eq!(s.t_ns, i as u64 * 1_000_000);
+        assert_eq!(
+            bits(&s),
+            bits(mine),
+            "sample {i}: the same bits as over iceoryx2"
+        );
+    }
+    assert!(
+        near.windows(2).all(|w| w[0].rate != w[1].rate),
+        "the values change from sample to sample (the comparison means something)"
+    );
+    let r = report(&dir);
+    assert_eq!(r["samples_out"], N as u64);
+    assert_eq!(r["lost"], 0, "the bridge kept up: {r}");
+    drop(sub);
+    zs.close().wait().unwrap();
+    drop((sensor, corrected, me));
+    driftless::transport::remove_prefix_leftovers(&prefix.0);
+    assert!(prefix.leftovers().is_empty(), "{:?}", prefix.leftovers());
+}
+
+/// This test's own subscriber of `service`, in its own thread (ports are not Send): every
+/// (epoch, seq) it received until `stop`.
+fn drain(
+    prefix: &str,
+    service: &str,
+    buffer: usize,
+    stop: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<Vec<(u32, u64)>> {
+    let (prefix, service) = (prefix.to_string(), service.to_string());
+    let (tx, rx) = mpsc::channel();
+    let h = std::thread::spawn(move || {
+        let me = Transport::new(&prefix, "drain", qos(buffer)).expect("node");
+        let input = me.open_input::<GyroSample>(&service).expect("subscriber");
+        tx.send(()).unwrap();
+        let mut seen = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            match input.receive().expect("receive") {
+                Some(s) => seen.push((s.epoch, s.seq)),
+                None => std::thread::sleep(Duration::from_micros(200)),
+            }
+        }
+        while let Some(s) = input.receive().expect("receive") {
+            seen.push((s.epoch, s.seq));
+        }
+        seen
+    });
+    rx.recv_timeout(Duration::from_secs(10))
+        .expect("drain subscribed");
+    h
+}
+
+fn contiguous(seen: &[(u32, u64)]) -> bool {
+    seen.windows(2)
+        .all(|w| w[1].0 == w[0].0 && w[1].1 == w[0].1 + 1)
+}
+
+#[test]
+fn a_bridge_killed_mid_run_costs_the_other_subscribers_nothing() {
+    let prefix = Prefix::new("brkill");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &pipeline(FROM_SIM, "deg/s", 256));
+    let port = free_port();
+    let zs = session(port);
+    let (sub, far) = subscribe(&zs, "driftless/t/corrected");
+    let report_path = dir.path("report.json");
+    let mut daemon = start(
+        &file,
+        &prefix,
+        &[
+            "--report",
+            report_path.to_str().unwrap(),
+            "--duration",
+            "5s",
+        ],
+    );
+    wait_ready(&prefix, "t/stats", &mut daemon);
+    let stop = Arc::new(AtomicBool::new(false));
+    let other = drain(&prefix.0, "t/corrected", 256, Arc::clone(&stop));
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut bridge = Bridge::start(
+        &prefix,
+        &[
+            "t/corrected",
+            "--connect",
+            &endpoint,
+            "--no-multicast-scouting",
+        ],
+    );
+    bridge.wait_for("a Zenoh subscriber matches", Duration::from_secs(20));
+    std::thread::sleep(Duration::from_millis(700));
+    signal(&bridge.child, SIGKILL);
+    let (code, _) = bridge.finish(Duration::from_secs(5));
+    assert_eq!(code, None, "killed by a signal");
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "the daemon ran on to its end: {err}");
+    stop.store(true, Ordering::Relaxed);
+    let seen = other.join().unwrap();
+
+    let r = report(&dir);
+    let n = r["samples_out"].as_u64().unwrap();
+    assert!(n >= 4000, "about 5 s at 1 kHz: {n}");
+    assert_eq!(r["samples_in"], n);
+    assert!(seen.len() > 3000, "{}", seen.len());
+    assert!(contiguous(&seen), "the other subscriber lost nothing");
+    assert_eq!(seen.last().unwrap().1 + 1, n, "to the last sample");
+    // The dead bridge's buffer filled until the daemon's next clean-up (every report interval,
+    // 0.5 s here): at most one buffer's worth plus an interval, not the rest of the run.
+    let lost = r["lost"].as_u64().unwrap();
+    assert!(
+        lost < 1000,
+        "a dead subscriber is cleaned up, not charged forever: {lost}"
+    );
+    eprintln!(
+        "daemon with a bridge killed mid-run: {} deadline misses, {lost} lost by the dead bridge",
+        r["deadline_misses"]
+    );
+
+    let mut far_seqs = Vec::new();
+    while let Ok((payload, _, _)) = far.try_recv() {
+        let s = decode_gyro(&payload);
+        far_seqs.push((s.epoch, s.seq));
+    }
+    assert!(
+        far_seqs.len() > 100,
+        "the bridge forwarded before it died: {}",
+        far_seqs.len()
+    );
+    let breaks: Vec<_> = far_seqs
+        .windows(2)
+        .filter(|w| !(w[1].0 == w[0].0 && w[1].1 == w[0].1 + 1))
+        .collect();
+    assert!(
+        breaks.is_empty(),
+        "in order and whole until the kill: {breaks:?} of {}",
+        far_seqs.len()
+    );
+    drop(sub);
+    zs.close().wait().unwrap();
+}
+
+#[test]
+fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
+    const N: usize = 1500;
+    const LAG: usize = 32;
+    let prefix = Prefix::new("brrev");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &pipeline(FROM_TEST, "rad/s", 512));
+    let port = free_port();
+    let zs = session(port);
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    // The bridge starts first: it creates t/sensor, with the pipeline's buffer, and the daemon
+    // accepts it (it refuses services that would lose samples silently).
+    let mut bridge = Bridge::start(
+        &prefix,
+        &[
+            "--from-zenoh",
+            "remote/raw",
+            "--to",
+            "t/sensor",
+            "--buffer-size",
+            "512",
+            "--connect",
+            &endpoint,
+            "--no-multicast-scouting",
+        ],
+    );
+    bridge.wait_for(
+        "bridge: ready: remote/raw (driftless::RawSample) -> t/sensor",
+        Duration::from_secs(20),
+    );
+    let me = Transport::new(&prefix.0, "test", qos(4096)).expect("node");
+    let corrected = me.input::<GyroSample>("t/corrected").expect("subscriber");
+    let report_path = dir.path("report.json");
+    let mut daemon = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "t/stats", &mut daemon);
+
+    let publisher = zs
+        .declare_publisher("remote/raw")
+        .encoding(
+            zenoh::bytes::Encoding::APPLICATION_OCTET_STREAM.with_schema("driftless::RawSample"),
+        )
+        .wait()
+        .unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    while !publisher
+        .matching_status()
+        .wait()
+        .map(|m| m.matching())
+        .unwrap_or(false)
+    {
+        assert!(
+            Instant::now() < end,
+            "the bridge's subscriber never matched"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Something that is not a RawSample is refused, not published.
+    publisher.put(vec![0u8; 12]).wait().unwrap();
+    let input = test_rates(N);
+    let t0 = Instant::now();
+    for (i, r) in input.iter().enumerate() {
+        // The README's layout, written by hand as another language would.
+        let mut b = Vec::with_capacity(48);
+        b.extend_from_slice(&(i as u64 * 1_000_000).to_le_bytes());
+        b.extend_from_slice(&(i as u64).to_le_bytes());
+        for v in r {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&0u32.to_le_bytes());
+        b.extend_from_slice(&7u32.to_le_bytes());
+        publisher.put(b).wait().unwrap();
+        let due = t0 + Duration::from_millis(i as u64 + 1);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+    }
+    let mut got = common::collect(&corrected, N - LAG, Duration::from_secs(20));
+    assert_eq!(got.len(), N - LAG);
+    signal(&daemon, SIGTERM);
+    got.extend(common::collect(&corrected, LAG, Duration::from_secs(10)));
+    let (code, err) = finish(daemon, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{err}");
+    signal(&bridge.child, SIGTERM);
+    let (code, lines) = bridge.finish(Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{lines:?}");
+    let summary = format!(
+        "bridge: done: remote/raw -> t/sensor: {N} forwarded, 0 missing (sequence gaps), 1 rejected, 0 lost by full iceoryx2 buffers"
+    );
+    assert!(
+        lines.iter().any(|l| l == &summary),
+        "{summary:?} in {lines:?}"
+    );
+    assert!(
+        lines.iter().any(|l| l.contains("payload of 12 bytes")),
+        "the refused sample is reported: {lines:?}"
+    );
+    assert_eq!(got.len(), N);
+    for (i, s) in got.iter().enumerate() {
+        assert_eq!(s.seq, i as u64, "in order, exactly once");
+        assert_eq!(s.t_ns, i as u64 * 1_000_000);
+    }
+    let r = report(&dir);
+    assert_eq!(r["samples_in"], N as u64);
+    assert_eq!(r["lost"], 0);
+    assert_eq!(r["flagged"]["missing"], 0, "{r}");
+    drop(publisher);
+    zs.close().wait().unwrap();
+}
+
+#[test]
+fn bad_endpoints_and_config_files_are_one_line_and_exit_2() {
+    let prefix = Prefix::new("brbad");
+    let dir = Dir::new();
+    let bad_syntax = dir.write(
+        "bad.json5",
+        "{\n  mode: \"peer\",\n  listen: { endpoints: [ \n}\n",
+    );
+    let unknown = dir.write("unknown.json5", "{ moode: \"peer\" }\n");
+    let missing = dir.path("missing.json5");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec!["--connect".into(), "127.0.0.1:7447".into()],
+            "--connect \"127.0.0.1:7447\": not a Zenoh endpoint",
+        ),
+        (
+            vec!["--listen".into(), "tcp".into()],
+            "--listen \"tcp\": not a Zenoh endpoint",
+        ),
+        (
+            vec!["--zenoh-config".into(), bad_syntax.display().to_string()],
+            "bad.json5:4:1: not a valid Zenoh configuration: expected array",
+        ),
+        (
+            vec!["--zenoh-config".into(), unknown.display().to_string()],
+            "unknown.json5:1:3: not a valid Zenoh configuration: JSON error",
+        ),
+        (
+            vec!["--zenoh-config".into(), missing.display().to_string()],
+            "missing.json5: not a valid Zenoh configuration",
+        ),
+        (
+            vec!["--key-prefix".into(), "a//b".into()],
+            "\"a//b/t/corrected\" is not a Zenoh key expression",
+        ),
+        (
+            vec!["--mode".into(), "router".into()],
+            "invalid value 'router' for '--mode",
+        ),
+    ];
+    for (args, message) in cases {
+        let out = Command::new(common::bin())
+            .args([
+                "bridge",
+                "t/corrected",
+                "--prefix",
+                &prefix.0,
+                "--no-multicast-scouting",
+            ])
+            .args(&args)
+            .output()
+            .expect("run");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
+        assert!(err.starts_with("driftless: error: "), "{args:?}: {err}");
+        assert!(err.contains(message), "{args:?}: {message:?} in {err}");
+    }
+    // Valid settings but nothing to read: a run-time failure (exit 1), as for `tap`.
+    let port = free_port();
+    let out = Command::new(common::bin())
+        .args([
+            "bridge",
+            "t/corrected",
+            "--prefix",
+            &prefix.0,
+            "--no-multicast-scouting",
+        ])
+        .args(["--listen", &format!("tcp/127.0.0.1:{port}")])
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("no service \"t/corrected\""), "{err}");
+    assert!(prefix.leftovers().is_empty(), "{:?}", prefix.leftovers());
+}
