@@ -294,7 +294,7 @@ fn main() {
         &format!("exactly once and in order: {}", same && in_order),
     );
     println!();
-    println!("bridge: {summary}");
+    println!("{summary}");
     let p = |r: &Value, q: &str| r["end_to_end_ns"][q].as_f64().unwrap_or(f64::NAN);
     println!(
         "daemon p50 with / without the bridge: x{:.2}; p99.9: x{:.2}; bridge hop p50 over the iceoryx2 hop: x{:.2}",

@@ -1,6 +1,7 @@
 //! Everything iceoryx2: the wire types, the quality of service, node set-up, ports.
 //!
-//! This is the only module that imports `iceoryx2`; the rest of the crate sees plain Rust types
+//! This is the only module that imports `iceoryx2` (and its submodule `zenoh` the only one that
+//! imports `zenoh`, feature `zenoh`); the rest of the crate sees plain Rust types
 //! ([`RawSample`], [`GyroSample`], [`StatsSnapshot`]) and the small port wrappers below.
 //!
 //! # Wire types

@@ -211,6 +211,31 @@ output = "t/corrected"
     )
 }
 
+/// Sample `i` of a 1 kHz stream started at `t0` is due at `t0 + i + 1` ms.
+fn pace(t0: Instant, i: usize) {
+    let due = t0 + Duration::from_millis(i as u64 + 1);
+    if let Some(wait) = due.checked_duration_since(Instant::now()) {
+        std::thread::sleep(wait);
+    }
+}
+
+/// All `n` outputs of the daemon: `n - lag` while it runs, then the `lag` held by the denoiser,
+/// flushed at SIGTERM; the daemon exits 0.
+fn through_shutdown(
+    corrected: &driftless::transport::Input<GyroSample>,
+    daemon: Child,
+    n: usize,
+    lag: usize,
+) -> Vec<GyroSample> {
+    let mut got = common::collect(corrected, n - lag, Duration::from_secs(20));
+    assert_eq!(got.len(), n - lag);
+    signal(&daemon, SIGTERM);
+    got.extend(common::collect(corrected, lag, Duration::from_secs(10)));
+    let (code, err) = finish(daemon, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{err}");
+    got
+}
+
 const FROM_TEST: &str = "kind = \"ingest.iceoryx2\"\ninput = \"t/sensor\"";
 const FROM_SIM: &str = "kind = \"ingest.sim\"\nprofile = \"adis16405\"\nmotion = \"stop-and-go\"";
 
@@ -258,17 +283,9 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
             1
         );
         sensor.notify();
-        let due = t0 + Duration::from_millis(i as u64 + 1);
-        if let Some(wait) = due.checked_duration_since(Instant::now()) {
-            std::thread::sleep(wait);
-        }
+        pace(t0, i);
     }
-    let mut near = common::collect(&corrected, N - LAG, Duration::from_secs(20));
-    assert_eq!(near.len(), N - LAG);
-    signal(&daemon, SIGTERM);
-    near.extend(common::collect(&corrected, LAG, Duration::from_secs(10)));
-    let (code, err) = finish(daemon, Duration::from_secs(10));
-    assert_eq!(code, Some(0), "{err}");
+    let near = through_shutdown(&corrected, daemon, N, LAG);
     assert_eq!(near.len(), N, "the iceoryx2 subscriber got everything");
 
     let mut got = Vec::new();
@@ -522,17 +539,9 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
         b.extend_from_slice(&0u32.to_le_bytes());
         b.extend_from_slice(&7u32.to_le_bytes());
         publisher.put(b).wait().unwrap();
-        let due = t0 + Duration::from_millis(i as u64 + 1);
-        if let Some(wait) = due.checked_duration_since(Instant::now()) {
-            std::thread::sleep(wait);
-        }
+        pace(t0, i);
     }
-    let mut got = common::collect(&corrected, N - LAG, Duration::from_secs(20));
-    assert_eq!(got.len(), N - LAG);
-    signal(&daemon, SIGTERM);
-    got.extend(common::collect(&corrected, LAG, Duration::from_secs(10)));
-    let (code, err) = finish(daemon, Duration::from_secs(10));
-    assert_eq!(code, Some(0), "{err}");
+    let got = through_shutdown(&corrected, daemon, N, LAG);
     signal(&bridge.child, SIGTERM);
     let (code, lines) = bridge.finish(Duration::from_secs(10));
     assert_eq!(code, Some(0), "{lines:?}");
