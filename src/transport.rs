@@ -600,6 +600,23 @@ impl Transport {
         Ok(Waker { listener })
     }
 
+    /// The payload type name of the publish-subscribe service `name` (e.g.
+    /// `driftless::GyroSample`), or `None` when no such service exists under this prefix.
+    pub fn payload_type_name(&self, name: &str) -> Result<Option<String>, TransportError> {
+        let sn = service_name(name)?;
+        let details =
+            ipc::Service::details(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
+                .map_err(|e| setup("service lookup", name, e))?;
+        Ok(details.map(|d| {
+            d.static_details
+                .publish_subscribe()
+                .message_type_details()
+                .payload
+                .type_name()
+                .to_string()
+        }))
+    }
+
     /// Whether a publish-subscribe service `name` of type `T` exists under this prefix.
     pub fn service_exists<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,

@@ -19,6 +19,7 @@ pub mod denoise;
 pub mod duration;
 pub mod eval;
 pub mod nav_eval;
+pub mod record;
 pub mod relay;
 pub mod run;
 pub mod simulate;
@@ -55,6 +56,8 @@ enum Command {
     Tap(tap::Args),
     /// Show the live statistics of a running pipeline.
     Stats(stats::Args),
+    /// Record services into an MCAP file (Foxglove opens and plots it; ingest.mcap replays it).
+    Record(record::Args),
     /// Run a reference `external` stage in this process: read a GyroSample service, scale and
     /// offset the rates, publish (and notify) another.
     Relay(relay::Args),
@@ -159,7 +162,7 @@ pub fn main() -> ExitCode {
     // ports, so they keep SIGPIPE ignored and handle a closed stream themselves (clean-up runs).
     if !matches!(
         cli.command,
-        Command::Run(_) | Command::Tap(_) | Command::Stats(_)
+        Command::Run(_) | Command::Tap(_) | Command::Stats(_) | Command::Record(_)
     ) {
         restore_default_sigpipe();
     }
@@ -172,6 +175,7 @@ pub fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
+        Command::Record(args) => record::run(args),
         Command::Relay(args) => relay::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
