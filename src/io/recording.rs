@@ -16,6 +16,7 @@
 //!   samples, sequence gaps and epochs, and how the recording ended.
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
@@ -360,6 +361,129 @@ impl ServiceCounts {
             put("first", format!("epoch {e0} seq {s0}"));
             put("last", format!("epoch {e1} seq {s1}"));
         }
+    }
+}
+
+/// A recording opened for reading: memory-mapped, its summary checked (a file without one is
+/// truncated, still being written, or not an MCAP file).
+pub struct Recording {
+    path: PathBuf,
+    map: memmap2::Mmap,
+    summary: mcap::Summary,
+}
+
+/// A channel of a [`Recording`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChannelInfo {
+    /// Its topic (`/` and the service name).
+    pub topic: String,
+    /// Its schema's name (e.g. [`RAW_SCHEMA`]), empty without a schema.
+    pub schema: String,
+    /// Its message encoding.
+    pub encoding: String,
+    /// Its metadata.
+    pub metadata: BTreeMap<String, String>,
+    /// Messages on it, from the summary's statistics.
+    pub messages: u64,
+}
+
+impl Recording {
+    /// Open and check `path`: an MCAP file with its summary and footer (what `driftless
+    /// record` writes when it stops).
+    pub fn open(path: &Path) -> Result<Recording, String> {
+        let shown = path.display();
+        let file = std::fs::File::open(path).map_err(|e| format!("{shown}: {e}"))?;
+        // SAFETY: the map is only read. Like any reader of a file it sees what another process
+        // writes into it meanwhile; truncating it under us would fault (SIGBUS): recordings are
+        // replayed after they were written (`driftless record` renames a file only once whole).
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| format!("{shown}: {e}"))?;
+        if !map.starts_with(mcap::MAGIC) {
+            return Err(format!(
+                "{shown}: not an MCAP file (no MCAP magic at its start)"
+            ));
+        }
+        let incomplete = |why: String| {
+            format!(
+                "{shown}: an incomplete MCAP file ({why}): truncated, or still being written; \
+                 a complete recording ends with its summary and footer (recover the chunks of a \
+                 killed recording with `mcap recover`)"
+            )
+        };
+        let summary = match mcap::Summary::read(&map) {
+            Ok(Some(s)) => s,
+            Ok(None) => return Err(incomplete("no summary section".into())),
+            Err(e) => return Err(incomplete(e.to_string())),
+        };
+        Ok(Recording {
+            path: path.to_path_buf(),
+            map,
+            summary,
+        })
+    }
+
+    /// The file's channels, by topic.
+    pub fn channels(&self) -> Vec<ChannelInfo> {
+        let counts = self
+            .summary
+            .stats
+            .as_ref()
+            .map(|s| &s.channel_message_counts);
+        let mut out: Vec<ChannelInfo> = self
+            .summary
+            .channels
+            .iter()
+            .map(|(id, c)| ChannelInfo {
+                topic: c.topic.clone(),
+                schema: c.schema.as_ref().map_or(String::new(), |s| s.name.clone()),
+                encoding: c.message_encoding.clone(),
+                metadata: c.metadata.clone(),
+                messages: counts.and_then(|m| m.get(id).copied()).unwrap_or(0),
+            })
+            .collect();
+        out.sort_by(|a, b| a.topic.cmp(&b.topic));
+        out
+    }
+
+    /// The metadata records named `name` (the recorder writes one, [`METADATA_NAME`]).
+    pub fn metadata(&self, name: &str) -> Result<Vec<BTreeMap<String, String>>, String> {
+        self.summary
+            .metadata_indexes
+            .iter()
+            .filter(|i| i.name == name)
+            .map(|i| {
+                mcap::read::metadata(&self.map, i)
+                    .map(|m| m.metadata)
+                    .map_err(|e| format!("{}: metadata {name:?}: {e}", self.path.display()))
+            })
+            .collect()
+    }
+
+    /// The messages of `topic` in file order, decoded as `T` ([`RawMessage`], [`GyroMessage`],
+    /// [`StatsMessage`]); an undecodable message or a corrupt chunk is an error naming the
+    /// file, the topic and the message's index on the topic.
+    pub fn messages<'a, T: serde::de::DeserializeOwned + 'a>(
+        &'a self,
+        topic: &'a str,
+    ) -> impl Iterator<Item = Result<T, String>> + 'a {
+        let shown = self.path.display();
+        let stream = mcap::MessageStream::new(&self.map);
+        let mut index = 0u64;
+        let (stream, early) = match stream {
+            Ok(s) => (Some(s), None),
+            Err(e) => (None, Some(Err(format!("{shown}: {e}")))),
+        };
+        early.into_iter().chain(
+            stream
+                .into_iter()
+                .flatten()
+                .filter(move |m| m.as_ref().map_or(true, |m| m.channel.topic == topic))
+                .map(move |m| {
+                    let m = m.map_err(|e| format!("{shown}: {e}"))?;
+                    index += 1;
+                    serde_json::from_slice::<T>(&m.data)
+                        .map_err(|e| format!("{shown}: message {index} of topic {topic}: {e}"))
+                }),
+        )
     }
 }
 
