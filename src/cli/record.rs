@@ -182,17 +182,18 @@ fn record(
     let part_name = partial.part.display().to_string();
     let write_error =
         |e: &dyn std::fmt::Display| CliError::internal(format!("writing {part_name}: {e}"));
+    let mcap_write_error = |e: mcap::McapError| write_error(&mcap_error(&e));
     let mut writer = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
         .compression_level(1)
         .compression_threads(0)
         .library(format!("driftless {}", env!("CARGO_PKG_VERSION")))
         .create(BufWriter::with_capacity(1 << 20, file))
-        .map_err(|e| write_error(&e))?;
+        .map_err(mcap_write_error)?;
     let mut recorded = Vec::with_capacity(ports.len());
     for (service, port) in args.services.iter().zip(ports) {
         let channel = add_channel(&mut writer, service, &port, args.raw_units.as_deref())
-            .map_err(|e| write_error(&e))?;
+            .map_err(mcap_write_error)?;
         recorded.push(Recorded {
             service: service.clone(),
             port,
@@ -276,7 +277,7 @@ fn record(
             metadata: meta,
         })
         .and_then(|()| writer.finish().map(|_| ()))
-        .map_err(|e| write_error(&e))?;
+        .map_err(mcap_write_error)?;
     let file = writer
         .into_inner()
         .into_inner()
@@ -386,6 +387,15 @@ fn add_channel(
     )
 }
 
+/// An MCAP error as a person reads it: an I/O error's own message (the disk is full), not the
+/// wrapper's.
+fn mcap_error(e: &mcap::McapError) -> String {
+    match e {
+        mcap::McapError::Io(io) => io.to_string(),
+        other => other.to_string(),
+    }
+}
+
 fn realtime_ns() -> u64 {
     SystemTime::now()
         .duration_since(SystemTime::UNIX_EPOCH)
@@ -423,7 +433,9 @@ fn drain(
         }
         if last_flush.elapsed() >= FLUSH_EVERY {
             last_flush = Instant::now();
-            writer.flush().map_err(|e| format!("write failed: {e}"))?;
+            writer
+                .flush()
+                .map_err(|e| format!("write failed: {}", mcap_error(&e)))?;
             for r in recorded.iter_mut() {
                 r.report_gaps();
             }
@@ -483,7 +495,7 @@ impl Recorded {
                     },
                     json,
                 )
-                .map_err(|e| format!("write failed: {e}"))?;
+                .map_err(|e| format!("write failed: {}", mcap_error(&e)))?;
             n += 1;
         }
     }

@@ -39,7 +39,7 @@ const FILE: Key = Key {
 };
 const TOPIC: Key = Key {
     name: "topic",
-    ty: Type::Str("a recorded raw service, e.g. \"demo/raw\" (or its topic \"/demo/raw\")"),
+    ty: Type::Str("a recorded raw service: \"demo/raw\" or its topic \"/demo/raw\""),
     default: "the file's only driftless.RawSample topic",
     doc: "which recorded service to replay",
 };
