@@ -184,9 +184,7 @@ fn record(
         |e: &dyn std::fmt::Display| CliError::internal(format!("writing {part_name}: {e}"));
     let mcap_write_error = |e: mcap::McapError| write_error(&mcap_error(&e));
     let mut writer = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
-        .compression_level(1)
-        .compression_threads(0)
+        .compression(Some(mcap::Compression::Lz4))
         .library(format!("driftless {}", env!("CARGO_PKG_VERSION")))
         .create(BufWriter::with_capacity(1 << 20, file))
         .map_err(mcap_write_error)?;
