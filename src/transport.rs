@@ -780,6 +780,11 @@ pub struct Input<T: Debug + ZeroCopySend + Copy + 'static> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Input<T> {
+    /// Samples this subscriber holds unread before it loses new ones.
+    pub fn buffer_size(&self) -> usize {
+        self.subscriber.buffer_size()
+    }
+
     /// The oldest sample not yet taken, copied out of shared memory. Allocation-free.
     pub fn receive(&self) -> Result<Option<T>, TransportError> {
         match self.subscriber.receive() {

@@ -72,12 +72,17 @@ output = "rec/corrected"
     )
 }
 
-/// The simulator at 1 kHz in real time, as the demo (without its real-time priority).
-fn sim_pipeline() -> String {
-    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/demo.toml"))
-        .expect("pipelines/demo.toml")
-        .replace("realtime_priority = 50", "")
-        .replace("report_interval_s = 2.0", "report_interval_s = 0.2")
+/// The demo (the simulator at 1 kHz in real time, without its real-time priority) running
+/// under `prefix`, its chain set up.
+fn demo_daemon(prefix: &Prefix, dir: &Dir) -> Child {
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/demo.toml"))
+            .expect("pipelines/demo.toml")
+            .replace("realtime_priority = 50", "")
+            .replace("report_interval_s = 2.0", "report_interval_s = 0.2");
+    let mut daemon = start(&dir.write("demo.toml", &text), prefix, &[]);
+    wait_ready(prefix, "demo/stats", &mut daemon);
+    daemon
 }
 
 /// Start `driftless record ARGS --prefix P` and wait until it says it is recording (it has
@@ -288,9 +293,7 @@ fn a_recording_of_the_raw_service_replays_to_the_recorded_corrected_samples_bit_
 fn sigint_and_sigterm_leave_a_complete_recording_with_its_summary() {
     let prefix = Prefix::new("recsig");
     let dir = Dir::new();
-    let file = dir.write("p.toml", &sim_pipeline());
-    let mut daemon = start(&file, &prefix, &[]);
-    wait_ready(&prefix, "demo/stats", &mut daemon);
+    let daemon = demo_daemon(&prefix, &dir);
     for (sig, name) in [(libc::SIGINT, "SIGINT"), (libc::SIGTERM, "SIGTERM")] {
         let out = dir.path(&format!("{name}.mcap"));
         let (recorder, err) = start_recorder(
@@ -343,9 +346,7 @@ struct RawOrGyro {
 fn a_write_error_stops_with_exit_1_and_leaves_nothing_that_looks_complete() {
     let prefix = Prefix::new("recfull");
     let dir = Dir::new();
-    let file = dir.write("p.toml", &sim_pipeline());
-    let mut daemon = start(&file, &prefix, &[]);
-    wait_ready(&prefix, "demo/stats", &mut daemon);
+    let daemon = demo_daemon(&prefix, &dir);
     let out = dir.path("full.mcap");
     // A file-size limit plays the full disk: writes past 16 KiB fail (EFBIG) as they would
     // with ENOSPC.

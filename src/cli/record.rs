@@ -3,7 +3,8 @@
 //!
 //! The recorder is one more subscriber: the daemon's publishers never wait for it (a full
 //! buffer loses the new sample, which the daemon counts and the recorder sees as a `seq` gap).
-//! Its buffer is the largest the service allows, drained every millisecond.
+//! Its buffer is the largest the service allows, drained every eighth of the time it takes to
+//! fill at the rate seen (1 to 20 ms).
 //!
 //! The file is written as `OUT.part` and renamed to `OUT` when the recording stops (SIGINT,
 //! SIGTERM, `--duration`) with its summary and metadata written: a file named `OUT` is always
@@ -56,9 +57,12 @@ pub struct Args {
 
 /// How often the open chunk is written out (the most a SIGKILL loses) and progress is shown.
 const FLUSH_EVERY: Duration = Duration::from_secs(1);
-/// Sleep when every subscriber is empty: short against the smallest buffer (256 samples at
-/// 1 kHz is 256 ms), long enough to cost the daemon's cores nothing measurable.
-const IDLE_SLEEP: Duration = Duration::from_millis(1);
+/// Sleep when every subscriber is empty: an eighth of the time the first buffer to fill takes
+/// at the rates seen over the last second (256 samples at 1 kHz: 32 ms), within these bounds
+/// (the shortest while nothing comes), so that a recorder wakes the daemon's cores as rarely as
+/// its buffers allow.
+const MIN_SLEEP: Duration = Duration::from_millis(1);
+const MAX_SLEEP: Duration = Duration::from_millis(20);
 
 enum Port {
     Raw(Input<RawSample>),
@@ -345,6 +349,14 @@ fn subscribe(node: &Transport, service: &str, prefix: &str) -> Result<Port, CliE
 }
 
 impl Port {
+    fn buffer_size(&self) -> usize {
+        match self {
+            Port::Raw(i) => i.buffer_size(),
+            Port::Gyro(i) => i.buffer_size(),
+            Port::Stats(i) => i.buffer_size(),
+        }
+    }
+
     fn type_name(&self) -> &'static str {
         match self {
             Port::Raw(_) => RAW_TYPE_NAME,
@@ -411,6 +423,8 @@ fn drain(
 ) -> Result<&'static str, String> {
     let mut json = Vec::with_capacity(1024);
     let mut last_flush = Instant::now();
+    let mut since_flush = vec![0u64; recorded.len()];
+    let mut sleep = MIN_SLEEP;
     loop {
         let stopped_by = if sigint.load(Ordering::Relaxed) {
             Some("SIGINT")
@@ -423,14 +437,29 @@ fn drain(
         };
         let now = realtime_ns();
         let mut got = 0;
-        for r in recorded.iter_mut() {
-            got += r.take_all(writer, now, &mut json)?;
+        for (r, n) in recorded.iter_mut().zip(&mut since_flush) {
+            let taken = r.take_all(writer, now, &mut json)?;
+            *n += taken;
+            got += taken;
         }
         if let Some(how) = stopped_by {
             return Ok(how);
         }
         if last_flush.elapsed() >= FLUSH_EVERY {
+            let secs = last_flush.elapsed().as_secs_f64();
             last_flush = Instant::now();
+            // Nothing came: no rate to go by, so stay ready for a burst.
+            let sleep_s = recorded
+                .iter()
+                .zip(&since_flush)
+                .filter(|(_, n)| **n > 0)
+                .map(|(r, n)| r.port.buffer_size() as f64 * secs / *n as f64 / 8.0)
+                .reduce(f64::min)
+                .unwrap_or(0.0);
+            sleep = Duration::from_secs_f64(
+                sleep_s.clamp(MIN_SLEEP.as_secs_f64(), MAX_SLEEP.as_secs_f64()),
+            );
+            since_flush.iter_mut().for_each(|n| *n = 0);
             writer
                 .flush()
                 .map_err(|e| format!("write failed: {}", mcap_error(&e)))?;
@@ -440,7 +469,7 @@ fn drain(
             progress(recorded.iter().map(|r| r.counts.samples).sum());
         }
         if got == 0 {
-            std::thread::sleep(IDLE_SLEEP);
+            std::thread::sleep(sleep);
         }
     }
 }
