@@ -20,6 +20,7 @@
 //! ```
 
 use std::path::PathBuf;
+
 use toml::Spanned;
 
 use crate::io::{InputError, RowRead, RowReader};
