@@ -631,6 +631,23 @@ impl Transport {
         Ok(Waker { listener })
     }
 
+    /// The payload type name of the publish-subscribe service `name` (e.g.
+    /// `driftless::GyroSample`), or `None` when no such service exists under this prefix.
+    pub fn payload_type_name(&self, name: &str) -> Result<Option<String>, TransportError> {
+        let sn = service_name(name)?;
+        let details =
+            ipc::Service::details(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
+                .map_err(|e| setup("service lookup", name, e))?;
+        Ok(details.map(|d| {
+            d.static_details
+                .publish_subscribe()
+                .message_type_details()
+                .payload
+                .type_name()
+                .to_string()
+        }))
+    }
+
     /// Whether a publish-subscribe service `name` of type `T` exists under this prefix.
     pub fn service_exists<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
@@ -794,6 +811,11 @@ pub struct Input<T: Debug + ZeroCopySend + Copy + 'static> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Input<T> {
+    /// Samples this subscriber holds unread before it loses new ones.
+    pub fn buffer_size(&self) -> usize {
+        self.subscriber.buffer_size()
+    }
+
     /// The oldest sample not yet taken, copied out of shared memory. Allocation-free.
     pub fn receive(&self) -> Result<Option<T>, TransportError> {
         match self.subscriber.receive() {

@@ -4,24 +4,8 @@
 
 mod common;
 
-use common::{driftless, Dir, Prefix};
+use common::{driftless, subcommands, Dir, Prefix};
 use std::process::Output;
-
-const COMMANDS: [&str; 13] = [
-    "denoise",
-    "train",
-    "eval",
-    "nav-eval",
-    "run",
-    "validate",
-    "tap",
-    "stats",
-    "relay",
-    "allan",
-    "simulate",
-    "completions",
-    "man",
-];
 
 /// Exit `code`, nothing on stdout, one `driftless: error:` line containing `needle`.
 fn assert_fails(o: &Output, code: i32, needle: &str) {
@@ -40,7 +24,9 @@ fn assert_fails(o: &Output, code: i32, needle: &str) {
 
 #[test]
 fn help_and_version_exit_0_on_stdout() {
-    for cmd in COMMANDS {
+    let commands = subcommands();
+    assert!(commands.len() >= 14, "{commands:?}");
+    for cmd in &commands {
         let o = driftless(&[cmd, "--help"]);
         assert_eq!(o.status.code(), Some(0), "{cmd} --help");
         assert!(
@@ -56,7 +42,7 @@ fn help_and_version_exit_0_on_stdout() {
 
 #[test]
 fn usage_errors_exit_2_in_one_line_for_every_command() {
-    for cmd in COMMANDS {
+    for cmd in &subcommands() {
         let o = driftless(&[cmd, "--no-such-option"]);
         assert_fails(&o, 2, "'--no-such-option'");
         let err = String::from_utf8_lossy(&o.stderr);

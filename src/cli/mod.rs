@@ -22,6 +22,7 @@ pub mod eval;
 pub mod man;
 pub mod nav_eval;
 pub mod num;
+pub mod record;
 pub mod relay;
 pub mod run;
 pub mod simulate;
@@ -59,6 +60,8 @@ enum Command {
     Tap(tap::Args),
     /// Show the live statistics of a running pipeline.
     Stats(stats::Args),
+    /// Record services into an MCAP file (Foxglove opens and plots it; ingest.mcap replays it).
+    Record(record::Args),
     /// Run a reference `external` stage in this process: read a GyroSample service, scale and
     /// offset the rates, publish (and notify) another.
     Relay(relay::Args),
@@ -167,7 +170,7 @@ pub fn main() -> ExitCode {
     // ports, so they keep SIGPIPE ignored and handle a closed stream themselves (clean-up runs).
     if !matches!(
         cli.command,
-        Command::Run(_) | Command::Tap(_) | Command::Stats(_)
+        Command::Run(_) | Command::Tap(_) | Command::Stats(_) | Command::Record(_)
     ) {
         restore_default_sigpipe();
     }
@@ -180,6 +183,7 @@ pub fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
+        Command::Record(args) => record::run(args),
         Command::Relay(args) => relay::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),

@@ -221,3 +221,15 @@ pub fn report(dir: &Dir) -> serde_json::Value {
     let text = std::fs::read_to_string(dir.path("report.json")).expect("report written");
     serde_json::from_str(&text).expect("report is JSON")
 }
+
+/// The subcommands, from `driftless --help` (so a new command is checked without editing this).
+pub fn subcommands() -> Vec<String> {
+    let help = String::from_utf8(driftless(&["--help"]).stdout).unwrap();
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(String::from))
+        .filter(|c| c != "help")
+        .collect()
+}
