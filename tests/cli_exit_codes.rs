@@ -108,6 +108,16 @@ fn bad_input_exits_2_for_daemon_commands() {
         "invalid iceoryx2 prefix",
     );
     assert_fails(
+        &driftless(&["list", "--prefix", "a/b"]),
+        2,
+        "invalid iceoryx2 prefix",
+    );
+    assert_fails(
+        &driftless(&["list", "--stats-wait", "0s"]),
+        2,
+        "not a positive duration",
+    );
+    assert_fails(
         &driftless(&["relay", "--input", "", "--output", "o/p"]),
         2,
         "--input",

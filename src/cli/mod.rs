@@ -2,7 +2,7 @@
 //!
 //! Exit codes, the same for every command (README, "Command-line conventions"):
 //! - 0: done, including a daemon, `tap`, `stats` or `relay` stopped by SIGINT/SIGTERM,
-//!   `--duration` or `--count`; `--help` and `--version`.
+//!   `--duration` or `--count`, and `list` with nothing running; `--help` and `--version`.
 //! - 1: a run-time failure: the command line and the files are fine, but the command could not
 //!   do its work: no daemon or service to read (`tap`, `stats`), the pipeline already running
 //!   (`run`), iceoryx2 or the operating system failing during a run.
@@ -19,6 +19,7 @@ pub mod completions;
 pub mod denoise;
 pub mod duration;
 pub mod eval;
+pub mod list;
 pub mod man;
 pub mod nav_eval;
 pub mod num;
@@ -62,6 +63,9 @@ enum Command {
     Stats(stats::Args),
     /// Record services into an MCAP file (Foxglove opens and plots it; ingest.mcap replays it).
     Record(record::Args),
+    /// What runs under a prefix: pipelines and their rate, nodes, services with their types,
+    /// publishers and subscribers (like `ros2 topic list`); --clean removes dead nodes.
+    List(list::Args),
     /// Run a reference `external` stage in this process: read a GyroSample service, scale and
     /// offset the rates, publish (and notify) another.
     Relay(relay::Args),
@@ -166,11 +170,15 @@ pub fn main() -> ExitCode {
             return code;
         }
     };
-    // Offline filters end quietly on a closed stdout; the daemon, tap and stats hold iceoryx2
+    // Offline filters end quietly on a closed stdout; the daemon, tap, stats, record and list hold iceoryx2
     // ports, so they keep SIGPIPE ignored and handle a closed stream themselves (clean-up runs).
     if !matches!(
         cli.command,
-        Command::Run(_) | Command::Tap(_) | Command::Stats(_) | Command::Record(_)
+        Command::Run(_)
+            | Command::Tap(_)
+            | Command::Stats(_)
+            | Command::Record(_)
+            | Command::List(_)
     ) {
         restore_default_sigpipe();
     }
@@ -184,6 +192,7 @@ pub fn main() -> ExitCode {
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
         Command::Record(args) => record::run(args),
+        Command::List(args) => list::run(args),
         Command::Relay(args) => relay::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),

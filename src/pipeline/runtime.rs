@@ -105,6 +105,12 @@ pub fn node_name(pipeline: &str) -> String {
     format!("driftless-{pipeline}")
 }
 
+/// The node of a daemon's reporting thread, which publishes the stats snapshots: the daemon's
+/// node name (see [`node_name`]) with `-stats`. `driftless list` knows a pipeline by the pair.
+pub fn stats_node_name(daemon_node: &str) -> String {
+    format!("{daemon_node}-stats")
+}
+
 /// Counts kept by a segment's thread, stored into the shared [`Counters`] at each batch.
 #[derive(Debug, Default)]
 struct Local {
@@ -760,7 +766,7 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     };
     let reporter = Reporter::new(layout, Arc::clone(&counters), lost);
     let stats_prefix = opts.prefix.clone();
-    let stats_node = format!("{name}-stats");
+    let stats_node = stats_node_name(name);
     let stats_service = p.iceoryx2.stats_service.clone();
     let reporter_thread = std::thread::Builder::new()
         .name("driftless-report".into())
