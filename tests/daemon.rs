@@ -6,7 +6,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::{
-    collect, csv, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
+    collect, csv, csv_pipeline, finish, qos, raw, report, signal, start, test_rates, wait_ready,
+    Dir, Prefix,
 };
 use driftless::transport::{
     GyroSample, RawSample, Transport, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
@@ -55,41 +56,6 @@ name = "publish"
 kind = "publish"
 input = "t/predicted"
 output = "t/corrected"
-"#
-    )
-}
-
-fn csv_pipeline(pace: &str, looped: bool, buffer: usize) -> String {
-    format!(
-        r#"
-name = "c"
-rate_hz = 1000.0
-input_units = "deg/s"
-report_interval_s = 60.0
-
-[iceoryx2]
-buffer_size = {buffer}
-
-[[stage]]
-name = "sensor"
-kind = "ingest.csv"
-output = "c/raw"
-file = "data.csv"
-time_column = "t"
-pace = "{pace}"
-loop = {looped}
-
-[[stage]]
-name = "denoise"
-kind = "denoise.none"
-input = "c/raw"
-output = "c/denoised"
-
-[[stage]]
-name = "publish"
-kind = "publish"
-input = "c/denoised"
-output = "c/corrected"
 "#
     )
 }

@@ -7,7 +7,7 @@ mod common;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{csv, finish, signal, start, wait_ready, Dir, Prefix};
+use common::{csv, csv_pipeline, finish, signal, start, wait_ready, Dir, Prefix};
 use serde_json::Value;
 
 const SIGTERM: i32 = 15;
@@ -15,37 +15,8 @@ const SIGKILL: i32 = 9;
 
 /// A CSV replay at 1 kHz, looping, with a stats snapshot every 0.2 s.
 fn pipeline() -> String {
-    r#"
-name = "c"
-rate_hz = 1000.0
-input_units = "deg/s"
-report_interval_s = 0.2
-
-[iceoryx2]
-buffer_size = 64
-
-[[stage]]
-name = "sensor"
-kind = "ingest.csv"
-output = "c/raw"
-file = "data.csv"
-time_column = "t"
-pace = "realtime"
-loop = true
-
-[[stage]]
-name = "denoise"
-kind = "denoise.none"
-input = "c/raw"
-output = "c/denoised"
-
-[[stage]]
-name = "publish"
-kind = "publish"
-input = "c/denoised"
-output = "c/corrected"
-"#
-    .into()
+    csv_pipeline("realtime", true, 64)
+        .replace("report_interval_s = 60.0", "report_interval_s = 0.2")
 }
 
 /// `driftless list --prefix P` with `extra`: (exit code, stdout, stderr).

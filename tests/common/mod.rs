@@ -115,6 +115,43 @@ pub fn csv(n: usize) -> String {
     s
 }
 
+/// Pipeline `c`: `data.csv` (see [`csv`]) replayed at `pace` (`realtime` or `asap`), looping
+/// or not, through `denoise.none` to `c/corrected`; a report every 60 s.
+pub fn csv_pipeline(pace: &str, looped: bool, buffer: usize) -> String {
+    format!(
+        r#"
+name = "c"
+rate_hz = 1000.0
+input_units = "deg/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {buffer}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "c/raw"
+file = "data.csv"
+time_column = "t"
+pace = "{pace}"
+loop = {looped}
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "c/raw"
+output = "c/denoised"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "c/denoised"
+output = "c/corrected"
+"#
+    )
+}
+
 /// Start `driftless run FILE --prefix P` with extra args; stderr is captured.
 pub fn start(pipeline: &Path, prefix: &Prefix, extra: &[&str]) -> Child {
     Command::new(bin())
