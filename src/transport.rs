@@ -811,7 +811,8 @@ pub struct ListedService {
     pub senders: Option<Vec<u128>>,
     /// Node id of each subscriber (listener, for an event service); None as for `senders`.
     pub receivers: Option<Vec<u128>>,
-    /// Node ids of every node attached to the service.
+    /// Node ids of every node attached to the service (whatever its type: for a foreign
+    /// service, who uses it).
     pub nodes: Vec<u128>,
 }
 
@@ -862,12 +863,12 @@ fn listed_node(state: &NodeState<Svc>) -> ListedNode {
 
 /// A node that only looks: creating, dropping it or opening a service with it removes no dead
 /// node's resources (iceoryx2 does that by default), so `list` shows the dead as dead.
-fn observer(prefix: &str, what: &str) -> Result<Node<Svc>, TransportError> {
+fn observer(prefix: &str) -> Result<Node<Svc>, TransportError> {
     let mut cfg = config(prefix)?;
     cfg.global.node.cleanup_dead_nodes_on_creation = false;
     cfg.global.node.cleanup_dead_nodes_on_destruction = false;
     cfg.global.service.cleanup_dead_nodes_on_open = false;
-    let node_name = format!("driftless-{what}-{}", std::process::id());
+    let node_name = format!("driftless-list-{}", std::process::id());
     let name = NodeName::new(&node_name).map_err(|e| TransportError::Name {
         name: node_name.clone(),
         reason: format!("{e:?}"),
@@ -942,7 +943,7 @@ impl Transport {
         let observer = if found.is_empty() {
             None
         } else {
-            Some(observer(prefix, "list")?)
+            Some(observer(prefix)?)
         };
         for details in found {
             let st = &details.static_details;
@@ -1041,7 +1042,7 @@ impl Transport {
         if names.is_empty() {
             return Ok(got);
         }
-        let node = observer(prefix, "list")?;
+        let node = observer(prefix)?;
         let mut subscribers = Vec::new();
         for name in names {
             let sub = node

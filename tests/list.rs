@@ -138,6 +138,11 @@ fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_port
     assert_eq!(f["wire_type"], "foreign", "{f}");
     assert_eq!(f["type"], "u64", "{f}");
     assert!(f["publishers"].is_null(), "not opened, not counted: {f}");
+    assert_eq!(f["nodes"], serde_json::json!(["foreign-driver"]), "{f}");
+    assert_eq!(
+        service(&doc, "c/corrected", "publish-subscribe")["nodes"],
+        serde_json::json!(["c", format!("driftless-tap-{}", tap.id())])
+    );
 
     let nodes = doc["nodes"].as_array().expect("nodes");
     let tap_node = nodes

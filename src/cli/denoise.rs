@@ -503,18 +503,8 @@ impl Figure<'_> {
         // One y scale per column: signal panels together, error panels together.
         let columns = self.columns();
         for col in 0..columns {
-            let all: Vec<Series> = panels
-                .iter()
-                .skip(col)
-                .step_by(columns)
-                .flat_map(|p| {
-                    p.series.iter().map(|s| Series {
-                        name: String::new(),
-                        points: s.points.clone(),
-                    })
-                })
-                .collect();
-            let (_, (y0, y1)) = crate::io::plot::bounds(&all);
+            let column = panels.iter().skip(col).step_by(columns);
+            let (_, (y0, y1)) = crate::io::plot::bounds(column.flat_map(|p| &p.series));
             // Room above the data for the legend, so it hides none of it.
             let y_range = (y0, y1 + 0.45 * (y1 - y0));
             for p in panels.iter_mut().skip(col).step_by(columns) {

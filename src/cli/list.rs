@@ -380,6 +380,7 @@ fn document(
                     _ => None,
                 },
                 "published_by": s.senders.as_ref().map(|_| published_by(s, listing, pipes)),
+                "nodes": s.nodes.iter().map(|&id| who(id, listing, pipes)).collect::<BTreeSet<_>>(),
             });
             let (send, receive) = if matches!(s.kind, ServiceKind::Event) {
                 ("notifiers", "listeners")

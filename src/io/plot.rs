@@ -60,8 +60,8 @@ const COLOURS: [RGBColor; 6] = [
 ];
 
 /// The data's bounds: x from first to last, y with a 5% margin.
-pub fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
-    let pts = series.iter().flat_map(|s| s.points.iter());
+pub fn bounds<'a>(series: impl IntoIterator<Item = &'a Series>) -> ((f64, f64), (f64, f64)) {
+    let pts = series.into_iter().flat_map(|s| s.points.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for &(x, y) in pts {
         x0 = x0.min(x);
