@@ -832,6 +832,15 @@ fn view_name(view: &impl NodeView) -> String {
         .unwrap_or_default()
 }
 
+/// A node's name, or its id where its details are gone.
+pub fn display_name(node: &ListedNode) -> String {
+    if node.name.is_empty() {
+        format!("node {:x}", node.id)
+    } else {
+        node.name.clone()
+    }
+}
+
 fn listed_node(state: &NodeState<Svc>) -> ListedNode {
     match state {
         NodeState::Alive(v) => ListedNode {
@@ -1006,29 +1015,60 @@ impl Transport {
     }
 
     /// Remove the resources of every dead node under `prefix` (its ports, and its services
-    /// when no live node uses them); returns the nodes removed.
+    /// when no live node uses them); returns the nodes removed. A process killed while it was
+    /// creating a port leaves a port tag that iceoryx2 0.10's own clean-up stops at (it then
+    /// keeps listing the node as dead, and reports it cleaned up): what is left of such a dead
+    /// node (its directory, its monitor files) is removed here.
     pub fn remove_dead_nodes(prefix: &str) -> Result<Vec<ListedNode>, TransportError> {
         let cfg = config(prefix)?;
-        let mut removed = Vec::new();
-        let mut failed = Vec::new();
+        let dead_nodes = |cfg: &Config| -> Result<Vec<ListedNode>, TransportError> {
+            let mut dead = Vec::new();
+            Node::<Svc>::list(cfg, |state| {
+                if matches!(state, NodeState::Dead(_)) {
+                    dead.push(listed_node(&state));
+                }
+                CallbackProgression::Continue
+            })
+            .map_err(|e| setup("node list", prefix, e))?;
+            Ok(dead)
+        };
+        let before = dead_nodes(&cfg)?;
+        let mut failures = std::collections::HashMap::new();
         Node::<Svc>::list(&cfg, |state| {
             if let NodeState::Dead(view) = state {
-                let listed = listed_node(&NodeState::Dead(view.clone()));
-                match view.try_remove_stale_resources() {
-                    Ok(()) => removed.push(listed),
-                    Err(e) => failed.push(format!("{} ({e:?})", listed.name)),
+                let id = view.id().value();
+                if let Err(e) = view.try_remove_stale_resources() {
+                    failures.insert(id, format!("{e:?}"));
                 }
             }
             CallbackProgression::Continue
         })
         .map_err(|e| setup("node list", prefix, e))?;
-        if !failed.is_empty() {
+        let node_dir = std::path::PathBuf::from(cfg.global.node_dir().to_string());
+        for node in dead_nodes(&cfg)? {
+            // This prefix's files in the directory iceoryx2 names by the node id, then the
+            // node's monitor files (`PREFIXID.node_monitor...`), as iceoryx2 orders them.
+            let id = node.id.to_string();
+            let dir = node_dir.join(&id);
+            remove_files_with_prefix(&dir, prefix);
+            let _ = std::fs::remove_dir(&dir);
+            remove_files_with_prefix(&node_dir, &format!("{prefix}{id}."));
+        }
+        let left = dead_nodes(&cfg)?;
+        if !left.is_empty() {
+            let names: Vec<String> = left
+                .iter()
+                .map(|n| {
+                    let why = failures.get(&n.id).map_or("", String::as_str);
+                    format!("{} ({why})", display_name(n))
+                })
+                .collect();
             return Err(TransportError::Io {
                 what: "removing dead nodes",
-                reason: failed.join(", "),
+                reason: names.join(", "),
             });
         }
-        Ok(removed)
+        Ok(before)
     }
 
     /// One snapshot from each of the StatsSnapshot services `names` under `prefix`: the next one

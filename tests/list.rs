@@ -256,3 +256,32 @@ fn an_empty_prefix_lists_nothing_exits_zero_and_creates_nothing() {
     }
     assert!(prefix.leftovers().is_empty(), "{:?}", prefix.leftovers());
 }
+
+#[test]
+fn clean_removes_daemons_killed_at_any_point_of_their_start() {
+    // Killed while creating a port, a node leaves files that iceoryx2 0.10's own clean-up stops
+    // at; `--clean` must leave nothing of any of them.
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let file = dir.write("p.toml", &pipeline());
+    for (k, delay_ms) in (0..60).step_by(5).enumerate() {
+        let prefix = Prefix::new(&format!("lsstart{k}"));
+        let daemon = start(&file, &prefix, &[]);
+        std::thread::sleep(Duration::from_millis(delay_ms));
+        signal(&daemon, SIGKILL);
+        let _ = finish(daemon, Duration::from_secs(10));
+        let (code, _, err) = list(&prefix, &["--clean"]);
+        assert_eq!(code, Some(0), "killed after {delay_ms} ms: {err}");
+        let doc = list_json(&prefix, &[]);
+        assert_eq!(
+            doc["nodes"],
+            serde_json::json!([]),
+            "after {delay_ms} ms: {doc:#}"
+        );
+        let left = prefix.leftovers();
+        assert!(
+            left.is_empty(),
+            "after {delay_ms} ms, left behind: {left:?}"
+        );
+    }
+}

@@ -15,8 +15,8 @@ use crate::cli::run::effective_prefix;
 use crate::cli::CliError;
 use crate::pipeline::runtime::{node_name, stats_node_name};
 use crate::transport::{
-    self, ListedNode, ListedService, Listing, NodeLife, ServiceKind, StatsSnapshot, Transport,
-    WireType,
+    self, display_name, ListedNode, ListedService, Listing, NodeLife, ServiceKind, StatsSnapshot,
+    Transport, WireType,
 };
 
 /// Arguments of `driftless list`.
@@ -110,8 +110,7 @@ fn who(id: u128, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
         return p.name.clone();
     }
     match listing.nodes.iter().find(|n| n.id == id) {
-        Some(n) if n.name.is_empty() => format!("node {id:x}"),
-        Some(n) => n.name.clone(),
+        Some(n) => display_name(n),
         None => format!("node {id:x}"),
     }
 }
@@ -265,11 +264,7 @@ fn text(prefix: &str, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
             .iter()
             .map(|n| {
                 vec![
-                    if n.name.is_empty() {
-                        format!("node {:x}", n.id)
-                    } else {
-                        n.name.clone()
-                    },
+                    display_name(n),
                     n.life.as_str().into(),
                     pid_text(n),
                     user(n),
@@ -427,8 +422,8 @@ fn list(args: &Args, prefix: &str) -> Result<(), CliError> {
         let names: Vec<String> = removed
             .iter()
             .map(|n| match pid(n) {
-                Some(p) => format!("{} (pid {p})", n.name),
-                None => n.name.clone(),
+                Some(p) => format!("{} (pid {p})", display_name(n)),
+                None => display_name(n),
             })
             .collect();
         eprintln!(
