@@ -123,9 +123,17 @@ fn output_keeps_the_time_column_and_header_and_a_gz_name_is_gzip() {
 fn selected_columns_and_summary() {
     let dir = tempfile::tempdir().unwrap();
     let input = noisy_csv(dir.path(), 1000);
-    let o = driftless(&["denoise", input.to_str().unwrap(), "--column", "gyro_y"]);
+    let o = driftless(&[
+        "denoise",
+        input.to_str().unwrap(),
+        "--column",
+        "gyro_y",
+        "--units",
+        "rad/s",
+    ]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
+    assert!(out.contains("sigma (rad/s)"), "{out}");
     assert!(
         out.contains("column gyro_y: 1000 samples, db6 level 5 symmetric"),
         "{out}"
@@ -168,8 +176,12 @@ fn compare_on_the_synthetic_benchmark_prints_table_two() {
         let row = out.lines().find(|l| l.trim_start().starts_with(f)).unwrap();
         row.split_whitespace().nth(1).unwrap().parse().unwrap()
     };
-    // The synthetic record's input SNR, then every function.
+    // The synthetic record's input SNR, then every function; every column says its unit.
     assert!((snr_of("raw") - 22.93).abs() < 0.01, "{out}");
+    assert!(
+        out.contains("MSE ((deg/s)^2)") && out.contains("RMS removed (deg/s)"),
+        "{out}"
+    );
     assert!(snr_of("improved") > snr_of("soft"), "{out}");
     for f in ["hard", "soft", "garrote", "firm", "improved"] {
         let row = out

@@ -2,6 +2,7 @@
 
 use super::CliError;
 use crate::allan::RateUnit;
+use crate::cli::num::sig;
 use crate::io::plot::{LineStyle, Panel, PanelStyle, Series};
 use crate::io::{read_table, read_table_keeping_time, write_table_with_time, Table};
 use crate::synthetic::{self, Regime};
@@ -98,8 +99,8 @@ pub struct Args {
     /// t_s, time or time_s, read as seconds).
     #[arg(long, conflicts_with = "synthetic")]
     rate: Option<f64>,
-    /// Units of the input's rates, for the plot's axes: deg/s or rad/s (the synthetic records
-    /// are in deg/s).
+    /// Units of the input's rates, for the tables and the plot's axes: deg/s or rad/s (the
+    /// synthetic records are in deg/s).
     #[arg(long, default_value = "deg/s", conflicts_with = "synthetic")]
     units: String,
     /// Use the seeded synthetic benchmark record instead of a file: static or dynamic.
@@ -254,15 +255,22 @@ fn print_summary(
     cfg: &DenoiseConfig,
     c: &Comparison,
     truth: Option<&str>,
+    units: RateUnit,
 ) {
     println!("column {name}: {rows} samples, {}", describe(cfg));
-    println!("  level        sigma       lambda");
+    let sigma = format!("sigma ({units})");
+    let lambda = format!("lambda ({units})");
+    let mut t = super::table::new(&["level", &sigma, &lambda], 0);
     for (j, (s, l)) in c.denoised.sigma.iter().zip(&c.denoised.lambda).enumerate() {
-        println!("  {:>5} {:>12.6e} {:>12.6e}", j + 1, s, l);
+        t.add_row(vec![(j + 1).to_string(), sig(*s, 6), sig(*l, 6)]);
     }
-    println!("  RMS removed  {:.6e}", c.rms_removed);
+    println!("{t}");
+    println!("  RMS removed  {} {units}", sig(c.rms_removed, 6));
     if let (Some(snr), Some(mse), Some(t)) = (c.snr_db, c.mse, truth) {
-        println!("  against {t}: SNR {snr:.2} dB, MSE {mse:.6e}");
+        println!(
+            "  against {t}: SNR {snr:.2} dB, MSE {} ({units})^2",
+            sig(mse, 6)
+        );
     }
 }
 
@@ -272,28 +280,34 @@ fn print_table(
     truth: Option<&[f64]>,
     cfg: &DenoiseConfig,
     table: &[Comparison],
+    units: RateUnit,
 ) {
     println!("column {name}: {} samples, {}", x.len(), describe(cfg));
-    println!(
-        "  {:<9} {:>9} {:>13} {:>13}",
-        "function", "SNR (dB)", "MSE", "RMS removed"
-    );
-    if let Some(t) = truth {
+    let mse_header = format!("MSE (({units})^2)");
+    let rms_header = format!("RMS removed ({units})");
+    let mut t = super::table::new(&["function", "SNR (dB)", &mse_header, &rms_header], 1);
+    if let Some(truth) = truth {
         // The input itself, so the table shows what denoising bought.
-        let (snr, mse) = (crate::quality::snr_db(t, x), crate::quality::mse(t, x));
-        println!("  {:<9} {snr:>9.2} {mse:>13.6e} {:>13.6e}", "raw", 0.0);
+        let (snr, mse) = (
+            crate::quality::snr_db(truth, x),
+            crate::quality::mse(truth, x),
+        );
+        t.add_row(vec![
+            "raw".to_string(),
+            format!("{snr:.2}"),
+            sig(mse, 6),
+            "0".into(),
+        ]);
     }
     for c in table {
-        let snr = c.snr_db.map_or("-".into(), |v| format!("{v:.2}"));
-        let mse = c.mse.map_or("-".into(), |v| format!("{v:.6e}"));
-        println!(
-            "  {:<9} {:>9} {:>13} {:>13.6e}",
-            c.function.name(),
-            snr,
-            mse,
-            c.rms_removed
-        );
+        t.add_row(vec![
+            c.function.name().to_string(),
+            c.snr_db.map_or("-".into(), |v| format!("{v:.2}")),
+            c.mse.map_or("-".into(), |v| sig(v, 6)),
+            sig(c.rms_removed, 6),
+        ]);
     }
+    println!("{t}");
 }
 
 /// Seconds of each sample from the start of the record, when the record has a time base: the
@@ -559,9 +573,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
             println!();
         }
         if args.compare {
-            print_table(name, x, truth, &cfg, &runs);
+            print_table(name, x, truth, &cfg, &runs, units);
         } else if args.output.is_none() {
-            print_summary(name, rows, &cfg, &runs[0], data.truth_source.as_deref());
+            print_summary(
+                name,
+                rows,
+                &cfg,
+                &runs[0],
+                data.truth_source.as_deref(),
+                units,
+            );
         }
         if k == 0 {
             if let Some(path) = &args.plot {
