@@ -272,15 +272,8 @@ fn a_closed_stderr_never_stops_the_daemon() {
         .replace("report_interval_s = 60.0", "report_interval_s = 0.05");
     let file = dir.write("p.toml", &text);
     let report_path = dir.path("report.json");
-    let mut child = std::process::Command::new(common::bin())
-        .arg("run")
-        .arg(&file)
-        .args([
-            "--prefix",
-            &prefix.0,
-            "--report",
-            report_path.to_str().unwrap(),
-        ])
+    let mut child = common::run_command(&file, &prefix)
+        .args(["--report", report_path.to_str().unwrap()])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -862,15 +855,8 @@ fn run_names_its_services_counts_what_it_published_and_ends_with_a_verdict() {
         .expect("subscriber");
     let report_path = dir.path("report.json");
     // Not `start`: without --quiet, as a user runs it.
-    let child = std::process::Command::new(common::bin())
-        .arg("run")
-        .arg(&file)
-        .args([
-            "--prefix",
-            &prefix.0,
-            "--report",
-            report_path.to_str().unwrap(),
-        ])
+    let child = common::run_command(&file, &prefix)
+        .args(["--report", report_path.to_str().unwrap()])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

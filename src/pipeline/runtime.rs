@@ -346,25 +346,18 @@ impl Chain {
 
 /// The start line: the services this daemon publishes, with their types, and how to watch them.
 pub fn services_line(p: &Pipeline, prefix: &str) -> String {
-    let mut raw = Vec::new();
-    let mut gyro = Vec::new();
-    for (i, s) in p.stages.iter().enumerate() {
-        // An external stage's output is another process's service.
-        if s.kind.role == Role::External {
-            continue;
-        }
-        if i == 0 {
-            raw.push(s.output.as_str());
-        } else {
-            gyro.push(s.output.as_str());
-        }
-    }
+    // Every stage's output after the ingest, but an external stage's (another process's).
+    let gyro: Vec<&str> = p.stages[1..]
+        .iter()
+        .filter(|s| s.kind.role != Role::External)
+        .map(|s| s.output.as_str())
+        .collect();
     let last = &p.stages[p.stages.len() - 1].output;
     format!(
         "pipeline {} running under prefix {prefix:?}: publishes {} (RawSample), {} (GyroSample), \
          {} (StatsSnapshot); watch with `driftless tap {last}` or `driftless stats {}`",
         p.name,
-        raw.join(", "),
+        p.stages[0].output,
         gyro.join(", "),
         p.iceoryx2.stats_service,
         p.path.display()

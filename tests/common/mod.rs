@@ -154,15 +154,20 @@ output = "c/corrected"
 
 /// Start `driftless run FILE --prefix P` with extra args; stderr is captured.
 pub fn start(pipeline: &Path, prefix: &Prefix, extra: &[&str]) -> Child {
-    Command::new(bin())
-        .arg("run")
-        .arg(pipeline)
-        .args(["--prefix", &prefix.0, "--quiet"])
+    run_command(pipeline, prefix)
+        .arg("--quiet")
         .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("spawn driftless")
+}
+
+/// `driftless run FILE --prefix P`, as a user types it (not quiet); the caller adds the rest.
+pub fn run_command(pipeline: &Path, prefix: &Prefix) -> Command {
+    let mut c = Command::new(bin());
+    c.arg("run").arg(pipeline).args(["--prefix", &prefix.0]);
+    c
 }
 
 /// Wait until the daemon's stats service exists (its chain is set up by then).
