@@ -15,8 +15,12 @@
 //! 4. CSV replay as fast as possible through all stages, and the bare chain as fast as possible.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+#[path = "support/mod.rs"]
+mod support;
+
+use support::{clean, cpu_seconds, prefix, read_report, start_daemon, wait_exit};
 
 use driftless::transport::{monotonic_ns, GyroSample, Qos, RawSample, Transport, FLAG_FLUSHED};
 use hdrhistogram::Histogram;
@@ -26,50 +30,8 @@ fn hist() -> Histogram<u64> {
     Histogram::new_with_bounds(1, 60_000_000_000, 3).expect("bounds")
 }
 
-fn prefix(tag: &str) -> String {
-    format!("dlbench{}{tag}_", std::process::id())
-}
-
-fn clean(prefix: &str) {
-    for dir in [
-        "/dev/shm",
-        "/tmp/iceoryx2/nodes",
-        "/tmp/iceoryx2/services",
-        "/tmp/iceoryx2",
-    ] {
-        if let Ok(rd) = std::fs::read_dir(dir) {
-            for e in rd.flatten() {
-                if e.file_name().to_string_lossy().starts_with(prefix) {
-                    let _ = std::fs::remove_file(e.path());
-                    let _ = std::fs::remove_dir_all(e.path());
-                }
-            }
-        }
-    }
-}
-
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// CPU seconds (user + system) of a live process.
-fn cpu_seconds(pid: u32) -> f64 {
-    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
-        return f64::NAN;
-    };
-    let Some(after) = stat.rfind(')') else {
-        return f64::NAN;
-    };
-    let fields: Vec<&str> = stat[after + 2..].split_whitespace().collect();
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(f64::NAN)
-    };
-    // SAFETY: sysconf has no preconditions.
-    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
-    (ticks(11) + ticks(12)) / hz
 }
 
 struct Row {
@@ -164,36 +126,6 @@ fn bare_chain(prefix: &str, rate_hz: Option<f64>, n: u64) -> (Histogram<u64>, f6
     }
     let elapsed = start.elapsed().as_secs_f64();
     (h, n as f64 / elapsed)
-}
-
-fn start_daemon(pipeline: &Path, prefix: &str, report: &Path, extra: &[&str]) -> Child {
-    Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .arg("run")
-        .arg(pipeline)
-        .args(["--prefix", prefix, "--quiet", "--report"])
-        .arg(report)
-        .args(extra)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn driftless")
-}
-
-fn wait_exit(child: &mut Child) {
-    let end = Instant::now() + Duration::from_secs(30);
-    while Instant::now() < end {
-        if let Ok(Some(_)) = child.try_wait() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let _ = child.kill();
-    let _ = child.wait();
-}
-
-fn read_report(path: &Path) -> Value {
-    let text = std::fs::read_to_string(path).expect("report");
-    serde_json::from_str(&text).expect("json")
 }
 
 /// Run a paced pipeline for `secs` with this process subscribed to `service`.

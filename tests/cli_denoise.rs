@@ -123,9 +123,17 @@ fn output_keeps_the_time_column_and_header_and_a_gz_name_is_gzip() {
 fn selected_columns_and_summary() {
     let dir = tempfile::tempdir().unwrap();
     let input = noisy_csv(dir.path(), 1000);
-    let o = driftless(&["denoise", input.to_str().unwrap(), "--column", "gyro_y"]);
+    let o = driftless(&[
+        "denoise",
+        input.to_str().unwrap(),
+        "--column",
+        "gyro_y",
+        "--units",
+        "rad/s",
+    ]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
+    assert!(out.contains("sigma (rad/s)"), "{out}");
     assert!(
         out.contains("column gyro_y: 1000 samples, db6 level 5 symmetric"),
         "{out}"
@@ -168,8 +176,12 @@ fn compare_on_the_synthetic_benchmark_prints_table_two() {
         let row = out.lines().find(|l| l.trim_start().starts_with(f)).unwrap();
         row.split_whitespace().nth(1).unwrap().parse().unwrap()
     };
-    // The synthetic record's input SNR, then every function.
+    // The synthetic record's input SNR, then every function; every column says its unit.
     assert!((snr_of("raw") - 22.93).abs() < 0.01, "{out}");
+    assert!(
+        out.contains("MSE ((deg/s)^2)") && out.contains("RMS removed (deg/s)"),
+        "{out}"
+    );
     assert!(snr_of("improved") > snr_of("soft"), "{out}");
     for f in ["hard", "soft", "garrote", "firm", "improved"] {
         let row = out
@@ -214,25 +226,158 @@ fn truth_file_scores_snr() {
     assert_input_error(&o, "2 rows");
 }
 
-#[test]
-fn plot_writes_an_svg() {
+/// The SVG's texts (`<text ...>CONTENT</text>`) with their anchor (`middle` for titles, axis
+/// names and x ticks; `end` for y ticks; `start` for the legend).
+fn svg_texts(svg: &str) -> Vec<(String, String)> {
+    svg.split("<text ")
+        .skip(1)
+        .filter_map(|t| {
+            let (attrs, rest) = t.split_once('>')?;
+            let content = rest.split("</text>").next()?.trim().to_string();
+            let anchor = attrs
+                .split("text-anchor=\"")
+                .nth(1)
+                .and_then(|a| a.split('"').next())
+                .unwrap_or("start")
+                .to_string();
+            Some((anchor, content))
+        })
+        .collect()
+}
+
+/// Points of each polyline with more than two (the data; axes and legend marks have two).
+fn data_lines(svg: &str) -> Vec<usize> {
+    svg.split("<polyline ")
+        .skip(1)
+        .filter_map(|p| {
+            let pts = p.split("points=\"").nth(1)?.split('"').next()?;
+            Some(pts.split_whitespace().count())
+        })
+        .filter(|&n| n > 2)
+        .collect()
+}
+
+/// The numbers on the x axis (middle-anchored numeric texts).
+fn x_ticks(texts: &[(String, String)]) -> Vec<f64> {
+    texts
+        .iter()
+        .filter(|(a, _)| a == "middle")
+        .filter_map(|(_, c)| c.parse::<f64>().ok())
+        .collect()
+}
+
+fn plot(args: &[&str]) -> (Output, String) {
     let dir = tempfile::tempdir().unwrap();
     let svg = dir.path().join("fig6.svg");
-    let o = driftless(&[
-        "denoise",
+    let mut all = vec!["denoise"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--plot", svg.to_str().unwrap()]);
+    let o = driftless(&all);
+    let body = std::fs::read_to_string(&svg).unwrap_or_default();
+    (o, body)
+}
+
+#[test]
+fn the_figure_shows_a_window_of_each_function_its_error_units_and_legend() {
+    let (o, svg) = plot(&[
         "--synthetic",
-        "static",
+        "dynamic",
         "--compare",
-        "--plot",
-        svg.to_str().unwrap(),
+        "--plot-from",
+        "10s",
+        "--plot-window",
+        "2s",
     ]);
     assert!(o.status.success(), "{:?}", text(&o));
-    let body = std::fs::read_to_string(&svg).unwrap();
+    assert!(svg.starts_with("<svg"), "{}", &svg[..200.min(svg.len())]);
+    let texts = svg_texts(&svg);
+    let has = |s: &str| texts.iter().any(|(_, c)| c == s);
+    for want in [
+        "rate (deg/s)",
+        "error (deg/s)",
+        "time (s)",
+        "raw",
+        "truth",
+        "raw - truth",
+    ] {
+        assert!(has(want), "no {want:?} in {texts:?}");
+    }
+    for f in ["hard", "soft", "garrote", "firm", "improved"] {
+        assert!(has(f), "no legend entry {f}");
+        assert!(has(&format!("{f} - truth")), "no error legend for {f}");
+        assert!(
+            texts
+                .iter()
+                .any(|(_, c)| c.starts_with(&format!("rate: {f} threshold, SNR "))),
+            "no title for {f}"
+        );
+    }
+    // 2 s at 50 Hz: 100 samples in each of the 5 x (3 signal + 2 error) lines, nothing else.
+    assert_eq!(data_lines(&svg), vec![100; 25]);
+    let ticks = x_ticks(&texts);
+    assert!(!ticks.is_empty());
     assert!(
-        body.starts_with("<svg") && body.contains("improved threshold"),
-        "{}",
-        &body[..200.min(body.len())]
+        ticks.iter().all(|t| (10.0..=12.0).contains(t)),
+        "x ticks outside the window: {ticks:?}"
     );
+
+    // The default window: the first 5 s.
+    let (o, svg) = plot(&["--synthetic", "static"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_eq!(data_lines(&svg), vec![250; 5]);
+    let ticks = x_ticks(&svg_texts(&svg));
+    assert!(ticks.iter().all(|t| (0.0..=5.0).contains(t)), "{ticks:?}");
+}
+
+#[test]
+fn a_log_is_plotted_on_its_time_column_in_its_units_and_bad_windows_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = noisy_csv(dir.path(), 1000); // `time` at 50 Hz: 20 s
+    let input = input.to_str().unwrap();
+    let (o, svg) = plot(&[
+        input,
+        "--column",
+        "gyro_x",
+        "--units",
+        "rad/s",
+        "--plot-from",
+        "3s",
+        "--plot-window",
+        "1s",
+    ]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let texts = svg_texts(&svg);
+    assert!(
+        texts.iter().any(|(_, c)| c == "gyro_x (rad/s)"),
+        "{texts:?}"
+    );
+    assert!(
+        !texts.iter().any(|(_, c)| c.contains("error")),
+        "no truth, no error panel"
+    );
+    assert_eq!(data_lines(&svg), vec![50, 50]);
+    assert!(x_ticks(&texts).iter().all(|t| (3.0..=4.0).contains(t)));
+
+    let (o, svg) = plot(&[input, "--plot-from", "30s"]);
+    assert_input_error(&o, "the record spans 0 to 19.98 s, no sample to plot");
+    assert!(svg.is_empty(), "no figure written");
+    let (o, _) = plot(&[input, "--units", "furlongs"]);
+    assert_input_error(&o, "--units: unknown rate unit 'furlongs'");
+    // Without a time column the window needs --rate.
+    let bare = write(
+        dir.path(),
+        "bare.csv",
+        &format!("x\n{}", "1\n2\n3\n".repeat(40)),
+    );
+    let bare = bare.to_str().unwrap();
+    let (o, _) = plot(&[bare, "--level", "2", "--plot-window", "1s"]);
+    assert_input_error(&o, "need a time axis: give --rate HZ");
+    let (o, svg) = plot(&[bare, "--level", "2", "--rate", "10", "--plot-window", "1s"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_eq!(data_lines(&svg), vec![10, 10]);
+    // A window without a plot is a usage error.
+    let o = driftless(&["denoise", input, "--plot-window", "1s"]);
+    assert_eq!(o.status.code(), Some(2));
 }
 
 #[test]

@@ -3,19 +3,7 @@
 
 mod common;
 
-use common::{bin, driftless, Dir};
-
-/// The subcommands, from `driftless --help` (so a new command is checked without editing this).
-fn subcommands() -> Vec<String> {
-    let help = String::from_utf8(driftless(&["--help"]).stdout).unwrap();
-    help.lines()
-        .skip_while(|l| !l.starts_with("Commands:"))
-        .skip(1)
-        .take_while(|l| l.starts_with("  "))
-        .filter_map(|l| l.split_whitespace().next().map(String::from))
-        .filter(|c| c != "help")
-        .collect()
-}
+use common::{bin, driftless, subcommands, Dir};
 
 #[test]
 fn bash_completion_completes_commands_and_options() {

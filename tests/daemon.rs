@@ -6,7 +6,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::{
-    collect, csv, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
+    collect, csv, csv_pipeline, finish, qos, raw, report, signal, start, test_rates, wait_ready,
+    Dir, Prefix,
 };
 use driftless::transport::{
     GyroSample, RawSample, Transport, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
@@ -55,41 +56,6 @@ name = "publish"
 kind = "publish"
 input = "t/predicted"
 output = "t/corrected"
-"#
-    )
-}
-
-fn csv_pipeline(pace: &str, looped: bool, buffer: usize) -> String {
-    format!(
-        r#"
-name = "c"
-rate_hz = 1000.0
-input_units = "deg/s"
-report_interval_s = 60.0
-
-[iceoryx2]
-buffer_size = {buffer}
-
-[[stage]]
-name = "sensor"
-kind = "ingest.csv"
-output = "c/raw"
-file = "data.csv"
-time_column = "t"
-pace = "{pace}"
-loop = {looped}
-
-[[stage]]
-name = "denoise"
-kind = "denoise.none"
-input = "c/raw"
-output = "c/denoised"
-
-[[stage]]
-name = "publish"
-kind = "publish"
-input = "c/denoised"
-output = "c/corrected"
 "#
     )
 }
@@ -306,15 +272,8 @@ fn a_closed_stderr_never_stops_the_daemon() {
         .replace("report_interval_s = 60.0", "report_interval_s = 0.05");
     let file = dir.write("p.toml", &text);
     let report_path = dir.path("report.json");
-    let mut child = std::process::Command::new(common::bin())
-        .arg("run")
-        .arg(&file)
-        .args([
-            "--prefix",
-            &prefix.0,
-            "--report",
-            report_path.to_str().unwrap(),
-        ])
+    let mut child = common::run_command(&file, &prefix)
+        .args(["--report", report_path.to_str().unwrap()])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -896,15 +855,8 @@ fn run_names_its_services_counts_what_it_published_and_ends_with_a_verdict() {
         .expect("subscriber");
     let report_path = dir.path("report.json");
     // Not `start`: without --quiet, as a user runs it.
-    let child = std::process::Command::new(common::bin())
-        .arg("run")
-        .arg(&file)
-        .args([
-            "--prefix",
-            &prefix.0,
-            "--report",
-            report_path.to_str().unwrap(),
-        ])
+    let child = common::run_command(&file, &prefix)
+        .args(["--report", report_path.to_str().unwrap()])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

@@ -41,7 +41,13 @@ fn example(name: &str) -> PathBuf {
 }
 
 fn run(name: &str, args: &[&str]) -> Output {
-    Command::new(example(name))
+    run_built(&example(name), args)
+}
+
+/// Run an example already built: no wait on [`example`]'s lock, which the other test can hold
+/// for a whole build.
+fn run_built(exe: &std::path::Path, args: &[&str]) -> Output {
+    Command::new(exe)
         .args(args)
         .env_remove("DRIFTLESS_IOX2_PREFIX")
         .output()
@@ -120,7 +126,8 @@ fn raw_driver_feeds_the_daemon_and_nav_subscriber_reads_it() {
     let dir = common::Dir::new();
     let pipeline = dir.write("p.toml", CHAIN);
     let report = dir.path("nav.json");
-    let (nav_bin, _) = (example("nav_subscriber"), example("raw_driver"));
+    // Both built before the subscriber's 3 s start: the driver must not wait for a build.
+    let (nav_bin, driver_bin) = (example("nav_subscriber"), example("raw_driver"));
     let mut daemon = common::start(&pipeline, &prefix, &[]);
     common::wait_ready(&prefix, "ex/stats", &mut daemon);
     let nav = Command::new(nav_bin)
@@ -140,8 +147,8 @@ fn raw_driver_feeds_the_daemon_and_nav_subscriber_reads_it() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     std::thread::sleep(std::time::Duration::from_millis(300));
-    let driver = run(
-        "raw_driver",
+    let driver = run_built(
+        &driver_bin,
         &[
             "--prefix",
             &prefix.0,

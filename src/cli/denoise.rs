@@ -1,16 +1,26 @@
 //! `driftless denoise`: wavelet-threshold denoise CSV columns (or a synthetic benchmark record).
 
 use super::CliError;
-use crate::io::plot::{Panel, Series};
+use crate::allan::RateUnit;
+use crate::cli::num::sig;
+use crate::io::plot::{LineStyle, Panel, PanelStyle, Series};
 use crate::io::{read_table, read_table_keeping_time, write_table_with_time, Table};
 use crate::synthetic::{self, Regime};
 use crate::wavelet::denoise::{compare, denoise, Comparison, DenoiseConfig, NoiseSigma, Rule};
 use crate::wavelet::threshold::ThresholdFn;
 use crate::wavelet::{Mode, Wavelet};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+use std::time::Duration;
 
-/// Points per plotted line at most (longer records are thinned evenly).
+/// Points per plotted line at most (longer windows are thinned evenly).
 const PLOT_POINTS: usize = 4000;
+
+/// The plotted window when none is given: a few seconds, where the functions can be told apart
+/// (the paper's Figure 6 shows about as much).
+const PLOT_WINDOW: Duration = Duration::from_secs(5);
+
+/// Time columns read as seconds for the plot's time axis (`timestamp` has no agreed unit).
+const SECONDS_COLUMNS: [&str; 4] = ["t", "t_s", "time", "time_s"];
 
 /// Arguments of `driftless denoise`.
 #[derive(Debug, clap::Args)]
@@ -65,9 +75,34 @@ pub struct Args {
     /// Run hard, soft, garrote, firm and improved and print one table (the paper's Table 2).
     #[arg(long)]
     compare: bool,
-    /// Draw raw against denoised (each function's with --compare) into this SVG.
+    /// Draw raw against denoised (each function's with --compare), and the error against the
+    /// truth beside it when there is one, into this SVG.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Start of the plotted window, from the start of the record (default 0).
+    #[arg(
+        long,
+        requires = "plot",
+        value_parser = crate::cli::duration::parse_offset,
+        allow_hyphen_values = true
+    )]
+    plot_from: Option<Duration>,
+    /// Length of the plotted window (default 5s).
+    #[arg(
+        long,
+        requires = "plot",
+        value_parser = crate::cli::duration::parse_duration,
+        allow_hyphen_values = true
+    )]
+    plot_window: Option<Duration>,
+    /// Sample rate of the input, Hz: the plot's time axis (default: the file's time column t,
+    /// t_s, time or time_s, read as seconds).
+    #[arg(long, conflicts_with = "synthetic")]
+    rate: Option<f64>,
+    /// Units of the input's rates, for the tables and the plot's axes: deg/s or rad/s (the
+    /// synthetic records are in deg/s).
+    #[arg(long, default_value = "deg/s", conflicts_with = "synthetic")]
+    units: String,
     /// Use the seeded synthetic benchmark record instead of a file: static or dynamic.
     #[arg(long, conflicts_with_all = ["input", "truth"])]
     synthetic: Option<String>,
@@ -154,8 +189,8 @@ fn load(args: &Args) -> Result<Data, CliError> {
         .input
         .as_ref()
         .expect("clap requires input without --synthetic");
-    // `-o` carries the input's time column through.
-    let table = if args.output.is_some() {
+    // `-o` carries the input's time column through; the plot takes its time axis from it.
+    let table = if args.output.is_some() || args.plot.is_some() {
         read_table_keeping_time(input, &args.columns)?
     } else {
         read_table(input, &args.columns)?
@@ -220,15 +255,22 @@ fn print_summary(
     cfg: &DenoiseConfig,
     c: &Comparison,
     truth: Option<&str>,
+    units: RateUnit,
 ) {
     println!("column {name}: {rows} samples, {}", describe(cfg));
-    println!("  level        sigma       lambda");
+    let sigma = format!("sigma ({units})");
+    let lambda = format!("lambda ({units})");
+    let mut t = super::table::new(&["level", &sigma, &lambda], 0);
     for (j, (s, l)) in c.denoised.sigma.iter().zip(&c.denoised.lambda).enumerate() {
-        println!("  {:>5} {:>12.6e} {:>12.6e}", j + 1, s, l);
+        t.add_row(vec![(j + 1).to_string(), sig(*s, 6), sig(*l, 6)]);
     }
-    println!("  RMS removed  {:.6e}", c.rms_removed);
+    println!("{t}");
+    println!("  RMS removed  {} {units}", sig(c.rms_removed, 6));
     if let (Some(snr), Some(mse), Some(t)) = (c.snr_db, c.mse, truth) {
-        println!("  against {t}: SNR {snr:.2} dB, MSE {mse:.6e}");
+        println!(
+            "  against {t}: SNR {snr:.2} dB, MSE {} ({units})^2",
+            sig(mse, 6)
+        );
     }
 }
 
@@ -238,83 +280,280 @@ fn print_table(
     truth: Option<&[f64]>,
     cfg: &DenoiseConfig,
     table: &[Comparison],
+    units: RateUnit,
 ) {
     println!("column {name}: {} samples, {}", x.len(), describe(cfg));
-    println!(
-        "  {:<9} {:>9} {:>13} {:>13}",
-        "function", "SNR (dB)", "MSE", "RMS removed"
-    );
-    if let Some(t) = truth {
+    let mse_header = format!("MSE (({units})^2)");
+    let rms_header = format!("RMS removed ({units})");
+    let mut t = super::table::new(&["function", "SNR (dB)", &mse_header, &rms_header], 1);
+    if let Some(truth) = truth {
         // The input itself, so the table shows what denoising bought.
-        let (snr, mse) = (crate::quality::snr_db(t, x), crate::quality::mse(t, x));
-        println!("  {:<9} {snr:>9.2} {mse:>13.6e} {:>13.6e}", "raw", 0.0);
+        let (snr, mse) = (
+            crate::quality::snr_db(truth, x),
+            crate::quality::mse(truth, x),
+        );
+        t.add_row(vec![
+            "raw".to_string(),
+            format!("{snr:.2}"),
+            sig(mse, 6),
+            "0".into(),
+        ]);
     }
     for c in table {
-        let snr = c.snr_db.map_or("-".into(), |v| format!("{v:.2}"));
-        let mse = c.mse.map_or("-".into(), |v| format!("{v:.6e}"));
-        println!(
-            "  {:<9} {:>9} {:>13} {:>13.6e}",
-            c.function.name(),
-            snr,
-            mse,
-            c.rms_removed
+        t.add_row(vec![
+            c.function.name().to_string(),
+            c.snr_db.map_or("-".into(), |v| format!("{v:.2}")),
+            c.mse.map_or("-".into(), |v| sig(v, 6)),
+            sig(c.rms_removed, 6),
+        ]);
+    }
+    println!("{t}");
+}
+
+/// Seconds of each sample from the start of the record, when the record has a time base: the
+/// synthetic rate, `--rate`, or a time column in seconds. None otherwise.
+fn time_axis(args: &Args, data: &Data) -> Result<Option<Vec<f64>>, CliError> {
+    let rows = data.table.rows();
+    let rate = if args.synthetic.is_some() {
+        Some(synthetic::RATE_HZ)
+    } else {
+        args.rate
+    };
+    if let Some(rate) = rate {
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(CliError::input(format!(
+                "--rate {rate} is not a sample rate (a positive number of Hz)"
+            )));
+        }
+        return Ok(Some((0..rows).map(|i| i as f64 / rate).collect()));
+    }
+    let Some(time) = data
+        .table
+        .time
+        .as_ref()
+        .filter(|t| SECONDS_COLUMNS.contains(&t.name.as_str()))
+    else {
+        return Ok(None);
+    };
+    let t: Option<Vec<f64>> = time
+        .cells
+        .iter()
+        .map(|c| c.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect();
+    Ok(t.and_then(|t| {
+        let t0 = *t.first()?;
+        Some(t.iter().map(|v| v - t0).collect())
+    }))
+}
+
+/// The part of the record to plot.
+#[derive(Default)]
+struct Window {
+    /// The samples drawn.
+    picked: Vec<usize>,
+    /// The window, seconds (on a time axis; cut at the record's end).
+    span: Option<(f64, f64)>,
+}
+
+/// The samples to plot: those of the window on a time axis, else all of them.
+fn window(args: &Args, times: Option<&[f64]>, rows: usize) -> Result<Window, CliError> {
+    let Some(t) = times else {
+        if args.plot_from.is_some() || args.plot_window.is_some() {
+            return Err(CliError::input(
+                "--plot-from and --plot-window need a time axis: give --rate HZ (the input has \
+                 no time column t, t_s, time or time_s in seconds)",
+            ));
+        }
+        eprintln!(
+            "driftless: note: plotting all {rows} samples against their number: give --rate HZ \
+             for a time axis and a window of a few seconds"
         );
+        return Ok(Window {
+            picked: (0..rows).collect(),
+            span: None,
+        });
+    };
+    let from = args.plot_from.unwrap_or(Duration::ZERO).as_secs_f64();
+    let to = from + args.plot_window.unwrap_or(PLOT_WINDOW).as_secs_f64();
+    let picked: Vec<usize> = (0..rows).filter(|&i| t[i] >= from && t[i] < to).collect();
+    let end = t.last().copied().unwrap_or(0.0);
+    if picked.is_empty() {
+        // Rounded to the ms, so a sum of sample periods reads as the user would write it.
+        let ms = |s: f64| (s * 1e3).round() / 1e3;
+        return Err(CliError::input(format!(
+            "--plot-from {} s: the record spans 0 to {} s, no sample to plot",
+            ms(from),
+            ms(end)
+        )));
+    }
+    Ok(Window {
+        picked,
+        span: Some((from, to.min(end))),
+    })
+}
+
+/// `(x, y[i])` for the picked samples, thinned evenly to at most [`PLOT_POINTS`].
+fn points(x: &[f64], picked: &[usize], y: impl Fn(usize) -> f64) -> Vec<(f64, f64)> {
+    let step = picked.len().div_ceil(PLOT_POINTS).max(1);
+    picked.iter().step_by(step).map(|&i| (x[i], y(i))).collect()
+}
+
+/// Each function's colour (the legend tells them apart); raw light grey, truth black.
+fn colour(f: &ThresholdFn) -> (u8, u8, u8) {
+    match f {
+        ThresholdFn::Hard => (31, 119, 180),
+        ThresholdFn::Soft => (255, 127, 14),
+        ThresholdFn::Garrote => (44, 160, 44),
+        ThresholdFn::Firm { .. } => (148, 103, 189),
+        ThresholdFn::Improved { .. } => (214, 39, 40),
     }
 }
 
-fn thinned(y: &[f64], rate: Option<f64>) -> Vec<(f64, f64)> {
-    let step = y.len().div_ceil(PLOT_POINTS).max(1);
-    let scale = rate.map_or(1.0, |r| 1.0 / r);
-    y.iter()
-        .enumerate()
-        .step_by(step)
-        .map(|(i, v)| (i as f64 * scale, *v))
-        .collect()
+const RAW: LineStyle = LineStyle {
+    colour: (175, 175, 175),
+    width: 1,
+};
+const TRUTH: LineStyle = LineStyle {
+    colour: (0, 0, 0),
+    width: 1,
+};
+
+/// The paper's Figure 6: per function a row, the signal (raw, truth, denoised) on the left and
+/// its error against the truth on the right, over a window of a few seconds; every signal panel
+/// on one y scale, every error panel on another, so the rows compare at a glance.
+struct Figure<'a> {
+    name: &'a str,
+    units: RateUnit,
+    raw: &'a [f64],
+    truth: Option<&'a [f64]>,
+    runs: &'a [Comparison],
+    /// Seconds from the start, or None (the x axis is then the sample number).
+    times: Option<&'a [f64]>,
+    window: &'a Window,
 }
 
-fn plot(
-    path: &Path,
-    name: &str,
-    raw: &[f64],
-    truth: Option<&[f64]>,
-    runs: &[Comparison],
-    rate: Option<f64>,
-) -> Result<(), CliError> {
-    let x_label = if rate.is_some() { "time (s)" } else { "sample" };
-    let panels: Vec<Panel> = runs
-        .iter()
-        .map(|c| {
-            let mut series = vec![Series {
+impl Figure<'_> {
+    fn panels(&self) -> Vec<Panel> {
+        let index: Vec<f64>;
+        let (x, x_label) = match self.times {
+            Some(t) => (t, "time (s)"),
+            None => {
+                index = (0..self.raw.len()).map(|i| i as f64).collect();
+                (index.as_slice(), "sample")
+            }
+        };
+        let picked = &self.window.picked;
+        let x_range = self
+            .window
+            .span
+            .unwrap_or((x[picked[0]], x[picked[picked.len() - 1]]));
+        let units = self.units;
+        let mut panels = Vec::new();
+        for c in self.runs {
+            let f = c.function.name();
+            let own = LineStyle {
+                colour: colour(&c.function),
+                width: 2,
+            };
+            let mut signal = vec![Series {
                 name: "raw".into(),
-                points: thinned(raw, rate),
+                points: points(x, picked, |i| self.raw[i]),
             }];
-            if let Some(t) = truth {
-                series.push(Series {
+            let mut lines = vec![RAW];
+            if let Some(t) = self.truth {
+                signal.push(Series {
                     name: "truth".into(),
-                    points: thinned(t, rate),
+                    points: points(x, picked, |i| t[i]),
+                });
+                lines.push(TRUTH);
+            }
+            signal.push(Series {
+                name: f.into(),
+                points: points(x, picked, |i| c.denoised.signal[i]),
+            });
+            lines.push(own);
+            let snr = c
+                .snr_db
+                .map_or(String::new(), |v| format!(", SNR {v:.2} dB"));
+            panels.push(Panel {
+                title: format!("{}: {f} threshold{snr}", self.name),
+                x_label: x_label.into(),
+                y_label: format!("{} ({units})", self.name),
+                series: signal,
+                style: PanelStyle {
+                    x_range: Some(x_range),
+                    y_range: None,
+                    lines,
+                    legend_on_top: true,
+                },
+            });
+            if let Some(t) = self.truth {
+                let rms = c.mse.map_or(String::new(), |m| {
+                    format!(": RMS {:.3} {units} over the record", m.sqrt())
+                });
+                panels.push(Panel {
+                    title: format!("{f} - truth{rms}"),
+                    x_label: x_label.into(),
+                    y_label: format!("error ({units})"),
+                    series: vec![
+                        Series {
+                            name: "raw - truth".into(),
+                            points: points(x, picked, |i| self.raw[i] - t[i]),
+                        },
+                        Series {
+                            name: format!("{f} - truth"),
+                            points: points(x, picked, |i| c.denoised.signal[i] - t[i]),
+                        },
+                    ],
+                    style: PanelStyle {
+                        x_range: Some(x_range),
+                        y_range: None,
+                        lines: vec![RAW, own],
+                        legend_on_top: true,
+                    },
                 });
             }
-            series.push(Series {
-                name: c.function.name().into(),
-                points: thinned(&c.denoised.signal, rate),
-            });
-            Panel {
-                title: format!("{name}: {} threshold", c.function.name()),
-                x_label: x_label.into(),
-                y_label: name.into(),
-                series,
+        }
+        // One y scale per column: signal panels together, error panels together.
+        let columns = self.columns();
+        for col in 0..columns {
+            let column = panels.iter().skip(col).step_by(columns);
+            let (_, (y0, y1)) = crate::io::plot::bounds(column.flat_map(|p| &p.series));
+            // Room above the data for the legend, so it hides none of it.
+            let y_range = (y0, y1 + 0.45 * (y1 - y0));
+            for p in panels.iter_mut().skip(col).step_by(columns) {
+                p.style.y_range = Some(y_range);
             }
-        })
-        .collect();
-    crate::io::plot::write_panels(path, &panels).map_err(CliError::input)
+        }
+        panels
+    }
+
+    fn columns(&self) -> usize {
+        if self.truth.is_some() {
+            2
+        } else {
+            1
+        }
+    }
 }
 
 /// Run `driftless denoise`.
 pub fn run(args: Args) -> Result<(), CliError> {
     let cfg = config(&args)?;
+    let units: RateUnit = args
+        .units
+        .parse()
+        .map_err(|e| CliError::input(format!("--units: {e}")))?;
     let data = load(&args)?;
     let rows = data.table.rows();
-    let rate = args.synthetic.as_ref().map(|_| synthetic::RATE_HZ);
+    let (times, shown) = match &args.plot {
+        Some(_) => {
+            let times = time_axis(&args, &data)?;
+            let shown = window(&args, times.as_deref(), rows)?;
+            (times, shown)
+        }
+        None => (None, Window::default()),
+    };
     let mut outputs = Vec::with_capacity(data.table.names.len());
     for (k, (name, x)) in data.table.names.iter().zip(&data.table.columns).enumerate() {
         let truth = data.truths[k].as_deref();
@@ -334,13 +573,30 @@ pub fn run(args: Args) -> Result<(), CliError> {
             println!();
         }
         if args.compare {
-            print_table(name, x, truth, &cfg, &runs);
+            print_table(name, x, truth, &cfg, &runs, units);
         } else if args.output.is_none() {
-            print_summary(name, rows, &cfg, &runs[0], data.truth_source.as_deref());
+            print_summary(
+                name,
+                rows,
+                &cfg,
+                &runs[0],
+                data.truth_source.as_deref(),
+                units,
+            );
         }
         if k == 0 {
             if let Some(path) = &args.plot {
-                plot(path, name, x, truth, &runs, rate)?;
+                let figure = Figure {
+                    name,
+                    units,
+                    raw: x,
+                    truth,
+                    runs: &runs,
+                    times: times.as_deref(),
+                    window: &shown,
+                };
+                crate::io::plot::write_grid(path, &figure.panels(), figure.columns())
+                    .map_err(CliError::input)?;
             }
         }
         let chosen = runs

@@ -1,6 +1,7 @@
 //! Durations on the command line: the one parser of every option that takes a length of time
 //! (`run`, `tap`, `simulate --duration`, `nav-eval --window` / `--characterise`, `train
-//! --horizon` / `--still-window`, and the examples).
+//! --horizon` / `--still-window`, `denoise --plot-window` / `--plot-from`, `list --stats-wait`,
+//! and the examples).
 //!
 //! The forms are humantime's: a number with a unit (`500ms`, `10s`, `1.5s`, `90min`, `2m`, `3h`,
 //! `0.5h`, `2d`), or several (`1h 30min`). One extension: a plain number is seconds (`600`,
@@ -44,6 +45,22 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
         return Err(refuse("it is too long"));
     }
     Ok(d)
+}
+
+/// A point in a record counted from its start (`--plot-from`): as [`parse_duration`], but zero
+/// (`0`, `0s`) is allowed.
+pub fn parse_offset(text: &str) -> Result<Duration, String> {
+    parse_duration(text).or_else(|e| {
+        let s = text.trim();
+        let zero = !s.starts_with('-')
+            && (s.parse::<f64>().is_ok_and(|v| v == 0.0)
+                || humantime::parse_duration(s).is_ok_and(|d| d.is_zero()));
+        if zero {
+            Ok(Duration::ZERO)
+        } else {
+            Err(e)
+        }
+    })
 }
 
 /// [`parse_duration`] in seconds, for options that turn a duration into a count of samples.
@@ -124,6 +141,18 @@ mod tests {
                 e.contains("90min") && e.contains("plain number of seconds"),
                 "{e}"
             );
+        }
+    }
+
+    #[test]
+    fn offsets_take_zero_and_refuse_what_durations_refuse() {
+        assert_eq!(parse_offset("0"), Ok(Duration::ZERO));
+        assert_eq!(parse_offset("0s"), Ok(Duration::ZERO));
+        assert_eq!(parse_offset("0.0"), Ok(Duration::ZERO));
+        assert_eq!(parse_offset("90s"), Ok(Duration::from_secs(90)));
+        for bad in ["-0", "-1s", "soon", "", "inf"] {
+            let e = parse_offset(bad).expect_err(bad);
+            assert!(e.contains("is not a positive duration"), "{bad}: {e}");
         }
     }
 

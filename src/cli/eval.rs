@@ -11,7 +11,7 @@ use crate::drift::compensator::{Compensator, Mode};
 use crate::drift::model::DriftModel;
 use crate::drift::separation::separate_causal;
 use crate::io::model_file::{read_model, sha256_file};
-use crate::io::plot::{write_panels, Panel, Series};
+use crate::io::plot::{write_panels, Panel, PanelStyle, Series};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -292,6 +292,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                         points: thin(t9, dt, &rbf_drift[f9.clone()]),
                     },
                 ],
+                style: PanelStyle::default(),
             },
             Panel {
                 title: "Figure 10: raw and compensated rate".into(),
@@ -307,12 +308,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
                         points: thin(t0, dt, &rbf_rate[r.clone()]),
                     },
                 ],
+                style: PanelStyle::default(),
             },
             Panel {
                 title: "Figure 11: Allan deviation, raw and compensated".into(),
                 x_label: "log10 tau (s)".into(),
                 y_label: format!("log10 OADEV ({})", model.units),
                 series: allan_series,
+                style: PanelStyle::default(),
             },
         ];
         write_panels(path, &panels).map_err(CliError::input)?;

@@ -1,8 +1,9 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
 //!
 //! Exit codes, the same for every command (README, "Command-line conventions"):
-//! - 0: done, including a daemon, `tap`, `stats`, `relay` or `bridge` stopped by SIGINT/SIGTERM,
-//!   `--duration` or `--count`; `--help` and `--version`.
+//! - 0: done, including a daemon, `tap`, `stats`, `record`, `relay` or `bridge` stopped by
+//!   SIGINT/SIGTERM, `--duration` or `--count`, and `list` with nothing running; `--help` and
+//!   `--version`.
 //! - 1: a run-time failure: the command line and the files are fine, but the command could not
 //!   do its work: no daemon or service to read (`tap`, `stats`), the pipeline already running
 //!   (`run`), iceoryx2 or the operating system failing during a run.
@@ -20,9 +21,11 @@ pub mod completions;
 pub mod denoise;
 pub mod duration;
 pub mod eval;
+pub mod list;
 pub mod man;
 pub mod nav_eval;
 pub mod num;
+pub mod record;
 pub mod relay;
 pub mod run;
 pub mod simulate;
@@ -60,6 +63,11 @@ enum Command {
     Tap(tap::Args),
     /// Show the live statistics of a running pipeline.
     Stats(stats::Args),
+    /// Record services into an MCAP file (Foxglove opens and plots it; ingest.mcap replays it).
+    Record(record::Args),
+    /// What runs under a prefix: pipelines and their rate, nodes, services with their types,
+    /// publishers and subscribers (like `ros2 topic list`); --clean removes dead nodes.
+    List(list::Args),
     /// Run a reference `external` stage in this process: read a GyroSample service, scale and
     /// offset the rates, publish (and notify) another.
     Relay(relay::Args),
@@ -167,11 +175,16 @@ pub fn main() -> ExitCode {
             return code;
         }
     };
-    // Offline filters end quietly on a closed stdout; the daemon, tap and stats hold iceoryx2
+    // Offline filters end quietly on a closed stdout; the daemon, tap, stats, record and list hold iceoryx2
     // ports, so they keep SIGPIPE ignored and handle a closed stream themselves (clean-up runs).
     if !matches!(
         cli.command,
-        Command::Run(_) | Command::Tap(_) | Command::Stats(_) | Command::Bridge(_)
+        Command::Run(_)
+            | Command::Tap(_)
+            | Command::Stats(_)
+            | Command::Record(_)
+            | Command::List(_)
+            | Command::Bridge(_)
     ) {
         restore_default_sigpipe();
     }
@@ -184,6 +197,8 @@ pub fn main() -> ExitCode {
         Command::Validate(args) => validate::run(args),
         Command::Tap(args) => tap::run(args),
         Command::Stats(args) => stats::run(args),
+        Command::Record(args) => record::run(args),
+        Command::List(args) => list::run(args),
         Command::Relay(args) => relay::run(args),
         Command::Bridge(args) => bridge::run(args),
         Command::Allan(args) => allan::run(args),

@@ -18,7 +18,7 @@ use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
 use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
 use crate::drift::PredictorKind;
 use crate::io::csv_table::read_table;
-use crate::io::plot::{self, Panel, Series};
+use crate::io::plot::{self, Panel, PanelStyle, Series};
 use crate::io::truth::read_truth;
 use crate::nav::{
     evaluate, format_table_labelled, generate, heading_error, summarize_methods, BiasEstimator,
@@ -644,6 +644,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                     points: t.iter().copied().zip(h.iter().copied()).collect(),
                 })
                 .collect(),
+            style: PanelStyle::default(),
         };
         plot::write_panels(path, &[panel])
             .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;

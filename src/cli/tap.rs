@@ -135,6 +135,13 @@ fn raw_flag_names(flags: u32) -> Vec<String> {
     names
 }
 
+/// The refusal of `--format csv` on a stats service (checked at start, and by the printer).
+fn no_csv_for_stats(service: &str) -> CliError {
+    CliError::input(format!(
+        "{service} carries statistics snapshots, which have no CSV form: use --format text or json"
+    ))
+}
+
 fn joined(names: &[String], sep: &str) -> String {
     if names.is_empty() {
         "-".into()
@@ -203,9 +210,7 @@ impl Printer {
                 s.rate[2],
                 joined(&raw_flag_names(s.flags), ",")
             ),
-            (Format::Text, Item::Stats(s)) => {
-                crate::metrics::format_snapshot(&self.service, s)
-            }
+            (Format::Text, Item::Stats(s)) => crate::metrics::format_snapshot(&self.service, s),
             (Format::Csv, Item::Gyro(s)) => {
                 let cells: Vec<String> = [s.rate, s.drift, s.denoised]
                     .map(scaled)
@@ -234,12 +239,7 @@ impl Printer {
                 s.flags,
                 joined(&raw_flag_names(s.flags), "|")
             ),
-            (Format::Csv, Item::Stats(_)) => {
-                return Err(CliError::input(format!(
-                    "{} carries statistics snapshots, which have no CSV form: use --format text or json",
-                    self.service
-                )))
-            }
+            (Format::Csv, Item::Stats(_)) => return Err(no_csv_for_stats(&self.service)),
             (Format::Json, Item::Gyro(s)) => serde_json::json!({
                 "epoch": s.epoch,
                 "seq": s.seq,
@@ -337,10 +337,7 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         Tapped::Raw(i)
     } else if let Ok(i) = node.open_input::<StatsSnapshot>(&args.service) {
         if args.format == Format::Csv && !args.hz {
-            return Err(CliError::input(format!(
-                "{} carries statistics snapshots, which have no CSV form: use --format text or json",
-                args.service
-            )));
+            return Err(no_csv_for_stats(&args.service));
         }
         Tapped::Stats(i)
     } else {

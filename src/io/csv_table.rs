@@ -238,7 +238,10 @@ fn fast_mapped(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Option<Table>, InputError> {
     let mut rdr = csv_reader(bytes);
-    let head = read_head(&mut rdr, path, wanted, keep_time)?;
+    // A head that does not read is reported by the reference path (CRLF-aware line numbers).
+    let Ok(head) = read_head(&mut rdr, path, wanted, keep_time) else {
+        return Ok(None);
+    };
     let fields = field_plan(&head);
     let data = &bytes[head.data_offset.min(bytes.len())..];
     let threads = parse_threads(data.len());
@@ -285,7 +288,10 @@ fn read_streamed(
                 source,
             });
         }
-        let head = head?;
+        // A head that does not read is reported by the reference path (CRLF-aware lines).
+        let Ok(head) = head else {
+            return Ok(None);
+        };
         let fields = field_plan(&head);
         let first = &recording.seen[head.data_offset.min(recording.seen.len())..];
         match csv_fast::parse_stream(first, &blocks, &fields, head.selected.len()) {
@@ -514,6 +520,69 @@ pub(crate) fn check_row(
     Ok(())
 }
 
+/// Reads `inner` with every `\r\n` turned into `\n`, so that the csv crate counts lines right
+/// in CRLF files: it counts a line at each `\n`, and a record that ended at a `\r` took the
+/// position of the next one before that `\n` was read (every error one line short). Cells are
+/// unchanged: a line end is not part of a cell, and a quoted cell holding a line end is never a
+/// number.
+pub(crate) struct CrlfToLf<R> {
+    inner: R,
+    /// A `\r` ended the last chunk: dropped if a `\n` follows, kept otherwise.
+    pending_cr: bool,
+}
+
+impl<R: Read> CrlfToLf<R> {
+    /// Wrap `inner`.
+    pub(crate) fn new(inner: R) -> Self {
+        CrlfToLf {
+            inner,
+            pending_cr: false,
+        }
+    }
+}
+
+impl<R: Read> Read for CrlfToLf<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if buf.len() < 2 {
+            // Too small to look ahead (the csv crate reads in 8 KiB): pass through.
+            if self.pending_cr && !buf.is_empty() {
+                self.pending_cr = false;
+                buf[0] = b'\r';
+                return Ok(1);
+            }
+            return self.inner.read(buf);
+        }
+        loop {
+            let held = usize::from(self.pending_cr);
+            buf[0] = b'\r';
+            let n = self.inner.read(&mut buf[held..])?;
+            let end = held + n;
+            if n == 0 {
+                // End of input: a held `\r` was a lone one.
+                self.pending_cr = false;
+                return Ok(held);
+            }
+            let trailing_cr = buf[end - 1] == b'\r';
+            let mut w = 0;
+            for r in 0..end {
+                // buf[r + 1] is still the input's: w <= r.
+                if buf[r] == b'\r' && r + 1 < end && buf[r + 1] == b'\n' {
+                    continue;
+                }
+                buf[w] = buf[r];
+                w += 1;
+            }
+            self.pending_cr = trailing_cr;
+            if trailing_cr {
+                w -= 1;
+            }
+            if w > 0 {
+                return Ok(w);
+            }
+        }
+    }
+}
+
 /// The reference path: every row through the csv crate and `str::parse::<f64>`.
 fn read_from<R: Read>(
     reader: R,
@@ -521,7 +590,7 @@ fn read_from<R: Read>(
     wanted: &[String],
     keep_time: bool,
 ) -> Result<Table, InputError> {
-    let mut rdr = csv_reader(reader);
+    let mut rdr = csv_reader(CrlfToLf::new(reader));
     let head = read_head(&mut rdr, path, wanted, keep_time)?;
     let mut rows = csv_fast::Rows::new(head.selected.len());
     let mut row = head.first.clone();
@@ -591,9 +660,9 @@ impl RowReader {
         let file = File::open(path).map_err(io_err)?;
         let raw = BufReader::with_capacity(1 << 16, file);
         let source: Box<dyn Read + Send> = if super::atomic::is_gzip(path) {
-            Box::new(flate2::bufread::MultiGzDecoder::new(raw))
+            Box::new(CrlfToLf::new(flate2::bufread::MultiGzDecoder::new(raw)))
         } else {
-            Box::new(raw)
+            Box::new(CrlfToLf::new(raw))
         };
         // Flexible: a ragged row is reported here with the reference's message, and reading
         // goes on after it.
@@ -871,6 +940,53 @@ mod tests {
             read_str("a,b\n", &[]).unwrap_err().to_string(),
             "t.csv: the file has a header but no data rows"
         );
+    }
+
+    #[test]
+    fn crlf_becomes_lf_across_any_chunking_and_lone_cr_stays() {
+        let input = b"t,x\r\n0,1\r\n\r1,2\r\r\n2,3\r";
+        let want = b"t,x\n0,1\n\r1,2\r\n2,3\r".to_vec();
+        /// Hands out at most `max` bytes per read, to split `\r\n` across reads.
+        struct Trickle<'a>(&'a [u8], usize);
+        impl Read for Trickle<'_> {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                let n = self.0.len().min(self.1).min(buf.len());
+                buf[..n].copy_from_slice(&self.0[..n]);
+                self.0 = &self.0[n..];
+                Ok(n)
+            }
+        }
+        for max in 1..input.len() + 1 {
+            for buf_len in [1, 2, 3, 7, 64] {
+                let mut r = CrlfToLf::new(Trickle(input, max));
+                let mut got = Vec::new();
+                let mut buf = vec![0; buf_len];
+                loop {
+                    let n = r.read(&mut buf).unwrap();
+                    if n == 0 {
+                        break;
+                    }
+                    got.extend_from_slice(&buf[..n]);
+                }
+                if buf_len >= 2 {
+                    assert_eq!(got, want, "chunks of {max}, buffer {buf_len}");
+                } else {
+                    // One byte at a time nothing is looked ahead: the input as it is.
+                    assert_eq!(got, input, "chunks of {max}, buffer 1");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn crlf_files_report_the_right_line() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, eol) in [("lf.csv", "\n"), ("crlf.csv", "\r\n")] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, ["t,x", "0,1", "1,abc", "2,3", ""].join(eol)).unwrap();
+            let e = read_table(&path, &[]).unwrap_err().to_string();
+            assert!(e.contains(&format!("{name}:3:3: column 'x'")), "{e}");
+        }
     }
 
     #[test]

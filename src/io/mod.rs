@@ -9,6 +9,7 @@ pub mod csv_table;
 pub mod model_file;
 pub mod plot;
 pub mod progress;
+pub mod recording;
 pub mod truth;
 
 pub use csv_table::{

@@ -12,7 +12,7 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
-/// One chart in a vertical stack.
+/// One chart in a stack (or a grid, [`write_grid`]).
 pub struct Panel {
     /// Title above the chart.
     pub title: String,
@@ -22,6 +22,32 @@ pub struct Panel {
     pub y_label: String,
     /// Lines, drawn in order (later on top).
     pub series: Vec<Series>,
+    /// Axis ranges and line styles; the default fits the data and cycles a palette.
+    pub style: PanelStyle,
+}
+
+/// How a panel is drawn when the default does not do: fixed axis ranges (so that panels side
+/// by side compare at a glance) and a colour and width per series.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PanelStyle {
+    /// X range; None: the data's.
+    pub x_range: Option<(f64, f64)>,
+    /// Y range; None: the data's, with a margin.
+    pub y_range: Option<(f64, f64)>,
+    /// Style of series k (the palette's colour and width 1 beyond the list).
+    pub lines: Vec<LineStyle>,
+    /// The legend in the upper right corner (leave room for it there with `y_range`) instead
+    /// of the middle right.
+    pub legend_on_top: bool,
+}
+
+/// Colour (RGB) and stroke width of one series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineStyle {
+    /// Red, green, blue.
+    pub colour: (u8, u8, u8),
+    /// Stroke width in pixels.
+    pub width: u32,
 }
 
 const COLOURS: [RGBColor; 6] = [
@@ -33,8 +59,9 @@ const COLOURS: [RGBColor; 6] = [
     RGBColor(255, 127, 14),
 ];
 
-fn bounds(panel: &Panel) -> ((f64, f64), (f64, f64)) {
-    let pts = panel.series.iter().flat_map(|s| s.points.iter());
+/// The data's bounds: x from first to last, y with a 5% margin.
+pub fn bounds<'a>(series: impl IntoIterator<Item = &'a Series>) -> ((f64, f64), (f64, f64)) {
+    let pts = series.into_iter().flat_map(|s| s.points.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for &(x, y) in pts {
         x0 = x0.min(x);
@@ -49,16 +76,45 @@ fn bounds(panel: &Panel) -> ((f64, f64), (f64, f64)) {
     ((x0, x1.max(x0 + 1e-12)), (y0 - pad, y1 + pad))
 }
 
+/// A tick label with the decimals its spacing `step` needs, and no `-0`.
+fn tick(v: f64, step: f64) -> String {
+    let decimals = if step > 0.0 && step.is_finite() {
+        (-step.log10().floor()).clamp(0.0, 12.0) as usize
+    } else {
+        1
+    };
+    let text = format!("{v:.decimals$}");
+    match text.strip_prefix('-') {
+        Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_string(),
+        _ => text,
+    }
+}
+
 /// Draw `panels` stacked vertically into an SVG file at `path` (temporary file, then rename).
 pub fn write_panels(path: &Path, panels: &[Panel]) -> Result<(), String> {
+    write_grid(path, panels, 1)
+}
+
+/// Draw `panels` in rows of `columns` (row by row) into an SVG file at `path` (temporary file,
+/// then rename).
+pub fn write_grid(path: &Path, panels: &[Panel], columns: usize) -> Result<(), String> {
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
     let mut svg = String::new();
     {
-        let height = 300 * panels.len().max(1) as u32;
-        let root = SVGBackend::with_string(&mut svg, (1000, height)).into_drawing_area();
+        let width = if columns == 1 {
+            1000
+        } else {
+            700 * columns as u32
+        };
+        let height = 300 * rows as u32;
+        let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let areas = root.split_evenly((panels.len().max(1), 1));
+        let areas = root.split_evenly((rows, columns));
         for (panel, area) in panels.iter().zip(areas.iter()) {
-            let ((x0, x1), (y0, y1)) = bounds(panel);
+            let ((dx0, dx1), (dy0, dy1)) = bounds(&panel.series);
+            let (x0, x1) = panel.style.x_range.unwrap_or((dx0, dx1));
+            let (y0, y1) = panel.style.y_range.unwrap_or((dy0, dy1));
             let mut chart = ChartBuilder::on(area)
                 .caption(&panel.title, ("sans-serif", 18))
                 .margin(10)
@@ -66,22 +122,38 @@ pub fn write_panels(path: &Path, panels: &[Panel]) -> Result<(), String> {
                 .y_label_area_size(70)
                 .build_cartesian_2d(x0..x1, y0..y1)
                 .map_err(|e| e.to_string())?;
+            let (x_step, y_step) = ((x1 - x0) / 10.0, (y1 - y0) / 10.0);
             chart
                 .configure_mesh()
                 .x_desc(&panel.x_label)
                 .y_desc(&panel.y_label)
+                .x_label_formatter(&|v| tick(*v, x_step))
+                .y_label_formatter(&|v| tick(*v, y_step))
                 .draw()
                 .map_err(|e| e.to_string())?;
             for (k, s) in panel.series.iter().enumerate() {
-                let colour = COLOURS[k % COLOURS.len()];
+                let (colour, width) = match panel.style.lines.get(k) {
+                    Some(l) => (RGBColor(l.colour.0, l.colour.1, l.colour.2), l.width),
+                    None => (COLOURS[k % COLOURS.len()], 1),
+                };
                 chart
-                    .draw_series(LineSeries::new(s.points.iter().copied(), colour))
+                    .draw_series(LineSeries::new(
+                        s.points.iter().copied(),
+                        colour.stroke_width(width),
+                    ))
                     .map_err(|e| e.to_string())?
                     .label(&s.name)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(width))
+                    });
             }
             chart
                 .configure_series_labels()
+                .position(if panel.style.legend_on_top {
+                    SeriesLabelPosition::UpperRight
+                } else {
+                    SeriesLabelPosition::MiddleRight
+                })
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
                 .draw()
@@ -212,4 +284,19 @@ pub fn write_loglog(path: &Path, chart: &LogLogChart) -> Result<(), String> {
     }
     super::atomic::write_atomically(path, svg.as_bytes())
         .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_carry_the_decimals_of_their_spacing_and_no_negative_zero() {
+        assert_eq!(tick(2.5, 0.5), "2.5");
+        assert_eq!(tick(2.0, 0.5), "2.0");
+        assert_eq!(tick(-0.0001, 0.2), "0.0");
+        assert_eq!(tick(-0.2, 0.2), "-0.2");
+        assert_eq!(tick(150.0, 50.0), "150");
+        assert_eq!(tick(0.015, 0.005), "0.015");
+    }
 }

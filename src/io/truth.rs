@@ -102,7 +102,7 @@ fn read_from<R: Read>(reader: R, path: &Path, rate_hz: f64) -> Result<Truth, Inp
         .has_headers(false)
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
-        .from_reader(reader);
+        .from_reader(super::csv_table::CrlfToLf::new(reader));
     let mut row = csv::ByteRecord::new();
     if !rdr
         .read_byte_record(&mut row)

@@ -105,6 +105,12 @@ pub fn node_name(pipeline: &str) -> String {
     format!("driftless-{pipeline}")
 }
 
+/// The node of a daemon's reporting thread, which publishes the stats snapshots: the daemon's
+/// node name (see [`node_name`]) with `-stats`. `driftless list` knows a pipeline by the pair.
+pub fn stats_node_name(daemon_node: &str) -> String {
+    format!("{daemon_node}-stats")
+}
+
 /// Counts kept by a segment's thread, stored into the shared [`Counters`] at each batch.
 #[derive(Debug, Default)]
 struct Local {
@@ -340,25 +346,18 @@ impl Chain {
 
 /// The start line: the services this daemon publishes, with their types, and how to watch them.
 pub fn services_line(p: &Pipeline, prefix: &str) -> String {
-    let mut raw = Vec::new();
-    let mut gyro = Vec::new();
-    for (i, s) in p.stages.iter().enumerate() {
-        // An external stage's output is another process's service.
-        if s.kind.role == Role::External {
-            continue;
-        }
-        if i == 0 {
-            raw.push(s.output.as_str());
-        } else {
-            gyro.push(s.output.as_str());
-        }
-    }
+    // Every stage's output after the ingest, but an external stage's (another process's).
+    let gyro: Vec<&str> = p.stages[1..]
+        .iter()
+        .filter(|s| s.kind.role != Role::External)
+        .map(|s| s.output.as_str())
+        .collect();
     let last = &p.stages[p.stages.len() - 1].output;
     format!(
         "pipeline {} running under prefix {prefix:?}: publishes {} (RawSample), {} (GyroSample), \
          {} (StatsSnapshot); watch with `driftless tap {last}` or `driftless stats {}`",
         p.name,
-        raw.join(", "),
+        p.stages[0].output,
         gyro.join(", "),
         p.iceoryx2.stats_service,
         p.path.display()
@@ -760,7 +759,7 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     };
     let reporter = Reporter::new(layout, Arc::clone(&counters), lost);
     let stats_prefix = opts.prefix.clone();
-    let stats_node = format!("{name}-stats");
+    let stats_node = stats_node_name(name);
     let stats_service = p.iceoryx2.stats_service.clone();
     let reporter_thread = std::thread::Builder::new()
         .name("driftless-report".into())

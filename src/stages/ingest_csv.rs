@@ -20,17 +20,14 @@
 //! ```
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
 
 use toml::Spanned;
 
-use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
-
 use crate::io::{InputError, RowRead, RowReader};
 use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Poll, Role, Source};
-use crate::transport::{monotonic_ns, RawSample, RAW_INVALID};
+use crate::pipeline::stage::{Kind, Params, Role, Source};
+use crate::stages::replay::{BlockReplay, BlockSink, Pace, LOOP, PACE};
+use crate::transport::{RawSample, RAW_INVALID};
 
 const FILE: Key = Key {
     name: "file",
@@ -50,19 +47,6 @@ const TIME_COLUMN: Key = Key {
     default: "none (i / rate_hz)",
     doc: "sensor timestamps",
 };
-const PACE: Key = Key {
-    name: "pace",
-    ty: Type::Choice(&["realtime", "asap"]),
-    default: "\"realtime\"",
-    doc: "at the file's rate, or as fast as possible",
-};
-const LOOP: Key = Key {
-    name: "loop",
-    ty: Type::Bool,
-    default: "false",
-    doc: "replay again from the start at the end of the file",
-};
-
 /// `ingest.csv`.
 pub const KIND: Kind = Kind {
     name: "ingest.csv",
@@ -71,15 +55,6 @@ pub const KIND: Kind = Kind {
     keys: &[FILE, COLUMNS, TIME_COLUMN, PACE, LOOP],
     parse,
 };
-
-/// Pacing of a CSV replay.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Pace {
-    /// At the file's rate (its time column, or the pipeline's `rate_hz`).
-    Realtime,
-    /// As fast as possible.
-    Asap,
-}
 
 /// A CSV replay: checked at validation (the header and the first [`CHECKED_ROWS`] rows), then
 /// streamed from the file while it runs.
@@ -101,10 +76,6 @@ pub struct CsvParams {
 /// rows are checked as they are replayed (a bad one becomes a flagged invalid sample).
 pub const CHECKED_ROWS: usize = 1000;
 
-/// Samples per block the reader thread hands to the hot thread.
-const BLOCK_ROWS: usize = 4096;
-/// Blocks read ahead: 16k samples (16 ms at 1 kHz flat out, 16 s at 1 kHz real time).
-const BLOCKS_AHEAD: usize = 4;
 /// Bad rows reported one by one on stderr before only their count is.
 const REPORTED_BAD_ROWS: u64 = 10;
 
@@ -115,7 +86,11 @@ impl Params for CsvParams {
         _transport: &crate::transport::Transport,
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
-        Ok(Box::new(CsvReplay::new(self.clone(), cx.rate_hz)?))
+        let (params, rate_hz) = (self.clone(), cx.rate_hz);
+        let replay = BlockReplay::spawn("driftless-csv", self.pace, move |sink| {
+            read_rows(&params, rate_hz, sink)
+        })?;
+        Ok(Box::new(replay))
     }
 }
 
@@ -175,10 +150,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     if n == 0 {
         return Err(src.span(&file_key, format!("{} has no data rows", file.display())));
     }
-    let pace = match pace.as_deref() {
-        Some("asap") => Pace::Asap,
-        _ => Pace::Realtime,
-    };
+    let pace = Pace::from_key(pace.as_deref());
     Ok(Box::new(CsvParams {
         file,
         columns,
@@ -188,58 +160,17 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     }))
 }
 
-/// A CSV replay: a reader thread streams the file in blocks of samples over a bounded channel;
-/// the hot thread takes them in turn and hands the spent blocks back, so neither allocates
-/// per sample and memory stays bounded whatever the file's length.
-pub struct CsvReplay {
-    blocks: Receiver<Vec<RawSample>>,
-    spent: Sender<Vec<RawSample>>,
-    block: Vec<RawSample>,
-    next: usize,
-    pace: Pace,
-    start: Option<(Instant, u64)>,
-}
-
-impl CsvReplay {
-    /// Start replaying validated parameters at `rate_hz` (the pacing without a time column and
-    /// the loop seam): the reader thread starts reading now.
-    pub fn new(params: CsvParams, rate_hz: f64) -> Result<Self, String> {
-        let (tx, blocks) = bounded(BLOCKS_AHEAD);
-        // Room for every block there is: handing one back never blocks the hot thread.
-        let (spent, spare) = bounded(BLOCKS_AHEAD + 2);
-        let pace = params.pace;
-        std::thread::Builder::new()
-            .name("driftless-csv".into())
-            .spawn(move || read_blocks(&params, rate_hz, &tx, &spare))
-            .map_err(|e| format!("cannot start the CSV reader thread: {e}"))?;
-        Ok(CsvReplay {
-            blocks,
-            spent,
-            block: Vec::new(),
-            next: 0,
-            pace,
-            start: None,
-        })
-    }
-}
-
 /// The reader thread: the file's rows as raw samples (sequence numbers from 0 across loops,
 /// timestamps increasing across loops), a bad row as a sample marked invalid with its position
 /// on stderr. Ends at the end of the file (without `loop`), at a read error, or when the replay
 /// is dropped.
-fn read_blocks(
-    params: &CsvParams,
-    rate_hz: f64,
-    tx: &Sender<Vec<RawSample>>,
-    spare: &Receiver<Vec<RawSample>>,
-) {
+fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let shown = params.file.display();
     let period_ns = (1e9 / rate_hz).round() as u64;
     let axes = params.columns.len().min(3);
     let mut wanted = params.columns.clone();
     wanted.extend(params.time_column.iter().cloned());
     let mut values = vec![0.0; wanted.len()];
-    let mut block: Vec<RawSample> = Vec::with_capacity(BLOCK_ROWS);
     let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
     loop {
         let mut rows = match RowReader::open(&params.file, &wanted) {
@@ -255,7 +186,6 @@ fn read_blocks(
                 Ok(r) => r,
                 Err(e) => {
                     eprintln!("driftless: error: {e} (the replay ends here)");
-                    let _ = send(tx, &mut block, spare);
                     return;
                 }
             };
@@ -307,10 +237,9 @@ fn read_blocks(
             first_t.get_or_insert(sample.t_ns);
             last_t = sample.t_ns;
             sample.t_ns += loop_offset_ns;
-            block.push(sample);
             i += 1;
             seq += 1;
-            if block.len() == BLOCK_ROWS && !send(tx, &mut block, spare) {
+            if !sink.push(sample) {
                 return;
             }
         }
@@ -323,56 +252,5 @@ fn read_blocks(
     }
     if bad > 0 {
         eprintln!("driftless: warning: {shown}: {bad} bad row(s) replayed as invalid samples");
-    }
-    let _ = send(tx, &mut block, spare);
-}
-
-/// Hand a filled block to the hot thread and take an empty one; false when the replay is gone.
-fn send(
-    tx: &Sender<Vec<RawSample>>,
-    block: &mut Vec<RawSample>,
-    spare: &Receiver<Vec<RawSample>>,
-) -> bool {
-    if block.is_empty() {
-        return true;
-    }
-    let mut next = spare
-        .try_recv()
-        .unwrap_or_else(|_| Vec::with_capacity(BLOCK_ROWS));
-    next.clear();
-    tx.send(std::mem::replace(block, next)).is_ok()
-}
-
-impl Source for CsvReplay {
-    fn poll(&mut self, stop: &AtomicBool) -> Poll {
-        if self.next == self.block.len() {
-            let spent = std::mem::take(&mut self.block);
-            if spent.capacity() > 0 {
-                let _ = self.spent.try_send(spent);
-            }
-            self.next = 0;
-            // Normally a block is waiting; flat out the reader may be behind for a moment.
-            self.block = match self.blocks.try_recv() {
-                Ok(b) => b,
-                Err(TryRecvError::Disconnected) => return Poll::End,
-                Err(TryRecvError::Empty) => {
-                    match self.blocks.recv_timeout(Duration::from_millis(20)) {
-                        Ok(b) => b,
-                        Err(RecvTimeoutError::Timeout) => return Poll::Idle,
-                        Err(RecvTimeoutError::Disconnected) => return Poll::End,
-                    }
-                }
-            };
-        }
-        let sample = self.block[self.next];
-        if self.pace == Pace::Realtime {
-            let (t0, first_t) = *self.start.get_or_insert((Instant::now(), sample.t_ns));
-            let due = t0 + Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
-            if !crate::stages::sleep_until(due, stop) {
-                return Poll::Idle;
-            }
-        }
-        self.next += 1;
-        Poll::Sample(sample, monotonic_ns())
     }
 }

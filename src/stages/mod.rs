@@ -5,12 +5,16 @@
 //! |---|---|---|
 //! | `ingest.sim` | [`ingest_sim`] | simulated sensor, paced in real time |
 //! | `ingest.csv` | [`ingest_csv`] | CSV replay, real time or as fast as possible |
+//! | `ingest.mcap` | [`ingest_mcap`] | replay of a `driftless record` recording (MCAP), real time or as fast as possible |
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
 //! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |
 //! | `predict.bias` | [`predict_bias`] | the bias as a Kalman state from the gyro's Allan terms (no training) |
 //! | `external` | [`external`] | a stage run by another process (the daemon only links to it) |
 //! | `publish` | [`publish`] | the final guard before the public service |
+//!
+//! [`replay`] is what the file replays (`ingest.csv`, `ingest.mcap`) share: the reader thread,
+//! its blocks of samples and the pacing.
 //!
 //! # Adding a stage kind
 //! 1. Write `src/stages/<kind>.rs` with: its keys as [`Key`](crate::pipeline::schema::Key)
@@ -36,15 +40,18 @@ pub mod denoise;
 pub mod external;
 pub mod ingest_csv;
 pub mod ingest_iceoryx2;
+pub mod ingest_mcap;
 pub mod ingest_sim;
 pub mod predict;
 pub mod predict_bias;
 pub mod publish;
+pub mod replay;
 
 /// Every stage kind, in the order listed in messages and documentation.
 pub const KINDS: &[&Kind] = &[
     &ingest_sim::KIND,
     &ingest_csv::KIND,
+    &ingest_mcap::KIND,
     &ingest_iceoryx2::KIND,
     &denoise::WAVELET_KIND,
     &denoise::NONE_KIND,

@@ -115,17 +115,59 @@ pub fn csv(n: usize) -> String {
     s
 }
 
+/// Pipeline `c`: `data.csv` (see [`csv`]) replayed at `pace` (`realtime` or `asap`), looping
+/// or not, through `denoise.none` to `c/corrected`; a report every 60 s.
+pub fn csv_pipeline(pace: &str, looped: bool, buffer: usize) -> String {
+    format!(
+        r#"
+name = "c"
+rate_hz = 1000.0
+input_units = "deg/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {buffer}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "c/raw"
+file = "data.csv"
+time_column = "t"
+pace = "{pace}"
+loop = {looped}
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "c/raw"
+output = "c/denoised"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "c/denoised"
+output = "c/corrected"
+"#
+    )
+}
+
 /// Start `driftless run FILE --prefix P` with extra args; stderr is captured.
 pub fn start(pipeline: &Path, prefix: &Prefix, extra: &[&str]) -> Child {
-    Command::new(bin())
-        .arg("run")
-        .arg(pipeline)
-        .args(["--prefix", &prefix.0, "--quiet"])
+    run_command(pipeline, prefix)
+        .arg("--quiet")
         .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("spawn driftless")
+}
+
+/// `driftless run FILE --prefix P`, as a user types it (not quiet); the caller adds the rest.
+pub fn run_command(pipeline: &Path, prefix: &Prefix) -> Command {
+    let mut c = Command::new(bin());
+    c.arg("run").arg(pipeline).args(["--prefix", &prefix.0]);
+    c
 }
 
 /// Wait until the daemon's stats service exists (its chain is set up by then).
@@ -220,4 +262,16 @@ pub fn collect(input: &Input<GyroSample>, n: usize, timeout: Duration) -> Vec<Gy
 pub fn report(dir: &Dir) -> serde_json::Value {
     let text = std::fs::read_to_string(dir.path("report.json")).expect("report written");
     serde_json::from_str(&text).expect("report is JSON")
+}
+
+/// The subcommands, from `driftless --help` (so a new command is checked without editing this).
+pub fn subcommands() -> Vec<String> {
+    let help = String::from_utf8(driftless(&["--help"]).stdout).unwrap();
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(String::from))
+        .filter(|c| c != "help")
+        .collect()
 }

@@ -1,0 +1,216 @@
+//! What recording costs the daemon, and how fast the recorder keeps up, in one run:
+//!
+//! 1. `pipelines/demo.toml` at 1 kHz (as shipped, SCHED_FIFO 50 where permitted), alternately
+//!    without and with `driftless record demo/raw demo/corrected demo/stats` in another process:
+//!    the daemon's end-to-end p50 / p99.9 / max, deadline misses and losses, and what the
+//!    recorder wrote (samples, sequence gaps);
+//! 2. `pipelines/delivery.toml` flat out (10^6 samples), without and with a recorder of
+//!    `delivery/corrected` (the heaviest message): the daemon's throughput, the recorder's rate
+//!    (samples between its first and last receipt) and its sequence gaps.
+//!
+//! ```text
+//! cargo bench --bench record                        # 4 x 30 s at 1 kHz, then flat out
+//! DRIFTLESS_BENCH_SECONDS=10 cargo bench --bench record
+//! ```
+
+#[path = "support/mod.rs"]
+mod support;
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use driftless::io::recording::{Recording, METADATA_NAME};
+use driftless::transport::Transport;
+use serde_json::Value;
+use support::{clean, prefix, read_report, start_daemon, wait_exit_within};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn loadavg() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
+/// Wait until the service `name` exists (the daemon set its chain up).
+fn wait_service(p: &str, name: &str) {
+    let t = Transport::new(p, "bench-probe", Default::default()).expect("probe");
+    let end = Instant::now() + Duration::from_secs(10);
+    while !t.payload_type_name(name).is_ok_and(|n| n.is_some()) {
+        assert!(Instant::now() < end, "{name} did not appear");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// `driftless record ARGS` started and subscribed.
+fn recorder(
+    p: &str,
+    out: &Path,
+    services: &[&str],
+) -> (Child, BufReader<std::process::ChildStderr>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("record")
+        .args(services)
+        .arg("-o")
+        .arg(out)
+        .args(["--prefix", p])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn recorder");
+    let mut err = BufReader::new(child.stderr.take().expect("stderr"));
+    let mut line = String::new();
+    err.read_line(&mut line).expect("recorder's first line");
+    assert!(line.starts_with("driftless: recording"), "{line}");
+    (child, err)
+}
+
+/// Stop the recorder (SIGINT) and wait for its file; returns the CPU seconds it used.
+fn stop(mut child: Child, mut err: BufReader<std::process::ChildStderr>) -> f64 {
+    let cpu = support::cpu_seconds(child.id());
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGINT);
+    }
+    let mut rest = String::new();
+    let _ = std::io::Read::read_to_string(&mut err, &mut rest);
+    wait_exit_within(&mut child, Duration::from_secs(30));
+    assert!(rest.contains("wrote "), "recorder failed: {rest}");
+    cpu
+}
+
+/// Per recorded topic: (samples, missing by seq, first and last receipt time in ns).
+fn recorded(out: &Path) -> Vec<(String, u64, u64, f64)> {
+    let rec = Recording::open(out).expect("a complete recording");
+    let meta = rec.metadata(METADATA_NAME).expect("metadata").remove(0);
+    let bytes = std::fs::read(out).expect("read");
+    let mut span: std::collections::BTreeMap<String, (u64, u64)> = Default::default();
+    for m in mcap::MessageStream::new(&bytes).expect("mcap") {
+        let m = m.expect("message");
+        let e = span
+            .entry(m.channel.topic.clone())
+            .or_insert((m.log_time, m.log_time));
+        e.0 = e.0.min(m.log_time);
+        e.1 = e.1.max(m.log_time);
+    }
+    rec.channels()
+        .into_iter()
+        .map(|c| {
+            let service = c.topic.trim_start_matches('/').to_string();
+            let missing = meta
+                .get(&format!("{service}.missing"))
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(0);
+            let (t0, t1) = span.get(&c.topic).copied().unwrap_or((0, 0));
+            let rate = (c.messages.saturating_sub(1)) as f64 / ((t1 - t0) as f64 * 1e-9);
+            (service, c.messages, missing, rate)
+        })
+        .collect()
+}
+
+fn us(v: &Value) -> String {
+    format!("{:.1}", v.as_f64().unwrap_or(f64::NAN) / 1e3)
+}
+
+fn main() {
+    let quick = !std::env::args().any(|a| a == "--bench");
+    let secs: f64 = std::env::var("DRIFTLESS_BENCH_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(if quick { 2.0 } else { 30.0 });
+    let dir = tempfile::tempdir().expect("tempdir");
+    println!("load average at start: {}", loadavg());
+
+    // 1. 1 kHz, alternately without and with a recorder.
+    println!();
+    println!("| demo, 1 kHz | samples | p50 us | p99 us | p99.9 us | max us | 1 ms misses | daemon lost | recorded (raw / corrected / stats) | recorder gaps |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let demo = root().join("pipelines/demo.toml");
+    for (i, with) in [false, true, false, true].into_iter().enumerate() {
+        let p = prefix(&format!("rec1k{i}"));
+        clean(&p);
+        let report = dir.path().join(format!("1k{i}.json"));
+        let mut daemon = start_daemon(&demo, &p, &report, &["--duration", &format!("{secs}s")]);
+        wait_service(&p, "demo/stats");
+        let out = dir.path().join(format!("1k{i}.mcap"));
+        let rec = with.then(|| recorder(&p, &out, &["demo/raw", "demo/corrected", "demo/stats"]));
+        wait_exit_within(&mut daemon, Duration::from_secs_f64(secs + 30.0));
+        let (counts, gaps) = match rec {
+            Some((child, err)) => {
+                let cpu = stop(child, err);
+                let r = recorded(&out);
+                let total: u64 = r.iter().map(|t| t.1).sum();
+                eprintln!(
+                    "recorder: {:.2} CPU s for {total} samples ({:.1}% of a core)",
+                    cpu,
+                    cpu / secs * 100.0
+                );
+                let counts: Vec<String> = r.iter().map(|t| t.1.to_string()).collect();
+                let gaps: u64 = r.iter().map(|t| t.2).sum();
+                (counts.join(" / "), gaps.to_string())
+            }
+            None => ("-".into(), "-".into()),
+        };
+        clean(&p);
+        let r = read_report(&report);
+        let e = &r["end_to_end_ns"];
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {counts} | {gaps} |",
+            if with { "with recorder" } else { "without" },
+            r["samples_out"],
+            us(&e["p50"]),
+            us(&e["p99"]),
+            us(&e["p999"]),
+            us(&e["max"]),
+            r["deadline_misses"],
+            r["lost"],
+        );
+    }
+
+    // 2. Flat out, without and with a recorder of the corrected service.
+    println!();
+    println!("| delivery, flat out | daemon samples/s | daemon lost | recorded | recorder gaps | recorder samples/s | recorder CPU per sample (samples per CPU second) |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    let delivery = root().join("pipelines/delivery.toml");
+    for (i, with) in [false, true].into_iter().enumerate() {
+        let p = prefix(&format!("recfast{i}"));
+        clean(&p);
+        let report = dir.path().join(format!("fast{i}.json"));
+        let mut daemon = start_daemon(&delivery, &p, &report, &[]);
+        let out = dir.path().join(format!("fast{i}.mcap"));
+        let rec = with.then(|| {
+            wait_service(&p, "delivery/corrected");
+            recorder(&p, &out, &["delivery/corrected"])
+        });
+        wait_exit_within(&mut daemon, Duration::from_secs(120));
+        let cols = match rec {
+            Some((child, err)) => {
+                let cpu = stop(child, err);
+                let r = recorded(&out);
+                format!(
+                    "{} | {} | {:.0} | {:.2} us ({:.0}/s)",
+                    r[0].1,
+                    r[0].2,
+                    r[0].3,
+                    cpu / r[0].1 as f64 * 1e6,
+                    r[0].1 as f64 / cpu
+                )
+            }
+            None => "- | - | - | -".into(),
+        };
+        clean(&p);
+        let r = read_report(&report);
+        let tp = r["samples_out"].as_f64().unwrap_or(0.0) / r["duration_s"].as_f64().unwrap_or(1.0);
+        println!(
+            "| {} | {tp:.0} | {} | {cols} |",
+            if with { "with recorder" } else { "without" },
+            r["lost"]
+        );
+    }
+    println!();
+    println!("load average at end: {}", loadavg());
+}

@@ -1,0 +1,172 @@
+//! What the file replays (`ingest.csv`, `ingest.mcap`) share: a reader thread turns the file
+//! into blocks of raw samples, four blocks ahead on a bounded channel; the hot thread takes a
+//! block when the last is spent and hands the spent one back for reuse, so neither allocates per
+//! sample and memory stays bounded whatever the file's length; the hot thread paces the samples
+//! by their timestamps (`realtime`) or not at all (`asap`).
+
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
+
+use crate::pipeline::schema::{Key, Type};
+use crate::pipeline::stage::{Poll, Source};
+use crate::transport::{monotonic_ns, RawSample};
+
+/// Samples per block the reader thread hands to the hot thread.
+const BLOCK_ROWS: usize = 4096;
+/// Blocks read ahead: 16k samples (16 ms at 1 kHz flat out, 16 s at 1 kHz real time).
+const BLOCKS_AHEAD: usize = 4;
+
+/// The `pace` key of a replay.
+pub const PACE: Key = Key {
+    name: "pace",
+    ty: Type::Choice(&["realtime", "asap"]),
+    default: "\"realtime\"",
+    doc: "at the file's rate, or as fast as possible",
+};
+
+/// The `loop` key of a replay.
+pub const LOOP: Key = Key {
+    name: "loop",
+    ty: Type::Bool,
+    default: "false",
+    doc: "replay again from the start at the end of the file",
+};
+
+/// Pacing of a replay.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pace {
+    /// At the file's rate (the samples' timestamps).
+    Realtime,
+    /// As fast as possible.
+    Asap,
+}
+
+impl Pace {
+    /// The pace a validated `pace` value names (`realtime` when absent).
+    pub fn from_key(value: Option<&str>) -> Pace {
+        match value {
+            Some("asap") => Pace::Asap,
+            _ => Pace::Realtime,
+        }
+    }
+}
+
+/// The reader thread's end of a replay: samples go in, full blocks go to the hot thread.
+pub struct BlockSink {
+    tx: Sender<Vec<RawSample>>,
+    spare: Receiver<Vec<RawSample>>,
+    block: Vec<RawSample>,
+}
+
+impl BlockSink {
+    /// Queue one sample; false when the replay is gone (stop reading).
+    pub fn push(&mut self, sample: RawSample) -> bool {
+        self.block.push(sample);
+        self.block.len() < BLOCK_ROWS || self.send()
+    }
+
+    /// Hand the filled block to the hot thread and take an empty one; false when the replay is
+    /// gone.
+    fn send(&mut self) -> bool {
+        if self.block.is_empty() {
+            return true;
+        }
+        let mut next = self
+            .spare
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BLOCK_ROWS));
+        next.clear();
+        self.tx
+            .send(std::mem::replace(&mut self.block, next))
+            .is_ok()
+    }
+}
+
+impl Drop for BlockSink {
+    /// The last, partial block reaches the hot thread when the reader ends.
+    fn drop(&mut self) {
+        let _ = self.send();
+    }
+}
+
+/// The hot thread's end of a replay: a [`Source`] over the reader thread's blocks.
+pub struct BlockReplay {
+    blocks: Receiver<Vec<RawSample>>,
+    spent: Sender<Vec<RawSample>>,
+    block: Vec<RawSample>,
+    next: usize,
+    pace: Pace,
+    start: Option<(Instant, u64)>,
+}
+
+impl BlockReplay {
+    /// Start the reader thread `name` running `read` (it pushes samples into its sink and
+    /// returns at the end of the file or when a push returns false).
+    pub fn spawn(
+        name: &str,
+        pace: Pace,
+        read: impl FnOnce(&mut BlockSink) + Send + 'static,
+    ) -> Result<Self, String> {
+        let (tx, blocks) = bounded(BLOCKS_AHEAD);
+        // Room for every block there is: handing one back never blocks the hot thread.
+        let (spent, spare) = bounded(BLOCKS_AHEAD + 2);
+        std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || {
+                let mut sink = BlockSink {
+                    tx,
+                    spare,
+                    block: Vec::with_capacity(BLOCK_ROWS),
+                };
+                read(&mut sink);
+            })
+            .map_err(|e| format!("cannot start the {name} reader thread: {e}"))?;
+        Ok(BlockReplay {
+            blocks,
+            spent,
+            block: Vec::new(),
+            next: 0,
+            pace,
+            start: None,
+        })
+    }
+}
+
+impl Source for BlockReplay {
+    fn poll(&mut self, stop: &AtomicBool) -> Poll {
+        if self.next == self.block.len() {
+            let spent = std::mem::take(&mut self.block);
+            if spent.capacity() > 0 {
+                let _ = self.spent.try_send(spent);
+            }
+            self.next = 0;
+            // Normally a block is waiting; flat out the reader may be behind for a moment.
+            self.block = match self.blocks.try_recv() {
+                Ok(b) => b,
+                Err(TryRecvError::Disconnected) => return Poll::End,
+                Err(TryRecvError::Empty) => {
+                    match self.blocks.recv_timeout(Duration::from_millis(20)) {
+                        Ok(b) => b,
+                        Err(RecvTimeoutError::Timeout) => return Poll::Idle,
+                        Err(RecvTimeoutError::Disconnected) => return Poll::End,
+                    }
+                }
+            };
+            if self.block.is_empty() {
+                return Poll::Idle;
+            }
+        }
+        let sample = self.block[self.next];
+        if self.pace == Pace::Realtime {
+            let (t0, first_t) = *self.start.get_or_insert((Instant::now(), sample.t_ns));
+            let due = t0 + Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
+            if !crate::stages::sleep_until(due, stop) {
+                return Poll::Idle;
+            }
+        }
+        self.next += 1;
+        Poll::Sample(sample, monotonic_ns())
+    }
+}
