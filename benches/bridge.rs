@@ -16,7 +16,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -25,42 +25,12 @@ use hdrhistogram::Histogram;
 use serde_json::Value;
 use zenoh::Wait;
 
+mod support;
+
+use support::{bench_seconds, clean, loadavg, prefix, read_report, sigterm_and_wait, start_daemon};
+
 fn hist() -> Histogram<u64> {
     Histogram::new_with_bounds(1, 60_000_000_000, 3).expect("bounds")
-}
-
-fn clean(prefix: &str) {
-    for dir in [
-        "/dev/shm",
-        "/tmp/iceoryx2/nodes",
-        "/tmp/iceoryx2/services",
-        "/tmp/iceoryx2",
-    ] {
-        if let Ok(rd) = std::fs::read_dir(dir) {
-            for e in rd.flatten() {
-                if e.file_name().to_string_lossy().starts_with(prefix) {
-                    let _ = std::fs::remove_file(e.path());
-                    let _ = std::fs::remove_dir_all(e.path());
-                }
-            }
-        }
-    }
-}
-
-fn sigterm_and_wait(child: &mut Child) {
-    // SAFETY: kill(2) on our own child.
-    unsafe {
-        libc::kill(child.id() as i32, libc::SIGTERM);
-    }
-    let end = Instant::now() + Duration::from_secs(30);
-    while Instant::now() < end {
-        if let Ok(Some(_)) = child.try_wait() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let _ = child.kill();
-    let _ = child.wait();
 }
 
 /// Samples received over one path: (epoch, seq) in arrival order and the latency histogram
@@ -89,18 +59,10 @@ struct Run {
 }
 
 fn run(pipeline: &Path, tag: &str, secs: f64, bridge: bool, dir: &Path) -> Run {
-    let prefix = format!("dlbench{}{tag}_", std::process::id());
+    let prefix = prefix(tag);
     clean(&prefix);
     let report = dir.join(format!("{tag}.json"));
-    let mut daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .arg("run")
-        .arg(pipeline)
-        .args(["--prefix", &prefix, "--quiet", "--report"])
-        .arg(&report)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn driftless");
+    let mut daemon = start_daemon(pipeline, &prefix, &report, &[]);
     let me = Transport::new(&prefix, "bench-sub", Qos::default()).expect("node");
     let t = Instant::now();
     let input = loop {
@@ -196,9 +158,8 @@ fn run(pipeline: &Path, tag: &str, secs: f64, bridge: bool, dir: &Path) -> Run {
     });
     drop((input, waker, me));
     clean(&prefix);
-    let text = std::fs::read_to_string(&report).expect("report");
     Run {
-        report: serde_json::from_str(&text).expect("json"),
+        report: read_report(&report),
         iox,
         zenoh,
     }
@@ -233,25 +194,14 @@ fn daemon_row(name: &str, r: &Value) {
     );
 }
 
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_default()
-}
-
 fn main() {
-    // `cargo bench` passes --bench; `cargo test --benches` runs it too: keep that short.
-    let quick = !std::env::args().any(|a| a == "--bench");
-    let secs: f64 = std::env::var("DRIFTLESS_BENCH_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(if quick { 2.0 } else { 100.0 });
+    let secs = bench_seconds(100.0);
     let dir = tempfile::tempdir().expect("tempdir");
     let pipeline: PathBuf = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("pipelines/demo.toml");
-    println!("load before: {}", load());
+    println!("load before: {}", loadavg());
     let without = run(&pipeline, "nobr", secs, false, dir.path());
     let with = run(&pipeline, "br", secs, true, dir.path());
-    println!("load after: {}", load());
+    println!("load after: {}", loadavg());
     let (far, summary) = with.zenoh.as_ref().expect("bridged run");
 
     // Exactly once: every sample the iceoryx2 subscriber saw from the bridge's first one on,

@@ -20,7 +20,10 @@ use std::time::{Duration, Instant};
 #[path = "support/mod.rs"]
 mod support;
 
-use support::{clean, cpu_seconds, prefix, read_report, start_daemon, wait_exit};
+use support::{
+    bench_seconds, clean, cpu_seconds, prefix, read_report, sigterm_and_wait, start_daemon,
+    wait_exit,
+};
 
 use driftless::transport::{monotonic_ns, GyroSample, Qos, RawSample, Transport, FLAG_FLUSHED};
 use hdrhistogram::Histogram;
@@ -172,11 +175,7 @@ fn paced(
         }
     }
     let cpu = (cpu_seconds(child.id()) - cpu0) / t0.elapsed().as_secs_f64();
-    // SAFETY: kill(2) on our own child.
-    unsafe {
-        libc::kill(child.id() as i32, libc::SIGTERM);
-    }
-    wait_exit(&mut child);
+    sigterm_and_wait(&mut child);
     drop(input);
     drop(waker);
     drop(me);
@@ -199,12 +198,7 @@ fn realtime(priority: i32) -> bool {
 }
 
 fn main() {
-    // `cargo bench` passes --bench; `cargo test --benches` runs it too: keep that short.
-    let quick = !std::env::args().any(|a| a == "--bench");
-    let secs: f64 = std::env::var("DRIFTLESS_BENCH_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(if quick { 2.0 } else { 100.0 });
+    let secs = bench_seconds(100.0);
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rows = Vec::new();
     let rt = realtime(50);

@@ -24,16 +24,10 @@ use std::time::{Duration, Instant};
 use driftless::io::recording::{Recording, METADATA_NAME};
 use driftless::transport::Transport;
 use serde_json::Value;
-use support::{clean, prefix, read_report, start_daemon, wait_exit_within};
+use support::{bench_seconds, clean, loadavg, prefix, read_report, start_daemon, wait_exit_within};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn loadavg() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_default()
 }
 
 /// Wait until the service `name` exists (the daemon set its chain up).
@@ -117,11 +111,7 @@ fn us(v: &Value) -> String {
 }
 
 fn main() {
-    let quick = !std::env::args().any(|a| a == "--bench");
-    let secs: f64 = std::env::var("DRIFTLESS_BENCH_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(if quick { 2.0 } else { 30.0 });
+    let secs = bench_seconds(30.0);
     let dir = tempfile::tempdir().expect("tempdir");
     println!("load average at start: {}", loadavg());
 

@@ -139,6 +139,18 @@ impl Bridge {
         }
         (code, self.seen)
     }
+
+    /// SIGTERM; it exits 0 with `summary` as its `bridge: done:` line. Returns every line.
+    fn stop(self, summary: &str) -> Vec<String> {
+        signal(&self.child, SIGTERM);
+        let (code, lines) = self.finish(Duration::from_secs(10));
+        assert_eq!(code, Some(0), "{lines:?}");
+        assert!(
+            lines.iter().any(|l| l == summary),
+            "{summary:?} in {lines:?}"
+        );
+        lines
+    }
 }
 
 /// Decoded at the offsets README.md documents (not with the crate's own decoder).
@@ -299,16 +311,9 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
     while let Ok(g) = far.recv_timeout(Duration::from_millis(300)) {
         got.push(g);
     }
-    signal(&bridge.child, SIGTERM);
-    let (code, lines) = bridge.finish(Duration::from_secs(10));
-    assert_eq!(code, Some(0), "{lines:?}");
-    let summary = format!(
+    let lines = bridge.stop(&format!(
         "bridge: done: t/corrected -> driftless/t/corrected: {N} forwarded, 0 missing (sequence gaps), 0 put errors"
-    );
-    assert!(
-        lines.iter().any(|l| l == &summary),
-        "{summary:?} in {lines:?}"
-    );
+    ));
     assert!(
         lines
             .iter()
@@ -542,16 +547,9 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
         pace(t0, i);
     }
     let got = through_shutdown(&corrected, daemon, N, LAG);
-    signal(&bridge.child, SIGTERM);
-    let (code, lines) = bridge.finish(Duration::from_secs(10));
-    assert_eq!(code, Some(0), "{lines:?}");
-    let summary = format!(
+    let lines = bridge.stop(&format!(
         "bridge: done: remote/raw -> t/sensor: {N} forwarded, 0 missing (sequence gaps), 1 rejected, 0 lost by full iceoryx2 buffers"
-    );
-    assert!(
-        lines.iter().any(|l| l == &summary),
-        "{summary:?} in {lines:?}"
-    );
+    ));
     assert!(
         lines.iter().any(|l| l.contains("payload of 12 bytes")),
         "the refused sample is reported: {lines:?}"

@@ -8,6 +8,23 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
+/// Seconds per measured run: `DRIFTLESS_BENCH_SECONDS`, else `full` under `cargo bench` (which
+/// passes --bench) and 2 s when `cargo test --benches` runs the bench as a check.
+pub fn bench_seconds(full: f64) -> f64 {
+    let quick = !std::env::args().any(|a| a == "--bench");
+    std::env::var("DRIFTLESS_BENCH_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(if quick { 2.0 } else { full })
+}
+
+/// The 1, 5 and 15 minute load averages (/proc/loadavg), for the machine's load beside a result.
+pub fn loadavg() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
 pub fn prefix(tag: &str) -> String {
     format!("dlbench{}{tag}_", std::process::id())
 }
@@ -61,6 +78,15 @@ pub fn start_daemon(pipeline: &Path, prefix: &str, report: &Path, extra: &[&str]
         .stderr(Stdio::null())
         .spawn()
         .expect("spawn driftless")
+}
+
+/// SIGTERM to `child` (a daemon or bridge stops cleanly on it), then [`wait_exit`].
+pub fn sigterm_and_wait(child: &mut Child) {
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
+    }
+    wait_exit(child);
 }
 
 pub fn wait_exit(child: &mut Child) {
