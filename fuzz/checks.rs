@@ -76,3 +76,49 @@ pub fn check_csv(data: &[u8]) {
         }
     });
 }
+
+/// A recording (MCAP) for `ingest.mcap`: opening, listing, metadata and decoding every message
+/// never panic (an error names the file), and a pipeline replaying it validates or is refused
+/// with file:line:col.
+pub fn check_recording(data: &[u8]) {
+    use driftless::io::recording::{RawMessage, Recording, METADATA_NAME};
+    thread_local! {
+        static DIR: std::path::PathBuf = {
+            let d = std::env::temp_dir().join(format!(
+                "driftless-fuzz-mcap-{}-{:?}",
+                std::process::id(),
+                std::thread::current().id()
+            ));
+            std::fs::create_dir_all(&d).expect("temporary folder");
+            d
+        };
+    }
+    DIR.with(|dir| {
+        let path = dir.join("rec.mcap");
+        std::fs::write(&path, data).expect("temporary file");
+        let shown = path.display().to_string();
+        match Recording::open(&path) {
+            Err(e) => assert!(e.starts_with(&shown), "the error names the file: {e}"),
+            Ok(rec) => {
+                if let Err(e) = rec.metadata(METADATA_NAME) {
+                    assert!(e.starts_with(&shown), "{e}");
+                }
+                for c in rec.channels() {
+                    for m in rec.messages::<RawMessage>(&c.topic).take(100_000) {
+                        if let Err(e) = m {
+                            assert!(e.starts_with(&shown), "{e}");
+                        }
+                    }
+                }
+            }
+        }
+        let pipeline = "name = \"f\"\nrate_hz = 100.0\n\n[[stage]]\nname = \"sensor\"\n\
+            kind = \"ingest.mcap\"\noutput = \"f/raw\"\nfile = \"rec.mcap\"\n\n[[stage]]\n\
+            name = \"publish\"\nkind = \"publish\"\ninput = \"f/raw\"\noutput = \"f/corrected\"\n";
+        let toml = dir.join("p.toml");
+        if let Err(e) = driftless::pipeline::config::parse(&toml, pipeline) {
+            let e = e.to_string();
+            assert!(e.starts_with(&format!("{}:8:", toml.display())), "{e}");
+        }
+    });
+}

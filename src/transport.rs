@@ -48,6 +48,17 @@ pub const DEFAULT_PREFIX: &str = "driftless_";
 /// Environment variable that overrides the iceoryx2 prefix (tests give each run its own).
 pub const PREFIX_ENV: &str = "DRIFTLESS_IOX2_PREFIX";
 
+/// iceoryx2's own root directory (its node and service files) on Linux, used unless
+/// [`set_root`] says otherwise. The shared memory itself is in `/dev/shm` either way.
+pub const DEFAULT_ROOT: &str = "/tmp/iceoryx2";
+
+/// Environment variable that sets iceoryx2's root directory (overrides the pipeline's
+/// `[iceoryx2] root_path`; `--root-path` overrides it).
+pub const ROOT_ENV: &str = "DRIFTLESS_IOX2_ROOT";
+
+/// The root directory every node of this process uses (`None`: [`DEFAULT_ROOT`]).
+static ROOT: std::sync::RwLock<Option<std::path::PathBuf>> = std::sync::RwLock::new(None);
+
 /// Raw-sample flag: the sensor driver marks the sample as invalid.
 pub const RAW_INVALID: u32 = 1;
 
@@ -401,6 +412,16 @@ pub enum TransportError {
         /// The buffer the pipeline asks for.
         need: usize,
     },
+    /// iceoryx2's files belong to another user: what, whose, and how to fix it.
+    #[error("{what} {name:?}: {problem}")]
+    Permission {
+        /// What was being set up.
+        what: &'static str,
+        /// Its name.
+        name: String,
+        /// Which file or directory, its owner and mode, and the ways out.
+        problem: String,
+    },
     /// Sending or receiving failed at run time.
     #[error("{what}: {reason}")]
     Io {
@@ -412,11 +433,86 @@ pub enum TransportError {
 }
 
 fn setup(what: &'static str, name: &str, e: impl Debug) -> TransportError {
+    let reason = format!("{e:?}");
+    // iceoryx2 says only `InsufficientPermissions`, or even `InternalError`: say whose files.
+    let culprit = foreign_directory();
+    if culprit.is_some() || reason.contains("Permission") {
+        return TransportError::Permission {
+            what,
+            name: name.to_string(),
+            problem: access_problem(culprit, &reason),
+        };
+    }
     TransportError::Setup {
         what,
         name: name.to_string(),
-        reason: format!("{e:?}"),
+        reason,
     }
+}
+
+/// A user's name and id, as `name (uid N)`, or `uid N` when it has no name.
+fn who(uid: u32) -> String {
+    match user_name(uid) {
+        Some(n) => format!("{n} (uid {uid})"),
+        None => format!("uid {uid}"),
+    }
+}
+
+/// The first of iceoryx2's directories (root, nodes, services) that belongs to another user
+/// without granting this process access, or that it cannot create: with owner and mode.
+fn foreign_directory() -> Option<String> {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: geteuid cannot fail.
+    let me = unsafe { libc::geteuid() };
+    if me == 0 {
+        return None;
+    }
+    let root = root();
+    for dir in [root.clone(), root.join("nodes"), root.join("services")] {
+        match std::fs::metadata(&dir) {
+            Ok(m) if m.uid() != me && m.mode() & 0o002 == 0 => {
+                return Some(format!(
+                    "iceoryx2's directory {} belongs to {}, mode {:04o}",
+                    dir.display(),
+                    who(m.uid()),
+                    m.mode() & 0o7777
+                ));
+            }
+            Ok(_) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                let parent = dir.parent().unwrap_or(&dir);
+                let m = std::fs::metadata(parent).ok()?;
+                return (m.uid() != me && m.mode() & 0o002 == 0).then(|| {
+                    format!(
+                        "iceoryx2 cannot create {}: {} belongs to {}, mode {:04o}",
+                        dir.display(),
+                        parent.display(),
+                        who(m.uid()),
+                        m.mode() & 0o7777
+                    )
+                });
+            }
+            Err(e) => return Some(format!("{}: {e}", dir.display())),
+        }
+    }
+    None
+}
+
+/// The refusal in full: whose files (or iceoryx2's own words), who we are, the ways out.
+fn access_problem(culprit: Option<String>, reason: &str) -> String {
+    // SAFETY: geteuid cannot fail.
+    let me = unsafe { libc::geteuid() };
+    let root = root();
+    let culprit =
+        culprit.unwrap_or_else(|| format!("iceoryx2 says {reason} (under {})", root.display()));
+    format!(
+        "{culprit}; this process runs as {}. iceoryx2's files are for one user: run the daemon \
+         and every process that talks to it as the same user (README, \"Users and \
+         permissions\"), or give your own pipelines their own directory: `root_path = \"...\"` \
+         under [iceoryx2] in the pipeline file, or {ROOT_ENV}=..., or --root-path, the same for \
+         the daemon and its subscribers",
+        who(me)
+    )
 }
 
 /// Quality of service of every service the daemon creates (one definition, see module docs).
@@ -458,6 +554,43 @@ fn service_name(name: &str) -> Result<ServiceName, TransportError> {
     })
 }
 
+/// Check that `root` can be iceoryx2's root directory: an absolute path iceoryx2 accepts.
+pub fn check_root(root: &std::path::Path) -> Result<(), String> {
+    iox_root(root).map(|_| ())
+}
+
+fn iox_root(root: &std::path::Path) -> Result<Path, String> {
+    use std::os::unix::ffi::OsStrExt;
+    if !root.is_absolute() {
+        return Err("must be an absolute path".into());
+    }
+    // iceoryx2 joins its directory names to the root as to a string.
+    let mut bytes = root.as_os_str().as_bytes().to_vec();
+    if !bytes.ends_with(b"/") {
+        bytes.push(b'/');
+    }
+    Path::new(&bytes).map_err(|e| format!("not a path iceoryx2 accepts: {e:?}"))
+}
+
+/// Set iceoryx2's root directory for every node this process creates from now on (`None`:
+/// [`DEFAULT_ROOT`]). Process-wide, as iceoryx2's own global configuration: a daemon and every
+/// process that talks to it must use the same root directory and prefix.
+pub fn set_root(root: Option<std::path::PathBuf>) -> Result<(), String> {
+    if let Some(r) = &root {
+        check_root(r)?;
+    }
+    *ROOT.write().unwrap_or_else(|e| e.into_inner()) = root;
+    Ok(())
+}
+
+/// iceoryx2's root directory in force in this process.
+pub fn root() -> std::path::PathBuf {
+    ROOT.read()
+        .unwrap_or_else(|e| e.into_inner())
+        .clone()
+        .unwrap_or_else(|| DEFAULT_ROOT.into())
+}
+
 /// The explicit iceoryx2 configuration (never the silently discovered `config/iceoryx2.toml`).
 fn config(prefix: &str) -> Result<Config, TransportError> {
     let mut cfg = Config::default();
@@ -465,6 +598,13 @@ fn config(prefix: &str) -> Result<Config, TransportError> {
         name: prefix.to_string(),
         reason: format!("{e:?}"),
     })?;
+    if let Some(r) = ROOT.read().unwrap_or_else(|e| e.into_inner()).as_deref() {
+        let path = iox_root(r).map_err(|reason| TransportError::Name {
+            name: r.display().to_string(),
+            reason,
+        })?;
+        cfg.global.set_root_path(&path);
+    }
     Ok(cfg)
 }
 
@@ -496,6 +636,7 @@ impl Transport {
             .create::<Svc>()
             .map_err(|e| setup("node", node_name, e))?;
         node.try_cleanup_dead_nodes();
+        restrict_global_segment(prefix);
         Ok(Transport {
             node,
             qos,
@@ -1267,14 +1408,39 @@ pub fn user_name(uid: u32) -> Option<String> {
     Some(name.to_string_lossy().into_owned())
 }
 
+/// iceoryx2 0.10 makes each prefix's global management segment (a node counter in `/dev/shm`)
+/// readable and writable by every user, the one resource it opens to all: make ours the
+/// owner's alone, as everything else it creates is (a process of another user is then refused,
+/// as by the rest).
+fn restrict_global_segment(prefix: &str) {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    // SAFETY: geteuid cannot fail.
+    let me = unsafe { libc::geteuid() };
+    let Ok(entries) = std::fs::read_dir("/dev/shm") else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if !(name.starts_with(prefix) && name.ends_with(".global_mgmt")) {
+            continue;
+        }
+        if let Ok(m) = e.metadata() {
+            if m.uid() == me && m.mode() & 0o077 != 0 {
+                let _ = std::fs::set_permissions(e.path(), std::fs::Permissions::from_mode(0o600));
+            }
+        }
+    }
+}
+
 /// Remove the files iceoryx2 leaves for `prefix` once no node of it is left (the per-prefix
 /// management file in `/dev/shm`). Does nothing while a node of the prefix is alive.
 pub fn remove_prefix_leftovers(prefix: &str) {
     if Transport::node_count(prefix).map_or(true, |n| n > 0) {
         return;
     }
-    for dir in ["/dev/shm", "/tmp/iceoryx2"] {
-        remove_files_with_prefix(std::path::Path::new(dir), prefix);
+    for dir in [std::path::PathBuf::from("/dev/shm"), root()] {
+        remove_files_with_prefix(&dir, prefix);
     }
 }
 

@@ -46,3 +46,8 @@ fn model_files_of_the_corpus_and_past_crashes() {
 fn csv_logs_of_the_corpus_and_past_crashes() {
     run_all("csv", check_csv);
 }
+
+#[test]
+fn recordings_of_the_corpus_and_past_crashes() {
+    run_all("recording", check_recording);
+}

@@ -45,9 +45,9 @@ pub struct Args {
     /// Subscriber buffer of the service --to creates (the pipeline's buffer_size).
     #[arg(long, default_value_t = 256)]
     pub buffer_size: usize,
-    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Zenoh session mode (default: the --zenoh-config file's, else peer).
     #[arg(long, value_enum)]
     pub mode: Option<Mode>,
@@ -95,7 +95,6 @@ mod imp {
     use std::time::{Duration, Instant};
 
     use super::{Args, Mode};
-    use crate::cli::run::effective_prefix;
     use crate::cli::CliError;
     use crate::transport::zenoh::{self as z, KeyExpr, Receiver, Sender, Session, ZenohError};
     use crate::transport::{
@@ -167,7 +166,7 @@ mod imp {
 
     pub(super) fn run(args: Args) -> Result<(), CliError> {
         transport::quiet_logging();
-        let prefix = effective_prefix(args.prefix.as_deref(), transport::DEFAULT_PREFIX)?;
+        let prefix = args.iceoryx2.resolve(None)?;
         let opts = z::Options {
             config_file: args.zenoh_config.clone(),
             mode: args.mode.map(|m| match m {

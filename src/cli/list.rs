@@ -11,7 +11,6 @@ use std::time::Duration;
 
 use serde_json::{json, Value};
 
-use crate::cli::run::effective_prefix;
 use crate::cli::CliError;
 use crate::pipeline::runtime::{node_name, stats_node_name};
 use crate::transport::{
@@ -22,9 +21,9 @@ use crate::transport::{
 /// Arguments of `driftless list`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Print one JSON document instead of the tables.
     #[arg(long)]
     pub json: bool,
@@ -409,7 +408,7 @@ fn internal(e: transport::TransportError) -> CliError {
 /// List what runs under the prefix (after removing dead nodes' leftovers with `--clean`).
 pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
-    let prefix = effective_prefix(args.prefix.as_deref(), transport::DEFAULT_PREFIX)?;
+    let prefix = args.iceoryx2.resolve(None)?;
     let result = list(&args, &prefix);
     // The last process of a prefix removes its management file.
     transport::remove_prefix_leftovers(&prefix);

@@ -21,6 +21,7 @@ pub mod completions;
 pub mod denoise;
 pub mod duration;
 pub mod eval;
+pub mod iceoryx2;
 pub mod list;
 pub mod man;
 pub mod nav_eval;

@@ -20,7 +20,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
 
-use crate::cli::run::effective_prefix;
 use crate::cli::CliError;
 use crate::io::recording::{
     self, GyroMessage, RawMessage, ServiceCounts, StatsMessage, MESSAGE_ENCODING, METADATA_NAME,
@@ -47,9 +46,9 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub duration: Option<Duration>,
-    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Units of raw services' rates (the pipeline's input_units), stored with their channels.
     #[arg(long, value_parser = ["deg/s", "rad/s"])]
     pub raw_units: Option<String>,
@@ -145,7 +144,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             return Err(CliError::input(format!("service {s:?} named twice")));
         }
     }
-    let prefix = effective_prefix(args.prefix.as_deref(), transport::DEFAULT_PREFIX)?;
+    let prefix = args.iceoryx2.resolve(None)?;
     // Before anything exists on disk: a signal from now on ends the recording cleanly.
     let sigint = Arc::new(AtomicBool::new(false));
     let sigterm = Arc::new(AtomicBool::new(false));

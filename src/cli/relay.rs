@@ -27,9 +27,9 @@ pub struct Args {
     /// Exit after this many samples (default: until SIGINT/SIGTERM).
     #[arg(long)]
     pub count: Option<u64>,
-    /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX (default driftless_).
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Sleep this many microseconds before relaying each sample (plays a slow stage).
     #[arg(long, default_value_t = 0)]
     pub delay_us: u64,
@@ -40,8 +40,7 @@ pub struct Args {
 
 /// Relay until stopped or `--count` samples; prints "ready" on stderr once subscribed.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let prefix =
-        crate::cli::run::effective_prefix(args.prefix.as_deref(), transport::DEFAULT_PREFIX)?;
+    let prefix = args.iceoryx2.resolve(None)?;
     for (what, name) in [("--input", &args.input), ("--output", &args.output)] {
         transport::check_service_name(name)
             .map_err(|e| CliError::input(format!("{what} {name:?}: {e}")))?;

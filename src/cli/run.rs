@@ -23,23 +23,12 @@ pub struct Args {
     /// Write the final report as JSON to this file.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX and the pipeline's setting.
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// No start line and no periodic summary line on stderr (the final table is still printed).
     #[arg(long, short)]
     pub quiet: bool,
-}
-
-/// The iceoryx2 prefix in force: `--prefix`, else `DRIFTLESS_IOX2_PREFIX`, else the pipeline's.
-pub fn effective_prefix(cli: Option<&str>, pipeline_prefix: &str) -> Result<String, CliError> {
-    let prefix = match cli {
-        Some(p) => p.to_string(),
-        None => std::env::var(transport::PREFIX_ENV).unwrap_or_else(|_| pipeline_prefix.into()),
-    };
-    transport::check_prefix(&prefix)
-        .map_err(|e| CliError::input(format!("invalid iceoryx2 prefix {prefix:?}: {e}")))?;
-    Ok(prefix)
 }
 
 /// How to run a second daemon of a pipeline whose prefix `prefix` is taken: the three ways to
@@ -69,7 +58,7 @@ fn write_report(path: &Path, report: &crate::metrics::Report) -> Result<(), CliE
 /// Run a pipeline until SIGINT/SIGTERM, `--duration`, or the end of a finite source.
 pub fn run(args: Args) -> Result<(), CliError> {
     let pipeline: Pipeline = config::load(&args.pipeline)?;
-    let prefix = effective_prefix(args.prefix.as_deref(), &pipeline.iceoryx2.prefix)?;
+    let prefix = args.iceoryx2.resolve(Some(&pipeline.iceoryx2))?;
     if let Some(r) = &args.report {
         if r.is_dir() {
             return Err(CliError::input(format!(

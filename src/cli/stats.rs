@@ -6,7 +6,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::cli::run::effective_prefix;
 use crate::cli::CliError;
 use crate::pipeline::config;
 use crate::transport::{self, StatsSnapshot, Transport};
@@ -16,9 +15,9 @@ use crate::transport::{self, StatsSnapshot, Transport};
 pub struct Args {
     /// Pipeline file of the running daemon (for its stats service and prefix).
     pub pipeline: PathBuf,
-    /// iceoryx2 prefix; overrides DRIFTLESS_IOX2_PREFIX and the pipeline's setting.
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Print one snapshot and exit.
     #[arg(long)]
     pub once: bool,
@@ -31,7 +30,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
     let p = config::load(&args.pipeline)?;
-    let prefix = effective_prefix(args.prefix.as_deref(), &p.iceoryx2.prefix)?;
+    let prefix = args.iceoryx2.resolve(Some(&p.iceoryx2))?;
     let result = watch(&args, &p, &prefix);
     // The last process of a prefix removes its management file.
     transport::remove_prefix_leftovers(&prefix);

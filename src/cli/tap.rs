@@ -6,7 +6,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::cli::run::effective_prefix;
 use crate::cli::CliError;
 use crate::transport::{self, GyroSample, Input, RawSample, StatsSnapshot, Transport, RAW_INVALID};
 
@@ -61,9 +60,9 @@ impl RateUnits {
 pub struct Args {
     /// Service name, e.g. demo/corrected (any hop of a pipeline, or a raw sensor service).
     pub service: String,
-    /// iceoryx2 prefix (default: DRIFTLESS_IOX2_PREFIX or driftless_).
-    #[arg(long)]
-    pub prefix: Option<String>,
+    /// Where the pipeline's iceoryx2 files are.
+    #[command(flatten)]
+    pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     pub format: Format,
@@ -317,7 +316,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
     transport::check_service_name(&args.service)
         .map_err(|e| CliError::input(format!("invalid service name {:?}: {e}", args.service)))?;
-    let prefix = effective_prefix(args.prefix.as_deref(), transport::DEFAULT_PREFIX)?;
+    let prefix = args.iceoryx2.resolve(None)?;
     let result = tap(&args, &prefix);
     // The last process of a prefix removes its management file.
     transport::remove_prefix_leftovers(&prefix);

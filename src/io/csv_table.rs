@@ -807,10 +807,45 @@ pub fn write_table_with_time(
     .map_err(io_err)
 }
 
+/// Whether the finite `v` is exactly halfway between the decimal `digits` x 10^`k` and its
+/// neighbour one unit in the last digit away: then two candidates are equally short and equally
+/// close. Exactly `|v| = c 10^(k-1)` with `c = 10 D +- 5 = 5 (2 D +- 1)`, so with
+/// `|v| = m 2^e`, m odd: `e = k - 1` and `m = (2 D +- 1) 5^k` (or `m 5^-k = 2 D +- 1` for
+/// k < 0). This needs 5^|k| below 2^53 and a D of 16 or more digits (a decimal step of a
+/// shorter D is wider than the value's rounding interval), so the check is cheap and rare.
+fn is_decimal_tie(v: f64, digits: &[u8], k: i32) -> bool {
+    if digits.len() < 16 || digits.len() > 19 {
+        return false;
+    }
+    let d = digits
+        .iter()
+        .fold(0u128, |acc, &b| acc * 10 + u128::from(b - b'0'));
+    let bits = v.abs().to_bits();
+    let (exp, frac) = ((bits >> 52) as i32, bits & ((1 << 52) - 1));
+    let (mut m, mut e) = if exp == 0 {
+        (frac, -1074)
+    } else {
+        (frac | 1 << 52, exp - 1075)
+    };
+    if m == 0 {
+        return false;
+    }
+    e += m.trailing_zeros() as i32;
+    m >>= m.trailing_zeros();
+    if e != k - 1 || k.unsigned_abs() > 27 {
+        return false;
+    }
+    let m = u128::from(m);
+    let five = 5u128.pow(k.unsigned_abs());
+    [2 * d + 1, 2 * d - 1]
+        .into_iter()
+        .any(|c| if k >= 0 { m == c * five } else { m * five == c })
+}
+
 /// Append `v` exactly as `{}` prints an f64 (the shortest text that parses back to the same
 /// value, never an exponent), several times faster: `ryu` finds the shortest digits, laid out
-/// here as `Display` does; 17-digit values, where the two may break a tie differently, go
-/// through `Display` itself.
+/// here as `Display` does; a value exactly halfway between two shortest candidates, where the
+/// two break the tie differently, goes through `Display` itself.
 fn push_display(out: &mut String, v: f64, buf: &mut ryu::Buffer) {
     if !v.is_finite() {
         use std::fmt::Write as _;
@@ -846,11 +881,10 @@ fn push_display(out: &mut String, v: f64, buf: &mut ryu::Buffer) {
         n -= 1;
     }
     let digits = &digits[first..n];
-    if digits.len() >= 17 {
-        // Only a 17-digit value can lie exactly halfway between two shortest candidates (a
-        // shorter decimal step is wider than the rounding interval), and there ryu and
-        // `Display` break the tie differently (-1295194815783816.25: ryu ...816.3, `{}`
-        // ...816.2; found by the proptest below). `{}` is the reference.
+    if is_decimal_tie(v, digits, point - digits.len() as i32) {
+        // v lies exactly halfway between two shortest candidates, and there ryu and `Display`
+        // break the tie differently (-90841218690893.125: ryu ...893.13, `{}` ...893.12; found
+        // by the proptest below). `{}` is the reference.
         use std::fmt::Write as _;
         let _ = write!(out, "{v}");
         return;
@@ -1211,6 +1245,8 @@ mod tests {
             f64::MAX,
             f64::MIN_POSITIVE,
             -2.5e-5,
+            -(90841218690893.0 + 0.125), // exact ties (clippy would round the literals)
+            -(1295194815783816.0 + 0.25),
             100.0,
             0.001,
             f64::NAN,
@@ -1229,6 +1265,21 @@ mod tests {
             proptest::prop_assert_eq!(&text, &format!("{v}"));
             if v.is_finite() {
                 proptest::prop_assert_eq!(text.parse::<f64>().map(f64::to_bits), Ok(bits));
+            }
+        }
+
+        /// Exact ties between two shortest candidates, which random bits almost never hit:
+        /// n + f/4 with n in [2^50, 2^51) (a quarter is the step there; .25 and .75 tie at 17
+        /// digits) and n + f/64 with n in [2^46, 2^47) (ties at 16 digits).
+        #[test]
+        fn fast_output_breaks_ties_as_display(n in 0u64..(1 << 46), f in 0u64..64, neg in proptest::prelude::any::<bool>()) {
+            let sign = if neg { -1.0 } else { 1.0 };
+            for v in [
+                ((1u64 << 50) + n) as f64 + (f % 4) as f64 / 4.0,
+                ((1u64 << 46) + n) as f64 + f as f64 / 64.0,
+            ] {
+                let v = sign * v;
+                proptest::prop_assert_eq!(display_fast(v), format!("{v}"));
             }
         }
     }

@@ -42,6 +42,10 @@ pub const RATE_UNITS_KEY: &str = "rate_units";
 /// The recording format's version, in the metadata record.
 pub const FORMAT_VERSION: &str = "1";
 
+/// The largest chunk, uncompressed, a recording may have (the recorder writes chunks of about
+/// a megabyte; MCAP writers' defaults are 1-4 MiB).
+pub const MAX_CHUNK_BYTES: u64 = 64 << 20;
+
 /// The MCAP topic of a service: `/` and the service name (Foxglove's convention).
 pub fn topic(service: &str) -> String {
     format!("/{}", service.trim_start_matches('/'))
@@ -468,25 +472,95 @@ impl Recording {
         &'a self,
         topic: &'a str,
     ) -> impl Iterator<Item = Result<T, String>> + 'a {
-        let shown = self.path.display();
-        let stream = mcap::MessageStream::new(&self.map);
-        let mut index = 0u64;
-        let (stream, early) = match stream {
-            Ok(s) => (Some(s), None),
-            Err(e) => (None, Some(Err(format!("{shown}: {e}")))),
+        // Not mcap's MessageStream: it sets no record length limit, and a corrupt length inside
+        // a chunk made it allocate what the length claimed (found by fuzzing: an abort on a
+        // 216 PB allocation). The same sans-io reader with a limit refuses such a record.
+        let reader = mcap::sans_io::linear_reader::LinearReader::new_with_options(
+            mcap::sans_io::linear_reader::LinearReaderOptions::default()
+                .with_record_length_limit(MAX_CHUNK_BYTES as usize),
+        );
+        let channels: BTreeMap<u16, bool> = self
+            .summary
+            .channels
+            .iter()
+            .map(|(id, c)| (*id, c.topic == topic))
+            .collect();
+        TopicMessages {
+            shown: self.path.display().to_string(),
+            topic,
+            reader,
+            rest: &self.map[..],
+            channels,
+            index: 0,
+            failed: false,
+            _t: std::marker::PhantomData,
+        }
+    }
+}
+
+/// The messages of one topic of a recording, decoded, in file order.
+struct TopicMessages<'a, T> {
+    shown: String,
+    topic: &'a str,
+    reader: mcap::sans_io::linear_reader::LinearReader,
+    rest: &'a [u8],
+    /// Every channel of the summary: whether it is the topic's.
+    channels: BTreeMap<u16, bool>,
+    index: u64,
+    failed: bool,
+    _t: std::marker::PhantomData<T>,
+}
+
+impl<T: serde::de::DeserializeOwned> Iterator for TopicMessages<'_, T> {
+    type Item = Result<T, String>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        use mcap::sans_io::linear_reader::LinearReadEvent;
+        if self.failed {
+            return None;
+        }
+        let shown = &self.shown;
+        let mut fail = |e: String| {
+            self.failed = true;
+            Some(Err(e))
         };
-        early.into_iter().chain(
-            stream
-                .into_iter()
-                .flatten()
-                .filter(move |m| m.as_ref().map_or(true, |m| m.channel.topic == topic))
-                .map(move |m| {
-                    let m = m.map_err(|e| format!("{shown}: {e}"))?;
-                    index += 1;
-                    serde_json::from_slice::<T>(&m.data)
-                        .map_err(|e| format!("{shown}: message {index} of topic {topic}: {e}"))
-                }),
-        )
+        while let Some(event) = self.reader.next_event() {
+            match event {
+                Ok(LinearReadEvent::ReadRequest(need)) => {
+                    let len = need.min(self.rest.len());
+                    self.reader.insert(len).copy_from_slice(&self.rest[..len]);
+                    self.reader.notify_read(len);
+                    self.rest = &self.rest[len..];
+                }
+                Ok(LinearReadEvent::Record { opcode, data }) => {
+                    let record = match mcap::parse_record(opcode, data) {
+                        Ok(r) => r,
+                        Err(e) => return fail(format!("{shown}: {e}")),
+                    };
+                    let mcap::records::Record::Message { header, data } = record else {
+                        continue;
+                    };
+                    match self.channels.get(&header.channel_id) {
+                        Some(true) => {}
+                        Some(false) => continue,
+                        None => {
+                            return fail(format!(
+                                "{shown}: a message of channel {} that the summary does not list",
+                                header.channel_id
+                            ))
+                        }
+                    }
+                    self.index += 1;
+                    let (topic, index) = (self.topic, self.index);
+                    return Some(
+                        serde_json::from_slice::<T>(&data)
+                            .map_err(|e| format!("{shown}: message {index} of topic {topic}: {e}")),
+                    );
+                }
+                Err(e) => return fail(format!("{shown}: {e}")),
+            }
+        }
+        None
     }
 }
 

@@ -12,6 +12,8 @@
 //!
 //! [iceoryx2]
 //! prefix = "driftless_"      # file prefix in /dev/shm (env DRIFTLESS_IOX2_PREFIX overrides)
+//! root_path = "/run/driftless/iceoryx2"  # iceoryx2's node and service files (default
+//!                            # /tmp/iceoryx2; env DRIFTLESS_IOX2_ROOT overrides)
 //! buffer_size = 256          # samples a subscriber may hold before it loses new ones
 //! max_subscribers = 8        # per service
 //! stats_service = "demo/stats"
@@ -48,6 +50,9 @@ use crate::pipeline::stage::{Kind, Params, Role};
 pub struct Iceoryx2Settings {
     /// Prefix of the iceoryx2 files (the env variable `DRIFTLESS_IOX2_PREFIX` overrides it).
     pub prefix: String,
+    /// iceoryx2's root directory (`None`: its default, `/tmp/iceoryx2`); the env variable
+    /// `DRIFTLESS_IOX2_ROOT` overrides it.
+    pub root_path: Option<PathBuf>,
     /// Subscriber buffer size of every service.
     pub buffer_size: usize,
     /// Subscribers per service.
@@ -131,6 +136,7 @@ struct RawTop {
 #[serde(deny_unknown_fields)]
 struct RawIox {
     prefix: Option<Spanned<String>>,
+    root_path: Option<Spanned<String>>,
     buffer_size: Option<Spanned<i64>>,
     max_subscribers: Option<Spanned<i64>>,
     stats_service: Option<Spanned<String>>,
@@ -209,6 +215,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     };
     let iox = raw.iceoryx2.unwrap_or(RawIox {
         prefix: None,
+        root_path: None,
         buffer_size: None,
         max_subscribers: None,
         stats_service: None,
@@ -220,6 +227,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             p.get_ref().clone()
         }
         None => crate::transport::DEFAULT_PREFIX.to_string(),
+    };
+    let root_path = match &iox.root_path {
+        Some(r) => {
+            let path = PathBuf::from(r.get_ref());
+            crate::transport::check_root(&path)
+                .map_err(|e| src.span(r, format!("invalid root_path: {e}")))?;
+            Some(path)
+        }
+        None => None,
     };
     let buffer_size = match &iox.buffer_size {
         Some(b) => src.int_in(b, "buffer_size", 1, 65_536)?,
@@ -269,6 +285,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         cpu,
         iceoryx2: Iceoryx2Settings {
             prefix,
+            root_path,
             buffer_size,
             max_subscribers,
             stats_service,

@@ -419,7 +419,11 @@ fn schedule_hot_thread(p: &Pipeline) {
         if rc != 0 {
             let _ = writeln!(
                 std::io::stderr(),
-                "driftless: warning: cannot set SCHED_FIFO priority {priority}: {} (needs CAP_SYS_NICE or an rtprio limit)",
+                "driftless: warning: cannot set SCHED_FIFO priority {priority}: {}; running with \
+                 default scheduling. It needs CAP_SYS_NICE (`setcap cap_sys_nice+ep` on the \
+                 driftless binary, or AmbientCapabilities= in a systemd unit) or an rtprio limit \
+                 of at least {priority} (LimitRTPRIO=, or rtprio in limits.conf); see README, \
+                 \"Users and permissions\"",
                 std::io::Error::last_os_error()
             );
         }
