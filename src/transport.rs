@@ -625,6 +625,7 @@ impl Transport {
     /// resources of dead nodes (a daemon killed with SIGKILL) of the same prefix.
     pub fn new(prefix: &str, node_name: &str, qos: Qos) -> Result<Self, TransportError> {
         let cfg = config(prefix)?;
+        remove_unsized_segments(prefix);
         let name = NodeName::new(node_name).map_err(|e| TransportError::Name {
             name: node_name.to_string(),
             reason: format!("{e:?}"),
@@ -1137,6 +1138,7 @@ fn listed_node(state: &NodeState<Svc>) -> ListedNode {
 /// node's resources (iceoryx2 does that by default), so `list` shows the dead as dead.
 fn observer(prefix: &str) -> Result<Node<Svc>, TransportError> {
     let mut cfg = config(prefix)?;
+    remove_unsized_segments(prefix);
     cfg.global.node.cleanup_dead_nodes_on_creation = false;
     cfg.global.node.cleanup_dead_nodes_on_destruction = false;
     cfg.global.service.cleanup_dead_nodes_on_open = false;
@@ -1284,6 +1286,7 @@ impl Transport {
     /// node (its directory, its monitor files) is removed here.
     pub fn remove_dead_nodes(prefix: &str) -> Result<Vec<ListedNode>, TransportError> {
         let cfg = config(prefix)?;
+        remove_unsized_segments(prefix);
         let dead_nodes = |cfg: &Config| -> Result<Vec<ListedNode>, TransportError> {
             let mut dead = Vec::new();
             Node::<Svc>::list(cfg, |state| {
@@ -1406,6 +1409,45 @@ pub fn user_name(uid: u32) -> Option<String> {
     // SAFETY: pw_name is a NUL-terminated string inside `buf`, alive here.
     let name = unsafe { std::ffi::CStr::from_ptr(pwd.pw_name) };
     Some(name.to_string_lossy().into_owned())
+}
+
+/// Remove this prefix's shared memory segments of size 0 older than a second: what a process
+/// killed between creating a segment and sizing it leaves (creator and size are microseconds
+/// apart). iceoryx2 0.10 waits for such a segment to be sized without a timeout
+/// (`MappingSizeIsZero` in its `open_impl`), so the next node's clean-up of dead nodes, or a
+/// listing, would hang forever (found by the `list --clean` test killing daemons mid-start).
+fn remove_unsized_segments(prefix: &str) {
+    use std::os::unix::fs::MetadataExt;
+    const SETTLE: Duration = Duration::from_secs(1);
+    // SAFETY: geteuid cannot fail.
+    let me = unsafe { libc::geteuid() };
+    let unsized_segments = || -> Vec<(std::path::PathBuf, Duration)> {
+        let Ok(entries) = std::fs::read_dir("/dev/shm") else {
+            return Vec::new();
+        };
+        entries
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+            .filter_map(|e| {
+                let m = e.metadata().ok()?;
+                let age = m.modified().ok()?.elapsed().unwrap_or_default();
+                (m.is_file() && m.len() == 0 && m.uid() == me).then(|| (e.path(), age))
+            })
+            .collect()
+    };
+    let found = unsized_segments();
+    // A segment younger than a second may be one a live process is sizing right now: wait
+    // until it is a second old (rare: only after a kill at that instant), then look again.
+    if let Some(youngest) = found.iter().map(|(_, age)| *age).min() {
+        if youngest < SETTLE {
+            std::thread::sleep(SETTLE - youngest);
+        }
+        for (path, age) in unsized_segments() {
+            if age >= SETTLE {
+                let _ = std::fs::remove_file(path);
+            }
+        }
+    }
 }
 
 /// iceoryx2 0.10 makes each prefix's global management segment (a node counter in `/dev/shm`)

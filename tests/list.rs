@@ -285,3 +285,47 @@ fn clean_removes_daemons_killed_at_any_point_of_their_start() {
         );
     }
 }
+
+#[test]
+fn a_segment_a_killed_process_never_sized_does_not_hang_the_clean_up() {
+    // A process killed between creating a shared memory segment and sizing it leaves a
+    // write-only segment of size 0, which iceoryx2 0.10 waits on forever when it cleans up the
+    // dead node. Made here from a real killed daemon's service segment.
+    use std::os::unix::fs::PermissionsExt;
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(500));
+    let file = dir.write("p.toml", &pipeline());
+    let prefix = Prefix::new("lsunsized");
+    let mut daemon = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut daemon);
+    signal(&daemon, SIGKILL);
+    let _ = finish(daemon, Duration::from_secs(10));
+    let segment = std::fs::read_dir("/dev/shm")
+        .expect("/dev/shm")
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            name.starts_with(&prefix.0) && name.ends_with(".dynamic")
+        })
+        .expect("the killed daemon's service segments");
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&segment)
+        .and_then(|f| f.set_len(0))
+        .expect("truncate");
+    std::fs::set_permissions(&segment, std::fs::Permissions::from_mode(0o200)).expect("chmod");
+    // Older than a second: not a segment some live process is creating right now.
+    std::thread::sleep(Duration::from_millis(1100));
+    let child = Command::new(common::bin())
+        .args(["list", "--clean", "--prefix", &prefix.0])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("list runs");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(list_json(&prefix, &[])["nodes"], serde_json::json!([]));
+    let left = prefix.leftovers();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
