@@ -2,6 +2,25 @@
 // fuzz targets (fuzz_targets/*.rs) and by tests/fuzz_regressions.rs, which runs every input of
 // the seed corpora and every crash ever found through the same checks in CI.
 
+/// `data` written to `name` in this thread's own scratch folder (made once per thread, so
+/// parallel test threads never share a file).
+pub fn scratch_file(name: &str, data: &[u8]) -> std::path::PathBuf {
+    thread_local! {
+        static DIR: std::path::PathBuf = {
+            let d = std::env::temp_dir().join(format!(
+                "driftless-fuzz-{}-{:?}",
+                std::process::id(),
+                std::thread::current().id()
+            ));
+            std::fs::create_dir_all(&d).expect("temporary folder");
+            d
+        };
+    }
+    let path = DIR.with(|d| d.join(name));
+    std::fs::write(&path, data).expect("temporary file");
+    path
+}
+
 /// A pipeline file: parsing and validation never panic; a file that validates builds its
 /// stages and passes 64 samples offline, each exactly once.
 pub fn check_pipeline_toml(data: &[u8]) {
@@ -53,28 +72,22 @@ pub fn check_model_json(data: &[u8]) {
 /// with the same message (which names file, line and column).
 pub fn check_csv(data: &[u8]) {
     use driftless::io::csv_table::{read_table, read_table_reference};
-    thread_local! {
-        static PATH: std::path::PathBuf = std::env::temp_dir()
-            .join(format!("driftless-fuzz-{}-{:?}.csv", std::process::id(), std::thread::current().id()));
-    }
-    PATH.with(|path| {
-        std::fs::write(path, data).expect("temporary file");
-        let fast = read_table(path, &[]);
-        let reference = read_table_reference(path, &[]);
-        match (fast, reference) {
-            (Ok(a), Ok(b)) => {
-                assert_eq!(a.names, b.names, "column names");
-                assert_eq!(a.has_header, b.has_header);
-                assert_eq!(a.columns.len(), b.columns.len());
-                for (x, y) in a.columns.iter().zip(&b.columns) {
-                    let bits = |c: &[f64]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                    assert_eq!(bits(x), bits(y), "values, bit for bit");
-                }
+    let path = &scratch_file("log.csv", data);
+    let fast = read_table(path, &[]);
+    let reference = read_table_reference(path, &[]);
+    match (fast, reference) {
+        (Ok(a), Ok(b)) => {
+            assert_eq!(a.names, b.names, "column names");
+            assert_eq!(a.has_header, b.has_header);
+            assert_eq!(a.columns.len(), b.columns.len());
+            for (x, y) in a.columns.iter().zip(&b.columns) {
+                let bits = |c: &[f64]| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(x), bits(y), "values, bit for bit");
             }
-            (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "the same refusal"),
-            (a, b) => panic!("the readers disagree: fast {a:?}, reference {b:?}"),
         }
-    });
+        (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "the same refusal"),
+        (a, b) => panic!("the readers disagree: fast {a:?}, reference {b:?}"),
+    }
 }
 
 /// A recording (MCAP) for `ingest.mcap`: opening, listing, metadata and decoding every message
@@ -82,43 +95,29 @@ pub fn check_csv(data: &[u8]) {
 /// with file:line:col.
 pub fn check_recording(data: &[u8]) {
     use driftless::io::recording::{RawMessage, Recording, METADATA_NAME};
-    thread_local! {
-        static DIR: std::path::PathBuf = {
-            let d = std::env::temp_dir().join(format!(
-                "driftless-fuzz-mcap-{}-{:?}",
-                std::process::id(),
-                std::thread::current().id()
-            ));
-            std::fs::create_dir_all(&d).expect("temporary folder");
-            d
-        };
-    }
-    DIR.with(|dir| {
-        let path = dir.join("rec.mcap");
-        std::fs::write(&path, data).expect("temporary file");
-        let shown = path.display().to_string();
-        match Recording::open(&path) {
-            Err(e) => assert!(e.starts_with(&shown), "the error names the file: {e}"),
-            Ok(rec) => {
-                if let Err(e) = rec.metadata(METADATA_NAME) {
-                    assert!(e.starts_with(&shown), "{e}");
-                }
-                for c in rec.channels() {
-                    for m in rec.messages::<RawMessage>(&c.topic).take(100_000) {
-                        if let Err(e) = m {
-                            assert!(e.starts_with(&shown), "{e}");
-                        }
+    let path = scratch_file("rec.mcap", data);
+    let shown = path.display().to_string();
+    match Recording::open(&path) {
+        Err(e) => assert!(e.starts_with(&shown), "the error names the file: {e}"),
+        Ok(rec) => {
+            if let Err(e) = rec.metadata(METADATA_NAME) {
+                assert!(e.starts_with(&shown), "{e}");
+            }
+            for c in rec.channels() {
+                for m in rec.messages::<RawMessage>(&c.topic).take(100_000) {
+                    if let Err(e) = m {
+                        assert!(e.starts_with(&shown), "{e}");
                     }
                 }
             }
         }
-        let pipeline = "name = \"f\"\nrate_hz = 100.0\n\n[[stage]]\nname = \"sensor\"\n\
-            kind = \"ingest.mcap\"\noutput = \"f/raw\"\nfile = \"rec.mcap\"\n\n[[stage]]\n\
-            name = \"publish\"\nkind = \"publish\"\ninput = \"f/raw\"\noutput = \"f/corrected\"\n";
-        let toml = dir.join("p.toml");
-        if let Err(e) = driftless::pipeline::config::parse(&toml, pipeline) {
-            let e = e.to_string();
-            assert!(e.starts_with(&format!("{}:8:", toml.display())), "{e}");
-        }
-    });
+    }
+    let pipeline = "name = \"f\"\nrate_hz = 100.0\n\n[[stage]]\nname = \"sensor\"\n\
+        kind = \"ingest.mcap\"\noutput = \"f/raw\"\nfile = \"rec.mcap\"\n\n[[stage]]\n\
+        name = \"publish\"\nkind = \"publish\"\ninput = \"f/raw\"\noutput = \"f/corrected\"\n";
+    let toml = path.with_file_name("p.toml");
+    if let Err(e) = driftless::pipeline::config::parse(&toml, pipeline) {
+        let e = e.to_string();
+        assert!(e.starts_with(&format!("{}:8:", toml.display())), "{e}");
+    }
 }

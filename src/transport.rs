@@ -458,6 +458,16 @@ fn who(uid: u32) -> String {
     }
 }
 
+/// `belongs to NAME (uid N), mode 0750`.
+fn owner_and_mode(m: &std::fs::Metadata) -> String {
+    use std::os::unix::fs::MetadataExt;
+    format!(
+        "belongs to {}, mode {:04o}",
+        who(m.uid()),
+        m.mode() & 0o7777
+    )
+}
+
 /// The first of iceoryx2's directories (root, nodes, services) that belongs to another user
 /// without granting this process access, or that it cannot create: with owner and mode.
 fn foreign_directory() -> Option<String> {
@@ -472,10 +482,9 @@ fn foreign_directory() -> Option<String> {
         match std::fs::metadata(&dir) {
             Ok(m) if m.uid() != me && m.mode() & 0o002 == 0 => {
                 return Some(format!(
-                    "iceoryx2's directory {} belongs to {}, mode {:04o}",
+                    "iceoryx2's directory {} {}",
                     dir.display(),
-                    who(m.uid()),
-                    m.mode() & 0o7777
+                    owner_and_mode(&m)
                 ));
             }
             Ok(_) => {}
@@ -484,11 +493,10 @@ fn foreign_directory() -> Option<String> {
                 let m = std::fs::metadata(parent).ok()?;
                 return (m.uid() != me && m.mode() & 0o002 == 0).then(|| {
                     format!(
-                        "iceoryx2 cannot create {}: {} belongs to {}, mode {:04o}",
+                        "iceoryx2 cannot create {}: {} {}",
                         dir.display(),
                         parent.display(),
-                        who(m.uid()),
-                        m.mode() & 0o7777
+                        owner_and_mode(&m)
                     )
                 });
             }
@@ -1417,22 +1425,12 @@ pub fn user_name(uid: u32) -> Option<String> {
 /// (`MappingSizeIsZero` in its `open_impl`), so the next node's clean-up of dead nodes, or a
 /// listing, would hang forever (found by the `list --clean` test killing daemons mid-start).
 fn remove_unsized_segments(prefix: &str) {
-    use std::os::unix::fs::MetadataExt;
     const SETTLE: Duration = Duration::from_secs(1);
-    // SAFETY: geteuid cannot fail.
-    let me = unsafe { libc::geteuid() };
     let unsized_segments = || -> Vec<(std::path::PathBuf, Duration)> {
-        let Ok(entries) = std::fs::read_dir("/dev/shm") else {
-            return Vec::new();
-        };
-        entries
-            .flatten()
-            .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
-            .filter_map(|e| {
-                let m = e.metadata().ok()?;
-                let age = m.modified().ok()?.elapsed().unwrap_or_default();
-                (m.is_file() && m.len() == 0 && m.uid() == me).then(|| (e.path(), age))
-            })
+        own_segments(prefix)
+            .into_iter()
+            .filter(|(_, m)| m.is_file() && m.len() == 0)
+            .filter_map(|(path, m)| Some((path, m.modified().ok()?.elapsed().unwrap_or_default())))
             .collect()
     };
     let found = unsized_segments();
@@ -1456,23 +1454,29 @@ fn remove_unsized_segments(prefix: &str) {
 /// as by the rest).
 fn restrict_global_segment(prefix: &str) {
     use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    for (path, m) in own_segments(prefix) {
+        let global = path.to_string_lossy().ends_with(".global_mgmt");
+        if global && m.mode() & 0o077 != 0 {
+            let _ = std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600));
+        }
+    }
+}
+
+/// This prefix's shared memory segments in `/dev/shm` that belong to this process's user, with
+/// their metadata.
+fn own_segments(prefix: &str) -> Vec<(std::path::PathBuf, std::fs::Metadata)> {
+    use std::os::unix::fs::MetadataExt;
     // SAFETY: geteuid cannot fail.
     let me = unsafe { libc::geteuid() };
     let Ok(entries) = std::fs::read_dir("/dev/shm") else {
-        return;
+        return Vec::new();
     };
-    for e in entries.flatten() {
-        let name = e.file_name();
-        let name = name.to_string_lossy();
-        if !(name.starts_with(prefix) && name.ends_with(".global_mgmt")) {
-            continue;
-        }
-        if let Ok(m) = e.metadata() {
-            if m.uid() == me && m.mode() & 0o077 != 0 {
-                let _ = std::fs::set_permissions(e.path(), std::fs::Permissions::from_mode(0o600));
-            }
-        }
-    }
+    entries
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+        .filter_map(|e| Some((e.path(), e.metadata().ok()?)))
+        .filter(|(_, m)| m.uid() == me)
+        .collect()
 }
 
 /// Remove the files iceoryx2 leaves for `prefix` once no node of it is left (the per-prefix

@@ -42,12 +42,13 @@ impl Iceoryx2Args {
                 _ => pipeline.and_then(|p| p.root_path.clone()),
             },
         };
-        if let Some(r) = &root {
-            transport::check_root(r).map_err(|e| {
-                CliError::input(format!("invalid iceoryx2 root path {}: {e}", r.display()))
-            })?;
-        }
-        transport::set_root(root).map_err(CliError::input)?;
+        let shown = root.as_ref().map(|r| r.display().to_string());
+        transport::set_root(root).map_err(|e| {
+            CliError::input(format!(
+                "invalid iceoryx2 root path {}: {e}",
+                shown.unwrap_or_default()
+            ))
+        })?;
         Ok(prefix)
     }
 }
