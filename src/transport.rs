@@ -1211,11 +1211,6 @@ impl Transport {
         use iceoryx2::service::static_config::messaging_pattern::MessagingPattern as Static;
         let cfg = config(prefix)?;
         let mut listing = Listing::default();
-        Node::<Svc>::list(&cfg, |state| {
-            listing.nodes.push(listed_node(&state));
-            CallbackProgression::Continue
-        })
-        .map_err(|e| setup("node list", prefix, e))?;
         let mut found = Vec::new();
         Svc::list(&cfg, |details| {
             found.push(details);
@@ -1262,17 +1257,19 @@ impl Transport {
             });
             // Listed before the observer opened anything; kept clean of it all the same.
             let observer_id = observer.as_ref().map(|n| n.id().value());
-            let nodes = details
+            let mut nodes: Vec<u128> = details
                 .dynamic_details
-                .map(|d| {
-                    d.nodes
-                        .iter()
-                        .map(|n| n.node_id().value())
-                        .filter(|id| Some(*id) != observer_id)
-                        .collect()
-                })
+                .map(|d| d.nodes.iter().map(|n| n.node_id().value()).collect())
                 .unwrap_or_default();
             let (senders, receivers) = ports.unzip();
+            // A port read after the service list may belong to a node that attached in between:
+            // the node of every listed port is among the service's nodes.
+            for id in senders.iter().chain(receivers.iter()).flatten() {
+                if !nodes.contains(id) {
+                    nodes.push(*id);
+                }
+            }
+            nodes.retain(|id| Some(*id) != observer_id);
             listing.services.push(ListedService {
                 name: name.as_str().to_string(),
                 kind,
@@ -1284,6 +1281,14 @@ impl Transport {
         listing
             .services
             .sort_by(|a, b| (&a.name, kind_rank(&a.kind)).cmp(&(&b.name, kind_rank(&b.kind))));
+        // Nodes last, so every node a port above belongs to is listed (unless it ended since);
+        // the observer is gone by then, so it is not listed.
+        drop(observer);
+        Node::<Svc>::list(&cfg, |state| {
+            listing.nodes.push(listed_node(&state));
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
         Ok(listing)
     }
 
