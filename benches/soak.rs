@@ -14,7 +14,8 @@
 //! are known only to the daemon (a dead subscriber's buffer fills until the daemon's periodic
 //! clean-up removes it), so the check is that the daemon keeps its deadline and its memory.
 //! Throughout: the daemon's resident memory is sampled every second (flat after the first
-//! tenth of the run), and its final report must show no deadline miss.
+//! tenth of the run), and its final report must show no deadline miss; each miss it does show
+//! is printed beside what the bench did in the 3 s before it and the second after.
 //!
 //! The subscribers are this same executable, started again with `--subscriber`.
 
@@ -175,6 +176,10 @@ fn main() {
         .stderr(Stdio::null())
         .spawn()
         .expect("spawn driftless");
+    // The daemon's report times its misses from its reporter's start, a little after this.
+    let launched = Instant::now();
+    let mut log: Vec<(f64, &'static str)> = Vec::new();
+    let mut note = |what: &'static str| log.push((launched.elapsed().as_secs_f64(), what));
     let watcher = Transport::new(&prefix, "soak-watch", Qos::default()).expect("node");
     let start = Instant::now();
     let stats = loop {
@@ -209,6 +214,7 @@ fn main() {
         let killing = t0.elapsed() >= phase;
         if killing && phase_a_daemon_lost.is_none() {
             // End of phase A: every subscriber leaves cleanly and reports.
+            note("end of phase 1: every subscriber leaves");
             for s in subs.drain(..) {
                 seen = add(seen, leave(s));
                 leaves += 1;
@@ -223,6 +229,7 @@ fn main() {
             if s.stopped_until.is_some_and(|u| now >= u) {
                 signal(&s.child, libc::SIGCONT);
                 s.stopped_until = None;
+                note("continue (SIGCONT)");
             }
         }
         if now >= next_action {
@@ -230,6 +237,7 @@ fn main() {
             if subs.len() < 2 || (roll < 0.35 && subs.len() < MAX_SUBSCRIBERS) {
                 subs.push(spawn());
                 joins += 1;
+                note("join");
             } else if roll < 0.65 {
                 let i = rng.random_range(0..subs.len());
                 if subs[i].stopped_until.is_none() {
@@ -237,6 +245,7 @@ fn main() {
                     subs[i].stopped_until =
                         Some(now + Duration::from_millis(rng.random_range(100..3000)));
                     stalls += 1;
+                    note("stall (SIGSTOP)");
                 }
             } else if killing && roll < 0.85 {
                 let i = rng.random_range(0..subs.len());
@@ -244,10 +253,12 @@ fn main() {
                 signal(&s.child, libc::SIGKILL);
                 let _ = s.child.wait();
                 kills += 1;
+                note("kill (SIGKILL)");
             } else {
                 let i = rng.random_range(0..subs.len());
                 let s = subs.swap_remove(i);
                 let got = leave(s);
+                note("leave");
                 if !killing {
                     seen = add(seen, got);
                 }
@@ -312,6 +323,26 @@ fn main() {
     ];
     for (goal, ok) in goals {
         println!("  goal {goal}: {ok}");
+    }
+    // Each miss beside what the bench did around it (bench time since the daemon's launch;
+    // the daemon's own clock starts a little later and its records arrive up to ~50 ms late).
+    for m in r["misses"].as_array().into_iter().flatten() {
+        let at = m["at_s"].as_f64().unwrap_or(f64::NAN);
+        let near: Vec<String> = log
+            .iter()
+            .filter(|(t, _)| (at - 3.0..=at + 1.0).contains(t))
+            .map(|(t, what)| format!("{:+.2} s {what}", t - at))
+            .collect();
+        println!(
+            "  miss at {at:.2} s: {:.1} us end to end, stage compute {} ns; around it: {}",
+            m["e2e_ns"].as_f64().unwrap_or(f64::NAN) / 1e3,
+            m["stage_ns"],
+            if near.is_empty() {
+                "nothing".to_string()
+            } else {
+                near.join(", ")
+            }
+        );
     }
 }
 

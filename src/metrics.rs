@@ -353,6 +353,22 @@ impl Outputs {
     }
 }
 
+/// Misses the report keeps with their time and stage times (the count goes on beyond).
+pub const MISSES_KEPT: usize = 100;
+
+/// One output over the deadline, as the reporter saw it: when, and where the time went.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Miss {
+    /// When the reporter took the output's record, s since the reporter started (records reach
+    /// it in batches: up to about 50 ms after the output).
+    pub at_s: f64,
+    /// Ingest of the completing sample to publish, ns.
+    pub e2e_ns: u64,
+    /// Compute time of each stage, chain order, ns; 0 for a stage that did not run for it (or
+    /// ran in another segment, after an `external` stage).
+    pub stage_ns: Vec<u64>,
+}
+
 /// The final report (`--report FILE` writes it as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
@@ -372,6 +388,9 @@ pub struct Report {
     pub algorithmic_delay_ns: u64,
     /// Outputs over the deadline.
     pub deadline_misses: u64,
+    /// The first [`MISSES_KEPT`] of them with their time and stage times (fewer than
+    /// `deadline_misses` if the reporter could not take some records: `metric_drops`).
+    pub misses: Vec<Miss>,
     /// Records the reporter could not take (histograms then miss those samples).
     pub metric_drops: u64,
     /// Samples lost anywhere: by subscribers of every service (full buffers) and before the
@@ -453,6 +472,7 @@ impl Report {
             f.invalid, f.gaps, f.missing, f.time_backwards, f.repaired_outputs, self.metric_drops
         ));
         s.push_str(&self.outputs_line());
+        s.push_str(&self.misses_lines());
         if let Some(h) = &self.heading {
             s.push_str(
                 "heading error vs the simulator's truth, deg (final / rms / max per axis):\n",
@@ -510,6 +530,31 @@ impl Report {
         s
     }
 
+    /// The first misses, one line each: when, how late, and each stage's compute time (the
+    /// rest of the end-to-end time went between stages: hops, publishing, waiting for the CPU).
+    fn misses_lines(&self) -> String {
+        const SHOWN: usize = 5;
+        let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
+        let mut s = String::new();
+        for m in self.misses.iter().take(SHOWN) {
+            let stages: Vec<String> = m.stage_ns.iter().map(|&ns| us(ns)).collect();
+            s.push_str(&format!(
+                "missed at {:.3} s: {} us end to end; stage compute {} us\n",
+                m.at_s,
+                us(m.e2e_ns),
+                stages.join(" / ")
+            ));
+        }
+        if self.deadline_misses as usize > SHOWN.min(self.misses.len()) && !self.misses.is_empty() {
+            s.push_str(&format!(
+                "({} misses in all; the report's JSON keeps the first {})\n",
+                self.deadline_misses,
+                self.misses.len()
+            ));
+        }
+        s
+    }
+
     /// One line: whether the deadline held and nothing was lost.
     pub fn verdict(&self) -> String {
         let e = &self.end_to_end_ns;
@@ -544,6 +589,7 @@ pub struct Reporter {
     stage_hist: Vec<Histogram<u64>>,
     e2e: Histogram<u64>,
     heading: Option<HeadingSummary>,
+    misses: Vec<Miss>,
     started: Instant,
 }
 
@@ -563,6 +609,7 @@ impl Reporter {
             stage_hist: (0..n).map(|_| histogram()).collect(),
             e2e: histogram(),
             heading: None,
+            misses: Vec::new(),
             started: Instant::now(),
         }
     }
@@ -587,6 +634,19 @@ impl Reporter {
         }
         if r.e2e_ns > 0 {
             self.e2e.saturating_record(r.e2e_ns);
+            // The hot loop's own test, so the list agrees with its count.
+            if r.e2e_ns > self.layout.deadline.as_nanos() as u64 && self.misses.len() < MISSES_KEPT
+            {
+                let mut stage_ns = vec![0; self.stage_hist.len()];
+                for (d, &ns) in stage_ns[first..n].iter_mut().zip(&r.stage_ns[first..n]) {
+                    *d = u64::from(ns);
+                }
+                self.misses.push(Miss {
+                    at_s: self.started.elapsed().as_secs_f64(),
+                    e2e_ns: r.e2e_ns,
+                    stage_ns,
+                });
+            }
         }
     }
 
@@ -717,6 +777,7 @@ impl Reporter {
             deadline_ns: self.layout.deadline.as_nanos() as u64,
             algorithmic_delay_ns: self.layout.algorithmic_delay.as_nanos() as u64,
             deadline_misses: get(&c.deadline_misses),
+            misses: self.misses.clone(),
             metric_drops: get(&c.metric_drops),
             lost: self.lost_total(),
             epoch: get(&c.epoch) as u32,

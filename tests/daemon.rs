@@ -1193,3 +1193,61 @@ fn predict_rbf_removes_the_bias_keeps_a_constant_turn_and_refuses_bad_models() {
         .iter()
         .all(|s| s.flags & FLAG_STILL != 0));
 }
+
+#[test]
+fn the_report_keeps_each_miss_with_its_time_and_stage_times() {
+    // A 1 ns deadline: every output misses it.
+    const N: usize = 400;
+    let prefix = Prefix::new("misses");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(N));
+    let text = csv_pipeline("asap", false, 1024)
+        .replace("rate_hz = 1000.0", "rate_hz = 1000.0\ndeadline_us = 0.001");
+    let file = dir.write("p.toml", &text);
+    let report_path = dir.path("report.json");
+    let child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let r = report(&dir);
+    let timed = r["end_to_end_ns"]["count"].as_u64().unwrap();
+    assert!(timed > 300, "{r}");
+    assert_eq!(r["deadline_misses"], timed, "every timed output missed");
+    assert_eq!(r["metric_drops"], 0, "{r}");
+    let misses = r["misses"].as_array().expect("misses");
+    assert_eq!(
+        misses.len() as u64,
+        timed.min(driftless::metrics::MISSES_KEPT as u64)
+    );
+    let duration = r["duration_s"].as_f64().unwrap();
+    let mut last = 0.0;
+    for m in misses {
+        let at = m["at_s"].as_f64().unwrap();
+        assert!(
+            at >= last && at <= duration,
+            "{m} after {last}, run {duration} s"
+        );
+        last = at;
+        let e2e = m["e2e_ns"].as_u64().unwrap();
+        let stages: Vec<u64> = m["stage_ns"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        assert_eq!(stages.len(), 3, "{m}");
+        assert!(stages.iter().all(|&ns| ns > 0), "every stage ran: {m}");
+        assert!(
+            stages.iter().sum::<u64>() <= e2e,
+            "compute within end to end: {m}"
+        );
+    }
+    // The table shows the first few and says where the rest are.
+    assert_eq!(err.matches("missed at ").count(), 5, "{err}");
+    assert!(
+        err.contains(&format!(
+            "({timed} misses in all; the report's JSON keeps the first {})",
+            misses.len()
+        )),
+        "{err}"
+    );
+}
