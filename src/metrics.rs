@@ -535,8 +535,9 @@ impl Report {
     fn misses_lines(&self) -> String {
         const SHOWN: usize = 5;
         let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
+        let shown = self.misses.len().min(SHOWN);
         let mut s = String::new();
-        for m in self.misses.iter().take(SHOWN) {
+        for m in &self.misses[..shown] {
             let stages: Vec<String> = m.stage_ns.iter().map(|&ns| us(ns)).collect();
             s.push_str(&format!(
                 "missed at {:.3} s: {} us end to end; stage compute {} us\n",
@@ -545,7 +546,7 @@ impl Report {
                 stages.join(" / ")
             ));
         }
-        if self.deadline_misses as usize > SHOWN.min(self.misses.len()) && !self.misses.is_empty() {
+        if shown > 0 && self.deadline_misses > shown as u64 {
             s.push_str(&format!(
                 "({} misses in all; the report's JSON keeps the first {})\n",
                 self.deadline_misses,
