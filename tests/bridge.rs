@@ -5,6 +5,7 @@
 
 mod common;
 
+use std::fmt::Debug;
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -13,10 +14,13 @@ use std::time::{Duration, Instant};
 
 use common::{finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix};
 use driftless::transport::{GyroSample, RawSample, Transport};
+use iceoryx2::prelude::ZeroCopySend;
 use zenoh::Wait;
 
 const SIGTERM: i32 = 15;
 const SIGKILL: i32 = 9;
+const SIGSTOP: i32 = 19;
+const SIGCONT: i32 = 18;
 
 /// A TCP port nobody listens on now.
 fn free_port() -> u16 {
@@ -95,8 +99,13 @@ impl Bridge {
 
     /// Wait until a line containing `text` came (the lines so far are kept in `seen`).
     fn wait_for(&mut self, text: &str, timeout: Duration) {
+        self.wait_for_after(0, text, timeout)
+    }
+
+    /// Wait until a line containing `text` came after the first `mark` lines of `seen`.
+    fn wait_for_after(&mut self, mark: usize, text: &str, timeout: Duration) {
         let end = Instant::now() + timeout;
-        if self.seen.iter().any(|l| l.contains(text)) {
+        if self.seen.iter().skip(mark).any(|l| l.contains(text)) {
             return;
         }
         while Instant::now() < end {
@@ -355,33 +364,42 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
 
 /// This test's own subscriber of `service`, in its own thread (ports are not Send): every
 /// (epoch, seq) it received until `stop`.
-fn drain(
+fn drain<T: Debug + ZeroCopySend + Copy + 'static>(
     prefix: &str,
     service: &str,
     buffer: usize,
     stop: Arc<AtomicBool>,
+    stamp: fn(&T) -> (u32, u64),
 ) -> std::thread::JoinHandle<Vec<(u32, u64)>> {
     let (prefix, service) = (prefix.to_string(), service.to_string());
     let (tx, rx) = mpsc::channel();
     let h = std::thread::spawn(move || {
         let me = Transport::new(&prefix, "drain", qos(buffer)).expect("node");
-        let input = me.open_input::<GyroSample>(&service).expect("subscriber");
+        let input = me.open_input::<T>(&service).expect("subscriber");
         tx.send(()).unwrap();
         let mut seen = Vec::new();
         while !stop.load(Ordering::Relaxed) {
             match input.receive().expect("receive") {
-                Some(s) => seen.push((s.epoch, s.seq)),
+                Some(s) => seen.push(stamp(&s)),
                 None => std::thread::sleep(Duration::from_micros(200)),
             }
         }
         while let Some(s) = input.receive().expect("receive") {
-            seen.push((s.epoch, s.seq));
+            seen.push(stamp(&s));
         }
         seen
     });
     rx.recv_timeout(Duration::from_secs(10))
         .expect("drain subscribed");
     h
+}
+
+fn gyro_stamp(s: &GyroSample) -> (u32, u64) {
+    (s.epoch, s.seq)
+}
+
+fn raw_stamp(s: &RawSample) -> (u32, u64) {
+    (s.epoch, s.seq)
 }
 
 fn contiguous(seen: &[(u32, u64)]) -> bool {
@@ -410,7 +428,7 @@ fn a_bridge_killed_mid_run_costs_the_other_subscribers_nothing() {
     );
     wait_ready(&prefix, "t/stats", &mut daemon);
     let stop = Arc::new(AtomicBool::new(false));
-    let other = drain(&prefix.0, "t/corrected", 256, Arc::clone(&stop));
+    let other = drain(&prefix.0, "t/corrected", 256, Arc::clone(&stop), gyro_stamp);
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let mut bridge = Bridge::start(
         &prefix,
@@ -471,6 +489,140 @@ fn a_bridge_killed_mid_run_costs_the_other_subscribers_nothing() {
     );
     drop(sub);
     zs.close().wait().unwrap();
+}
+
+/// A Zenoh lease of 1 s (zenoh's default is 10 s): how long a peer that stopped answering
+/// counts as there. Both ends announce it.
+const SHORT_LEASE: &str = "{ transport: { link: { tx: { lease: 1000, keep_alive: 4 } } } }\n";
+
+/// Whether `seen` only moves forward within one epoch (gaps allowed, nothing twice or back).
+fn increasing(seen: &[(u32, u64)]) -> bool {
+    seen.windows(2).all(|w| w[1].0 == w[0].0 && w[1].1 > w[0].1)
+}
+
+#[test]
+fn a_remote_subscriber_that_stalls_or_dies_costs_the_daemon_nothing_and_is_reported() {
+    let prefix = Prefix::new("brstall");
+    let dir = Dir::new();
+    let file = dir.write("p.toml", &pipeline(FROM_SIM, "deg/s", 256));
+    let lease = dir.write("lease.json5", SHORT_LEASE);
+    let lease = lease.to_str().unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let report_path = dir.path("report.json");
+    let mut daemon = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "t/stats", &mut daemon);
+    let stop = Arc::new(AtomicBool::new(false));
+    let other = drain(&prefix.0, "t/corrected", 256, Arc::clone(&stop), gyro_stamp);
+
+    // The far end is another process, so that it can be stopped as a dead network would stop
+    // it: a reverse bridge from the key into `far/raw`, which this test reads.
+    let mut far = Bridge::start(
+        &prefix,
+        &[
+            "--from-zenoh",
+            "driftless/t/raw",
+            "--to",
+            "far/raw",
+            "--buffer-size",
+            "4096",
+            "--listen",
+            &endpoint,
+            "--no-multicast-scouting",
+            "--zenoh-config",
+            lease,
+        ],
+    );
+    far.wait_for("bridge: ready: driftless/t/raw", Duration::from_secs(20));
+    let far_seen = drain(&prefix.0, "far/raw", 4096, Arc::clone(&stop), raw_stamp);
+    let mut bridge = Bridge::start(
+        &prefix,
+        &[
+            "t/raw",
+            "--connect",
+            &endpoint,
+            "--no-multicast-scouting",
+            "--zenoh-config",
+            lease,
+        ],
+    );
+    bridge.wait_for("a Zenoh subscriber matches", Duration::from_secs(20));
+    std::thread::sleep(Duration::from_secs(1));
+
+    // The network stops: nothing comes back from the far end (its TCP window fills, its
+    // keep-alives stop).
+    signal(&far.child, SIGSTOP);
+    let mark = bridge.seen.len();
+    let stopped = Instant::now();
+    bridge.wait_for_after(
+        mark,
+        "no Zenoh subscriber any more",
+        Duration::from_secs(10),
+    );
+    let noticed = stopped.elapsed();
+    std::thread::sleep(Duration::from_secs(2));
+    // It comes back: zenoh reconnects to the --connect endpoint and the stream resumes.
+    signal(&far.child, SIGCONT);
+    let mark = bridge.seen.len();
+    bridge.wait_for_after(mark, "a Zenoh subscriber matches", Duration::from_secs(20));
+    std::thread::sleep(Duration::from_secs(1));
+    // The far end dies.
+    signal(&far.child, SIGKILL);
+    let mark = bridge.seen.len();
+    let killed = Instant::now();
+    bridge.wait_for_after(
+        mark,
+        "no Zenoh subscriber any more",
+        Duration::from_secs(10),
+    );
+    let noticed_death = killed.elapsed();
+    let _ = far.finish(Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(500));
+
+    signal(&daemon, SIGTERM);
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    stop.store(true, Ordering::Relaxed);
+    let seen = other.join().unwrap();
+    let far_seen = far_seen.join().unwrap();
+    signal(&bridge.child, SIGTERM);
+    let (code, lines) = bridge.finish(Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{lines:?}");
+    let done = lines
+        .iter()
+        .find(|l| l.starts_with("bridge: done: t/raw -> driftless/t/raw: "))
+        .unwrap_or_else(|| panic!("a summary: {lines:?}"));
+    assert!(
+        done.ends_with(" forwarded, 0 missing (sequence gaps), 0 put errors"),
+        "the bridge never fell behind the daemon, the network drops were zenoh's: {done}"
+    );
+
+    let r = report(&dir);
+    let n = r["samples_out"].as_u64().unwrap();
+    assert_eq!(
+        r["lost"], 0,
+        "the stalled and the dead far end cost the daemon nothing: {r}"
+    );
+    assert!(
+        contiguous(&seen),
+        "the daemon's other subscriber lost nothing"
+    );
+    assert_eq!(seen.last().unwrap().1 + 1, n, "to the last sample");
+    assert!(
+        increasing(&far_seen),
+        "the far end got samples in order, none twice"
+    );
+    let resumed = far_seen.windows(2).filter(|w| w[1].1 > w[0].1 + 1).count();
+    assert!(
+        resumed >= 1,
+        "what zenoh dropped while the far end was stopped shows as a gap in seq"
+    );
+    eprintln!(
+        "stalled far end reported after {noticed:?}, dead one after {noticed_death:?}; \
+         far end got {} samples in {} runs; daemon: {} deadline misses",
+        far_seen.len(),
+        resumed + 1,
+        r["deadline_misses"]
+    );
 }
 
 #[test]
