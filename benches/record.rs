@@ -4,9 +4,11 @@
 //!    without and with `driftless record demo/raw demo/corrected demo/stats` in another process:
 //!    the daemon's end-to-end p50 / p99.9 / max, deadline misses and losses, and what the
 //!    recorder wrote (samples, sequence gaps);
-//! 2. `pipelines/delivery.toml` flat out (10^6 samples), without and with a recorder of
-//!    `delivery/corrected` (the heaviest message): the daemon's throughput, the recorder's rate
-//!    (samples between its first and last receipt) and its sequence gaps.
+//! 2. flat out, 10^6 samples through `pipelines/delivery.toml`'s stages, from its simulator
+//!    and from a CSV replay (`ingest.csv`, pace "asap", of a log `driftless simulate` wrote),
+//!    each without and with a recorder of the corrected service (the heaviest message): the
+//!    daemon's throughput, the recorder's rate (samples between its first and last receipt),
+//!    its sequence gaps, and whether it holds every sample from its first to the daemon's last.
 //!
 //! ```text
 //! cargo bench --bench record                        # 4 x 30 s at 1 kHz, then flat out
@@ -77,8 +79,19 @@ fn stop(mut child: Child, mut err: BufReader<std::process::ChildStderr>) -> f64 
     cpu
 }
 
-/// Per recorded topic: (samples, missing by seq, first and last receipt time in ns).
-fn recorded(out: &Path) -> Vec<(String, u64, u64, f64)> {
+/// What a recording holds of one service.
+struct Topic {
+    samples: u64,
+    /// Missing by `seq` (the metadata's count).
+    missing: u64,
+    /// Samples per second between its first and last receipt.
+    rate: f64,
+    /// First and last `seq` (the metadata's).
+    seqs: Option<(u64, u64)>,
+}
+
+/// Per recorded topic, in channel order.
+fn recorded(out: &Path) -> Vec<Topic> {
     let rec = Recording::open(out).expect("a complete recording");
     let meta = rec.metadata(METADATA_NAME).expect("metadata").remove(0);
     let bytes = std::fs::read(out).expect("read");
@@ -101,7 +114,16 @@ fn recorded(out: &Path) -> Vec<(String, u64, u64, f64)> {
                 .unwrap_or(0);
             let (t0, t1) = span.get(&c.topic).copied().unwrap_or((0, 0));
             let rate = (c.messages.saturating_sub(1)) as f64 / ((t1 - t0) as f64 * 1e-9);
-            (service, c.messages, missing, rate)
+            let seq = |k: &str| {
+                meta.get(&format!("{service}.{k}"))
+                    .and_then(|v| v.rsplit(' ').next()?.parse::<u64>().ok())
+            };
+            Topic {
+                samples: c.messages,
+                missing,
+                rate,
+                seqs: seq("first").zip(seq("last")),
+            }
         })
         .collect()
 }
@@ -133,14 +155,14 @@ fn main() {
             Some((child, err)) => {
                 let cpu = stop(child, err);
                 let r = recorded(&out);
-                let total: u64 = r.iter().map(|t| t.1).sum();
+                let total: u64 = r.iter().map(|t| t.samples).sum();
                 eprintln!(
                     "recorder: {:.2} CPU s for {total} samples ({:.1}% of a core)",
                     cpu,
                     cpu / secs * 100.0
                 );
-                let counts: Vec<String> = r.iter().map(|t| t.1.to_string()).collect();
-                let gaps: u64 = r.iter().map(|t| t.2).sum();
+                let counts: Vec<String> = r.iter().map(|t| t.samples.to_string()).collect();
+                let gaps: u64 = r.iter().map(|t| t.missing).sum();
                 (counts.join(" / "), gaps.to_string())
             }
             None => ("-".into(), "-".into()),
@@ -161,46 +183,124 @@ fn main() {
         );
     }
 
-    // 2. Flat out, without and with a recorder of the corrected service.
+    // 2. Flat out, without and with a recorder of the corrected service: the simulator, and a
+    //    replay of a 10^6-row CSV log through the same stages.
     println!();
-    println!("| delivery, flat out | daemon samples/s | daemon lost | recorded | recorder gaps | recorder samples/s | recorder CPU per sample (samples per CPU second) |");
-    println!("|---|---:|---:|---:|---:|---:|---:|");
-    let delivery = root().join("pipelines/delivery.toml");
-    for (i, with) in [false, true].into_iter().enumerate() {
-        let p = prefix(&format!("recfast{i}"));
-        clean(&p);
-        let report = dir.path().join(format!("fast{i}.json"));
-        let mut daemon = start_daemon(&delivery, &p, &report, &[]);
-        let out = dir.path().join(format!("fast{i}.mcap"));
-        let rec = with.then(|| {
-            wait_service(&p, "delivery/corrected");
-            recorder(&p, &out, &["delivery/corrected"])
-        });
-        wait_exit_within(&mut daemon, Duration::from_secs(120));
-        let cols = match rec {
-            Some((child, err)) => {
-                let cpu = stop(child, err);
-                let r = recorded(&out);
-                format!(
-                    "{} | {} | {:.0} | {:.2} us ({:.0}/s)",
-                    r[0].1,
-                    r[0].2,
-                    r[0].3,
-                    cpu / r[0].1 as f64 * 1e6,
-                    r[0].1 as f64 / cpu
-                )
-            }
-            None => "- | - | - | -".into(),
-        };
-        clean(&p);
-        let r = read_report(&report);
-        let tp = r["samples_out"].as_f64().unwrap_or(0.0) / r["duration_s"].as_f64().unwrap_or(1.0);
-        println!(
-            "| {} | {tp:.0} | {} | {cols} |",
-            if with { "with recorder" } else { "without" },
-            r["lost"]
-        );
+    println!("| flat out | daemon samples/s | daemon lost | recorded | recorder gaps | every sample from the recorder's first | recorder samples/s | recorder CPU per sample (samples per CPU second) |");
+    println!("|---|---:|---:|---:|---:|---|---:|---:|");
+    let csv = dir.path().join("replay.csv");
+    let status = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(["simulate", "--profile", "adis16405", "--rate", "1000"])
+        .args(["--duration", "1000s", "--motion", "stop-and-go", "-o"])
+        .arg(&csv)
+        .stderr(Stdio::null())
+        .status()
+        .expect("simulate");
+    assert!(status.success(), "simulate failed");
+    let replay = dir.path().join("replay.toml");
+    std::fs::write(&replay, replay_pipeline(&csv)).expect("write pipeline");
+    let runs = [
+        (
+            "delivery.toml (simulator)",
+            root().join("pipelines/delivery.toml"),
+            "delivery",
+        ),
+        ("CSV replay (ingest.csv)", replay, "replay"),
+    ];
+    for (name, pipeline, service) in &runs {
+        for (i, with) in [false, true].into_iter().enumerate() {
+            let p = prefix(&format!("recfast{service}{i}"));
+            clean(&p);
+            let report = dir.path().join(format!("fast{service}{i}.json"));
+            let mut daemon = start_daemon(pipeline, &p, &report, &[]);
+            let out = dir.path().join(format!("fast{service}{i}.mcap"));
+            let corrected = format!("{service}/corrected");
+            let rec = with.then(|| {
+                wait_service(&p, &corrected);
+                recorder(&p, &out, &[&corrected])
+            });
+            wait_exit_within(&mut daemon, Duration::from_secs(120));
+            let r = read_report(&report);
+            let cols = match rec {
+                Some((child, err)) => {
+                    let cpu = stop(child, err);
+                    let t = &recorded(&out)[0];
+                    let whole = t.missing == 0
+                        && t.seqs.is_some_and(|(first, last)| {
+                            last + 1 == r["samples_out"].as_u64().unwrap_or(0)
+                                && last + 1 - first == t.samples
+                        });
+                    format!(
+                        "{} | {} | {whole} | {:.0} | {:.2} us ({:.0}/s)",
+                        t.samples,
+                        t.missing,
+                        t.rate,
+                        cpu / t.samples as f64 * 1e6,
+                        t.samples as f64 / cpu
+                    )
+                }
+                None => "- | - | - | - | -".into(),
+            };
+            clean(&p);
+            let tp =
+                r["samples_out"].as_f64().unwrap_or(0.0) / r["duration_s"].as_f64().unwrap_or(1.0);
+            println!(
+                "| {name}, {} | {tp:.0} | {} | {cols} |",
+                if with { "with recorder" } else { "without" },
+                r["lost"]
+            );
+        }
     }
     println!();
     println!("load average at end: {}", loadavg());
+}
+
+/// `pipelines/delivery.toml`'s stages behind a flat-out replay of `csv` (`driftless simulate`'s
+/// columns).
+fn replay_pipeline(csv: &Path) -> String {
+    format!(
+        r#"name = "replay"
+rate_hz = 1000.0
+axes = 3
+input_units = "deg/s"
+report_interval_s = 2.0
+
+[iceoryx2]
+buffer_size = 65536
+max_subscribers = 3
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+file = "{}"
+time_column = "t_s"
+columns = ["gyro_x_degps", "gyro_y_degps", "gyro_z_degps"]
+pace = "asap"
+output = "replay/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+input = "replay/raw"
+output = "replay/denoised"
+wavelet = "db6"
+level = 5
+lag = 64
+window = 256
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "replay/denoised"
+output = "replay/predicted"
+profile = "adis16405"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "replay/predicted"
+output = "replay/corrected"
+"#,
+        csv.display()
+    )
 }
