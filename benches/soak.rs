@@ -15,7 +15,15 @@
 //! clean-up removes it), so the check is that the daemon keeps its deadline and its memory.
 //! Throughout: the daemon's resident memory is sampled every second (flat after the first
 //! tenth of the run), and its final report must show no deadline miss; each miss it does show
-//! is printed beside what the bench did in the 3 s before it and the second after.
+//! is printed beside what the bench did in the 3 s before it and the second after, and beside
+//! where the hot thread's time went around it: its scheduler statistics (time run, time waiting
+//! for a CPU while runnable, `/proc/PID/task/TID/schedstat`) and its CPU's steal, irq and
+//! softirq time (`/proc/stat`), sampled every 20 ms. A miss with no wait for a CPU was not
+//! caused by another process of this machine (a subscriber included): the guest kernel did not
+//! run anything else in the thread's place.
+//!
+//! `DRIFTLESS_SOAK_CONTROL=1` runs the same daemon for the same time with no subscriber at all:
+//! the misses this machine causes by itself, to compare with.
 //!
 //! The subscribers are this same executable, started again with `--subscriber`.
 
@@ -149,6 +157,88 @@ fn leave(mut sub: Sub) -> Seen {
     }
 }
 
+/// One sample of where the daemon's hot thread spent its time, and of its CPU's counters.
+#[derive(Debug, Clone, Copy)]
+struct Probe {
+    /// Bench time since the daemon's launch, s.
+    t: f64,
+    /// The hot thread's time on a CPU, ns (schedstat 1).
+    exec_ns: u64,
+    /// Its time runnable but waiting for a CPU, ns (schedstat 2).
+    wait_ns: u64,
+    /// The CPU it last ran on.
+    cpu: usize,
+    /// That CPU's steal, irq and softirq time, in USER_HZ ticks (10 ms).
+    steal: u64,
+    irq: u64,
+    softirq: u64,
+}
+
+/// The daemon's SCHED_FIFO thread (the hot one), if it has one.
+fn hot_thread(pid: u32) -> Option<u32> {
+    std::fs::read_dir(format!("/proc/{pid}/task"))
+        .ok()?
+        .filter_map(|e| e.ok()?.file_name().to_str()?.parse::<u32>().ok())
+        .find(|tid| {
+            stat_fields(pid, *tid).is_some_and(|f| f.get(38).map(String::as_str) == Some("1"))
+        })
+}
+
+/// Fields of /proc/PID/task/TID/stat after the command name: index 0 is field 3 (state), so
+/// field n of proc(5) is index n - 3.
+fn stat_fields(pid: u32, tid: u32) -> Option<Vec<String>> {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/task/{tid}/stat")).ok()?;
+    let rest = &text[text.rfind(')')? + 1..];
+    Some(rest.split_whitespace().map(str::to_string).collect())
+}
+
+fn probe(pid: u32, tid: u32, t: f64) -> Option<Probe> {
+    let sched = std::fs::read_to_string(format!("/proc/{pid}/task/{tid}/schedstat")).ok()?;
+    let mut sched = sched.split_whitespace().map(|v| v.parse::<u64>().ok());
+    let (exec_ns, wait_ns) = (sched.next()??, sched.next()??);
+    let cpu: usize = stat_fields(pid, tid)?.get(36)?.parse().ok()?;
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    let line = stat
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some(&format!("cpu{cpu}")))?;
+    let v: Vec<u64> = line
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    Some(Probe {
+        t,
+        exec_ns,
+        wait_ns,
+        cpu,
+        irq: *v.get(5)?,
+        softirq: *v.get(6)?,
+        steal: *v.get(7)?,
+    })
+}
+
+/// What the probes say of the span around `at` (the probes just before and just after it,
+/// widened by the 50 ms the daemon's miss times may be off).
+fn around(probes: &[Probe], at: f64) -> String {
+    let before = probes.iter().rev().find(|p| p.t <= at - 0.05);
+    let after = probes.iter().find(|p| p.t >= at + 0.05);
+    match (before, after) {
+        (Some(a), Some(b)) => format!(
+            "hot thread over {:.0} ms: waited {:.3} ms for a CPU, ran {:.3} ms; CPU {}{}: steal {} irq {} \
+             softirq {} ticks",
+            (b.t - a.t) * 1e3,
+            (b.wait_ns - a.wait_ns) as f64 / 1e6,
+            (b.exec_ns - a.exec_ns) as f64 / 1e6,
+            b.cpu,
+            if a.cpu == b.cpu { "" } else { " (moved)" },
+            b.steal.saturating_sub(a.steal),
+            b.irq.saturating_sub(a.irq),
+            b.softirq.saturating_sub(a.softirq)
+        ),
+        _ => "no probe around it".into(),
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if let Some(i) = args.iter().position(|a| a == "--subscriber") {
@@ -159,6 +249,7 @@ fn main() {
         return; // `cargo bench -- --list`
     }
     let secs = env_u64("DRIFTLESS_SOAK_SECONDS", 60).max(20);
+    let control = env_u64("DRIFTLESS_SOAK_CONTROL", 0) != 0;
     let seed = env_u64("DRIFTLESS_SOAK_SEED", 1);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -199,6 +290,8 @@ fn main() {
         stopped_until: None,
     };
 
+    let hot = hot_thread(daemon.id());
+    let mut probes: Vec<Probe> = Vec::new();
     let t0 = Instant::now();
     let phase = Duration::from_secs(secs / 2);
     let mut subs: Vec<Sub> = Vec::new();
@@ -211,8 +304,15 @@ fn main() {
     let mut daemon_lost = None;
     while t0.elapsed() < 2 * phase {
         let now = Instant::now();
+        if let Some(p) =
+            hot.and_then(|tid| probe(daemon.id(), tid, launched.elapsed().as_secs_f64()))
+        {
+            probes.push(p);
+        }
         let killing = t0.elapsed() >= phase;
-        if killing && phase_a_daemon_lost.is_none() {
+        if control {
+            // No subscriber: nothing to do but watch.
+        } else if killing && phase_a_daemon_lost.is_none() {
             // End of phase A: every subscriber leaves cleanly and reports.
             note("end of phase 1: every subscriber leaves");
             for s in subs.drain(..) {
@@ -232,7 +332,7 @@ fn main() {
                 note("continue (SIGCONT)");
             }
         }
-        if now >= next_action {
+        if !control && now >= next_action {
             let roll: f64 = rng.random();
             if subs.len() < 2 || (roll < 0.35 && subs.len() < MAX_SUBSCRIBERS) {
                 subs.push(spawn());
@@ -292,10 +392,31 @@ fn main() {
     let (lo, hi) = warm.fold((u64::MAX, 0), |(lo, hi), k| (lo.min(k), hi.max(k)));
     let misses = r["deadline_misses"].as_u64().unwrap_or(u64::MAX);
     let daemon_a = phase_a_daemon_lost.unwrap_or(u64::MAX);
-    println!(
-        "soak: {secs} s of pipelines/demo.toml at 1 kHz, seed {seed}; {joins} joins, {stalls} stalls \
-         (SIGSTOP 0.1-3 s), {kills} kills (second half only), {leaves} clean leaves"
-    );
+    if control {
+        println!("soak CONTROL: {secs} s of pipelines/demo.toml at 1 kHz with no subscriber");
+    } else {
+        println!(
+            "soak: {secs} s of pipelines/demo.toml at 1 kHz, seed {seed}; {joins} joins, {stalls} stalls \
+             (SIGSTOP 0.1-3 s), {kills} kills (second half only), {leaves} clean leaves"
+        );
+    }
+    match (probes.first(), probes.last()) {
+        (Some(a), Some(b)) => println!(
+            "  hot thread: ran {:.1} s, waited {:.3} ms for a CPU in all (most in one 20 ms probe: \
+             {:.3} ms); steal on CPU {} {} ticks",
+            (b.exec_ns - a.exec_ns) as f64 / 1e9,
+            (b.wait_ns - a.wait_ns) as f64 / 1e6,
+            probes
+                .windows(2)
+                .map(|w| w[1].wait_ns - w[0].wait_ns)
+                .max()
+                .unwrap_or(0) as f64
+                / 1e6,
+            b.cpu,
+            b.steal.saturating_sub(a.steal)
+        ),
+        _ => println!("  hot thread: not found (no SCHED_FIFO thread: no probes)"),
+    }
     println!(
         "  daemon: {} samples in, {} out, e2e p99 {:.1} us, max {:.1} us, deadline misses {misses}, lost {} in all",
         r["samples_in"],
@@ -308,10 +429,12 @@ fn main() {
         "  resident memory after the first tenth: {lo} .. {hi} KiB ({} samples)",
         rss.len()
     );
-    println!(
-        "  phase 1 (no kills): subscribers received {}, lost {}, duplicated {}, reordered {}; the daemon counted {daemon_a} lost",
-        seen.received, seen.lost, seen.duplicated, seen.reordered
-    );
+    if !control {
+        println!(
+            "  phase 1 (no kills): subscribers received {}, lost {}, duplicated {}, reordered {}; the daemon counted {daemon_a} lost",
+            seen.received, seen.lost, seen.duplicated, seen.reordered
+        );
+    }
     let goals = [
         ("no deadline miss", misses == 0),
         ("memory flat (growth < 1 MiB)", hi.saturating_sub(lo) < 1024),
@@ -321,7 +444,8 @@ fn main() {
         ),
         ("every loss counted exactly", daemon_a == seen.lost),
     ];
-    for (goal, ok) in goals {
+    // The control has no subscriber: only its misses and memory mean anything.
+    for (goal, ok) in goals.iter().take(if control { 2 } else { goals.len() }) {
         println!("  goal {goal}: {ok}");
     }
     // Each miss beside what the bench did around it (bench time since the daemon's launch;
@@ -334,14 +458,15 @@ fn main() {
             .map(|(t, what)| format!("{:+.2} s {what}", t - at))
             .collect();
         println!(
-            "  miss at {at:.2} s: {:.1} us end to end, stage compute {} ns; around it: {}",
+            "  miss at {at:.2} s: {:.1} us end to end, stage compute {} ns; around it: {}; {}",
             m["e2e_ns"].as_f64().unwrap_or(f64::NAN) / 1e3,
             m["stage_ns"],
             if near.is_empty() {
                 "nothing".to_string()
             } else {
                 near.join(", ")
-            }
+            },
+            around(&probes, at)
         );
     }
 }
