@@ -8,7 +8,7 @@ mod common;
 use std::fmt::Debug;
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU16, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
@@ -22,13 +22,18 @@ const SIGKILL: i32 = 9;
 const SIGSTOP: i32 = 19;
 const SIGCONT: i32 = 18;
 
-/// A TCP port nobody listens on now.
+/// A TCP port nobody listens on now, below the ephemeral range (32768-60999 here): a port the
+/// kernel hands out for `bind(0)` can also become the source port of another test's outgoing
+/// connection before our listener takes it (a flake seen once); these never do.
 fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .expect("bind")
-        .local_addr()
-        .unwrap()
-        .port()
+    static NEXT: AtomicU16 = AtomicU16::new(0);
+    let base = 20_000 + (std::process::id() % 1000) as u16 * 10;
+    loop {
+        let port = base + NEXT.fetch_add(1, Ordering::Relaxed) % 2_000;
+        if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
+            return port;
+        }
+    }
 }
 
 /// This test's Zenoh peer, listening on 127.0.0.1:`port`, no multicast scouting.
@@ -127,6 +132,16 @@ impl Bridge {
             "no {text:?} from the bridge within {timeout:?}: {:?}",
             self.seen
         );
+    }
+
+    /// Send `sig` to `other` and wait (up to 20 s) for a line of this bridge containing `text`
+    /// after it; returns how long that took.
+    fn after(&mut self, other: &Child, sig: i32, text: &str) -> Duration {
+        let mark = self.seen.len();
+        let sent = Instant::now();
+        signal(other, sig);
+        self.wait_for_after(mark, text, Duration::from_secs(20));
+        sent.elapsed()
     }
 
     /// Wait for its exit; returns the exit code and every stderr line.
@@ -550,31 +565,13 @@ fn a_remote_subscriber_that_stalls_or_dies_costs_the_daemon_nothing_and_is_repor
 
     // The network stops: nothing comes back from the far end (its TCP window fills, its
     // keep-alives stop).
-    signal(&far.child, SIGSTOP);
-    let mark = bridge.seen.len();
-    let stopped = Instant::now();
-    bridge.wait_for_after(
-        mark,
-        "no Zenoh subscriber any more",
-        Duration::from_secs(10),
-    );
-    let noticed = stopped.elapsed();
+    let noticed = bridge.after(&far.child, SIGSTOP, "no Zenoh subscriber any more");
     std::thread::sleep(Duration::from_secs(2));
     // It comes back: zenoh reconnects to the --connect endpoint and the stream resumes.
-    signal(&far.child, SIGCONT);
-    let mark = bridge.seen.len();
-    bridge.wait_for_after(mark, "a Zenoh subscriber matches", Duration::from_secs(20));
+    bridge.after(&far.child, SIGCONT, "a Zenoh subscriber matches");
     std::thread::sleep(Duration::from_secs(1));
     // The far end dies.
-    signal(&far.child, SIGKILL);
-    let mark = bridge.seen.len();
-    let killed = Instant::now();
-    bridge.wait_for_after(
-        mark,
-        "no Zenoh subscriber any more",
-        Duration::from_secs(10),
-    );
-    let noticed_death = killed.elapsed();
+    let noticed_death = bridge.after(&far.child, SIGKILL, "no Zenoh subscriber any more");
     let _ = far.finish(Duration::from_secs(5));
     std::thread::sleep(Duration::from_millis(500));
 
