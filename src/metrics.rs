@@ -34,6 +34,9 @@ pub struct Record {
     pub stages_run: u8,
     /// Ingest of this sample to publish of the output it completed, ns; 0 if none was published.
     pub e2e_ns: u64,
+    /// How long after it was due a paced source's sample was taken, ns (saturated at
+    /// u32::MAX); None for a source that is not paced.
+    pub late_ns: Option<u32>,
 }
 
 /// How often the reporter drains the channel.
@@ -406,6 +409,12 @@ pub struct Report {
     pub outputs: Outputs,
     /// End to end: ingest of the completing sample to publish, ns.
     pub end_to_end_ns: Pct,
+    /// How long after it was due each sample of a paced source (`ingest.sim`, a replay at
+    /// `pace = "realtime"`) was taken, ns: the hot thread's wake-up lateness, which
+    /// `end_to_end_ns` does not include. None when the source is not paced.
+    pub woken_late_ns: Option<Pct>,
+    /// Paced samples taken more than the deadline after they were due.
+    pub woken_late_over_deadline: u64,
     /// Per stage.
     pub stages: Vec<StageReport>,
     /// Heading error of the raw, denoised and corrected rates against the truth (a simulated
@@ -466,6 +475,20 @@ impl Report {
             us(e.p999),
             us(e.max)
         ));
+        if let Some(w) = &self.woken_late_ns {
+            s.push_str(&format!(
+                "{:<14} {:<16} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+                "woken late",
+                "(not in e2e)",
+                w.count,
+                "",
+                "",
+                us(w.p50),
+                us(w.p99),
+                us(w.p999),
+                us(w.max)
+            ));
+        }
         let f = &self.flagged;
         s.push_str(&format!(
             "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} time backwards, {} repaired; metric drops {}\n",
@@ -578,7 +601,11 @@ impl Report {
             0 => "nothing lost".to_string(),
             n => format!("{n} samples LOST"),
         };
-        format!("verdict: {timing}; {loss}")
+        let woken = match self.woken_late_over_deadline {
+            0 => String::new(),
+            n => format!("; {n} samples taken LATE (over {deadline} after they were due)"),
+        };
+        format!("verdict: {timing}; {loss}{woken}")
     }
 }
 
@@ -591,6 +618,8 @@ pub struct Reporter {
     e2e: Histogram<u64>,
     heading: Option<HeadingSummary>,
     misses: Vec<Miss>,
+    late: Histogram<u64>,
+    late_over: u64,
     started: Instant,
 }
 
@@ -611,6 +640,8 @@ impl Reporter {
             e2e: histogram(),
             heading: None,
             misses: Vec::new(),
+            late: histogram(),
+            late_over: 0,
             started: Instant::now(),
         }
     }
@@ -625,6 +656,10 @@ impl Reporter {
     }
 
     fn record(&mut self, r: &Record) {
+        if let Some(late) = r.late_ns.map(u64::from) {
+            self.late.saturating_record(late.max(1));
+            self.late_over += u64::from(late > self.layout.deadline.as_nanos() as u64);
+        }
         let n = (r.stages_run as usize).min(self.stage_hist.len());
         let first = (r.first as usize).min(n);
         for (h, &ns) in self.stage_hist[first..n]
@@ -786,6 +821,8 @@ impl Reporter {
             flagged: self.flagged(),
             outputs: Outputs::from_counts(c.outputs.each_ref().map(get)),
             end_to_end_ns: Pct::of(&self.e2e),
+            woken_late_ns: (!self.late.is_empty()).then(|| Pct::of(&self.late)),
+            woken_late_over_deadline: self.late_over,
             stages: self
                 .layout
                 .stages

@@ -921,7 +921,14 @@ fn run_names_its_services_counts_what_it_published_and_ends_with_a_verdict() {
     };
     assert!(verdict.starts_with(&expected), "{verdict}");
     assert_eq!(r["lost"], 0);
-    assert!(verdict.ends_with("; nothing lost"), "{verdict}");
+    // Samples the hot thread took over the deadline after they were due (a loaded machine)
+    // are named after the losses.
+    let late = r["woken_late_over_deadline"].as_u64().unwrap();
+    let tail = match late {
+        0 => "; nothing lost".to_string(),
+        n => format!("; nothing lost; {n} samples taken LATE (over 1000.0 us after they were due)"),
+    };
+    assert!(verdict.ends_with(&tail), "{verdict}");
 }
 
 #[test]
@@ -1241,12 +1248,57 @@ fn the_report_keeps_each_miss_with_its_time_and_stage_times() {
             "compute within end to end: {m}"
         );
     }
+    // A replay as fast as possible is not paced: nothing is due, nothing is late.
+    assert!(r["woken_late_ns"].is_null(), "{r}");
+    assert_eq!(r["woken_late_over_deadline"], 0);
+    assert!(!err.contains("woken late"), "{err}");
     // The table shows the first few and says where the rest are.
     assert_eq!(err.matches("missed at ").count(), 5, "{err}");
     assert!(
         err.contains(&format!(
             "({timed} misses in all; the report's JSON keeps the first {})",
             misses.len()
+        )),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_paced_source_reports_how_late_each_sample_was_taken() {
+    // Paced in real time with a 1 ns deadline: every sample is due at a known time, and the
+    // hot thread cannot take it within 1 ns of that.
+    const N: usize = 400;
+    let prefix = Prefix::new("wokenlate");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(N));
+    let text = csv_pipeline("realtime", false, 1024)
+        .replace("rate_hz = 1000.0", "rate_hz = 1000.0\ndeadline_us = 0.001");
+    let file = dir.write("p.toml", &text);
+    let report_path = dir.path("report.json");
+    let child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let r = report(&dir);
+    let w = &r["woken_late_ns"];
+    assert_eq!(
+        w["count"], r["samples_in"],
+        "one figure per paced sample: {r}"
+    );
+    let [min, p50, max] = ["min", "p50", "max"].map(|k| w[k].as_u64().unwrap());
+    assert!(0 < min && min <= p50 && p50 <= max, "{w}");
+    let late = r["woken_late_over_deadline"].as_u64().unwrap();
+    assert!(
+        late > N as u64 / 2,
+        "most samples taken over 1 ns late: {late}"
+    );
+    let row = err
+        .lines()
+        .find(|l| l.starts_with("woken late"))
+        .unwrap_or_else(|| panic!("a woken-late row: {err}"));
+    assert!(row.contains(&N.to_string()), "{row}");
+    assert!(
+        err.contains(&format!(
+            "; {late} samples taken LATE (over 0.0 us after they were due)"
         )),
         "{err}"
     );

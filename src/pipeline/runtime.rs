@@ -162,11 +162,19 @@ pub const EXTERNAL_GRACE: Duration = Duration::from_millis(200);
 
 impl Chain {
     /// The ingest hop, the guard, and the chain after it, for one raw sample.
-    fn ingest(&mut self, raw: &RawSample, ingest_ns: u64) -> Result<(), TransportError> {
+    fn ingest(
+        &mut self,
+        raw: &RawSample,
+        ingest_ns: u64,
+        late_ns: Option<u64>,
+    ) -> Result<(), TransportError> {
         let Some((raw_out, raw_in)) = &self.head else {
             return Ok(());
         };
-        let mut rec = Record::default();
+        let mut rec = Record {
+            late_ns: late_ns.map(|ns| ns.min(u64::from(u32::MAX)) as u32),
+            ..Record::default()
+        };
         raw_out.send(&self.guard.stamp(raw))?;
         let received = raw_in.receive()?;
         self.local.stage_in[0] += 1;
@@ -820,8 +828,8 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     let mut failure = None;
     while !stop.load(Ordering::Relaxed) {
         match source.poll(stop) {
-            Poll::Sample(raw, ingest_ns) => {
-                if let Err(e) = chain.ingest(&raw, ingest_ns) {
+            Poll::Sample(raw, ingest_ns, late_ns) => {
+                if let Err(e) = chain.ingest(&raw, ingest_ns, late_ns) {
                     failure = Some(e);
                     break;
                 }

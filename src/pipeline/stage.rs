@@ -36,8 +36,10 @@ pub trait Stage {
 /// What a source has for the runtime.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Poll {
-    /// A raw sample, ingested at `ingest_ns` ([`crate::transport::monotonic_ns`]).
-    Sample(RawSample, u64),
+    /// A raw sample, ingested at `ingest_ns` ([`crate::transport::monotonic_ns`]), and for a
+    /// paced source how long after it was due it was taken (ns; the hot thread's wake-up
+    /// lateness, which the end-to-end latency from `ingest_ns` does not include).
+    Sample(RawSample, u64, Option<u64>),
     /// Nothing now (a timeout passed): check for shutdown and ask again.
     Idle,
     /// The source is exhausted: drain and stop.

@@ -82,7 +82,7 @@ impl Source for ExternalRaw {
     fn poll(&mut self, _stop: &AtomicBool) -> Poll {
         for attempt in 0..2 {
             match self.input.receive() {
-                Ok(Some(s)) => return Poll::Sample(s, monotonic_ns()),
+                Ok(Some(s)) => return Poll::Sample(s, monotonic_ns(), None),
                 Ok(None) if attempt == 0 => {
                     // Sleep until the driver notifies (or the timeout), then look again.
                     let _ = self.waker.wait(self.timeout);

@@ -15,12 +15,13 @@
 //! ```
 
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::io::InputError;
 use crate::pipeline::schema::{Context, Key, StageTable, Type, Units};
 use crate::pipeline::stage::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::sim::{SimConfig, Simulator};
+use crate::stages::PaceClock;
 use crate::transport::{monotonic_ns, RawSample};
 
 const PROFILE: Key = Key {
@@ -147,7 +148,7 @@ pub struct SimSource {
     limit: Option<u64>,
     asap: bool,
     k: u64,
-    start: Option<Instant>,
+    start: Option<PaceClock>,
 }
 
 impl SimSource {
@@ -170,13 +171,15 @@ impl Source for SimSource {
         if self.limit.is_some_and(|n| self.k >= n) {
             return Poll::End;
         }
-        if !self.asap {
-            let start = *self.start.get_or_insert_with(Instant::now);
-            let due = start + Duration::from_secs_f64(self.k as f64 / self.rate_hz);
-            if !crate::stages::sleep_until(due, stop) {
-                return Poll::Idle;
+        let due_ns = if self.asap {
+            None
+        } else {
+            let clock = *self.start.get_or_insert_with(PaceClock::now);
+            match clock.wait(Duration::from_secs_f64(self.k as f64 / self.rate_hz), stop) {
+                Some(due) => Some(due),
+                None => return Poll::Idle,
             }
-        }
+        };
         let s = self.sim.next_sample();
         let raw = RawSample {
             t_ns: (self.k as f64 * 1e9 / self.rate_hz).round() as u64,
@@ -186,6 +189,7 @@ impl Source for SimSource {
             epoch: 0,
         };
         self.k += 1;
-        Poll::Sample(raw, monotonic_ns())
+        let ingest_ns = monotonic_ns();
+        Poll::Sample(raw, ingest_ns, due_ns.map(|d| ingest_ns.saturating_sub(d)))
     }
 }

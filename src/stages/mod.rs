@@ -68,6 +68,30 @@ pub fn build(spec: &StageSpec, pipeline: &Pipeline) -> Result<Box<dyn Stage>, St
     spec.params.stage(&pipeline.context())
 }
 
+/// The clock of a paced source: when its first sample was taken, as an instant to sleep
+/// until and as [`monotonic_ns`](crate::transport::monotonic_ns) to measure lateness on.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PaceClock {
+    start: Instant,
+    start_ns: u64,
+}
+
+impl PaceClock {
+    pub(crate) fn now() -> Self {
+        PaceClock {
+            start: Instant::now(),
+            start_ns: crate::transport::monotonic_ns(),
+        }
+    }
+
+    /// Sleep until `offset` after the start (noticing `stop`); returns when that was due, in
+    /// monotonic ns, or None when stopped first.
+    pub(crate) fn wait(&self, offset: Duration, stop: &AtomicBool) -> Option<u64> {
+        sleep_until(self.start + offset, stop)
+            .then(|| self.start_ns.saturating_add(offset.as_nanos() as u64))
+    }
+}
+
 /// Sleep until `due` (a monotonic instant), in slices short enough to notice `stop`.
 /// Returns false when stopped first.
 pub(crate) fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {

@@ -5,12 +5,13 @@
 //! by their timestamps (`realtime`) or not at all (`asap`).
 
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
 
 use crate::pipeline::schema::{Key, Type};
 use crate::pipeline::stage::{Poll, Source};
+use crate::stages::PaceClock;
 use crate::transport::{monotonic_ns, RawSample};
 
 /// Samples per block the reader thread hands to the hot thread.
@@ -98,7 +99,7 @@ pub struct BlockReplay {
     block: Vec<RawSample>,
     next: usize,
     pace: Pace,
-    start: Option<(Instant, u64)>,
+    start: Option<(PaceClock, u64)>,
 }
 
 impl BlockReplay {
@@ -159,14 +160,24 @@ impl Source for BlockReplay {
             }
         }
         let sample = self.block[self.next];
-        if self.pace == Pace::Realtime {
-            let (t0, first_t) = *self.start.get_or_insert((Instant::now(), sample.t_ns));
-            let due = t0 + Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
-            if !crate::stages::sleep_until(due, stop) {
-                return Poll::Idle;
+        let due_ns = if self.pace == Pace::Realtime {
+            let (clock, first_t) = *self
+                .start
+                .get_or_insert_with(|| (PaceClock::now(), sample.t_ns));
+            let offset = Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
+            match clock.wait(offset, stop) {
+                Some(due) => Some(due),
+                None => return Poll::Idle,
             }
-        }
+        } else {
+            None
+        };
         self.next += 1;
-        Poll::Sample(sample, monotonic_ns())
+        let ingest_ns = monotonic_ns();
+        Poll::Sample(
+            sample,
+            ingest_ns,
+            due_ns.map(|d| ingest_ns.saturating_sub(d)),
+        )
     }
 }
