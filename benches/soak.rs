@@ -384,6 +384,9 @@ fn main() {
     let r: Value = serde_json::from_str(&std::fs::read_to_string(&report).expect("report"))
         .expect("report JSON");
     let _ = std::fs::remove_file(&report);
+    // What this run's own nodes (the watcher, killed subscribers) left under its prefix.
+    drop((stats, watcher));
+    driftless::transport::remove_prefix_leftovers(&prefix);
 
     let warm = rss
         .iter()
