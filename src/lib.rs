@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod allan;
+pub mod bigbuf;
 pub mod cli;
 pub mod drift;
 pub mod io;

@@ -235,7 +235,7 @@ pub fn pairwise_sum(a: &[f64]) -> f64 {
 pub fn frequency_to_phase(y: &[f64], rate: f64) -> Vec<f64> {
     let dt = 1.0 / rate;
     let mean = pairwise_sum(y) / y.len().max(1) as f64;
-    let mut x = vec![0.0; y.len() + 1];
+    let mut x = crate::bigbuf::zeroed(y.len() + 1);
     let mut s = 0.0;
     for (xi, &v) in x[1..].iter_mut().zip(y) {
         s += v - mean;

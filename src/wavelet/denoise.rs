@@ -5,8 +5,10 @@
 //! [`ThresholdFn`] (the approximation is kept), reconstruct.
 
 use super::threshold::ThresholdFn;
-use super::transform::{Mode, Plan};
+use super::transform::{Mode, Plan, SPLIT_MIN};
 use super::{Wavelet, WaveletError};
+use crate::bigbuf::{self, Scratch};
+use rayon::prelude::*;
 
 /// Phi^-1(3/4): the median of |N(0, 1)|.
 pub const MAD_TO_SIGMA: f64 = 0.6744897501960817;
@@ -111,23 +113,30 @@ pub struct Denoised {
 }
 
 /// median(|x|) / 0.6745 over the nonzero entries of `details` (0 when all are zero), using
-/// `scratch` for the copy. Even counts average the two middle values, as numpy's median does.
-pub fn mad_sigma(details: &[f64], scratch: &mut Vec<f64>) -> f64 {
-    scratch.clear();
-    scratch.extend(details.iter().filter(|d| **d != 0.0).map(|d| d.abs()));
-    let n = scratch.len();
+/// `scratch` (at least as long as `details`) for the copy. Even counts average the two middle
+/// values, as numpy's median does.
+///
+/// # Panics
+/// If `scratch` is shorter than `details`.
+pub fn mad_sigma(details: &[f64], scratch: &mut [f64]) -> f64 {
+    let scratch = &mut scratch[..details.len()];
+    let mut n = 0;
+    for &d in details {
+        // Branch-free: every value is written, only nonzero ones are kept.
+        scratch[n.min(details.len() - 1)] = d.abs();
+        n += usize::from(d != 0.0);
+    }
     if n == 0 {
         return 0.0;
     }
-    let (_, upper, _) = scratch.select_nth_unstable_by(n / 2, f64::total_cmp);
+    // Non-negative finite values order as their bit patterns: integer compares, same order.
+    let values = &mut scratch[..n];
+    let (below, upper, _) = values.select_nth_unstable_by_key(n / 2, |v| v.to_bits());
     let upper = *upper;
     let median = if n % 2 == 1 {
         upper
     } else {
-        let lower = scratch[..n / 2]
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
+        let lower = below.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         0.5 * (lower + upper)
     };
     median / MAD_TO_SIGMA
@@ -176,7 +185,9 @@ fn bayes_lambda(d: &[f64], sigma: f64) -> f64 {
 }
 
 fn check_signal(x: &[f64], cfg: &DenoiseConfig) -> Result<(), WaveletError> {
-    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+    // A vectorisable scan first; the position only when there is something to report.
+    if x.iter().fold(false, |bad, v| bad | !v.is_finite()) {
+        let i = x.iter().position(|v| !v.is_finite()).unwrap_or(0);
         return Err(WaveletError::BadParameter(format!(
             "sample {i} is {}: the signal must be finite",
             x[i]
@@ -196,15 +207,16 @@ fn check_signal(x: &[f64], cfg: &DenoiseConfig) -> Result<(), WaveletError> {
 pub fn denoise(x: &[f64], cfg: &DenoiseConfig) -> Result<Denoised, WaveletError> {
     check_signal(x, cfg)?;
     let mut plan = Plan::new(&cfg.wavelet, cfg.mode, x.len(), cfg.level)?;
-    let mut coeffs = vec![0.0; plan.coeffs_len()];
-    plan.wavedec(x, &mut coeffs);
     let ranges = plan.ranges().to_vec();
     // ranges = [cA_L, cD_L, ..., cD_1]; level j's details sit at ranges[L + 1 - j].
     let detail = |j: usize| ranges[cfg.level + 1 - j].clone();
+    let mut coeffs = Scratch::zeroed(plan.coeffs_len());
+    plan.wavedec(x, &mut coeffs);
+    let mad_scratch = plan.spare();
     let mut scratch = Vec::new();
     let global = match cfg.sigma {
         NoiseSigma::Fixed(s) => s,
-        _ => mad_sigma(&coeffs[detail(1)], &mut scratch),
+        _ => mad_sigma(&coeffs[detail(1)], mad_scratch),
     };
     let n = x.len() as f64;
     let mut sigma = Vec::with_capacity(cfg.level);
@@ -212,7 +224,7 @@ pub fn denoise(x: &[f64], cfg: &DenoiseConfig) -> Result<Denoised, WaveletError>
     for j in 1..=cfg.level {
         let d = &mut coeffs[detail(j)];
         let s = match cfg.sigma {
-            NoiseSigma::MadPerLevel => mad_sigma(d, &mut scratch),
+            NoiseSigma::MadPerLevel => mad_sigma(d, mad_scratch),
             _ => global,
         };
         let l = match cfg.rule {
@@ -222,11 +234,16 @@ pub fn denoise(x: &[f64], cfg: &DenoiseConfig) -> Result<Denoised, WaveletError>
             Rule::Bayes => bayes_lambda(d, s),
             Rule::Fixed(v) => v,
         };
-        cfg.threshold.apply_all(d, l);
+        if d.len() >= SPLIT_MIN {
+            d.par_chunks_mut(SPLIT_MIN / 4)
+                .for_each(|part| cfg.threshold.apply_all(part, l));
+        } else {
+            cfg.threshold.apply_all(d, l);
+        }
         sigma.push(s);
         lambda.push(l);
     }
-    let mut signal = vec![0.0; x.len()];
+    let mut signal = bigbuf::zeroed(x.len());
     plan.waverec(&coeffs, &mut signal);
     Ok(Denoised {
         signal,
@@ -252,11 +269,11 @@ pub fn separate(
     level: usize,
 ) -> Result<Separation, WaveletError> {
     let mut plan = Plan::new(wavelet, mode, x.len(), level)?;
-    let mut coeffs = vec![0.0; plan.coeffs_len()];
+    let mut coeffs = Scratch::zeroed(plan.coeffs_len());
     plan.wavedec(x, &mut coeffs);
     let approx_end = plan.ranges()[0].end;
     coeffs[approx_end..].fill(0.0);
-    let mut drift = vec![0.0; x.len()];
+    let mut drift = bigbuf::zeroed(x.len());
     plan.waverec(&coeffs, &mut drift);
     let noise = x.iter().zip(&drift).map(|(a, b)| a - b).collect();
     Ok(Separation { drift, noise })
@@ -319,7 +336,7 @@ mod tests {
 
     #[test]
     fn mad_sigma_matches_numpy_median_and_skips_zeros() {
-        let mut s = Vec::new();
+        let mut s = vec![0.0; 6];
         // nonzero |d| = [1, 2, 3, 4] -> median 2.5
         let v = mad_sigma(&[0.0, -1.0, 2.0, 0.0, -3.0, 4.0], &mut s);
         assert!((v - 2.5 / MAD_TO_SIGMA).abs() < 1e-15);

@@ -10,6 +10,7 @@
 //! and give bit-identical results.
 
 use super::{Wavelet, WaveletError};
+use crate::bigbuf::Scratch;
 use std::ops::Range;
 
 /// Signal extension at the edges, as PyWavelets names them.
@@ -247,7 +248,9 @@ pub fn waverec(coeffs: &[Vec<f64>], w: &Wavelet, mode: Mode) -> Result<Vec<f64>,
 }
 
 /// A multilevel transform planned for one signal length, working in caller-owned buffers so that
-/// repeated calls on equal-length windows allocate nothing.
+/// repeated calls on equal-length windows allocate nothing. Levels of [`SPLIT_MIN`] coefficients
+/// or more are shared out over rayon's thread pool (same bits; the pool may allocate), shorter
+/// ones run on the calling thread alone.
 ///
 /// Results are bit-identical to [`wavedec`] and to the first [`Plan::signal_len`] samples of
 /// [`waverec`].
@@ -260,10 +263,10 @@ pub struct Plan {
     lens: Vec<usize>,
     ranges: Vec<Range<usize>>,
     /// Polyphase halves of the extended signal (dwt) or extended cA / cD (idwt).
-    ev: Vec<f64>,
-    od: Vec<f64>,
+    ev: Scratch,
+    od: Scratch,
     /// Intermediate approximation between levels.
-    approx: Vec<f64>,
+    approx: Scratch,
 }
 
 impl Plan {
@@ -304,9 +307,9 @@ impl Plan {
             taps,
             mode,
             level,
-            ev: vec![0.0; half],
-            od: vec![0.0; half],
-            approx: vec![0.0; lens[1]],
+            ev: Scratch::zeroed(half),
+            od: Scratch::zeroed(half),
+            approx: Scratch::zeroed(lens[1]),
             lens,
             ranges,
         })
@@ -330,6 +333,12 @@ impl Plan {
     /// Where each band sits in the flat buffer, PyWavelets' order: `[cA_n, cD_n, ..., cD_1]`.
     pub fn ranges(&self) -> &[Range<usize>] {
         &self.ranges
+    }
+
+    /// The plan's own work buffer, free between calls (nothing in it is kept): room for at least
+    /// the largest band, so that a caller needs no buffer of its own for a copy of one.
+    pub(crate) fn spare(&mut self) -> &mut [f64] {
+        &mut self.ev
     }
 
     /// Decompose `x` (length [`Plan::signal_len`]) into `coeffs` (length [`Plan::coeffs_len`]).
@@ -525,19 +534,41 @@ fn extend(x: &[f64], mode: Mode, f: usize, ev: &mut [f64], od: &mut [f64]) {
     } else {
         (&mut *od, &mut *ev)
     };
-    for (dst, &v) in a[left / 2..].iter_mut().zip(x.iter().step_by(2)) {
-        *dst = v;
+    let (a, b) = (&mut a[left / 2..], &mut b[left.div_ceil(2)..]);
+    let pairs = x.chunks_exact(2);
+    if let Some(&v) = pairs.remainder().first() {
+        if let Some(dst) = a.get_mut(n / 2) {
+            *dst = v;
+        }
     }
-    for (dst, &v) in b[left.div_ceil(2)..]
-        .iter_mut()
-        .zip(x.iter().skip(1).step_by(2))
-    {
-        *dst = v;
+    for ((pair, da), db) in pairs.zip(a.iter_mut()).zip(b.iter_mut()) {
+        *da = pair[0];
+        *db = pair[1];
     }
 }
 
+/// Outputs from which one filter pass is shared out between the cores (`rayon::join`, halving
+/// until the pieces are smaller): below it the hand-off costs more than it saves. Every output is
+/// computed the same way wherever a split falls, so the bits do not depend on the threads.
+pub const SPLIT_MIN: usize = 1 << 15;
+
 /// Analysis filters on an extended signal already split by [`extend`].
 fn dwt_filter(taps: &Taps, ev: &[f64], od: &[f64], ca: &mut [f64], cd: &mut [f64]) {
+    let n = ca.len();
+    if n >= SPLIT_MIN {
+        let mid = n / 2;
+        let (ca0, ca1) = ca.split_at_mut(mid);
+        let (cd0, cd1) = cd.split_at_mut(mid);
+        rayon::join(
+            || dwt_filter(taps, ev, od, ca0, cd0),
+            || dwt_filter(taps, &ev[mid..], &od[mid..], ca1, cd1),
+        );
+    } else {
+        dwt_filter_serial(taps, ev, od, ca, cd);
+    }
+}
+
+fn dwt_filter_serial(taps: &Taps, ev: &[f64], od: &[f64], ca: &mut [f64], cd: &mut [f64]) {
     fir2x2(
         [&taps.lo_e, &taps.lo_o, &taps.hi_e, &taps.hi_o],
         ev,
@@ -665,6 +696,21 @@ fn coeff_extend(c: &[f64], h: usize, mode: Mode, dst: &mut [f64]) {
 /// Synthesis: `out[2m + p] = sum_t rlo[q_p][t] * ea[m + t + d_p] + rhi[q_p][t] * ed[m + t + d_p]`.
 /// `out` may be shorter than the full inverse (trimming), never longer.
 fn idwt_filter(taps: &Taps, mode: Mode, ea: &[f64], ed: &[f64], out: &mut [f64]) {
+    if out.len() >= 2 * SPLIT_MIN {
+        // Output 2m + p reads the extended coefficients from m on: the second part is the same
+        // problem with both shifted by m.
+        let m = out.len() / 4;
+        let (first, second) = out.split_at_mut(2 * m);
+        rayon::join(
+            || idwt_filter(taps, mode, ea, ed, first),
+            || idwt_filter(taps, mode, &ea[m..], &ed[m..], second),
+        );
+    } else {
+        idwt_filter_serial(taps, mode, ea, ed, out);
+    }
+}
+
+fn idwt_filter_serial(taps: &Taps, mode: Mode, ea: &[f64], ed: &[f64], out: &mut [f64]) {
     let phase = idwt_phase(taps.h, mode);
     let halves = [out.len().div_ceil(2), out.len() / 2];
     let mut buf = [[0.0; BLOCK]; 2];
@@ -691,5 +737,57 @@ fn idwt_filter(taps: &Taps, mode: Mode, ea: &[f64], ed: &[f64], out: &mut [f64])
             dst[2 * i + 1] = v;
         }
         m0 += BLOCK;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise(n: usize, seed: u64) -> Vec<f64> {
+        crate::synthetic::SplitMix64(seed)
+            .take(n)
+            .map(|u| u - 0.5)
+            .collect()
+    }
+
+    /// The passes shared between threads give the bits of one pass over the whole band, for
+    /// lengths around every split.
+    #[test]
+    fn split_filter_passes_equal_one_pass_bit_for_bit() {
+        let w = Wavelet::by_name("db6").expect("built in");
+        let taps = Taps::new(&w);
+        for nc in [SPLIT_MIN, 3 * SPLIT_MIN + 5, 5 * SPLIT_MIN - 1] {
+            let half = ext_half_len(nc, taps.f);
+            let (ev, od) = (noise(half, 1), noise(half, 2));
+            let mut split = [vec![0.0; nc], vec![0.0; nc]];
+            let mut whole = [vec![0.0; nc], vec![0.0; nc]];
+            let [sa, sd] = &mut split;
+            dwt_filter(&taps, &ev, &od, sa, sd);
+            let [wa, wd] = &mut whole;
+            dwt_filter_serial(&taps, &ev, &od, wa, wd);
+            assert!(split
+                .iter()
+                .flatten()
+                .zip(whole.iter().flatten())
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+
+            for mode in [Mode::Symmetric, Mode::Periodization] {
+                let len = coeff_ext_len(nc, taps.h, mode);
+                let (ea, ed) = (noise(len, 3), noise(len, 4));
+                let n_out = 2 * nc - taps.f + 2 - 1;
+                let mut split = vec![0.0; n_out];
+                let mut whole = vec![0.0; n_out];
+                idwt_filter(&taps, mode, &ea, &ed, &mut split);
+                idwt_filter_serial(&taps, mode, &ea, &ed, &mut whole);
+                assert!(
+                    split
+                        .iter()
+                        .zip(&whole)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{mode:?}"
+                );
+            }
+        }
     }
 }
