@@ -12,7 +12,9 @@
 //!    this process as a separate-process subscriber (its latency: ingest to receipt), and the
 //!    daemon's CPU use from /proc;
 //! 3. `pipelines/adxrs450.toml` at 50 Hz against its 20 ms deadline;
-//! 4. CSV replay as fast as possible through all stages, and the bare chain as fast as possible.
+//! 4. CSV replay as fast as possible through all stages, and the bare chain as fast as possible;
+//! 5. scale: N demo daemons side by side at 1 kHz (`DRIFTLESS_BENCH_PIPELINES`, default "8,32"),
+//!    each with its own prefix, for the same time as run 2.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -21,8 +23,8 @@ use std::time::{Duration, Instant};
 mod support;
 
 use support::{
-    bench_seconds, clean, cpu_seconds, prefix, read_report, sigterm_and_wait, start_daemon,
-    wait_exit,
+    bench_seconds, clean, cpu_seconds, loadavg, prefix, read_report, sigterm_and_wait,
+    start_daemon, wait_exit, wait_exit_within,
 };
 
 use driftless::transport::{monotonic_ns, GyroSample, Qos, RawSample, Transport, FLAG_FLUSHED};
@@ -202,6 +204,7 @@ fn main() {
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rows = Vec::new();
     let rt = realtime(50);
+    println!("load average at the start: {}", loadavg());
     println!(
         "bench thread (bare chain, subscriber): {}",
         if rt {
@@ -317,18 +320,92 @@ fn main() {
         ours_tp,
         bare_tp
     );
-    println!(
-        "targets: 1 kHz p50 <= 10 us: {}; p99.9 <= 50 us: {}; no 1 ms miss: {}; subscriber p99 <= 100 us: {}; CPU <= 5%: {}; 50 Hz no miss: {}; >= 500k samples/s: {}",
-        demo_p50 <= 10_000.0,
-        demo["end_to_end_ns"]["p999"].as_u64().unwrap_or(u64::MAX) <= 50_000,
-        demo["deadline_misses"] == 0,
-        sub.value_at_quantile(0.99) <= 100_000,
-        cpu <= 0.05,
-        paper["deadline_misses"] == 0,
-        ours_tp >= 500_000.0
-    );
+    let bare_p50 = bare_1k.value_at_quantile(0.5).max(1) as f64;
+    let goals = [
+        (
+            "1 kHz demo p50 <= 1.5x the bare chain's",
+            demo_p50 <= 1.5 * bare_p50,
+        ),
+        (
+            "1 kHz demo p99.9 <= 30 us",
+            demo["end_to_end_ns"]["p999"].as_u64().unwrap_or(u64::MAX) <= 30_000,
+        ),
+        ("1 kHz demo: no 1 ms miss", demo["deadline_misses"] == 0),
+        (
+            "separate-process subscriber p99 <= 80 us",
+            sub.value_at_quantile(0.99) <= 80_000,
+        ),
+        ("daemon CPU <= 3% of one core", cpu <= 0.03),
+        ("50 Hz: no miss of 20 ms", paper["deadline_misses"] == 0),
+        (
+            "flat-out replay >= 0.8x the bare chain's throughput, nothing lost",
+            ours_tp >= 0.8 * bare_tp && asap["lost"] == 0,
+        ),
+    ];
+    for (goal, ok) in goals {
+        println!("  goal {goal}: {ok}");
+    }
     println!(
         "algorithmic delay of the demo's denoiser (lag / rate): {} us, reported beside the end-to-end latency",
         us(demo["algorithmic_delay_ns"].as_u64().unwrap_or(0))
     );
+    scale(secs, dir.path());
+    println!("load average at the end: {}", loadavg());
+}
+
+/// Run 5: `n` demo daemons at once, as a vehicle with several IMUs would; each reports its own
+/// misses and latency. Goal: 32 of them with no miss of 1 ms in 10^5 samples each.
+fn scale(secs: f64, dir: &Path) {
+    let counts: Vec<usize> = std::env::var("DRIFTLESS_BENCH_PIPELINES")
+        .unwrap_or_else(|_| "8,32".into())
+        .split(',')
+        .filter_map(|v| v.trim().parse().ok())
+        .collect();
+    println!();
+    println!("| demo daemons side by side, 1 kHz | samples each (min) | misses (all) | worst p99 us | worst p99.9 us | worst max us | lost |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for n in counts {
+        let duration = format!("{secs}s");
+        let runs: Vec<(String, PathBuf, std::process::Child)> = (0..n)
+            .map(|i| {
+                let p = prefix(&format!("scale{n}x{i}"));
+                clean(&p);
+                let report = dir.join(format!("scale{n}x{i}.json"));
+                let child = start_daemon(
+                    &root().join("pipelines/demo.toml"),
+                    &p,
+                    &report,
+                    &["--duration", &duration],
+                );
+                (p, report, child)
+            })
+            .collect();
+        let (mut samples, mut misses, mut lost) = (u64::MAX, 0u64, 0u64);
+        let (mut p99, mut p999, mut max) = (0u64, 0u64, 0u64);
+        for (p, report, mut child) in runs {
+            wait_exit_within(&mut child, Duration::from_secs_f64(secs + 60.0));
+            clean(&p);
+            let r = read_report(&report);
+            let e = &r["end_to_end_ns"];
+            let u = |v: &Value| v.as_u64().unwrap_or(0);
+            samples = samples.min(u(&r["samples_out"]));
+            misses += u(&r["deadline_misses"]);
+            lost += u(&r["lost"]);
+            p99 = p99.max(u(&e["p99"]));
+            p999 = p999.max(u(&e["p999"]));
+            max = max.max(u(&e["max"]));
+        }
+        println!(
+            "| {n} | {samples} | {misses} | {} | {} | {} | {lost} |",
+            us(p99),
+            us(p999),
+            us(max)
+        );
+        if n == 32 {
+            println!(
+                "  goal 32 concurrent 1 kHz 3-axis pipelines with no 1 ms miss: {}",
+                misses == 0 && lost == 0
+            );
+        }
+    }
 }
