@@ -403,6 +403,70 @@ fn a_stalled_subscriber_never_blocks_the_pipeline_and_its_losses_are_counted() {
     drop(stalled);
 }
 
+#[test]
+fn services_exist_only_while_the_daemon_runs_and_a_late_subscriber_gets_no_history() {
+    let prefix = Prefix::new("life");
+    let dir = Dir::new();
+    dir.write("data.csv", &csv(2000));
+    let file = dir.write("p.toml", &csv_pipeline("realtime", true, 4096));
+    let client = Transport::new(&prefix.0, "client", qos(4096)).expect("node");
+    // Before the daemon: nothing to open (a client retries until the daemon has made it).
+    assert!(client.open_input::<GyroSample>("c/corrected").is_err());
+    let mut child = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    let early = client
+        .open_input::<GyroSample>("c/corrected")
+        .expect("open");
+    let first = collect(&early, 300, Duration::from_secs(5));
+    assert_eq!(first.len(), 300, "an early subscriber receives");
+    let before_join = collect(&early, 200, Duration::from_secs(5))
+        .last()
+        .unwrap()
+        .seq;
+    // Joined after sample `before_join` was published: none of the earlier ones arrive.
+    let late = client
+        .open_input::<GyroSample>("c/corrected")
+        .expect("open");
+    let got = collect(&late, 100, Duration::from_secs(5));
+    assert_eq!(
+        got.len(),
+        100,
+        "a late subscriber receives what comes after it joined"
+    );
+    assert!(
+        got[0].seq > before_join,
+        "no history: first seq {} after {before_join}",
+        got[0].seq
+    );
+    assert!(got.windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    // A subscriber with a buffer of 16 that stops reading for 0.5 s (500 samples) finds the
+    // oldest 16 it did not read: a full buffer loses the new sample, not the old ones.
+    let small = Transport::new(&prefix.0, "staller", qos(16)).expect("node");
+    let stalled = small
+        .input::<GyroSample>("c/corrected")
+        .expect("subscriber");
+    let _ = collect(&stalled, 1, Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(500));
+    let kept = collect(&stalled, 17, Duration::from_secs(5));
+    assert_eq!(kept.len(), 17);
+    assert!(kept[..16].windows(2).all(|w| w[1].seq == w[0].seq + 1));
+    assert!(
+        kept[16].seq > kept[15].seq + 400,
+        "after the 16 kept, the next is new: {} after {}",
+        kept[16].seq,
+        kept[15].seq
+    );
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    drop((early, late, stalled, small));
+    // After it: gone again, for new clients.
+    assert!(client.open_input::<GyroSample>("c/corrected").is_err());
+    assert!(!client
+        .service_exists::<GyroSample>("c/corrected")
+        .expect("lookup"));
+}
+
 /// `csv(n)` with row `row` (1-based data row) replaced by `line`.
 fn csv_with_row(n: usize, row: usize, line: &str) -> String {
     let text = csv(n);

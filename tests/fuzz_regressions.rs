@@ -51,3 +51,8 @@ fn csv_logs_of_the_corpus_and_past_crashes() {
 fn recordings_of_the_corpus_and_past_crashes() {
     run_all("recording", check_recording);
 }
+
+#[test]
+fn gzip_csv_logs_of_the_corpus_and_past_crashes() {
+    run_all("csv_gz", check_csv_gz);
+}

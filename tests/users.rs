@@ -304,3 +304,47 @@ fn a_root_path_that_is_not_absolute_is_refused_by_every_command() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o).1);
     }
 }
+
+#[test]
+fn root_path_in_the_pipeline_file_puts_the_daemons_files_there() {
+    let dir = Dir::new();
+    let root = dir.path("iox");
+    let root_s = root.to_str().expect("utf-8 path").to_string();
+    dir.write("data.csv", &csv(2000));
+    let toml = csv_pipeline("realtime", true, 256).replace(
+        "[iceoryx2]\n",
+        &format!("[iceoryx2]\nroot_path = \"{root_s}\"\n"),
+    );
+    let file = dir.write("p.toml", &toml);
+    let prefix = Prefix::new("rootkey");
+    let daemon = start(&file, &prefix, &[]);
+    let tap = |root: Option<&str>| {
+        let mut args = vec!["tap", "c/corrected", "--count", "1", "--duration", "2s"];
+        args.extend(["--prefix", prefix.0.as_str()]);
+        if let Some(r) = root {
+            args.extend(["--root-path", r]);
+        }
+        driftless(&args)
+    };
+    let end = Instant::now() + Duration::from_secs(10);
+    while !tap(Some(&root_s)).status.success() {
+        assert!(Instant::now() < end, "no sample under the file's root path");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let mut files = Vec::new();
+    modes(&root, &mut files);
+    assert!(
+        files.len() > 1,
+        "the daemon's node lives under {root_s}: {files:?}"
+    );
+    // Under the default root the same prefix has no such service.
+    let o = tap(None);
+    assert!(
+        !o.status.success(),
+        "found without the root path: {}",
+        text(&o).0
+    );
+    signal(&daemon, libc::SIGTERM);
+    let (code, err) = finish(daemon, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "stderr: {err}");
+}
