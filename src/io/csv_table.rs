@@ -142,12 +142,20 @@ fn read_reference<R: std::io::BufRead>(
     keep_time: bool,
 ) -> Result<Table, InputError> {
     if gz {
-        read_from(
-            flate2::bufread::MultiGzDecoder::new(raw),
-            path,
-            wanted,
-            keep_time,
-        )
+        let mut decoder = flate2::bufread::MultiGzDecoder::new(raw);
+        let result = read_from(&mut decoder, path, wanted, keep_time);
+        // A corrupt stream yields garbage before its checksum fails: a fault found in what it
+        // yielded is reported as the corruption (the fast path's reader thread, running ahead,
+        // may meet the corruption first: both say the same).
+        if matches!(result, Err(InputError::At { .. } | InputError::File { .. })) {
+            if let Err(source) = std::io::copy(&mut decoder, &mut std::io::sink()) {
+                return Err(InputError::Io {
+                    path: path.display().to_string(),
+                    source,
+                });
+            }
+        }
+        result
     } else {
         read_from(raw, path, wanted, keep_time)
     }
