@@ -93,31 +93,7 @@ fn offline_output_is_the_live_daemons_sample_for_sample() {
         ("bias", "kind = \"predict.bias\"".to_string()),
     ] {
         let file = dir.write(&format!("{name}.toml"), &pipeline(&predict));
-        let p = config::load(&file).expect("valid pipeline");
-
-        let mut offline = Offline::new(&p).expect("offline");
-        let mut want: Vec<GyroSample> = Vec::with_capacity(N);
-        for r in &raws {
-            offline.push(r, &mut |s| want.push(s));
-        }
-        offline.finish(&mut |s| want.push(s));
-        assert_eq!(want.len(), N, "{name}: every sample offline");
-
-        let prefix = Prefix::new(&format!("off{name}"));
-        let me = Transport::new(&prefix.0, "nav", qos(N)).expect("node");
-        let corrected = me.input::<GyroSample>("off/corrected").expect("subscriber");
-        let child = start(&file, &prefix, &[]);
-        let got = collect(&corrected, N, Duration::from_secs(30));
-        let (code, err) = finish(child, Duration::from_secs(10));
-        assert_eq!(code, Some(0), "{name}: {err}");
-        assert_eq!(got.len(), N, "{name}: every sample live");
-        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-            let mut g = *g;
-            g.ingest_ns = w.ingest_ns;
-            assert_ne!(g.epoch, 0, "{name}: a live epoch");
-            g.epoch = w.epoch;
-            assert_eq!(g, *w, "{name}: sample {i} differs");
-        }
+        let want = live_equals_offline(&file, name, &raws);
         if name != "none" {
             let anchored = want.iter().filter(|s| s.drift != [0.0; 3]).count();
             assert!(
@@ -126,4 +102,74 @@ fn offline_output_is_the_live_daemons_sample_for_sample() {
             );
         }
     }
+}
+
+/// Run `file` offline on `raws` and live (the daemon replaying the same log), assert the two
+/// publish the same samples, every field but the ingest clock and the epoch; returns them.
+fn live_equals_offline(file: &std::path::Path, name: &str, raws: &[RawSample]) -> Vec<GyroSample> {
+    let n = raws.len();
+    let p = config::load(file).expect("valid pipeline");
+    let mut offline = Offline::new(&p).expect("offline");
+    let mut want: Vec<GyroSample> = Vec::with_capacity(n);
+    for r in raws {
+        offline.push(r, &mut |s| want.push(s));
+    }
+    offline.finish(&mut |s| want.push(s));
+    assert_eq!(want.len(), n, "{name}: every sample offline");
+
+    let prefix = Prefix::new(&format!("off{name}"));
+    let me = Transport::new(&prefix.0, "nav", qos(N)).expect("node");
+    let corrected = me.input::<GyroSample>("off/corrected").expect("subscriber");
+    let child = start(file, &prefix, &[]);
+    let got = collect(&corrected, n, Duration::from_secs(30));
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{name}: {err}");
+    assert_eq!(got.len(), n, "{name}: every sample live");
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        let mut g = *g;
+        g.ingest_ns = w.ingest_ns;
+        assert_ne!(g.epoch, 0, "{name}: a live epoch");
+        g.epoch = w.epoch;
+        assert_eq!(g, *w, "{name}: sample {i} differs");
+    }
+    want
+}
+
+#[test]
+fn prewarming_the_stages_before_each_paced_sample_changes_no_output() {
+    let dir = Dir::new();
+    let mut cfg = SimConfig::profile("adis16405").unwrap();
+    cfg.rate_hz = 1000.0;
+    cfg.seed = 12;
+    cfg.motion = Motion::Turn;
+    let mut sim = Simulator::new(&cfg).unwrap();
+    const M: usize = 1500;
+    let mut text = String::from("t,x,y,z\n");
+    let mut raws = Vec::with_capacity(M);
+    for i in 0..M {
+        let m = sim.next_sample().measured;
+        let line = format!("{},{},{}", m[0], m[1], m[2]);
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        raws.push(RawSample {
+            t_ns: i as u64 * 1_000_000,
+            seq: i as u64,
+            rate: [v[0], v[1], v[2]],
+            flags: 0,
+            epoch: 0,
+        });
+        text.push_str(&format!("{:.3},{line}\n", i as f64 * 1e-3));
+    }
+    dir.write("log.csv", &text);
+    // In real time (prewarming needs a paced source), 200 us before each sample is due.
+    let text = pipeline("kind = \"predict.bias\"")
+        .replace(
+            "pace = \"asap\"",
+            "pace = \"realtime\"\ntime_column = \"t\"",
+        )
+        .replace(
+            "report_interval_s = 60.0",
+            "report_interval_s = 60.0\nprewarm_us = 200.0",
+        );
+    let file = dir.write("prewarm.toml", &text);
+    live_equals_offline(&file, "prewarm", &raws);
 }

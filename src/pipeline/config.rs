@@ -9,6 +9,8 @@
 //! report_interval_s = 2.0    # stderr summary and stats service period
 //! realtime_priority = 50     # optional: SCHED_FIFO priority of the hot thread (1..=99)
 //! cpu = 1                    # optional: pin the hot thread to this CPU
+//! prewarm_us = 100.0         # optional: wake this long before each paced sample is due to
+//!                            # bring the stages' state back into the cache (default 0: off)
 //!
 //! [iceoryx2]
 //! prefix = "driftless_"      # file prefix in /dev/shm (env DRIFTLESS_IOX2_PREFIX overrides)
@@ -82,6 +84,9 @@ pub struct Pipeline {
     pub realtime_priority: Option<i32>,
     /// CPU the hot thread is pinned to (None: not pinned).
     pub cpu: Option<usize>,
+    /// How long before a paced sample is due the hot thread wakes to bring the stages' state
+    /// into the cache ([`Stage::prewarm`](super::stage::Stage::prewarm)); zero: it does not.
+    pub prewarm: Duration,
     /// iceoryx2 settings.
     pub iceoryx2: Iceoryx2Settings,
     /// The stages, in chain order.
@@ -129,6 +134,7 @@ struct RawTop {
     report_interval_s: Option<Spanned<f64>>,
     realtime_priority: Option<Spanned<i64>>,
     cpu: Option<Spanned<i64>>,
+    prewarm_us: Option<Spanned<f64>>,
     iceoryx2: Option<RawIox>,
 }
 
@@ -213,6 +219,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         Some(c) => Some(src.int_in(c, "cpu", 0, 1023)?),
         None => None,
     };
+    let prewarm = match &raw.prewarm_us {
+        // Waking a whole period early would be waking for the sample before.
+        Some(w) => {
+            Duration::from_secs_f64(src.float_in(w, "prewarm_us", 0.0, 0.5e6 / rate_hz)? * 1e-6)
+        }
+        None => Duration::ZERO,
+    };
     let iox = raw.iceoryx2.unwrap_or(RawIox {
         prefix: None,
         root_path: None,
@@ -283,6 +296,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         report_interval,
         realtime_priority,
         cpu,
+        prewarm,
         iceoryx2: Iceoryx2Settings {
             prefix,
             root_path,

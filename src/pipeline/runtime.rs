@@ -329,6 +329,14 @@ impl Chain {
     }
 
     /// When the source is idle: do not let a partial batch wait.
+    /// [`Stage::prewarm`] of every stage, and the metrics slot the sample will fill.
+    fn prewarm(&self) {
+        for stage in &self.stages {
+            stage.prewarm();
+        }
+        std::hint::black_box(self.batch.records.get(self.batch.len));
+    }
+
     fn idle(&mut self) {
         if self.batch.len > 0
             && monotonic_ns().saturating_sub(self.batch_started_ns) > BATCH_MAX_AGE_NS
@@ -827,6 +835,15 @@ fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunE
     });
     let mut failure = None;
     while !stop.load(Ordering::Relaxed) {
+        if let Some(early) = source
+            .next_due()
+            .filter(|_| !p.prewarm.is_zero())
+            .and_then(|due| due.checked_sub(p.prewarm))
+        {
+            if crate::stages::sleep_until(early, stop) {
+                chain.prewarm();
+            }
+        }
         match source.poll(stop) {
             Poll::Sample(raw, ingest_ns, late_ns) => {
                 if let Err(e) = chain.ingest(&raw, ingest_ns, late_ns) {

@@ -31,6 +31,11 @@ pub trait Stage {
     fn lag(&self) -> usize {
         0
     }
+
+    /// Read what the next [`process`](Self::process) touches, changing nothing, so that it
+    /// finds it in the cache: after the hot thread's sleep between paced samples a stage's
+    /// state has left it. Called `prewarm_us` before a sample is due. Default: nothing.
+    fn prewarm(&self) {}
 }
 
 /// What a source has for the runtime.
@@ -51,6 +56,12 @@ pub trait Source {
     /// The next raw sample; may sleep until it is due, but returns `Idle` within a few
     /// milliseconds when `stop` is set. Must not allocate.
     fn poll(&mut self, stop: &AtomicBool) -> Poll;
+
+    /// When the sample the next [`poll`](Self::poll) returns is due, where the source paces
+    /// itself and knows it (for `prewarm_us`). Default: unknown.
+    fn next_due(&self) -> Option<std::time::Instant> {
+        None
+    }
 }
 
 /// The true rate per axis, in the pipeline's input units, at sensor time `t` (s).

@@ -339,6 +339,13 @@ impl Stage for Wavelet {
     fn lag(&self) -> usize {
         self.denoisers.first().map_or(0, StreamingDenoiser::lag)
     }
+
+    fn prewarm(&self) {
+        for d in &self.denoisers {
+            d.prewarm();
+        }
+        std::hint::black_box(&self.held[self.head]);
+    }
 }
 
 /// `denoise.none`: the rate passes unchanged (denoised = input).

@@ -192,4 +192,9 @@ impl Source for SimSource {
         let ingest_ns = monotonic_ns();
         Poll::Sample(raw, ingest_ns, due_ns.map(|d| ingest_ns.saturating_sub(d)))
     }
+
+    fn next_due(&self) -> Option<std::time::Instant> {
+        let clock = self.start.filter(|_| !self.asap)?;
+        Some(clock.at(Duration::from_secs_f64(self.k as f64 / self.rate_hz)))
+    }
 }

@@ -84,6 +84,11 @@ impl PaceClock {
         }
     }
 
+    /// The instant `offset` after the start.
+    pub(crate) fn at(&self, offset: Duration) -> Instant {
+        self.start + offset
+    }
+
     /// Sleep until `offset` after the start (noticing `stop`); returns when that was due, in
     /// monotonic ns, or None when stopped first.
     pub(crate) fn wait(&self, offset: Duration, stop: &AtomicBool) -> Option<u64> {

@@ -180,4 +180,11 @@ impl Source for BlockReplay {
             due_ns.map(|d| ingest_ns.saturating_sub(d)),
         )
     }
+
+    fn next_due(&self) -> Option<std::time::Instant> {
+        // Unknown at a block's end: the next block may not have come yet.
+        let (clock, first_t) = self.start.filter(|_| self.pace == Pace::Realtime)?;
+        let t_ns = self.block.get(self.next)?.t_ns;
+        Some(clock.at(Duration::from_nanos(t_ns.saturating_sub(first_t))))
+    }
 }
