@@ -183,13 +183,14 @@ impl Chain {
             return Ok(());
         };
         let s = self.guard.admit(&raw, ingest_ns);
-        if let Some(h) = &mut self.heading {
-            h.raw(&s);
-        }
         let t0 = monotonic_ns();
         rec.stage_ns[0] = (t0.saturating_sub(ingest_ns)).min(u64::from(u32::MAX)) as u32;
         rec.stages_run = 1;
         let end = self.process_from(0, s, &mut rec, t0)?;
+        // Diagnostics against the truth wait until the sample has left.
+        if let Some(h) = &mut self.heading {
+            h.raw(&s);
+        }
         self.record(rec, end);
         Ok(())
     }
@@ -265,14 +266,15 @@ impl Chain {
                 for (n, flag) in self.local.outputs.iter_mut().zip(Outputs::FLAGS) {
                     *n += u64::from(out.flags & flag != 0);
                 }
-                if let Some(h) = &mut self.heading {
-                    h.published(out);
-                }
             } else {
                 // Offered to the external stage (its "in" as seen from the service).
                 self.local.stage_in[pos + 1] += 1;
             }
             self.outs[k].notify();
+            // After the readers are woken: the truth is for the report, not on their path.
+            if let Some(h) = self.heading.as_mut().filter(|_| self.is_final) {
+                h.published(out);
+            }
             return Ok(None);
         }
         self.ins[k].receive()
