@@ -4,7 +4,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use driftless::wavelet::denoise::{denoise, DenoiseConfig};
-use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
+use driftless::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use std::hint::black_box;
 
 /// The same signal as scripts/bench_pywt.py.
@@ -55,6 +55,57 @@ fn streaming(c: &mut Criterion) {
     group.finish();
 }
 
+/// Three axes as the daemon's `denoise.wavelet` runs them (db6 / 5 levels / lag 64, windows
+/// 1024 and 256): in lock step (`LaneDenoiser<3>`, as shipped) against three one-stream
+/// denoisers in turn (before), same data, same run; the outputs are bit-identical (tested).
+fn three_axes(c: &mut Criterion) {
+    let x = signal(100_000);
+    let y: Vec<f64> = x.iter().rev().copied().collect();
+    let z: Vec<f64> = x.iter().map(|v| 0.5 * v + 0.1).collect();
+    let mut group = c.benchmark_group("stream_3axes_db6_L5_lag64");
+    group.throughput(Throughput::Elements(x.len() as u64));
+    for window in [1024, 256] {
+        let cfg = StreamConfig {
+            lag: 64,
+            window,
+            ..StreamConfig::default()
+        };
+        group.bench_with_input(BenchmarkId::new("lanes", window), &cfg, |b, cfg| {
+            let mut d = LaneDenoiser::<3>::new(cfg).expect("valid settings");
+            b.iter(|| {
+                let mut acc = 0.0;
+                for ((a, b), c) in x.iter().zip(&y).zip(&z) {
+                    if let Some(v) = d.push([*a, *b, *c]) {
+                        acc += v[0] + v[1] + v[2];
+                    }
+                }
+                black_box(acc)
+            })
+        });
+        group.bench_with_input(
+            BenchmarkId::new("three_denoisers", window),
+            &cfg,
+            |b, cfg| {
+                let mut d: Vec<StreamingDenoiser> = (0..3)
+                    .map(|_| StreamingDenoiser::new(cfg).expect("valid settings"))
+                    .collect();
+                b.iter(|| {
+                    let mut acc = 0.0;
+                    for ((a, b), c) in x.iter().zip(&y).zip(&z) {
+                        for (d, v) in d.iter_mut().zip([a, b, c]) {
+                            if let Some(v) = d.push(*v) {
+                                acc += v;
+                            }
+                        }
+                    }
+                    black_box(acc)
+                })
+            },
+        );
+    }
+    group.finish();
+}
+
 fn batch(c: &mut Criterion) {
     let cfg = DenoiseConfig::paper();
     let mut group = c.benchmark_group("batch_db6_L5_improved_universal");
@@ -69,5 +120,5 @@ fn batch(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, streaming, batch);
+criterion_group!(benches, streaming, three_axes, batch);
 criterion_main!(benches);

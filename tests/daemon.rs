@@ -228,8 +228,14 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     assert_eq!(r["flagged"]["missing"], 4);
     assert_eq!(r["flagged"]["time_backwards"], 1);
     assert_eq!(r["lost"], 4, "samples missing from the source are lost");
-    assert!(err.contains("; 4 samples LOST"), "the verdict says so: {err}");
-    assert!(err.contains("(4 missing from the source, counted as lost)"), "{err}");
+    assert!(
+        err.contains("; 4 samples LOST"),
+        "the verdict says so: {err}"
+    );
+    assert!(
+        err.contains("(4 missing from the source, counted as lost)"),
+        "{err}"
+    );
     let epoch = got[0].epoch;
     assert_ne!(epoch, 0);
     assert!(got.iter().all(|s| s.epoch == epoch), "one run, one epoch");

@@ -19,7 +19,7 @@ use crate::io::InputError;
 use crate::pipeline::schema::{Context, Key, StageTable, Type};
 use crate::pipeline::stage::{Kind, Params, Role, Stage};
 use crate::transport::{GyroSample, FLAG_FLUSHED, FLAG_WARMING_UP};
-use crate::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
+use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
 
 const WAVELET: Key = Key {
@@ -260,11 +260,12 @@ pub fn stream_config(p: &WaveletParams) -> Result<StreamConfig, String> {
     })
 }
 
-/// `denoise.wavelet`: one [`StreamingDenoiser`] per axis. With lag L, the output for sample
-/// `t` leaves when sample `t + L` arrives; the metadata of the held samples waits in a ring.
+/// `denoise.wavelet`: the axes denoised in lock step by one [`LaneDenoiser`] (each axis's
+/// result bit for bit a [`StreamingDenoiser`]'s). With lag L, the output for sample `t` leaves
+/// when sample `t + L` arrives; the metadata of the held samples waits in a ring.
 pub struct Wavelet {
     axes: usize,
-    denoisers: Vec<StreamingDenoiser>,
+    denoiser: LaneDenoiser<3>,
     held: Vec<GyroSample>,
     head: usize,
     count: usize,
@@ -275,14 +276,9 @@ impl Wavelet {
     /// Build from validated parameters.
     pub fn new(p: &WaveletParams, axes: usize) -> Result<Self, String> {
         let cfg = stream_config(p)?;
-        let axes = axes.clamp(1, 3);
-        let mut denoisers = Vec::with_capacity(axes);
-        for _ in 0..axes {
-            denoisers.push(StreamingDenoiser::new(&cfg).map_err(|e| e.to_string())?);
-        }
         Ok(Wavelet {
-            axes,
-            denoisers,
+            axes: axes.clamp(1, 3),
+            denoiser: LaneDenoiser::new(&cfg).map_err(|e| e.to_string())?,
             held: vec![GyroSample::default(); p.lag + 1],
             head: 0,
             count: 0,
@@ -298,7 +294,7 @@ impl Wavelet {
         out.rate = values;
         out.drift = [0.0; 3];
         out.ingest_ns = self.last_ingest_ns;
-        if self.denoisers[0].warming_up() {
+        if self.denoiser.warming_up() {
             out.flags |= FLAG_WARMING_UP;
         }
         if flushed {
@@ -314,36 +310,34 @@ impl Stage for Wavelet {
         self.head = (self.head + 1) % self.held.len();
         self.count += 1;
         self.last_ingest_ns = input.ingest_ns;
-        let mut values = [0.0; 3];
-        let mut ready = false;
-        for (axis, d) in self.denoisers.iter_mut().enumerate() {
-            if let Some(v) = d.push(input.denoised[axis]) {
-                values[axis] = v;
-                ready = true;
-            }
-        }
-        ready.then(|| self.emit(values, false))
+        let axes = self.axes;
+        // Unused axes are 0 in and out.
+        let x = std::array::from_fn(|a| if a < axes { input.denoised[a] } else { 0.0 });
+        let values = self.denoiser.push(x)?;
+        Some(self.emit(
+            std::array::from_fn(|a| if a < axes { values[a] } else { 0.0 }),
+            false,
+        ))
     }
 
     fn flush(&mut self) -> Option<GyroSample> {
         if self.count == 0 {
             return None;
         }
-        let mut values = [0.0; 3];
-        for (axis, d) in self.denoisers.iter_mut().enumerate().take(self.axes) {
-            values[axis] = d.flush()?;
-        }
-        Some(self.emit(values, true))
+        let values = self.denoiser.flush()?;
+        let axes = self.axes;
+        Some(self.emit(
+            std::array::from_fn(|a| if a < axes { values[a] } else { 0.0 }),
+            true,
+        ))
     }
 
     fn lag(&self) -> usize {
-        self.denoisers.first().map_or(0, StreamingDenoiser::lag)
+        self.denoiser.lag()
     }
 
     fn prewarm(&self) {
-        for d in &self.denoisers {
-            d.prewarm();
-        }
+        self.denoiser.prewarm();
         std::hint::black_box(&self.held[self.head]);
     }
 }
@@ -397,6 +391,54 @@ mod tests {
             seqs.push(o.seq);
         }
         assert_eq!(seqs, (0..100).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn three_axes_match_three_library_denoisers_bit_for_bit() {
+        let p = params(33);
+        let mut st = Wavelet::new(&p, 3).unwrap();
+        let mut lib: Vec<StreamingDenoiser> = (0..3)
+            .map(|_| StreamingDenoiser::new(&stream_config(&p).unwrap()).unwrap())
+            .collect();
+        let mut got = Vec::new();
+        let mut want = Vec::new();
+        for i in 0..3000u64 {
+            let t = i as f64 * 0.01;
+            let x = [
+                t.sin() + ((i * 7919) % 101) as f64 * 1e-3,
+                if i % 500 == 7 {
+                    f64::NAN
+                } else {
+                    (3.0 * t).cos()
+                },
+                if i % 3 == 0 {
+                    0.0
+                } else {
+                    0.1 * ((i * 104_729) % 89) as f64
+                },
+            ];
+            let s = GyroSample {
+                seq: i,
+                denoised: x,
+                ..GyroSample::default()
+            };
+            if let Some(o) = st.process(&s) {
+                got.push(o.rate.map(f64::to_bits));
+            }
+            let w: Vec<Option<f64>> = lib.iter_mut().zip(x).map(|(d, v)| d.push(v)).collect();
+            if w[0].is_some() {
+                want.push([0, 1, 2].map(|a| w[a].unwrap().to_bits()));
+            }
+        }
+        while let Some(o) = st.flush() {
+            got.push(o.rate.map(f64::to_bits));
+        }
+        while let Some(v) = lib[0].flush() {
+            let (y, z) = (lib[1].flush().unwrap(), lib[2].flush().unwrap());
+            want.push([v, y, z].map(f64::to_bits));
+        }
+        assert_eq!(got.len(), 3000);
+        assert_eq!(got, want);
     }
 
     #[test]

@@ -92,27 +92,28 @@ impl Default for StreamConfig {
 /// The last `cap` values of a stream, stored twice so that any run of them is one contiguous
 /// slice (oldest first): dot products over it vectorise.
 #[derive(Debug, Clone)]
-struct History {
-    buf: Vec<f64>,
+struct History<T> {
+    buf: Vec<T>,
     cap: usize,
     pos: usize,
 }
 
-impl History {
-    fn new(cap: usize) -> Self {
+impl<T: Copy> History<T> {
+    /// `cap` values, all `zero` (the stream's start overwrites them).
+    fn new(cap: usize, zero: T) -> Self {
         History {
-            buf: vec![0.0; 2 * cap],
+            buf: vec![zero; 2 * cap],
             cap,
             pos: 0,
         }
     }
 
-    fn fill(&mut self, v: f64) {
+    fn fill(&mut self, v: T) {
         self.buf.fill(v);
     }
 
     #[inline]
-    fn push(&mut self, v: f64) {
+    fn push(&mut self, v: T) {
         self.buf[self.pos] = v;
         self.buf[self.pos + self.cap] = v;
         self.pos = if self.pos + 1 == self.cap {
@@ -124,13 +125,13 @@ impl History {
 
     /// The value pushed `k` pushes ago (0 = newest), `k < cap`.
     #[inline]
-    fn ago(&self, k: usize) -> f64 {
+    fn ago(&self, k: usize) -> T {
         self.buf[self.pos + self.cap - 1 - k]
     }
 
     /// `len` values in time order, the first of them pushed `k` pushes ago.
     #[inline]
-    fn run_from(&self, k: usize, len: usize) -> &[f64] {
+    fn run_from(&self, k: usize, len: usize) -> &[T] {
         let start = self.pos + self.cap - 1 - k;
         &self.buf[start..start + len]
     }
@@ -140,7 +141,7 @@ impl History {
 /// updated in place (O(log window) to find, about window / 3 values moved per update).
 #[derive(Debug, Clone)]
 struct MedianTracker {
-    recent: History,
+    recent: History<f64>,
     count: usize,
     sorted: Vec<f64>,
 }
@@ -148,7 +149,7 @@ struct MedianTracker {
 impl MedianTracker {
     fn new(window: usize) -> Self {
         MedianTracker {
-            recent: History::new(window),
+            recent: History::new(window, 0.0),
             count: 0,
             sorted: Vec::with_capacity(window),
         }
@@ -201,36 +202,46 @@ impl MedianTracker {
     }
 }
 
-/// One level of the causal analysis cascade.
+/// One level of the causal analysis cascade, for `N` streams in lock step.
 #[derive(Debug, Clone)]
-struct Level {
+struct Level<const N: usize> {
     /// Past approximations of the level above (`a_{j-1}`), enough for the dilated filter.
-    input: History,
+    input: History<[f64; N]>,
     /// Filter dilation `2^(j-1)`.
     stride: usize,
     /// What thresholding removed from this level's details, the last `lag + 1` of them.
-    removed: History,
+    removed: History<[f64; N]>,
     /// `2^-j G_j[0..K_j]`: the truncated synthesis filter of this level.
     synthesis: Vec<f64>,
 }
 
-/// A constant-time, allocation-free streaming wavelet-threshold denoiser (see the module docs).
+/// `N` streams (the axes of one gyro) denoised in lock step: the same filters and settings,
+/// each stream (lane) with its own noise window and threshold. Each lane's arithmetic is exactly
+/// a one-stream denoiser's, the same operations in the same order, so its results are bit for
+/// bit those of a [`StreamingDenoiser`] fed that stream alone; the lanes share each pass over the
+/// filter taps, whose sums are chains of dependent additions: `N` of them run side by side at
+/// about the cost of one.
 #[derive(Debug, Clone)]
-pub struct StreamingDenoiser {
+pub struct LaneDenoiser<const N: usize> {
     lo: Vec<f64>,
     hi: Vec<f64>,
-    levels: Vec<Level>,
-    input: History,
+    levels: Vec<Level<N>>,
+    input: History<[f64; N]>,
     threshold: ThresholdFn,
     sigma: Sigma,
-    noise: MedianTracker,
+    noise: [MedianTracker; N],
     universal: f64,
-    lambda: f64,
+    lambda: [f64; N],
     lag: usize,
     full_lag: usize,
     pushed: u64,
     flushed: usize,
 }
+
+/// A constant-time, allocation-free streaming wavelet-threshold denoiser of one stream (see the
+/// module docs): a [`LaneDenoiser`] of one lane.
+#[derive(Debug, Clone)]
+pub struct StreamingDenoiser(LaneDenoiser<1>);
 
 /// Full convolution of `a` and `b`.
 fn convolve(a: &[f64], b: &[f64]) -> Vec<f64> {
@@ -252,8 +263,8 @@ fn dilate(f: &[f64], stride: usize) -> Vec<f64> {
     out
 }
 
-impl StreamingDenoiser {
-    /// Build a denoiser; fails on an unknown wavelet or an out-of-range setting.
+impl<const N: usize> LaneDenoiser<N> {
+    /// Build a denoiser of `N` streams; fails on an unknown wavelet or an out-of-range setting.
     pub fn new(cfg: &StreamConfig) -> Result<Self, WaveletError> {
         let wavelet = Wavelet::by_name(&cfg.wavelet)?;
         if !(1..=MAX_LEVEL).contains(&cfg.level) {
@@ -298,22 +309,22 @@ impl StreamingDenoiser {
             let taps = equivalent.len().min(cfg.lag + 1);
             let scale = 0.5f64.powi(j as i32);
             levels.push(Level {
-                input: History::new((f - 1) * stride + 1),
+                input: History::new((f - 1) * stride + 1, [0.0; N]),
                 stride,
-                removed: History::new(cfg.lag + 1),
+                removed: History::new(cfg.lag + 1, [0.0; N]),
                 synthesis: equivalent[..taps].iter().map(|g| g * scale).collect(),
             });
         }
-        Ok(StreamingDenoiser {
+        Ok(LaneDenoiser {
             lo,
             hi,
             levels,
-            input: History::new(cfg.lag + 1),
+            input: History::new(cfg.lag + 1, [0.0; N]),
             threshold: cfg.threshold,
             sigma: cfg.sigma,
-            noise: MedianTracker::new(cfg.window),
+            noise: std::array::from_fn(|_| MedianTracker::new(cfg.window)),
             universal: (2.0 * (cfg.window as f64).ln()).sqrt(),
-            lambda: 0.0,
+            lambda: [0.0; N],
             lag: cfg.lag,
             full_lag,
             pushed: 0,
@@ -325,15 +336,20 @@ impl StreamingDenoiser {
     /// that a push after a long idle time finds it in the cache; changes nothing. A daemon
     /// pacing samples calls it shortly before each is due.
     pub fn prewarm(&self) {
-        let lines = |v: &[f64]| v.iter().step_by(8).sum::<f64>();
-        let recent = &self.noise.recent;
-        let mut s = lines(&self.input.buf)
-            + lines(&self.noise.sorted)
-            + recent.buf[recent.pos]
-            + recent.buf[recent.pos + recent.cap]
-            + recent.ago(recent.cap - 1);
+        let step = (8 / N).max(1);
+        let lines = |v: &[[f64; N]]| v.iter().step_by(step).map(|l| l[0]).sum::<f64>();
+        let mut s = lines(&self.input.buf);
+        for noise in &self.noise {
+            let recent = &noise.recent;
+            s += noise.sorted.iter().step_by(8).sum::<f64>()
+                + recent.buf[recent.pos]
+                + recent.buf[recent.pos + recent.cap]
+                + recent.ago(recent.cap - 1);
+        }
         for level in &self.levels {
-            s += lines(&level.input.buf) + lines(&level.removed.buf) + lines(&level.synthesis);
+            s += lines(&level.input.buf)
+                + lines(&level.removed.buf)
+                + level.synthesis.iter().step_by(8).sum::<f64>();
         }
         std::hint::black_box(s);
     }
@@ -343,17 +359,17 @@ impl StreamingDenoiser {
         self.lag
     }
 
-    /// The threshold lambda in force after the latest sample.
-    pub fn lambda(&self) -> f64 {
+    /// The threshold lambda of each stream in force after the latest sample.
+    pub fn lambda(&self) -> [f64; N] {
         self.lambda
     }
 
-    /// The noise sigma in force after the latest sample.
-    pub fn sigma(&self) -> f64 {
-        match self.sigma {
+    /// The noise sigma of each stream in force after the latest sample.
+    pub fn sigma(&self) -> [f64; N] {
+        std::array::from_fn(|n| match self.sigma {
             Sigma::Fixed(s) => s,
-            Sigma::Mad => self.noise.median() / super::denoise::MAD_TO_SIGMA,
-        }
+            Sigma::Mad => self.noise[n].median() / super::denoise::MAD_TO_SIGMA,
+        })
     }
 
     /// Samples pushed since the start (or the last [`reset`](Self::reset)).
@@ -362,9 +378,10 @@ impl StreamingDenoiser {
     }
 
     /// Whether the latest output still depends on the start-up extension (its analysis reached
-    /// back before the first sample), or the noise window is not yet full.
+    /// back before the first sample), or the noise window is not yet full (the same for every
+    /// stream: each window counts every push).
     pub fn warming_up(&self) -> bool {
-        let window_full = self.noise.count == self.noise.recent.cap;
+        let window_full = self.noise.iter().all(|n| n.count == n.recent.cap);
         // The latest output t = pushed - 1 - lag is clean once t >= full_lag.
         self.pushed < (self.full_lag + self.lag + 1) as u64
             || (matches!(self.sigma, Sigma::Mad) && !window_full)
@@ -374,57 +391,68 @@ impl StreamingDenoiser {
     pub fn reset(&mut self) {
         self.pushed = 0;
         self.flushed = 0;
-        self.noise = MedianTracker::new(self.noise.recent.cap);
-        self.lambda = 0.0;
+        for noise in &mut self.noise {
+            *noise = MedianTracker::new(noise.recent.cap);
+        }
+        self.lambda = [0.0; N];
     }
 
-    /// Feed one sample; returns the denoised sample from `lag` samples ago once that many have
-    /// arrived. A non-finite sample is replaced by the previous one (the caller flags it), so the
-    /// output never turns NaN. Pushing after [`flush`](Self::flush) starts a new stream.
-    pub fn push(&mut self, x: f64) -> Option<f64> {
+    /// Feed one sample of each stream; returns the denoised samples from `lag` samples ago once
+    /// that many have arrived. A non-finite sample is replaced by the stream's previous one (the
+    /// caller flags it), so the output never turns NaN. Pushing after [`flush`](Self::flush)
+    /// starts new streams.
+    pub fn push(&mut self, x: [f64; N]) -> Option<[f64; N]> {
         if self.flushed > 0 {
             self.reset();
         }
-        let x = if x.is_finite() {
-            x
-        } else if self.pushed > 0 {
+        let previous = if self.pushed > 0 {
             self.input.ago(0)
         } else {
-            0.0
+            [0.0; N]
         };
+        let x: [f64; N] =
+            std::array::from_fn(|n| if x[n].is_finite() { x[n] } else { previous[n] });
         if self.pushed == 0 {
             self.start(x);
         }
         self.pushed += 1;
         self.input.push(x);
         let mut a = x;
-        let mut details = [0.0; MAX_LEVEL];
+        let mut details = [[0.0; N]; MAX_LEVEL];
         for (level, detail) in self.levels.iter_mut().zip(&mut details) {
             level.input.push(a);
-            let mut next = 0.0;
+            let mut next = [0.0; N];
             for (k, (h, g)) in self.lo.iter().zip(&self.hi).enumerate() {
                 let v = level.input.ago(k * level.stride);
-                next += h * v;
-                *detail += g * v;
+                for n in 0..N {
+                    next[n] += h * v[n];
+                    detail[n] += g * v[n];
+                }
             }
             a = next;
         }
-        self.lambda = match self.sigma {
-            Sigma::Fixed(s) => s * self.universal,
-            Sigma::Mad => {
-                self.noise.push(details[0]);
-                self.noise.median() / super::denoise::MAD_TO_SIGMA * self.universal
-            }
-        };
-        for (level, &d) in self.levels.iter_mut().zip(&details) {
-            level.removed.push(d - self.threshold.apply(d, self.lambda));
+        for (n, noise) in self.noise.iter_mut().enumerate() {
+            self.lambda[n] = match self.sigma {
+                Sigma::Fixed(s) => s * self.universal,
+                Sigma::Mad => {
+                    noise.push(details[0][n]);
+                    noise.median() / super::denoise::MAD_TO_SIGMA * self.universal
+                }
+            };
+        }
+        for (level, d) in self.levels.iter_mut().zip(&details) {
+            let (threshold, lambda) = (&self.threshold, &self.lambda);
+            level.removed.push(std::array::from_fn(|n| {
+                d[n] - threshold.apply(d[n], lambda[n])
+            }));
         }
         (self.pushed > self.lag as u64).then(|| self.output(self.lag))
     }
 
-    /// Drain the samples still held at the end of a stream, one per call, oldest first; `None`
-    /// once all are out. Their sums are truncated at the newest sample, as with a smaller lag.
-    pub fn flush(&mut self) -> Option<f64> {
+    /// Drain the samples still held at the end of the streams, one per call, oldest first;
+    /// `None` once all are out. Their sums are truncated at the newest sample, as with a
+    /// smaller lag.
+    pub fn flush(&mut self) -> Option<[f64; N]> {
         let held = self.pushed.min(self.lag as u64) as usize;
         if self.flushed >= held {
             return None;
@@ -434,33 +462,95 @@ impl StreamingDenoiser {
         Some(self.output(ago))
     }
 
-    /// Prime every history with the constant extension of the first sample.
-    fn start(&mut self, x: f64) {
+    /// Prime every history with the constant extension of the first samples.
+    fn start(&mut self, x: [f64; N]) {
         self.input.fill(x);
         // A constant c has approximation c * (sum lo)^j = c * sqrt(2)^j and zero details.
         let gain: f64 = self.lo.iter().sum();
         let mut a = x;
         for level in &mut self.levels {
             level.input.fill(a);
-            level.removed.fill(0.0);
-            a *= gain;
+            level.removed.fill([0.0; N]);
+            a = a.map(|v| v * gain);
         }
     }
 
-    /// The denoised sample pushed `ago` pushes ago, from the removed parts known so far.
+    /// The denoised samples pushed `ago` pushes ago, from the removed parts known so far.
     #[inline]
-    fn output(&self, ago: usize) -> f64 {
-        let mut removed = 0.0;
+    fn output(&self, ago: usize) -> [f64; N] {
+        let mut removed = [0.0; N];
         for level in &self.levels {
             let taps = level.synthesis.len().min(ago + 1);
             let e = level.removed.run_from(ago, taps);
-            removed += level.synthesis[..taps]
-                .iter()
-                .zip(e)
-                .map(|(c, v)| c * v)
-                .sum::<f64>();
+            // Each lane summed in tap order from -0.0, as `Iterator::sum` does for one stream.
+            let mut sum = [-0.0; N];
+            for (c, v) in level.synthesis[..taps].iter().zip(e) {
+                for n in 0..N {
+                    sum[n] += c * v[n];
+                }
+            }
+            for n in 0..N {
+                removed[n] += sum[n];
+            }
         }
-        self.input.ago(ago) - removed
+        let x = self.input.ago(ago);
+        std::array::from_fn(|n| x[n] - removed[n])
+    }
+}
+
+impl StreamingDenoiser {
+    /// Build a denoiser; fails on an unknown wavelet or an out-of-range setting.
+    pub fn new(cfg: &StreamConfig) -> Result<Self, WaveletError> {
+        LaneDenoiser::new(cfg).map(StreamingDenoiser)
+    }
+
+    /// See [`LaneDenoiser::prewarm`].
+    pub fn prewarm(&self) {
+        self.0.prewarm();
+    }
+
+    /// The algorithmic delay in samples.
+    pub fn lag(&self) -> usize {
+        self.0.lag()
+    }
+
+    /// The threshold lambda in force after the latest sample.
+    pub fn lambda(&self) -> f64 {
+        self.0.lambda()[0]
+    }
+
+    /// The noise sigma in force after the latest sample.
+    pub fn sigma(&self) -> f64 {
+        self.0.sigma()[0]
+    }
+
+    /// Samples pushed since the start (or the last [`reset`](Self::reset)).
+    pub fn pushed(&self) -> u64 {
+        self.0.pushed()
+    }
+
+    /// Whether the latest output still depends on the start-up extension (its analysis reached
+    /// back before the first sample), or the noise window is not yet full.
+    pub fn warming_up(&self) -> bool {
+        self.0.warming_up()
+    }
+
+    /// Forget everything: the next push starts a new stream.
+    pub fn reset(&mut self) {
+        self.0.reset();
+    }
+
+    /// Feed one sample; returns the denoised sample from `lag` samples ago once that many have
+    /// arrived. A non-finite sample is replaced by the previous one (the caller flags it), so the
+    /// output never turns NaN. Pushing after [`flush`](Self::flush) starts a new stream.
+    pub fn push(&mut self, x: f64) -> Option<f64> {
+        self.0.push([x]).map(|[v]| v)
+    }
+
+    /// Drain the samples still held at the end of a stream, one per call, oldest first; `None`
+    /// once all are out. Their sums are truncated at the newest sample, as with a smaller lag.
+    pub fn flush(&mut self) -> Option<f64> {
+        self.0.flush().map(|[v]| v)
     }
 }
 
