@@ -222,25 +222,16 @@ fn main() {
     clean(&p);
     rows.push(row_from("bare iceoryx2 chain, 4 hops, 1 kHz", &bare_1k));
 
-    // 2. Demo at 1 kHz with a separate-process subscriber.
-    let (demo, sub, cpu, sub_lost) = paced(
+    // 2. Demo at 1 kHz with a separate-process subscriber; then the same with the stages
+    // prewarmed 150 us before each sample is due.
+    let (demo, sub, cpu) = demo_rows(
         &root().join("pipelines/demo.toml"),
         "demo",
-        "demo/corrected",
+        "demo",
         secs,
         dir.path(),
+        &mut rows,
     );
-    let mut r = row_from_report("demo pipeline, 1 kHz, end to end (daemon)", &demo);
-    r.cpu = format!("{:.1}%", cpu * 100.0);
-    rows.push(r);
-    let mut r = row_from(
-        "demo, separate-process subscriber (ingest to receipt)",
-        &sub,
-    );
-    r.lost = sub_lost.to_string();
-    rows.push(r);
-
-    // 2b. The same with the stages prewarmed 150 us before each sample is due.
     let warm_file = dir.path().join("demo-prewarm.toml");
     let text = std::fs::read_to_string(root().join("pipelines/demo.toml"))
         .expect("demo.toml")
@@ -249,17 +240,14 @@ fn main() {
             "realtime_priority = 50\nprewarm_us = 150.0",
         );
     std::fs::write(&warm_file, text).expect("write");
-    let (warm, warm_sub, warm_cpu, warm_sub_lost) =
-        paced(&warm_file, "demowarm", "demo/corrected", secs, dir.path());
-    let mut r = row_from_report("demo, prewarm_us = 150, end to end (daemon)", &warm);
-    r.cpu = format!("{:.1}%", warm_cpu * 100.0);
-    rows.push(r);
-    let mut r = row_from(
-        "demo, prewarm_us = 150, separate-process subscriber",
-        &warm_sub,
+    let (warm, _, _) = demo_rows(
+        &warm_file,
+        "demowarm",
+        "demo, prewarm_us = 150",
+        secs,
+        dir.path(),
+        &mut rows,
     );
-    r.lost = warm_sub_lost.to_string();
-    rows.push(r);
 
     // 3. The paper's rate.
     let (paper, _, cpu50, _) = paced(
@@ -382,6 +370,30 @@ fn main() {
     );
     scale(secs, dir.path());
     println!("load average at the end: {}", loadavg());
+}
+
+/// Run the demo pipeline `file` paced for `secs` with a subscriber in this process; push its
+/// end-to-end row and its subscriber's row labelled `label`; returns the report, the
+/// subscriber's histogram and the daemon's CPU share.
+fn demo_rows(
+    file: &Path,
+    tag: &str,
+    label: &str,
+    secs: f64,
+    dir: &Path,
+    rows: &mut Vec<Row>,
+) -> (Value, Histogram<u64>, f64) {
+    let (report, sub, cpu, sub_lost) = paced(file, tag, "demo/corrected", secs, dir);
+    let mut r = row_from_report(&format!("{label}, 1 kHz, end to end (daemon)"), &report);
+    r.cpu = format!("{:.1}%", cpu * 100.0);
+    rows.push(r);
+    let mut r = row_from(
+        &format!("{label}, separate-process subscriber (ingest to receipt)"),
+        &sub,
+    );
+    r.lost = sub_lost.to_string();
+    rows.push(r);
+    (report, sub, cpu)
 }
 
 /// Run 5: `n` demo daemons at once, as a vehicle with several IMUs would; each reports its own

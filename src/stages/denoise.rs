@@ -304,20 +304,19 @@ impl Wavelet {
     }
 }
 
+/// `v` with the axes the pipeline does not use set to 0 (in and out of the lock-step denoiser).
+fn used_axes(axes: usize, v: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|a| if a < axes { v[a] } else { 0.0 })
+}
+
 impl Stage for Wavelet {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         self.held[self.head] = *input;
         self.head = (self.head + 1) % self.held.len();
         self.count += 1;
         self.last_ingest_ns = input.ingest_ns;
-        let axes = self.axes;
-        // Unused axes are 0 in and out.
-        let x = std::array::from_fn(|a| if a < axes { input.denoised[a] } else { 0.0 });
-        let values = self.denoiser.push(x)?;
-        Some(self.emit(
-            std::array::from_fn(|a| if a < axes { values[a] } else { 0.0 }),
-            false,
-        ))
+        let values = self.denoiser.push(used_axes(self.axes, input.denoised))?;
+        Some(self.emit(used_axes(self.axes, values), false))
     }
 
     fn flush(&mut self) -> Option<GyroSample> {
@@ -325,11 +324,7 @@ impl Stage for Wavelet {
             return None;
         }
         let values = self.denoiser.flush()?;
-        let axes = self.axes;
-        Some(self.emit(
-            std::array::from_fn(|a| if a < axes { values[a] } else { 0.0 }),
-            true,
-        ))
+        Some(self.emit(used_axes(self.axes, values), true))
     }
 
     fn lag(&self) -> usize {

@@ -166,6 +166,13 @@ impl SimSource {
     }
 }
 
+impl SimSource {
+    /// When the next sample is due, after the first.
+    fn offset(&self) -> Duration {
+        Duration::from_secs_f64(self.k as f64 / self.rate_hz)
+    }
+}
+
 impl Source for SimSource {
     fn poll(&mut self, stop: &AtomicBool) -> Poll {
         if self.limit.is_some_and(|n| self.k >= n) {
@@ -175,7 +182,7 @@ impl Source for SimSource {
             None
         } else {
             let clock = *self.start.get_or_insert_with(PaceClock::now);
-            match clock.wait(Duration::from_secs_f64(self.k as f64 / self.rate_hz), stop) {
+            match clock.wait(self.offset(), stop) {
                 Some(due) => Some(due),
                 None => return Poll::Idle,
             }
@@ -195,6 +202,6 @@ impl Source for SimSource {
 
     fn next_due(&self) -> Option<std::time::Instant> {
         let clock = self.start.filter(|_| !self.asap)?;
-        Some(clock.at(Duration::from_secs_f64(self.k as f64 / self.rate_hz)))
+        Some(clock.at(self.offset()))
     }
 }

@@ -92,7 +92,7 @@ impl PaceClock {
     /// Sleep until `offset` after the start (noticing `stop`); returns when that was due, in
     /// monotonic ns, or None when stopped first.
     pub(crate) fn wait(&self, offset: Duration, stop: &AtomicBool) -> Option<u64> {
-        sleep_until(self.start + offset, stop)
+        sleep_until(self.at(offset), stop)
             .then(|| self.start_ns.saturating_add(offset.as_nanos() as u64))
     }
 }

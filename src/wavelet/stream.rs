@@ -714,6 +714,42 @@ mod tests {
     }
 
     #[test]
+    fn lanes_equal_one_stream_denoisers_bit_for_bit() {
+        let x = signal(4000);
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| match i % 401 {
+                3 => f64::NAN,
+                5 => 0.0,
+                _ => -2.0 * v,
+            })
+            .collect();
+        for cfg in [
+            cfg(33, ThresholdFn::improved_default(), Sigma::Mad),
+            cfg(0, ThresholdFn::Soft, Sigma::Fixed(0.2)),
+        ] {
+            let mut lanes = LaneDenoiser::<2>::new(&cfg).unwrap();
+            let mut one = [0, 1].map(|_| StreamingDenoiser::new(&cfg).unwrap());
+            // Two streams, flushed halfway (the next push starts new streams).
+            for (i, (a, b)) in x.iter().zip(&y).enumerate() {
+                let got = lanes.push([*a, *b]).map(|v| v.map(f64::to_bits));
+                let want = one[0].push(*a).zip(one[1].push(*b));
+                assert_eq!(got, want.map(|(p, q)| [p.to_bits(), q.to_bits()]), "{i}");
+                if i == 2000 {
+                    while let Some(v) = lanes.flush() {
+                        let w = [one[0].flush().unwrap(), one[1].flush().unwrap()];
+                        assert_eq!(v.map(f64::to_bits), w.map(f64::to_bits));
+                    }
+                    assert!(one[0].flush().is_none());
+                }
+            }
+            assert_eq!(lanes.lambda()[1].to_bits(), one[1].lambda().to_bits());
+            assert_eq!(lanes.warming_up(), one[0].warming_up());
+        }
+    }
+
+    #[test]
     fn median_tracker_equals_a_sorted_copy_of_the_window() {
         let mut t = MedianTracker::new(64);
         let mut window: Vec<f64> = Vec::new();
