@@ -55,33 +55,42 @@ output = "off/corrected"
     )
 }
 
-#[test]
-fn offline_output_is_the_live_daemons_sample_for_sample() {
-    let dir = Dir::new();
-    // A simulated ADIS16405 at 1 kHz: still 20 s, then a turn starting on the last axis.
+/// A simulated ADIS16405 at 1 kHz, 3 axes (still 20 s, then a turn starting on the last
+/// axis): the CSV text (columns x,y,z, and a time column t first when `time_column`) and the
+/// raw samples it holds, read back through the CSV's own decimal text.
+fn sim_log(seed: u64, n: usize, time_column: bool) -> (String, Vec<RawSample>) {
     let mut cfg = SimConfig::profile("adis16405").unwrap();
     cfg.rate_hz = 1000.0;
     cfg.axes = 3;
-    cfg.seed = 11;
+    cfg.seed = seed;
     cfg.motion = Motion::Turn;
     let mut sim = Simulator::new(&cfg).unwrap();
-    let mut text = String::from("x,y,z\n");
-    let mut raws = Vec::with_capacity(N);
-    for i in 0..N {
-        let s = sim.next_sample();
-        // Written and read back through the CSV's own decimal text.
-        let line = format!("{},{},{}", s.measured[0], s.measured[1], s.measured[2]);
+    let mut text = String::from(if time_column { "t,x,y,z\n" } else { "x,y,z\n" });
+    let mut raws = Vec::with_capacity(n);
+    for i in 0..n {
+        let m = sim.next_sample().measured;
+        let line = format!("{},{},{}", m[0], m[1], m[2]);
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
         raws.push(RawSample {
-            t_ns: (i as f64 * 1e9 / 1000.0).round() as u64,
+            t_ns: i as u64 * 1_000_000,
             seq: i as u64,
             rate: [v[0], v[1], v[2]],
             flags: 0,
             epoch: 0,
         });
+        if time_column {
+            text.push_str(&format!("{:.3},", i as f64 * 1e-3));
+        }
         text.push_str(&line);
         text.push('\n');
     }
+    (text, raws)
+}
+
+#[test]
+fn offline_output_is_the_live_daemons_sample_for_sample() {
+    let dir = Dir::new();
+    let (text, raws) = sim_log(11, N, false);
     dir.write("log.csv", &text);
     let model = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -138,27 +147,7 @@ fn live_equals_offline(file: &std::path::Path, name: &str, raws: &[RawSample]) -
 #[test]
 fn prewarming_the_stages_before_each_paced_sample_changes_no_output() {
     let dir = Dir::new();
-    let mut cfg = SimConfig::profile("adis16405").unwrap();
-    cfg.rate_hz = 1000.0;
-    cfg.seed = 12;
-    cfg.motion = Motion::Turn;
-    let mut sim = Simulator::new(&cfg).unwrap();
-    const M: usize = 1500;
-    let mut text = String::from("t,x,y,z\n");
-    let mut raws = Vec::with_capacity(M);
-    for i in 0..M {
-        let m = sim.next_sample().measured;
-        let line = format!("{},{},{}", m[0], m[1], m[2]);
-        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
-        raws.push(RawSample {
-            t_ns: i as u64 * 1_000_000,
-            seq: i as u64,
-            rate: [v[0], v[1], v[2]],
-            flags: 0,
-            epoch: 0,
-        });
-        text.push_str(&format!("{:.3},{line}\n", i as f64 * 1e-3));
-    }
+    let (text, raws) = sim_log(12, 1500, true);
     dir.write("log.csv", &text);
     // In real time (prewarming needs a paced source), 200 us before each sample is due.
     let text = pipeline("kind = \"predict.bias\"")
