@@ -1,10 +1,13 @@
 //! Denoising speed: the streaming denoiser per sample (goal <= 1 us per sample per axis for db6 /
 //! 5 levels) and batch denoising of 18,000 and 10^6 samples (goal >= 3x PyWavelets'
-//! wavedec + threshold + waverec on the same data: `python3 scripts/bench_pywt.py` in the same run).
+//! wavedec + threshold + waverec on the same data: `python3 scripts/bench_pywt.py` in the same run),
+//! and the transform alone (wavedec + waverec) against PyWavelets'.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use driftless::wavelet::denoise::{denoise, DenoiseConfig};
 use driftless::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
+use driftless::wavelet::transform::Plan;
+use driftless::wavelet::{Mode, Wavelet};
 use std::hint::black_box;
 
 /// The same signal as scripts/bench_pywt.py.
@@ -120,5 +123,27 @@ fn batch(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, streaming, three_axes, batch);
+/// The transform alone: `Plan::wavedec` + `Plan::waverec` (db6 / 5 levels / symmetric), against
+/// PyWavelets' `waverec(wavedec(x))` in scripts/bench_pywt.py.
+fn transform(c: &mut Criterion) {
+    let w = Wavelet::by_name("db6").expect("built in");
+    let mut group = c.benchmark_group("wavedec_waverec_db6_L5");
+    group.sample_size(20);
+    for n in [18_000usize, 1_000_000] {
+        let x = signal(n);
+        let mut plan = Plan::new(&w, Mode::Symmetric, n, 5).expect("long enough");
+        let (mut coeffs, mut out) = (vec![0.0; plan.coeffs_len()], vec![0.0; n]);
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(n), &x, |b, x| {
+            b.iter(|| {
+                plan.wavedec(x, &mut coeffs);
+                plan.waverec(&coeffs, &mut out);
+                black_box(out[n / 2])
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, streaming, three_axes, batch, transform);
 criterion_main!(benches);
