@@ -233,15 +233,21 @@ pub fn pairwise_sum(a: &[f64]) -> f64 {
 
 /// Rates to phase as allantools does: x = [0, cumsum(y - mean(y)) * (1 / rate)].
 pub fn frequency_to_phase(y: &[f64], rate: f64) -> Vec<f64> {
-    let dt = 1.0 / rate;
-    let mean = pairwise_sum(y) / y.len().max(1) as f64;
     let mut x = crate::bigbuf::zeroed(y.len() + 1);
+    phase_into(y, pairwise_sum(y), rate, &mut x);
+    x
+}
+
+/// [`frequency_to_phase`] into `x` (`y.len() + 1` values), `sum` being `pairwise_sum(y)`.
+fn phase_into(y: &[f64], sum: f64, rate: f64, x: &mut [f64]) {
+    let dt = 1.0 / rate;
+    let mean = sum / y.len().max(1) as f64;
+    x[0] = 0.0;
     let mut s = 0.0;
     for (xi, &v) in x[1..].iter_mut().zip(y) {
         s += v - mean;
         *xi = s * dt;
     }
-    x
 }
 
 /// Averaging factors of `grid` for `phase_len` phase samples, as allantools' `tau_generator`:
@@ -612,8 +618,13 @@ pub fn allan(
     if !(rate.is_finite() && rate > 0.0) {
         return Err(AllanError::BadRate(rate));
     }
-    if let Some(i) = y.iter().position(|v| !v.is_finite()) {
-        return Err(AllanError::NonFinite(i));
+    // The sum behind the mean screens the input too: it is finite when every sample is (when
+    // it is not, either a sample is not or the sum overflowed, and the scan tells which).
+    let sum = pairwise_sum(y);
+    if !sum.is_finite() {
+        if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+            return Err(AllanError::NonFinite(i));
+        }
     }
     let needed = match kind {
         Kind::Oadev | Kind::Adev => 3,
@@ -628,7 +639,9 @@ pub fn allan(
     if y.len() < needed {
         return Err(too_short);
     }
-    let x = frequency_to_phase(y, rate);
+    // A work buffer from the pool: a repeated call does not fault its 80 MB in again.
+    let mut x = crate::bigbuf::Scratch::for_overwrite(y.len() + 1);
+    phase_into(y, sum, rate, &mut x);
     let ms = averaging_factors(grid, x.len(), rate);
     let devs = deviations(kind, &x, rate, &ms);
     let mut points: Vec<AllanPoint> = ms
@@ -704,5 +717,26 @@ mod tests {
             allan(&[1.0; 10], 0.0, Kind::Oadev, &TauGrid::Octave, 0.68),
             Err(AllanError::BadRate(0.0))
         );
+    }
+
+    /// The first non-finite sample is named, whatever the others are; finite samples whose sum
+    /// overflows are not refused as non-finite.
+    #[test]
+    fn the_first_non_finite_sample_is_named() {
+        let oadev = |y: &[f64]| allan(y, 1.0, Kind::Oadev, &TauGrid::Octave, 0.68);
+        for (bad, at) in [
+            (vec![(7, f64::NAN)], 7),
+            (vec![(0, f64::INFINITY)], 0),
+            (vec![(99, f64::NEG_INFINITY)], 99),
+            (vec![(40, f64::INFINITY), (3, f64::NEG_INFINITY)], 3),
+        ] {
+            let mut y = vec![0.5; 100];
+            for (i, v) in bad {
+                y[i] = v;
+            }
+            assert_eq!(oadev(&y), Err(AllanError::NonFinite(at)));
+        }
+        let huge = vec![f64::MAX; 100];
+        assert!(!matches!(oadev(&huge), Err(AllanError::NonFinite(_))));
     }
 }
