@@ -127,6 +127,7 @@ fn live_equals_offline(file: &std::path::Path, name: &str, raws: &[RawSample]) -
     assert_eq!(want.len(), n, "{name}: every sample offline");
 
     let prefix = Prefix::new(&format!("off{name}"));
+    // The pipeline file's buffer_size (N), whatever the log's length.
     let me = Transport::new(&prefix.0, "nav", qos(N)).expect("node");
     let corrected = me.input::<GyroSample>("off/corrected").expect("subscriber");
     let child = start(file, &prefix, &[]);

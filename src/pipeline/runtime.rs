@@ -330,7 +330,6 @@ impl Chain {
         }
     }
 
-    /// When the source is idle: do not let a partial batch wait.
     /// [`Stage::prewarm`] of every stage, and the metrics slot the sample will fill.
     fn prewarm(&self) {
         for stage in &self.stages {
@@ -340,6 +339,7 @@ impl Chain {
         std::hint::black_box(self.batch.records.get(self.batch.len).copied());
     }
 
+    /// When the source is idle: do not let a partial batch wait.
     fn idle(&mut self) {
         if self.batch.len > 0
             && monotonic_ns().saturating_sub(self.batch_started_ns) > BATCH_MAX_AGE_NS

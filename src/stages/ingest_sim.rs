@@ -164,9 +164,7 @@ impl SimSource {
             start: None,
         })
     }
-}
 
-impl SimSource {
     /// When the next sample is due, after the first.
     fn offset(&self) -> Duration {
         Duration::from_secs_f64(self.k as f64 / self.rate_hz)
