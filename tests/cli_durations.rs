@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{csv, driftless, text, Dir, Prefix};
+use common::{driftless, text, Dir, Prefix};
 use std::process::Output;
 
 /// Exit 2, one `driftless: error:` line holding the value, the option and the forms.
@@ -49,8 +49,7 @@ output = "d/corrected"
 #[test]
 fn run_takes_the_forms_simulate_took() {
     let prefix = Prefix::new("dur");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", REPLAY);
     let file = file.to_str().unwrap();
     // `90min` was refused by `run` before; the replay ends long before.

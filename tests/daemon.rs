@@ -246,8 +246,7 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
 #[test]
 fn sigterm_drains_reports_exits_zero_and_leaves_nothing_behind() {
     let prefix = Prefix::new("term");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &csv_pipeline("realtime", true, 64));
     let report_path = dir.path("report.json");
     let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
@@ -274,8 +273,7 @@ fn a_closed_stderr_never_stops_the_daemon() {
     // `driftless run ... 2>&1 | head -1`: the summary lines and the final table go nowhere,
     // but the daemon keeps serving, drains, writes its report and cleans up.
     let prefix = Prefix::new("stderr");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(400));
+    let dir = Dir::with_csv(400);
     let text = csv_pipeline("realtime", false, 64)
         .replace("report_interval_s = 60.0", "report_interval_s = 0.05");
     let file = dir.write("p.toml", &text);
@@ -299,8 +297,7 @@ fn a_closed_stderr_never_stops_the_daemon() {
 #[test]
 fn after_sigkill_the_next_start_cleans_up_and_runs() {
     let prefix = Prefix::new("kill");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &csv_pipeline("realtime", true, 64));
     let mut child = start(&file, &prefix, &[]);
     wait_ready(&prefix, "c/stats", &mut child);
@@ -334,8 +331,7 @@ fn after_sigkill_the_next_start_cleans_up_and_runs() {
 #[test]
 fn a_second_daemon_for_the_same_pipeline_is_refused() {
     let prefix = Prefix::new("twice");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &csv_pipeline("realtime", true, 64));
     let mut first = start(&file, &prefix, &[]);
     wait_ready(&prefix, "c/stats", &mut first);
@@ -387,8 +383,7 @@ fn a_second_daemon_for_the_same_pipeline_is_refused() {
 fn a_stalled_subscriber_never_blocks_the_pipeline_and_its_losses_are_counted() {
     const N: usize = 3000;
     let prefix = Prefix::new("stall");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(N));
+    let dir = Dir::with_csv(N);
     let file = dir.write("p.toml", &csv_pipeline("asap", false, 16));
     let report_path = dir.path("report.json");
     // Subscribes and never reads.
@@ -414,8 +409,7 @@ fn a_stalled_subscriber_never_blocks_the_pipeline_and_its_losses_are_counted() {
 #[test]
 fn services_exist_only_while_the_daemon_runs_and_a_late_subscriber_gets_no_history() {
     let prefix = Prefix::new("life");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(2000));
+    let dir = Dir::with_csv(2000);
     let file = dir.write("p.toml", &csv_pipeline("realtime", true, 4096));
     let client = Transport::new(&prefix.0, "client", qos(4096)).expect("node");
     // Before the daemon: nothing to open (a client retries until the daemon has made it).
@@ -561,8 +555,7 @@ fn validate_or_run(cmd: &str, file: &std::path::Path, prefix: &Prefix) -> std::p
 #[test]
 fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
     let prefix = Prefix::new("cfg");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(10));
+    let dir = Dir::with_csv(10);
     let good = csv_pipeline("asap", false, 16);
     let cases: Vec<(&str, String, &str)> = vec![
         ("unknown-key", good.replace("rate_hz = 1000.0", "rate_hz = 1000.0\nrate = 5"), "unknown field `rate`"),
@@ -617,8 +610,7 @@ fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
 #[test]
 fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
     let prefix = Prefix::new("tools");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let text = csv_pipeline("realtime", true, 64)
         .replace("report_interval_s = 60.0", "report_interval_s = 0.2");
     let file = dir.write("p.toml", &text);
@@ -765,8 +757,7 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
 #[test]
 fn a_subscriber_that_dies_never_blocks_the_daemon_and_is_cleaned_up() {
     let prefix = Prefix::new("dead");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let text = csv_pipeline("realtime", true, 16)
         .replace("report_interval_s = 60.0", "report_interval_s = 0.1");
     let file = dir.write("p.toml", &text);
@@ -1278,8 +1269,7 @@ fn the_report_keeps_each_miss_with_its_time_and_stage_times() {
     // A 1 ns deadline: every output misses it.
     const N: usize = 400;
     let prefix = Prefix::new("misses");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(N));
+    let dir = Dir::with_csv(N);
     let text = csv_pipeline("asap", false, 1024)
         .replace("rate_hz = 1000.0", "rate_hz = 1000.0\ndeadline_us = 0.001");
     let file = dir.write("p.toml", &text);
@@ -1341,8 +1331,7 @@ fn a_paced_source_reports_how_late_each_sample_was_taken() {
     // hot thread cannot take it within 1 ns of that.
     const N: usize = 400;
     let prefix = Prefix::new("wokenlate");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(N));
+    let dir = Dir::with_csv(N);
     let text = csv_pipeline("realtime", false, 1024)
         .replace("rate_hz = 1000.0", "rate_hz = 1000.0\ndeadline_us = 0.001");
     let file = dir.write("p.toml", &text);

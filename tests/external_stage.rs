@@ -9,7 +9,7 @@ use std::process::{Child, ChildStderr, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    collect, csv, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
+    collect, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
 };
 use driftless::stages::external::transform;
 use driftless::transport::{GyroSample, RawSample, Transport};
@@ -234,8 +234,7 @@ fn every_sample_crosses_the_external_stage_once_in_order_with_the_offline_values
 #[test]
 fn sigterm_drains_through_the_external_stage_exits_zero_and_leaves_nothing() {
     let prefix = Prefix::new("extterm");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write(
         "p.toml",
         &pipeline(
@@ -281,8 +280,7 @@ fn sigterm_drains_through_the_external_stage_exits_zero_and_leaves_nothing() {
 #[test]
 fn without_its_external_process_the_daemon_still_stops_and_counts_what_never_came_back() {
     let prefix = Prefix::new("extnone");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write(
         "p.toml",
         &pipeline(FROM_CSV, "kind = \"denoise.none\"", 256),

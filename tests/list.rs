@@ -7,7 +7,7 @@ mod common;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{csv, csv_pipeline, finish, signal, start, wait_ready, Dir, Prefix};
+use common::{csv_pipeline, finish, signal, start, wait_ready, Dir, Prefix};
 use serde_json::Value;
 
 const SIGTERM: i32 = 15;
@@ -63,8 +63,7 @@ fn row<'a>(text: &'a str, first: &str) -> Vec<&'a str> {
 #[test]
 fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_ports() {
     let prefix = Prefix::new("lsrun");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &pipeline());
     let mut daemon = start(&file, &prefix, &[]);
     wait_ready(&prefix, "c/stats", &mut daemon);
@@ -193,8 +192,7 @@ fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_port
 #[test]
 fn a_killed_daemon_is_listed_dead_and_clean_removes_it() {
     let prefix = Prefix::new("lskill");
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &pipeline());
     let mut daemon = start(&file, &prefix, &[]);
     wait_ready(&prefix, "c/stats", &mut daemon);
@@ -261,8 +259,7 @@ fn an_empty_prefix_lists_nothing_exits_zero_and_creates_nothing() {
 fn clean_removes_daemons_killed_at_any_point_of_their_start() {
     // Killed while creating a port, a node leaves files that iceoryx2 0.10's own clean-up stops
     // at; `--clean` must leave nothing of any of them.
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &pipeline());
     for (k, delay_ms) in (0..60).step_by(5).enumerate() {
         let prefix = Prefix::new(&format!("lsstart{k}"));
@@ -292,8 +289,7 @@ fn a_segment_a_killed_process_never_sized_does_not_hang_the_clean_up() {
     // write-only segment of size 0, which iceoryx2 0.10 waits on forever when it cleans up the
     // dead node. Made here from a real killed daemon's service segment.
     use std::os::unix::fs::PermissionsExt;
-    let dir = Dir::new();
-    dir.write("data.csv", &csv(500));
+    let dir = Dir::with_csv(500);
     let file = dir.write("p.toml", &pipeline());
     let prefix = Prefix::new("lsunsized");
     let mut daemon = start(&file, &prefix, &[]);

@@ -307,10 +307,9 @@ fn a_root_path_that_is_not_absolute_is_refused_by_every_command() {
 
 #[test]
 fn root_path_in_the_pipeline_file_puts_the_daemons_files_there() {
-    let dir = Dir::new();
+    let dir = Dir::with_csv(2000);
     let root = dir.path("iox");
     let root_s = root.to_str().expect("utf-8 path").to_string();
-    dir.write("data.csv", &csv(2000));
     let toml = csv_pipeline("realtime", true, 256).replace(
         "[iceoryx2]\n",
         &format!("[iceoryx2]\nroot_path = \"{root_s}\"\n"),

@@ -89,6 +89,13 @@ impl Dir {
         }
     }
 
+    /// A folder holding `data.csv` with [`csv`]`(rows)`, the log [`csv_pipeline`] replays.
+    pub fn with_csv(rows: usize) -> Self {
+        let dir = Dir::new();
+        dir.write("data.csv", &csv(rows));
+        dir
+    }
+
     pub fn write(&self, name: &str, text: &str) -> PathBuf {
         let p = self.dir.path().join(name);
         std::fs::write(&p, text).expect("write");
