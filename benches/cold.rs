@@ -7,6 +7,8 @@
 //! with `taskset -c 1 cargo bench --bench cold` to keep the other core's work off it.
 //! `DRIFTLESS_COLD_SAMPLES` (default 5000) per sleeping mode.
 
+mod support;
+
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -22,17 +24,7 @@ enum Before {
 }
 
 fn main() {
-    let param = libc::sched_param { sched_priority: 50 };
-    // SAFETY: a valid sched_param; 0 is the calling thread.
-    let rt = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 };
-    println!(
-        "thread: {}",
-        if rt {
-            "SCHED_FIFO 50"
-        } else {
-            "default scheduling (SCHED_FIFO not permitted)"
-        }
-    );
+    println!("thread: {}", support::realtime(50));
     let n: usize = std::env::var("DRIFTLESS_COLD_SAMPLES")
         .ok()
         .and_then(|v| v.parse().ok())

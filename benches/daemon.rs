@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 mod support;
 
 use support::{
-    bench_seconds, clean, cpu_seconds, loadavg, prefix, read_report, sigterm_and_wait,
+    bench_seconds, clean, cpu_seconds, loadavg, prefix, read_report, realtime, sigterm_and_wait,
     start_daemon, wait_exit, wait_exit_within,
 };
 
@@ -217,30 +217,14 @@ fn us(ns: u64) -> String {
     format!("{:.1}", ns as f64 / 1e3)
 }
 
-/// Put this thread (the bare chain and the subscriber) on SCHED_FIFO like the demo's hot thread,
-/// so the comparison is fair; returns whether it worked.
-fn realtime(priority: i32) -> bool {
-    let param = libc::sched_param {
-        sched_priority: priority,
-    };
-    // SAFETY: a valid sched_param; 0 is the calling thread.
-    unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 }
-}
-
 fn main() {
     let secs = bench_seconds(100.0);
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rows = Vec::new();
+    // Like the demo's hot thread, so the comparison with the bare chain is fair.
     let rt = realtime(50);
     println!("load average at the start: {}", loadavg());
-    println!(
-        "bench thread (bare chain, subscriber): {}",
-        if rt {
-            "SCHED_FIFO 50"
-        } else {
-            "default scheduling (SCHED_FIFO not permitted)"
-        }
-    );
+    println!("bench thread (bare chain, subscriber): {rt}");
 
     // 1. Bare chain at 1 kHz.
     let bare_secs = secs.min(30.0);

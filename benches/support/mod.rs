@@ -1,5 +1,5 @@
 //! What the daemon benches share: unique iceoryx2 prefixes and their clean-up, the daemon run
-//! as a real process, its JSON report, and a process's CPU time.
+//! as a real process, its JSON report, a process's CPU time, and real-time scheduling.
 #![allow(dead_code)]
 
 use std::path::Path;
@@ -7,6 +7,19 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
+
+/// Put the calling thread on SCHED_FIFO at `priority`; says which scheduling it got.
+pub fn realtime(priority: i32) -> String {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: a valid sched_param; 0 is the calling thread.
+    if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
+        format!("SCHED_FIFO {priority}")
+    } else {
+        "default scheduling (SCHED_FIFO not permitted)".into()
+    }
+}
 
 /// Seconds per measured run: `DRIFTLESS_BENCH_SECONDS`, else `full` under `cargo bench` (which
 /// passes --bench) and 2 s when `cargo test --benches` runs the bench as a check.
