@@ -415,6 +415,13 @@ pub struct Report {
     pub woken_late_ns: Option<Pct>,
     /// Paced samples taken more than the deadline after they were due.
     pub woken_late_over_deadline: u64,
+    /// For a paced source, from when the completing sample was due to publish, ns
+    /// (`woken_late_ns` + `end_to_end_ns` of the same output): what a reader waiting on the
+    /// sensor's clock sees, and what grows when pipelines share a hot thread (those served
+    /// later in a round are taken later). None when the source is not paced.
+    pub due_to_published_ns: Option<Pct>,
+    /// Outputs published more than the deadline after their sample was due.
+    pub due_to_published_over_deadline: u64,
     /// Per stage.
     pub stages: Vec<StageReport>,
     /// Heading error of the raw, denoised and corrected rates against the truth (a simulated
@@ -475,11 +482,15 @@ impl Report {
             us(e.p999),
             us(e.max)
         ));
-        if let Some(w) = &self.woken_late_ns {
+        for (name, note, w) in [
+            ("woken late", "(not in e2e)", &self.woken_late_ns),
+            ("due to publish", "(late + e2e)", &self.due_to_published_ns),
+        ] {
+            let Some(w) = w else { continue };
             s.push_str(&format!(
                 "{:<14} {:<16} {:>10} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
-                "woken late",
-                "(not in e2e)",
+                name,
+                note,
                 w.count,
                 "",
                 "",
@@ -605,8 +616,48 @@ impl Report {
             0 => String::new(),
             n => format!("; {n} samples taken LATE (over {deadline} after they were due)"),
         };
-        format!("verdict: {timing}; {loss}{woken}")
+        let due = match self.due_to_published_over_deadline {
+            0 => String::new(),
+            n => format!("; {n} outputs published over {deadline} after their sample was due"),
+        };
+        format!("verdict: {timing}; {loss}{woken}{due}")
     }
+}
+
+/// Where a reporter hands its periodic snapshots (the stats service).
+pub type Publish<'a> = Box<dyn FnMut(&StatsSnapshot) + 'a>;
+
+/// One reporting thread for several pipelines (a daemon running them all on one hot thread):
+/// each reporter consumes its own channel until its senders are gone, then publishes its
+/// final snapshot. Returns the final reports in the order given. It polls rather than
+/// blocks: a blocked receiver would make every `try_send` of the hot loop a futex wake-up (a
+/// system call and a context switch on the other core); one thread polling for all keeps the
+/// wake-ups at one per [`POLL`] whatever the number of pipelines.
+pub fn run_all(mut reporters: Vec<(Reporter, Receiver<Batch>, Publish<'_>)>) -> Vec<Report> {
+    let mut done: Vec<Option<Report>> = reporters.iter().map(|_| None).collect();
+    while done.iter().any(Option::is_none) {
+        let next = reporters
+            .iter()
+            .zip(&done)
+            .filter(|(_, d)| d.is_none())
+            .map(|((r, _, _), _)| r.next)
+            .min()
+            .unwrap_or_else(Instant::now);
+        std::thread::sleep(POLL.min(next.saturating_duration_since(Instant::now())));
+        for ((r, rx, publish), done) in reporters.iter_mut().zip(&mut done) {
+            if done.is_some() {
+                continue;
+            }
+            if r.drain(rx) {
+                r.tick(Instant::now(), publish);
+            } else {
+                let report = r.report();
+                publish(&r.snapshot(report.rate_hz));
+                *done = Some(report);
+            }
+        }
+    }
+    done.into_iter().flatten().collect()
 }
 
 /// The reporting thread's state: histograms, counters, the periodic summary.
@@ -620,7 +671,13 @@ pub struct Reporter {
     misses: Vec<Miss>,
     late: Histogram<u64>,
     late_over: u64,
+    due: Histogram<u64>,
+    due_over: u64,
     started: Instant,
+    /// When the next summary is due, and the input count and time of the last one.
+    next: Instant,
+    last_in: u64,
+    last_t: Instant,
 }
 
 fn histogram() -> Histogram<u64> {
@@ -632,6 +689,7 @@ impl Reporter {
     /// A reporter for `layout`, reading `counters` and the services' loss counters `lost`.
     pub fn new(layout: Layout, counters: Arc<Counters>, lost: Vec<Arc<AtomicU64>>) -> Self {
         let n = layout.stages.len();
+        let interval = layout.interval;
         Reporter {
             layout,
             counters,
@@ -642,7 +700,12 @@ impl Reporter {
             misses: Vec::new(),
             late: histogram(),
             late_over: 0,
+            due: histogram(),
+            due_over: 0,
             started: Instant::now(),
+            next: Instant::now() + interval,
+            last_in: 0,
+            last_t: Instant::now(),
         }
     }
 
@@ -668,6 +731,11 @@ impl Reporter {
         {
             h.saturating_record(u64::from(ns.max(1)));
         }
+        if let (Some(late), true) = (r.late_ns, r.e2e_ns > 0) {
+            let due = u64::from(late) + r.e2e_ns;
+            self.due.saturating_record(due);
+            self.due_over += u64::from(due > self.layout.deadline.as_nanos() as u64);
+        }
         if r.e2e_ns > 0 {
             self.e2e.saturating_record(r.e2e_ns);
             // The hot loop's own test, so the list agrees with its count.
@@ -688,40 +756,41 @@ impl Reporter {
 
     /// Consume records until the sender side is dropped; every interval print the summary
     /// (if enabled) and hand a snapshot to `publish`. Returns the final report.
-    pub fn run(mut self, rx: Receiver<Batch>, mut publish: impl FnMut(&StatsSnapshot)) -> Report {
-        let mut next = Instant::now() + self.layout.interval;
-        let mut last_in = 0u64;
-        let mut last_t = Instant::now();
-        // Poll rather than block: a blocked receiver would make every `try_send` of the hot
-        // loop a futex wake-up (a system call and a context switch on the other core).
-        'outer: loop {
-            std::thread::sleep(POLL.min(next.saturating_duration_since(Instant::now())));
-            loop {
-                match rx.try_recv() {
-                    Ok(b) => self.record_batch(&b),
-                    Err(TryRecvError::Empty) => break,
-                    Err(TryRecvError::Disconnected) => break 'outer,
-                }
+    pub fn run(self, rx: Receiver<Batch>, publish: impl FnMut(&StatsSnapshot)) -> Report {
+        let mut reports = run_all(vec![(self, rx, Box::new(publish) as Publish<'_>)]);
+        reports
+            .pop()
+            .unwrap_or_else(|| unreachable!("one reporter gives one report"))
+    }
+
+    /// Take every batch waiting in `rx`; false once the senders are gone and it is drained.
+    fn drain(&mut self, rx: &Receiver<Batch>) -> bool {
+        loop {
+            match rx.try_recv() {
+                Ok(b) => self.record_batch(&b),
+                Err(TryRecvError::Empty) => return true,
+                Err(TryRecvError::Disconnected) => return false,
             }
-            if Instant::now() < next {
-                continue;
-            }
-            let now = Instant::now();
-            let samples_in = get(&self.counters.stage_in[0]);
-            let rate = (samples_in - last_in) as f64 / (now - last_t).as_secs_f64().max(1e-9);
-            last_in = samples_in;
-            last_t = now;
-            let snap = self.snapshot(rate);
-            if self.layout.print {
-                // A closed stderr must not stop the reporter (the daemon keeps serving).
-                let _ = writeln!(std::io::stderr(), "{}", self.summary_line(&snap));
-            }
-            publish(&snap);
-            next = now + self.layout.interval;
         }
-        let report = self.report();
-        publish(&self.snapshot(report.rate_hz));
-        report
+    }
+
+    /// At `now`, once the interval has passed: print the summary (if enabled) and publish a
+    /// snapshot.
+    fn tick(&mut self, now: Instant, publish: &mut Publish<'_>) {
+        if now < self.next {
+            return;
+        }
+        let samples_in = get(&self.counters.stage_in[0]);
+        let rate = (samples_in - self.last_in) as f64 / (now - self.last_t).as_secs_f64().max(1e-9);
+        self.last_in = samples_in;
+        self.last_t = now;
+        let snap = self.snapshot(rate);
+        if self.layout.print {
+            // A closed stderr must not stop the reporter (the daemon keeps serving).
+            let _ = writeln!(std::io::stderr(), "{}", self.summary_line(&snap));
+        }
+        publish(&snap);
+        self.next = now + self.layout.interval;
     }
 
     fn summary_line(&self, s: &StatsSnapshot) -> String {
@@ -823,6 +892,8 @@ impl Reporter {
             end_to_end_ns: Pct::of(&self.e2e),
             woken_late_ns: (!self.late.is_empty()).then(|| Pct::of(&self.late)),
             woken_late_over_deadline: self.late_over,
+            due_to_published_ns: (!self.due.is_empty()).then(|| Pct::of(&self.due)),
+            due_to_published_over_deadline: self.due_over,
             stages: self
                 .layout
                 .stages

@@ -97,14 +97,13 @@ fn allocations_for(rows: usize, tag: &str) -> Counts {
     });
     ready_rx.recv().expect("relay started");
     let opts = RunOptions {
-        prefix: prefix.0.clone(),
         duration: None,
         stop: Arc::new(AtomicBool::new(false)),
         print_summary: false,
     };
     let before = alloc_counter::process();
     let before_hot = alloc_counter::this_thread();
-    let report = run(&p, &opts).expect("run");
+    let report = run(&p, &prefix.0, &opts).expect("run");
     let hot = alloc_counter::this_thread() - before_hot;
     relay_stop.store(true, Ordering::Relaxed);
     let (relayed, relay_allocs) = relay_thread.join().expect("relay thread");

@@ -64,12 +64,11 @@ fn allocations_for(rows: usize, tag: &str) -> (u64, u64) {
     let prefix = Prefix::new(tag);
     let p = pipeline(rows, &dir, tag);
     let opts = RunOptions {
-        prefix: prefix.0.clone(),
         duration: None,
         stop: Arc::new(AtomicBool::new(false)),
         print_summary: false,
     };
-    let (allocations, report) = alloc_counter::allocations_during(|| run(&p, &opts));
+    let (allocations, report) = alloc_counter::allocations_during(|| run(&p, &prefix.0, &opts));
     let report = report.expect("run");
     assert_eq!(report.samples_out, rows as u64);
     (allocations as u64, report.samples_out)

@@ -81,9 +81,14 @@ pub fn cpu_seconds(pid: u32) -> f64 {
 }
 
 pub fn start_daemon(pipeline: &Path, prefix: &str, report: &Path, extra: &[&str]) -> Child {
+    start_group(&[pipeline], prefix, report, extra)
+}
+
+/// One daemon running every pipeline of `pipelines` on its hot thread (its report: an array).
+pub fn start_group(pipelines: &[&Path], prefix: &str, report: &Path, extra: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_driftless"))
         .arg("run")
-        .arg(pipeline)
+        .args(pipelines)
         .args(["--prefix", prefix, "--quiet", "--report"])
         .arg(report)
         .args(extra)

@@ -1,4 +1,5 @@
-//! `driftless run PIPELINE [--duration D] [--report FILE]`: the daemon.
+//! `driftless run PIPELINE... [--duration D] [--report FILE]`: the daemon, running one pipeline
+//! or several on one hot thread.
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -15,12 +16,15 @@ use crate::transport;
 /// Arguments of `driftless run`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Pipeline file (TOML).
-    pub pipeline: PathBuf,
+    /// Pipeline file (TOML). Several: one daemon runs them all on one hot thread (a vehicle's
+    /// IMUs), those due together in the order given.
+    #[arg(value_name = "PIPELINE", required = true)]
+    pub pipelines: Vec<PathBuf>,
     /// Stop by itself after this long: "10s", "500ms", "1.5s", "90min", or seconds.
     #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
     pub duration: Option<Duration>,
-    /// Write the final report as JSON to this file.
+    /// Write the final report as JSON to this file (several pipelines: an array of their
+    /// reports, in the order given).
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Where the pipeline's iceoryx2 files are.
@@ -47,18 +51,47 @@ fn another_prefix_hint(prefix: &str, pipeline: &Path) -> String {
     )
 }
 
-fn write_report(path: &Path, report: &crate::metrics::Report) -> Result<(), CliError> {
-    let json = serde_json::to_string_pretty(report)
-        .map_err(|e| CliError::internal(format!("report: {e}")))?;
+/// One pipeline: its report; several: an array in the order given, `null` where one failed.
+fn write_report(path: &Path, reports: &[Option<crate::metrics::Report>]) -> Result<(), CliError> {
+    let json = match reports {
+        [Some(one)] => serde_json::to_string_pretty(one),
+        all => serde_json::to_string_pretty(all),
+    }
+    .map_err(|e| CliError::internal(format!("report: {e}")))?;
     crate::io::atomic::write_atomically(path, json.as_bytes())
         .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     Ok(())
 }
 
-/// Run a pipeline until SIGINT/SIGTERM, `--duration`, or the end of a finite source.
+/// Load every pipeline file and the prefix each runs under; one daemon has one iceoryx2 root.
+fn load_all(args: &Args) -> Result<Vec<(Pipeline, String)>, CliError> {
+    let mut out: Vec<(Pipeline, String)> = Vec::new();
+    let mut root: Option<PathBuf> = None;
+    for path in &args.pipelines {
+        let pipeline: Pipeline = config::load(path)?;
+        let prefix = args.iceoryx2.resolve(Some(&pipeline.iceoryx2))?;
+        let here = transport::root();
+        if let (Some(first), Some((p0, _))) = (&root, out.first()) {
+            if *first != here {
+                return Err(CliError::input(format!(
+                    "{} uses iceoryx2 root {} and {} uses {}: one daemon has one root; give \
+                     the same `root_path`, or --root-path",
+                    p0.path.display(),
+                    first.display(),
+                    path.display(),
+                    here.display()
+                )));
+            }
+        }
+        root = Some(here);
+        out.push((pipeline, prefix));
+    }
+    Ok(out)
+}
+
+/// Run pipelines until SIGINT/SIGTERM, `--duration`, or the end of their finite sources.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let pipeline: Pipeline = config::load(&args.pipeline)?;
-    let prefix = args.iceoryx2.resolve(Some(&pipeline.iceoryx2))?;
+    let loaded = load_all(&args)?;
     if let Some(r) = &args.report {
         if r.is_dir() {
             return Err(CliError::input(format!(
@@ -80,22 +113,61 @@ pub fn run(args: Args) -> Result<(), CliError> {
             .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
     }
     let opts = RunOptions {
-        prefix,
         duration: args.duration,
         stop,
         print_summary: !args.quiet,
     };
-    let report = runtime::run(&pipeline, &opts).map_err(|e| match e {
-        RunError::AlreadyRunning { ref prefix, .. } => CliError::internal(format!(
-            "{e}; stop it first, or run a second one under another prefix: {}",
-            another_prefix_hint(prefix, &args.pipeline)
-        )),
+    let members: Vec<(&Pipeline, String)> = loaded
+        .iter()
+        .map(|(p, prefix)| (p, prefix.clone()))
+        .collect();
+    let results = runtime::run_group(&members, &opts).map_err(|e| match e {
+        RunError::AlreadyRunning {
+            ref prefix,
+            ref pipeline,
+            ..
+        } => {
+            let file = loaded
+                .iter()
+                .find(|(p, _)| p.name == *pipeline)
+                .map_or_else(|| PathBuf::from(pipeline), |(p, _)| p.path.clone());
+            CliError::internal(format!(
+                "{e}; stop it first, or run a second one under another prefix: {}",
+                another_prefix_hint(prefix, &file)
+            ))
+        }
+        RunError::Group(_) => CliError::input(e.to_string()),
         other => CliError::internal(other.to_string()),
     })?;
-    // Best effort: the report file below must be written even if stderr is gone.
-    let _ = write!(std::io::stderr(), "{}", report.table());
-    if let Some(path) = &args.report {
-        write_report(path, &report)?;
+    let several = results.len() > 1;
+    let mut reports = Vec::new();
+    let mut failures = Vec::new();
+    for ((p, _), result) in loaded.iter().zip(results) {
+        match result {
+            // Best effort: the report file below must be written even if stderr is gone.
+            Ok(report) => {
+                let _ = write!(std::io::stderr(), "{}", report.table());
+                reports.push(Some(report));
+            }
+            Err(e) => {
+                reports.push(None);
+                failures.push(match several {
+                    true => format!("pipeline {} failed: {e}", p.name),
+                    false => e.to_string(),
+                });
+            }
+        }
     }
-    Ok(())
+    if let Some(path) = args
+        .report
+        .as_ref()
+        .filter(|_| reports.iter().any(Option::is_some))
+    {
+        write_report(path, &reports)?;
+    }
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(CliError::internal(failures.join("; ")))
+    }
 }

@@ -36,7 +36,8 @@ use std::time::Duration;
 use crossbeam_channel::{bounded, Sender};
 
 use crate::metrics::{
-    Batch, Counters, HeadingTracker, Layout, Outputs, Record, Report, Reporter, BATCH, MAX_STAGES,
+    run_all, Batch, Counters, HeadingTracker, Layout, Outputs, Publish, Record, Report, Reporter,
+    BATCH, MAX_STAGES,
 };
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
@@ -53,8 +54,6 @@ const METRICS_CAPACITY: usize = 1 << 12;
 /// How a run is started.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
-    /// iceoryx2 prefix (the pipeline's, unless overridden).
-    pub prefix: String,
     /// Stop by itself after this long.
     pub duration: Option<Duration>,
     /// Set to stop (signal handlers set it).
@@ -82,6 +81,9 @@ pub enum RunError {
     /// iceoryx2 set-up or I/O.
     #[error("{0}")]
     Transport(#[from] TransportError),
+    /// The pipelines given cannot share one daemon.
+    #[error("{0}")]
+    Group(String),
     /// A stage could not be built.
     #[error("stage {stage:?}: {message}")]
     Stage {
@@ -394,27 +396,203 @@ fn build_source(p: &Pipeline, transport: &Transport) -> Result<Box<dyn Source>, 
         .map_err(err)
 }
 
-/// Run a validated pipeline until stopped; returns the final report.
-pub fn run(p: &Pipeline, opts: &RunOptions) -> Result<Report, RunError> {
+/// Run a validated pipeline under `prefix` until stopped; returns the final report.
+pub fn run(p: &Pipeline, prefix: &str, opts: &RunOptions) -> Result<Report, RunError> {
+    let mut reports = run_group(&[(p, prefix.to_string())], opts)?;
+    // One member gives one result.
+    reports
+        .pop()
+        .unwrap_or_else(|| Err(RunError::Group("the pipeline gave no result".into())))
+}
+
+/// Run several validated pipelines, each under its prefix, on one hot thread (a vehicle's
+/// IMUs: one wake-up serves every pipeline whose sample is due, where separate daemons would
+/// each pay their own). Pipelines due together run in the order given. Starting is all or
+/// nothing: an error starting any pipeline stops those already started. Once running, a
+/// pipeline that fails stops alone (its error is printed at once) and the others go on; its
+/// result says why.
+pub fn run_group(
+    members: &[(&Pipeline, String)],
+    opts: &RunOptions,
+) -> Result<Vec<Result<Report, RunError>>, RunError> {
     crate::transport::quiet_logging();
-    let name = node_name(&p.name);
-    let holders = Transport::holders_of(&opts.prefix, &name)?;
-    if !holders.is_empty() {
-        return Err(RunError::AlreadyRunning {
-            pipeline: p.name.clone(),
-            prefix: opts.prefix.clone(),
-            holders,
-        });
+    check_group(members)?;
+    for (p, prefix) in members {
+        let holders = Transport::holders_of(prefix, &node_name(&p.name))?;
+        if !holders.is_empty() {
+            return Err(RunError::AlreadyRunning {
+                pipeline: p.name.clone(),
+                prefix: prefix.clone(),
+                holders,
+            });
+        }
     }
-    let result = run_inner(p, opts, &name);
-    remove_prefix_leftovers(&opts.prefix);
-    result
+    let mut group: Vec<Running<'_>> = Vec::with_capacity(members.len());
+    for (p, prefix) in members {
+        match Running::start(p, prefix, opts.print_summary) {
+            Ok(r) => group.push(r),
+            Err(e) => {
+                for r in group {
+                    let _ = r.finish();
+                }
+                remove_leftovers(members);
+                return Err(e);
+            }
+        }
+    }
+    let stats = group.iter_mut().filter_map(|r| r.stats.take()).collect();
+    let reporter = match spawn_reporter(stats) {
+        Ok(h) => h,
+        Err(e) => {
+            for r in group {
+                let _ = r.finish();
+            }
+            remove_leftovers(members);
+            return Err(RunError::Stage {
+                stage: "reporter".into(),
+                message: e.to_string(),
+            });
+        }
+    };
+    // After the reporting thread is spawned, so only the hot thread gets these settings.
+    schedule_hot_thread(hot_settings(members));
+    if opts.print_summary {
+        for r in &group {
+            let _ = writeln!(std::io::stderr(), "{}", services_line(r.p, &r.prefix));
+        }
+    }
+    if group.len() > 1 {
+        let clock = crate::stages::PaceClock::now();
+        for r in &mut group {
+            if let Some((source, _)) = &mut r.hot {
+                source.share_clock(clock);
+            }
+        }
+    }
+    let prewarm = members
+        .iter()
+        .map(|(p, _)| p.prewarm)
+        .max()
+        .unwrap_or_default();
+    serve(&mut group, opts, prewarm);
+    let finished: Vec<Result<(), RunError>> = group.into_iter().map(Running::finish).collect();
+    // Every sender is gone now: the reporting thread ends with the final reports.
+    let reports = reporter.join();
+    remove_leftovers(members);
+    let reports = reports.map_err(|_| RunError::Stage {
+        stage: "reporter".into(),
+        message: "the reporting thread panicked".into(),
+    })?;
+    Ok(finished
+        .into_iter()
+        .zip(reports)
+        .map(|(f, report)| f.map(|()| report))
+        .collect())
+}
+
+/// Remove the leftover files of each prefix of the group (when no other node of it is alive).
+fn remove_leftovers(members: &[(&Pipeline, String)]) {
+    let mut prefixes: Vec<&str> = members.iter().map(|(_, prefix)| prefix.as_str()).collect();
+    prefixes.sort_unstable();
+    prefixes.dedup();
+    for prefix in prefixes {
+        remove_prefix_leftovers(prefix);
+    }
+}
+
+/// What stops a set of pipelines from sharing one daemon: the same pipeline or service twice
+/// under one prefix, different settings for the one hot thread, or an ingest that wakes on
+/// another process's samples.
+fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
+    if members.len() < 2 {
+        return Ok(());
+    }
+    let file = |p: &Pipeline| p.path.display().to_string();
+    let mut seen: Vec<(&str, &str, &Pipeline)> = Vec::new();
+    for (p, prefix) in members {
+        if let Some((_, _, q)) = seen
+            .iter()
+            .find(|(pre, name, _)| *pre == prefix.as_str() && *name == p.name.as_str())
+        {
+            return Err(RunError::Group(format!(
+                "{} and {} are both pipeline {:?} under prefix {prefix:?}: a pipeline runs once \
+                 per prefix; rename one (its `name`) or run it under another prefix",
+                file(q),
+                file(p),
+                p.name
+            )));
+        }
+        seen.push((prefix, &p.name, p));
+        if matches!(p.stages[0].kind.role, Role::Ingest { has_input: true }) {
+            return Err(RunError::Group(format!(
+                "{}: its ingest `{}` wakes on another process's samples and cannot share the hot \
+                 thread with other pipelines; run it as a daemon of its own (`driftless run {}`)",
+                file(p),
+                p.stages[0].kind.name,
+                file(p)
+            )));
+        }
+    }
+    let mut services: Vec<(&str, &str, &Pipeline)> = Vec::new();
+    for (p, prefix) in members {
+        let outputs = p.stages.iter().map(|s| s.output.as_str());
+        for service in outputs.chain([p.iceoryx2.stats_service.as_str()]) {
+            if let Some((_, _, q)) = services
+                .iter()
+                .find(|(pre, svc, _)| *pre == prefix.as_str() && *svc == service)
+            {
+                return Err(RunError::Group(format!(
+                    "{} and {} both publish {service:?} under prefix {prefix:?}: a service has \
+                     one publisher; rename it in one file or run one under another prefix",
+                    file(q),
+                    file(p)
+                )));
+            }
+            services.push((prefix, service, p));
+        }
+    }
+    for (what, value) in [
+        (
+            "cpu",
+            (|p: &Pipeline| p.cpu.map(|v| v as i64)) as fn(&Pipeline) -> Option<i64>,
+        ),
+        ("realtime_priority", |p: &Pipeline| {
+            p.realtime_priority.map(i64::from)
+        }),
+    ] {
+        let set: Vec<(&Pipeline, i64)> = members
+            .iter()
+            .filter_map(|(p, _)| value(p).map(|v| (*p, v)))
+            .collect();
+        if let Some(((a, va), (b, vb))) = set
+            .iter()
+            .zip(set.iter().skip(1))
+            .find(|((_, va), (_, vb))| va != vb)
+        {
+            return Err(RunError::Group(format!(
+                "{} sets {what} = {va} and {} sets {what} = {vb}: one hot thread serves the \
+                 group; give the same value, or set it in one file only",
+                file(a),
+                file(b)
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The hot thread's CPU and SCHED_FIFO priority: whichever pipeline of the group sets them
+/// ([`check_group`] refused different values).
+fn hot_settings(members: &[(&Pipeline, String)]) -> (Option<usize>, Option<i32>) {
+    (
+        members.iter().find_map(|(p, _)| p.cpu),
+        members.iter().find_map(|(p, _)| p.realtime_priority),
+    )
 }
 
 /// Apply the pipeline's scheduling settings to the calling (hot) thread; failures (no
 /// permission, no such CPU) are warnings: the pipeline still runs.
-fn schedule_hot_thread(p: &Pipeline) {
-    if let Some(cpu) = p.cpu {
+fn schedule_hot_thread((cpu, priority): (Option<usize>, Option<i32>)) {
+    if let Some(cpu) = cpu {
         // SAFETY: a zeroed cpu_set_t is valid; CPU_SET stays in bounds (cpu < 1024 = CPU_SETSIZE).
         let rc = unsafe {
             let mut set: libc::cpu_set_t = std::mem::zeroed();
@@ -429,7 +607,7 @@ fn schedule_hot_thread(p: &Pipeline) {
             );
         }
     }
-    if let Some(priority) = p.realtime_priority {
+    if let Some(priority) = priority {
         let param = libc::sched_param {
             sched_priority: priority,
         };
@@ -671,230 +849,334 @@ fn run_segment(
     }
 }
 
-fn run_inner(p: &Pipeline, opts: &RunOptions, name: &str) -> Result<Report, RunError> {
-    let qos = Qos {
-        buffer_size: p.iceoryx2.buffer_size,
-        max_subscribers: p.iceoryx2.max_subscribers,
-    };
-    let transport = Transport::new(&opts.prefix, name, qos)?;
-    let mut source = build_source(p, &transport)?;
-    let raw_service = &p.stages[0].output;
-    let raw_out = transport.output::<RawSample>(raw_service, false)?;
-    let raw_in = transport.input::<RawSample>(raw_service)?;
-    let spans = segments(p);
-    let counters = Arc::new(Counters::default());
-    // A fresh epoch per start, so a subscriber that outlives a restart can tell the runs apart.
-    counters
-        .epoch
-        .store(u64::from(rand::random::<u32>().max(1)), Ordering::Relaxed);
-    let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
-    let (mut chain, head_lost, mut lag_total) =
-        build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;
-    chain.head = Some((raw_out, raw_in));
-    let mut lost: Vec<Arc<AtomicU64>> = vec![chain.head.as_ref().map_or_else(
-        || Arc::new(AtomicU64::new(0)),
-        |(raw_out, _)| raw_out.lost_counter(),
-    )];
-    lost.extend(head_lost);
+/// One pipeline of a daemon, started: the hot thread runs its source and first segment; its
+/// later segments and its reporter have threads of their own.
+struct Running<'a> {
+    p: &'a Pipeline,
+    prefix: String,
+    /// The source and segment 1, until the ingest ends.
+    hot: Option<(Box<dyn Source>, Chain)>,
+    /// Set by a later segment that failed: this pipeline stops.
+    stop: Arc<AtomicBool>,
+    /// Per segment: it has finished (segment 1's is set when the ingest ends).
+    done: Vec<Arc<AtomicBool>>,
+    segment_threads: Vec<std::thread::JoinHandle<Result<(), RunError>>>,
+    /// Until the daemon's reporting thread takes it.
+    stats: Option<Stats>,
+    failure: Option<RunError>,
+    transport: Transport,
+}
 
-    // Later segments: one thread each, started before the ingest so that their subscribers
-    // exist before the first sample.
-    let shared = Arc::new(p.clone());
-    let done: Vec<Arc<AtomicBool>> = spans.iter().map(|_| Arc::default()).collect();
-    let mut segment_threads = Vec::new();
-    let mut startup_error = None;
-    for (j, span) in spans.iter().copied().enumerate().skip(1) {
-        let (ready_tx, ready_rx) = bounded::<Ready>(1);
-        let external_lost = Arc::new(AtomicU64::new(0));
-        let args = (
-            Arc::clone(&shared),
-            opts.prefix.clone(),
-            format!("{name}-seg{}", j + 1),
-            Arc::clone(&counters),
-            tx.clone(),
-            Arc::clone(&external_lost),
-            Arc::clone(&done[j - 1]),
-            Arc::clone(&done[j]),
-            Arc::clone(&opts.stop),
-        );
-        let spawned = std::thread::Builder::new()
-            .name(format!("driftless-seg{}", j + 1))
-            .spawn(move || {
-                let (p, prefix, node, counters, tx, ext_lost, upstream, mine, stop) = args;
-                let _finished = SetOnDrop(mine);
-                run_segment(
-                    &p, &prefix, &node, qos, span, counters, tx, ext_lost, &upstream, &stop,
-                    ready_tx,
-                )
-            });
-        let handle = match spawned {
-            Ok(h) => h,
-            Err(e) => {
-                startup_error = Some(RunError::Stage {
-                    stage: format!("segment {}", j + 1),
-                    message: e.to_string(),
-                });
-                break;
-            }
-        };
-        segment_threads.push(handle);
-        match ready_rx.recv() {
-            Ok(Ok((seg_lost, lag))) => {
-                lost.push(external_lost);
-                lost.extend(seg_lost);
-                lag_total += lag;
-            }
-            Ok(Err(e)) => {
-                startup_error = Some(e);
-                break;
-            }
-            Err(_) => {
-                startup_error = Some(RunError::Stage {
-                    stage: format!("segment {}", j + 1),
-                    message: "the segment thread ended before starting".into(),
-                });
-                break;
-            }
-        }
-    }
-    if let Some(e) = startup_error {
-        done[0].store(true, Ordering::Release);
-        drop(chain);
-        drop(tx);
-        for h in segment_threads {
-            let _ = h.join();
-        }
-        return Err(e);
-    }
-    drop(tx);
+/// What the daemon's reporting thread takes of each pipeline: its reporter, the channel its
+/// segments send timings on, and where its stats go (a node of its own per pipeline, by which
+/// `driftless list` knows it).
+struct Stats {
+    reporter: Reporter,
+    rx: crossbeam_channel::Receiver<Batch>,
+    prefix: String,
+    node: String,
+    service: String,
+    qos: Qos,
+}
 
-    let layout = Layout {
-        pipeline: p.name.clone(),
-        stages: p
-            .stages
-            .iter()
-            .map(|s| (s.name.clone(), s.kind.name.to_string()))
-            .collect(),
-        deadline: p.deadline,
-        algorithmic_delay: Duration::from_secs_f64(lag_total as f64 / p.rate_hz),
-        interval: p.report_interval,
-        print: opts.print_summary,
-    };
-    let reporter = Reporter::new(layout, Arc::clone(&counters), lost);
-    let stats_prefix = opts.prefix.clone();
-    let stats_node = stats_node_name(name);
-    let stats_service = p.iceoryx2.stats_service.clone();
-    let reporter_thread = std::thread::Builder::new()
+/// Start the daemon's one reporting thread for every pipeline of the group; it returns their
+/// final reports, in order, once every pipeline's senders are gone.
+fn spawn_reporter(stats: Vec<Stats>) -> std::io::Result<std::thread::JoinHandle<Vec<Report>>> {
+    std::thread::Builder::new()
         .name("driftless-report".into())
         .spawn(move || {
-            // The reporter's own node: ports are not Send. Stats are best effort.
-            let stats = Transport::new(&stats_prefix, &stats_node, qos).and_then(|t| {
-                t.output::<StatsSnapshot>(&stats_service, true)
-                    .map(|o| (t, o))
-            });
-            if let Err(e) = &stats {
-                let _ = writeln!(
-                    std::io::stderr(),
-                    "driftless: warning: no stats service: {e}"
-                );
-            }
-            let report = reporter.run(rx, |snap| {
-                if let Ok((t, out)) = &stats {
-                    let _ = out.send(snap);
-                    // Subscribers that died keep their buffers until someone cleans up.
-                    t.cleanup_dead_nodes();
-                }
-            });
-            drop(stats);
-            report
+            // The reporters' own nodes: ports are not Send. Stats are best effort.
+            let ports: Vec<_> = stats
+                .iter()
+                .map(|s| {
+                    let port = Transport::new(&s.prefix, &s.node, s.qos)
+                        .and_then(|t| t.output::<StatsSnapshot>(&s.service, true).map(|o| (t, o)));
+                    if let Err(e) = &port {
+                        let _ = writeln!(
+                            std::io::stderr(),
+                            "driftless: warning: no stats service {:?}: {e}",
+                            s.service
+                        );
+                    }
+                    port.ok()
+                })
+                .collect();
+            let reporters = stats
+                .into_iter()
+                .zip(&ports)
+                .map(|(s, port)| {
+                    let publish: Publish<'_> = Box::new(move |snap| {
+                        if let Some((t, out)) = port {
+                            let _ = out.send(snap);
+                            // Subscribers that died keep their buffers until someone cleans up.
+                            t.cleanup_dead_nodes();
+                        }
+                    });
+                    (s.reporter, s.rx, publish)
+                })
+                .collect();
+            let reports = run_all(reporters);
+            drop(ports);
+            reports
         })
-        .map_err(|e| RunError::Stage {
-            stage: "reporter".into(),
-            message: e.to_string(),
-        });
-    let reporter_thread = match reporter_thread {
-        Ok(h) => h,
-        Err(e) => {
-            // Let the later segments end before giving up.
-            done[0].store(true, Ordering::Release);
-            drop(chain);
-            for h in segment_threads {
-                let _ = h.join();
-            }
-            return Err(e);
-        }
-    };
+}
 
-    // After the reporter thread is spawned, so only the hot thread gets these settings.
-    schedule_hot_thread(p);
-    if opts.print_summary {
-        let _ = writeln!(std::io::stderr(), "{}", services_line(p, &opts.prefix));
+impl<'a> Running<'a> {
+    /// Build the pipeline's ports and stages, and start its later segments and its reporter.
+    fn start(p: &'a Pipeline, prefix: &str, print_summary: bool) -> Result<Self, RunError> {
+        let name = node_name(&p.name);
+        let qos = Qos {
+            buffer_size: p.iceoryx2.buffer_size,
+            max_subscribers: p.iceoryx2.max_subscribers,
+        };
+        let transport = Transport::new(prefix, &name, qos)?;
+        let source = build_source(p, &transport)?;
+        let raw_service = &p.stages[0].output;
+        let raw_out = transport.output::<RawSample>(raw_service, false)?;
+        let raw_in = transport.input::<RawSample>(raw_service)?;
+        let spans = segments(p);
+        let counters = Arc::new(Counters::default());
+        // A fresh epoch per start, so a subscriber that outlives a restart can tell the runs apart.
+        counters
+            .epoch
+            .store(u64::from(rand::random::<u32>().max(1)), Ordering::Relaxed);
+        let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
+        let (mut chain, head_lost, mut lag_total) =
+            build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;
+        let mut lost: Vec<Arc<AtomicU64>> = vec![raw_out.lost_counter()];
+        lost.extend(head_lost);
+        chain.head = Some((raw_out, raw_in));
+        let mut r = Running {
+            p,
+            prefix: prefix.to_string(),
+            hot: Some((source, chain)),
+            stop: Arc::default(),
+            done: spans.iter().map(|_| Arc::default()).collect(),
+            segment_threads: Vec::new(),
+            stats: None,
+            failure: None,
+            transport,
+        };
+
+        // Later segments: one thread each, started before the ingest so that their subscribers
+        // exist before the first sample.
+        let shared = Arc::new(p.clone());
+        for (j, span) in spans.iter().copied().enumerate().skip(1) {
+            let (ready_tx, ready_rx) = bounded::<Ready>(1);
+            let external_lost = Arc::new(AtomicU64::new(0));
+            let args = (
+                Arc::clone(&shared),
+                prefix.to_string(),
+                format!("{name}-seg{}", j + 1),
+                Arc::clone(&counters),
+                tx.clone(),
+                Arc::clone(&external_lost),
+                Arc::clone(&r.done[j - 1]),
+                Arc::clone(&r.done[j]),
+                Arc::clone(&r.stop),
+            );
+            let spawned = std::thread::Builder::new()
+                .name(format!("driftless-seg{}", j + 1))
+                .spawn(move || {
+                    let (p, prefix, node, counters, tx, ext_lost, upstream, mine, stop) = args;
+                    let _finished = SetOnDrop(mine);
+                    run_segment(
+                        &p, &prefix, &node, qos, span, counters, tx, ext_lost, &upstream, &stop,
+                        ready_tx,
+                    )
+                });
+            let started = match spawned {
+                Ok(h) => {
+                    r.segment_threads.push(h);
+                    ready_rx.recv().unwrap_or_else(|_| {
+                        Err(RunError::Stage {
+                            stage: format!("segment {}", j + 1),
+                            message: "the segment thread ended before starting".into(),
+                        })
+                    })
+                }
+                Err(e) => Err(RunError::Stage {
+                    stage: format!("segment {}", j + 1),
+                    message: e.to_string(),
+                }),
+            };
+            match started {
+                Ok((seg_lost, lag)) => {
+                    lost.push(external_lost);
+                    lost.extend(seg_lost);
+                    lag_total += lag;
+                }
+                Err(e) => {
+                    drop(tx);
+                    let _ = r.finish();
+                    return Err(e);
+                }
+            }
+        }
+        drop(tx);
+
+        let layout = Layout {
+            pipeline: p.name.clone(),
+            stages: p
+                .stages
+                .iter()
+                .map(|s| (s.name.clone(), s.kind.name.to_string()))
+                .collect(),
+            deadline: p.deadline,
+            algorithmic_delay: Duration::from_secs_f64(lag_total as f64 / p.rate_hz),
+            interval: p.report_interval,
+            print: print_summary,
+        };
+        r.stats = Some(Stats {
+            reporter: Reporter::new(layout, counters, lost),
+            rx,
+            prefix: prefix.to_string(),
+            node: stats_node_name(&name),
+            service: p.iceoryx2.stats_service.clone(),
+            qos,
+        });
+        Ok(r)
     }
-    let stop = &opts.stop;
+
+    /// When the source's next sample is due, if it paces itself and knows (`Some(None)`: it
+    /// does not know, ask it now); `None` once its ingest has ended.
+    fn next_due(&self) -> Option<Option<std::time::Instant>> {
+        self.hot.as_ref().map(|(source, _)| source.next_due())
+    }
+
+    /// Ask the source once and run what it gives through the chain; returns the ingest time of
+    /// a sample.
+    fn step(&mut self, stop: &AtomicBool) -> Option<u64> {
+        let (source, chain) = self.hot.as_mut()?;
+        match source.poll(stop) {
+            Poll::Sample(raw, ingest_ns, late_ns) => match chain.ingest(&raw, ingest_ns, late_ns) {
+                Ok(()) => Some(ingest_ns),
+                Err(e) => {
+                    self.fail(e.into());
+                    None
+                }
+            },
+            Poll::Idle => {
+                chain.idle();
+                None
+            }
+            Poll::End => {
+                self.end_ingest();
+                None
+            }
+        }
+    }
+
+    /// A failure while running: this pipeline stops, undrained; in a group the others go on,
+    /// so say it now rather than at the end.
+    fn fail(&mut self, e: RunError) {
+        let _ = writeln!(
+            std::io::stderr(),
+            "driftless: pipeline {} stopped: {e}",
+            self.p.name
+        );
+        self.failure = Some(e);
+        self.end_ingest();
+    }
+
+    /// The ingest is over (its end, a stop, a failure): drain the lagged stages unless it
+    /// failed, send the last batch, and let the later segments finish.
+    fn end_ingest(&mut self) {
+        let Some((source, mut chain)) = self.hot.take() else {
+            return;
+        };
+        if self.failure.is_none() {
+            if let Err(e) = chain.drain() {
+                self.failure = Some(e.into());
+            }
+        }
+        chain.send_batch();
+        drop(source);
+        drop(chain);
+        // The later segments drain what the external stages still relay, then flush.
+        self.done[0].store(true, Ordering::Release);
+    }
+
+    /// End the ingest if it still runs and wait for the later segments; the first failure.
+    fn finish(mut self) -> Result<(), RunError> {
+        self.end_ingest();
+        let mut failure = self.failure.take();
+        for h in std::mem::take(&mut self.segment_threads) {
+            let result = h.join().unwrap_or_else(|_| {
+                Err(RunError::Stage {
+                    stage: "segment".into(),
+                    message: "a segment thread panicked".into(),
+                })
+            });
+            if let (Err(e), None) = (result, &failure) {
+                failure = Some(e);
+            }
+        }
+        drop(self.stats.take());
+        drop(self.transport);
+        failure.map_or(Ok(()), Err)
+    }
+}
+
+/// The hot thread: sleep until the earliest sample of the group is due (asking at once any
+/// source that does not know when), then run every pipeline whose sample is due, in order.
+/// Ends at a stop, at `--duration` (a sample already taken is always processed) or when every
+/// ingest has ended.
+fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
+    let stop = &*opts.stop;
     // The end of --duration on the clock the ingest stamps samples with (no extra clock read
-    // per sample); a sample already taken from the source is always processed.
+    // per sample).
     let end_ns = opts.duration.map_or(u64::MAX, |d| {
         monotonic_ns().saturating_add(d.as_nanos() as u64)
     });
-    let mut failure = None;
     while !stop.load(Ordering::Relaxed) {
-        // Asked of the source only when prewarming is on (a call per sample otherwise).
-        let early = (!p.prewarm.is_zero())
-            .then(|| source.next_due()?.checked_sub(p.prewarm))
-            .flatten();
-        if let Some(early) = early {
-            if crate::stages::sleep_until(early, stop) {
-                chain.prewarm();
+        let mut due: Option<std::time::Instant> = None;
+        let mut ask_now = false;
+        let mut live = false;
+        for r in group.iter_mut() {
+            if r.stop.load(Ordering::Relaxed) {
+                r.end_ingest();
+            }
+            match r.next_due() {
+                Some(Some(d)) => due = Some(due.map_or(d, |e| e.min(d))),
+                Some(None) => ask_now = true,
+                None => continue,
+            }
+            live = true;
+        }
+        if !live {
+            break;
+        }
+        if let (false, Some(due)) = (ask_now, due) {
+            // Asked of the sources only when prewarming is on.
+            if let Some(early) = (!prewarm.is_zero())
+                .then(|| due.checked_sub(prewarm))
+                .flatten()
+            {
+                if crate::stages::sleep_until(early, stop) {
+                    for r in group.iter() {
+                        if let (Some(Some(d)), Some((_, chain))) = (r.next_due(), &r.hot) {
+                            if d <= due {
+                                chain.prewarm();
+                            }
+                        }
+                    }
+                }
+            }
+            if !crate::stages::sleep_until(due, stop) {
+                break;
             }
         }
-        match source.poll(stop) {
-            Poll::Sample(raw, ingest_ns, late_ns) => {
-                if let Err(e) = chain.ingest(&raw, ingest_ns, late_ns) {
-                    failure = Some(e);
-                    break;
-                }
-                if ingest_ns >= end_ns {
-                    break;
-                }
+        let now = std::time::Instant::now();
+        let mut ended = false;
+        for r in group.iter_mut() {
+            if matches!(r.next_due(), Some(Some(d)) if d > now) {
+                continue;
             }
-            Poll::Idle => {
-                chain.idle();
-                if monotonic_ns() >= end_ns {
-                    break;
-                }
-            }
-            Poll::End => break,
+            ended |= r.step(stop).is_some_and(|ingest_ns| ingest_ns >= end_ns);
         }
-    }
-    if failure.is_none() {
-        if let Err(e) = chain.drain() {
-            failure = Some(e);
+        if ended || (ask_now && monotonic_ns() >= end_ns) {
+            break;
         }
-    }
-    chain.send_batch();
-    drop(source);
-    drop(chain);
-    // The later segments drain what the external stages still relay, then flush.
-    done[0].store(true, Ordering::Release);
-    let mut failure: Option<RunError> = failure.map(Into::into);
-    for h in segment_threads {
-        let result = h.join().unwrap_or_else(|_| {
-            Err(RunError::Stage {
-                stage: "segment".into(),
-                message: "a segment thread panicked".into(),
-            })
-        });
-        if let (Err(e), None) = (result, &failure) {
-            failure = Some(e);
-        }
-    }
-    let report = reporter_thread.join().map_err(|_| RunError::Stage {
-        stage: "reporter".into(),
-        message: "the reporting thread panicked".into(),
-    })?;
-    drop(transport);
-    match failure {
-        Some(e) => Err(e),
-        None => Ok(report),
     }
 }

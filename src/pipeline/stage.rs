@@ -62,6 +62,11 @@ pub trait Source {
     fn next_due(&self) -> Option<std::time::Instant> {
         None
     }
+
+    /// Pace from `clock` instead of from the first poll, so that the samples of pipelines
+    /// sharing one hot thread fall due together and one wake-up serves them all. Called before
+    /// the first poll. Default: nothing (a source that does not pace itself).
+    fn share_clock(&mut self, _clock: crate::stages::PaceClock) {}
 }
 
 /// The true rate per axis, in the pipeline's input units, at sensor time `t` (s).

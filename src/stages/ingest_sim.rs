@@ -202,4 +202,8 @@ impl Source for SimSource {
         let clock = self.start.filter(|_| !self.asap)?;
         Some(clock.at(self.offset()))
     }
+
+    fn share_clock(&mut self, clock: PaceClock) {
+        self.start = Some(clock);
+    }
 }

@@ -68,16 +68,18 @@ pub fn build(spec: &StageSpec, pipeline: &Pipeline) -> Result<Box<dyn Stage>, St
     spec.params.stage(&pipeline.context())
 }
 
-/// The clock of a paced source: when its first sample was taken, as an instant to sleep
-/// until and as [`monotonic_ns`](crate::transport::monotonic_ns) to measure lateness on.
+/// The clock of a paced source: when its first sample is due, as an instant to sleep until and
+/// as [`monotonic_ns`](crate::transport::monotonic_ns) to measure lateness on. Pipelines that
+/// share one hot thread share one ([`Source::share_clock`](crate::pipeline::stage::Source)).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct PaceClock {
+pub struct PaceClock {
     start: Instant,
     start_ns: u64,
 }
 
 impl PaceClock {
-    pub(crate) fn now() -> Self {
+    /// A clock starting now.
+    pub fn now() -> Self {
         PaceClock {
             start: Instant::now(),
             start_ns: crate::transport::monotonic_ns(),

@@ -100,6 +100,8 @@ pub struct BlockReplay {
     next: usize,
     pace: Pace,
     start: Option<(PaceClock, u64)>,
+    /// The clock to start from at the first sample (a shared hot thread's), or none: now.
+    shared: Option<PaceClock>,
 }
 
 impl BlockReplay {
@@ -131,6 +133,7 @@ impl BlockReplay {
             next: 0,
             pace,
             start: None,
+            shared: None,
         })
     }
 }
@@ -163,7 +166,7 @@ impl Source for BlockReplay {
         let due_ns = if self.pace == Pace::Realtime {
             let (clock, first_t) = *self
                 .start
-                .get_or_insert_with(|| (PaceClock::now(), sample.t_ns));
+                .get_or_insert_with(|| (self.shared.unwrap_or_else(PaceClock::now), sample.t_ns));
             let offset = Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
             match clock.wait(offset, stop) {
                 Some(due) => Some(due),
@@ -186,5 +189,9 @@ impl Source for BlockReplay {
         let (clock, first_t) = self.start.filter(|_| self.pace == Pace::Realtime)?;
         let t_ns = self.block.get(self.next)?.t_ns;
         Some(clock.at(Duration::from_nanos(t_ns.saturating_sub(first_t))))
+    }
+
+    fn share_clock(&mut self, clock: PaceClock) {
+        self.shared = Some(clock);
     }
 }
