@@ -27,6 +27,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections as _;
 use iceoryx2::prelude::*;
 
 /// iceoryx2's marker of a type that can live in shared memory (our wire types derive it); for
@@ -1526,6 +1527,17 @@ pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
+    /// Connect to the subscribers that exist now, so that the first [`send`](Self::send) does
+    /// not pay for it (mapping their shared memory) on the hot path.
+    pub fn connect(&self) -> Result<(), TransportError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| TransportError::Io {
+                what: "connect",
+                reason: format!("{e:?}"),
+            })
+    }
+
     /// Publish a copy of `value` (zero-copy into shared memory); returns the number of
     /// subscribers that received it. Does not notify: call [`Output::notify`] after it.
     /// Allocation-free on our side (iceoryx2 0.10 allocates one small `Arc` per loan).

@@ -332,6 +332,16 @@ impl Chain {
         }
     }
 
+    /// Connect every output of the segment to its subscribers now rather than at its first
+    /// sample (which comes only after the denoiser's lag, when all pipelines of a daemon pay it
+    /// in the same round).
+    fn connect(&self) -> Result<(), TransportError> {
+        if let Some((raw_out, _)) = &self.head {
+            raw_out.connect()?;
+        }
+        self.outs.iter().try_for_each(Output::connect)
+    }
+
     /// [`Stage::prewarm`] of every stage, and the metrics slot the sample will fill.
     fn prewarm(&self) {
         for stage in &self.stages {
@@ -773,6 +783,7 @@ fn run_segment(
         let input = transport.external_input::<GyroSample>(&ext.output)?;
         let waker = transport.waker(&ext.output)?;
         let (chain, lost, lag) = build_segment(p, &transport, span, counters, tx)?;
+        chain.connect()?;
         Ok::<_, RunError>((transport, input, waker, chain, lost, lag))
     })();
     let (transport, input, waker, mut chain, lost, lag) = match set_up {
@@ -946,6 +957,7 @@ impl<'a> Running<'a> {
         let mut lost: Vec<Arc<AtomicU64>> = vec![raw_out.lost_counter()];
         lost.extend(head_lost);
         chain.head = Some((raw_out, raw_in));
+        chain.connect()?;
         let mut r = Running {
             p,
             prefix: prefix.to_string(),
@@ -1175,6 +1187,7 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
             }
             ended |= r.step(stop).is_some_and(|ingest_ns| ingest_ns >= end_ns);
         }
+
         if ended || (ask_now && monotonic_ns() >= end_ns) {
             break;
         }
