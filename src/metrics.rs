@@ -754,15 +754,6 @@ impl Reporter {
         }
     }
 
-    /// Consume records until the sender side is dropped; every interval print the summary
-    /// (if enabled) and hand a snapshot to `publish`. Returns the final report.
-    pub fn run(self, rx: Receiver<Batch>, publish: impl FnMut(&StatsSnapshot)) -> Report {
-        let mut reports = run_all(vec![(self, rx, Box::new(publish) as Publish<'_>)]);
-        reports
-            .pop()
-            .unwrap_or_else(|| unreachable!("one reporter gives one report"))
-    }
-
     /// Take every batch waiting in `rx`; false once the senders are gone and it is drained.
     fn drain(&mut self, rx: &Receiver<Batch>) -> bool {
         loop {

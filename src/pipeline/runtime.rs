@@ -17,16 +17,22 @@
 //! the external stage's output with a timeout, then running its stages in-thread. Crossing the
 //! process boundary costs wake-ups (~25 us each on 2 cores): inherent, and documented.
 //!
+//! # Several pipelines
+//! [`run_group`] runs several pipelines (a vehicle's IMUs) on the one hot thread: their paced
+//! sources share one clock, so samples of the same rate fall due together and one wake-up
+//! serves them all; those due are run in the order given. One reporting thread serves them
+//! all too. [`run`] is a group of one.
+//!
 //! The hot loop does not allocate: timings go to the reporting thread in fixed-size records over
 //! a bounded crossbeam channel (`try_send`; a full channel is counted, never waited on).
 //!
 //! # Shutdown
-//! A stop flag (set by SIGINT/SIGTERM, `--duration`, or the end of a finite source) ends the
-//! ingest; the lagged stages are then flushed through the rest of the chain, the reporter
-//! writes its final report, all ports and the node are dropped, and the prefix's leftover files
-//! are removed when no other node of the prefix is alive. A later segment keeps reading until
-//! the segment before it has finished and its input has been quiet for [`EXTERNAL_GRACE`], then
-//! flushes its own lagged stages.
+//! A stop flag (set by SIGINT/SIGTERM or `--duration`) ends every ingest; the end of a finite
+//! source or a failure ends its own pipeline's. The lagged stages are then flushed through the
+//! rest of the chain, the reporter writes its final report, all ports and the node are dropped,
+//! and the prefix's leftover files are removed when no other node of the prefix is alive. A
+//! later segment keeps reading until the segment before it has finished and its input has been
+//! quiet for [`EXTERNAL_GRACE`], then flushes its own lagged stages.
 
 use std::io::Write as _;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -518,67 +524,58 @@ fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
         return Ok(());
     }
     let file = |p: &Pipeline| p.path.display().to_string();
-    let mut seen: Vec<(&str, &str, &Pipeline)> = Vec::new();
-    for (p, prefix) in members {
-        if let Some((_, _, q)) = seen
-            .iter()
-            .find(|(pre, name, _)| *pre == prefix.as_str() && *name == p.name.as_str())
-        {
-            return Err(RunError::Group(format!(
-                "{} and {} are both pipeline {:?} under prefix {prefix:?}: a pipeline runs once \
-                 per prefix; rename one (its `name`) or run it under another prefix",
-                file(q),
-                file(p),
-                p.name
-            )));
-        }
-        seen.push((prefix, &p.name, p));
-        if matches!(p.stages[0].kind.role, Role::Ingest { has_input: true }) {
-            return Err(RunError::Group(format!(
-                "{}: its ingest `{}` wakes on another process's samples and cannot share the hot \
-                 thread with other pipelines; run it as a daemon of its own (`driftless run {}`)",
-                file(p),
-                p.stages[0].kind.name,
-                file(p)
-            )));
-        }
+    if let Some(p) = members
+        .iter()
+        .map(|(p, _)| *p)
+        .find(|p| matches!(p.stages[0].kind.role, Role::Ingest { has_input: true }))
+    {
+        return Err(RunError::Group(format!(
+            "{}: its ingest `{}` wakes on another process's samples and cannot share the hot \
+             thread with other pipelines; run it as a daemon of its own (`driftless run {}`)",
+            file(p),
+            p.stages[0].kind.name,
+            file(p)
+        )));
     }
-    let mut services: Vec<(&str, &str, &Pipeline)> = Vec::new();
-    for (p, prefix) in members {
+    let names = members
+        .iter()
+        .map(|(p, prefix)| ((prefix.as_str(), p.name.as_str()), *p));
+    if let Some(((prefix, name), a, b)) = clash(names) {
+        return Err(RunError::Group(format!(
+            "{} and {} are both pipeline {name:?} under prefix {prefix:?}: a pipeline runs once \
+             per prefix; rename one (its `name`) or run it under another prefix",
+            file(a),
+            file(b)
+        )));
+    }
+    let services = members.iter().flat_map(|(p, prefix)| {
         let outputs = p.stages.iter().map(|s| s.output.as_str());
-        for service in outputs.chain([p.iceoryx2.stats_service.as_str()]) {
-            if let Some((_, _, q)) = services
-                .iter()
-                .find(|(pre, svc, _)| *pre == prefix.as_str() && *svc == service)
-            {
-                return Err(RunError::Group(format!(
-                    "{} and {} both publish {service:?} under prefix {prefix:?}: a service has \
-                     one publisher; rename it in one file or run one under another prefix",
-                    file(q),
-                    file(p)
-                )));
-            }
-            services.push((prefix, service, p));
-        }
+        outputs
+            .chain([p.iceoryx2.stats_service.as_str()])
+            .map(move |service| ((prefix.as_str(), service), *p))
+    });
+    if let Some(((prefix, service), a, b)) = clash(services) {
+        return Err(RunError::Group(format!(
+            "{} and {} both publish {service:?} under prefix {prefix:?}: a service has one \
+             publisher; rename it in one file or run one under another prefix",
+            file(a),
+            file(b)
+        )));
     }
-    for (what, value) in [
-        (
-            "cpu",
-            (|p: &Pipeline| p.cpu.map(|v| v as i64)) as fn(&Pipeline) -> Option<i64>,
-        ),
-        ("realtime_priority", |p: &Pipeline| {
-            p.realtime_priority.map(i64::from)
-        }),
-    ] {
-        let set: Vec<(&Pipeline, i64)> = members
-            .iter()
-            .filter_map(|(p, _)| value(p).map(|v| (*p, v)))
-            .collect();
-        if let Some(((a, va), (b, vb))) = set
-            .iter()
-            .zip(set.iter().skip(1))
-            .find(|((_, va), (_, vb))| va != vb)
-        {
+    let cpus = members
+        .iter()
+        .filter_map(|(p, _)| p.cpu.map(|v| (v as i64, *p)));
+    let priorities = members
+        .iter()
+        .filter_map(|(p, _)| p.realtime_priority.map(|v| (i64::from(v), *p)));
+    for (what, mut set) in [
+        ("cpu", cpus.collect::<Vec<_>>()),
+        ("realtime_priority", priorities.collect()),
+    ]
+    .map(|(what, set)| (what, set.into_iter()))
+    {
+        let Some((va, a)) = set.next() else { continue };
+        if let Some((vb, b)) = set.find(|(v, _)| *v != va) {
             return Err(RunError::Group(format!(
                 "{} sets {what} = {va} and {} sets {what} = {vb}: one hot thread serves the \
                  group; give the same value, or set it in one file only",
@@ -588,6 +585,20 @@ fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
         }
     }
     Ok(())
+}
+
+/// The first key two pipelines share, with both (in the order given).
+fn clash<'a, K: PartialEq>(
+    keyed: impl IntoIterator<Item = (K, &'a Pipeline)>,
+) -> Option<(K, &'a Pipeline, &'a Pipeline)> {
+    let mut seen: Vec<(K, &Pipeline)> = Vec::new();
+    for (key, p) in keyed {
+        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+            return Some((key, first, p));
+        }
+        seen.push((key, p));
+    }
+    None
 }
 
 /// The hot thread's CPU and SCHED_FIFO priority: whichever pipeline of the group sets them
