@@ -348,5 +348,22 @@ fn pipelines_that_cannot_share_a_daemon_are_refused_before_anything_starts() {
         }
         assert!(!report.exists(), "case {i}: nothing ran");
         assert!(prefix.leftovers().is_empty(), "{:?}", prefix.leftovers());
+        // `validate` with the same files says the same.
+        let mut args = vec!["validate"];
+        args.extend(files.iter().map(|f| f.to_str().unwrap()));
+        let out = common::driftless(&args);
+        let (_, err) = common::text(&out);
+        assert_eq!(out.status.code(), Some(2), "validate, case {i}: {err}");
+        assert!(
+            err.contains(wanted[0].as_str()),
+            "validate, case {i}: {err}"
+        );
     }
+    let out = common::driftless(&["validate", a.to_str().unwrap(), p0.to_str().unwrap()]);
+    let (stdout, err) = common::text(&out);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        stdout.contains("the 2 pipelines can share one daemon"),
+        "{stdout}"
+    );
 }

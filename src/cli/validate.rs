@@ -1,34 +1,54 @@
-//! `driftless validate PIPELINE`: every check `run` makes, nothing started.
+//! `driftless validate PIPELINE...`: every check `run` makes, nothing started (for several
+//! pipelines, also that they can share one daemon).
 //! `driftless validate --kinds`: every stage kind with its keys, from the schema the stage files
 //! own (`--markdown`: the table `docs/daemon.md` holds).
 
 use std::path::PathBuf;
 
 use crate::cli::CliError;
-use crate::pipeline::config;
+use crate::pipeline::config::{self, Pipeline};
+use crate::pipeline::runtime;
 use crate::pipeline::stage::{Kind, Role};
 
 /// Arguments of `driftless validate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Pipeline file (TOML).
-    #[arg(required_unless_present = "kinds")]
-    pub pipeline: Option<PathBuf>,
+    /// Pipeline file (TOML). Several: each, and that they can share one daemon (`driftless run`
+    /// with the same files).
+    #[arg(value_name = "PIPELINE", required_unless_present = "kinds")]
+    pub pipelines: Vec<PathBuf>,
     /// List every stage kind with its keys, types, ranges and defaults instead.
-    #[arg(long, conflicts_with = "pipeline")]
+    #[arg(long, conflicts_with = "pipelines")]
     pub kinds: bool,
     /// With --kinds: as the Markdown table of docs/daemon.md.
     #[arg(long, requires = "kinds")]
     pub markdown: bool,
 }
 
-/// Validate the pipeline and describe it on stdout, or list the stage kinds.
+/// Validate the pipelines and describe them on stdout, or list the stage kinds.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let Some(path) = args.pipeline else {
+    if args.pipelines.is_empty() {
         print!("{}", kinds(args.markdown));
         return Ok(());
-    };
-    let p = config::load(&path)?;
+    }
+    let mut all = Vec::new();
+    for path in &args.pipelines {
+        let p = config::load(path)?;
+        describe(&p);
+        all.push(p);
+    }
+    if all.len() > 1 {
+        // Under their own prefixes, as `run` without --prefix or DRIFTLESS_IOX2_PREFIX.
+        let members: Vec<_> = all.iter().map(|p| (p, p.iceoryx2.prefix.clone())).collect();
+        runtime::check_group(&members).map_err(|e| CliError::input(e.to_string()))?;
+        println!("the {} pipelines can share one daemon", all.len());
+    }
+    Ok(())
+}
+
+/// What `validate` says of one valid pipeline.
+fn describe(p: &Pipeline) {
+    let path = &p.path;
     println!(
         "{}: pipeline {:?} is valid: {} Hz, deadline {} us, {} axis/axes, prefix {:?}",
         path.display(),
@@ -51,7 +71,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     }
     println!("  stats on {}", p.iceoryx2.stats_service);
-    Ok(())
 }
 
 fn role(kind: &Kind) -> &'static str {

@@ -519,7 +519,7 @@ fn remove_leftovers(members: &[(&Pipeline, String)]) {
 /// What stops a set of pipelines from sharing one daemon: the same pipeline or service twice
 /// under one prefix, different settings for the one hot thread, or an ingest that wakes on
 /// another process's samples.
-fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
+pub fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
     if members.len() < 2 {
         return Ok(());
     }
