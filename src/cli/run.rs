@@ -151,9 +151,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
             }
             Err(e) => {
                 reports.push(None);
-                failures.push(match several {
-                    true => format!("pipeline {} failed: {e}", p.name),
-                    false => e.to_string(),
+                failures.push(if several {
+                    format!("pipeline {} failed: {e}", p.name)
+                } else {
+                    e.to_string()
                 });
             }
         }

@@ -1171,7 +1171,7 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
             break;
         }
         if let (false, Some(due)) = (ask_now, due) {
-            // Asked of the sources only when prewarming is on.
+            // Wake `prewarm` early for the pipelines due next, then sleep to the due time.
             if let Some(early) = (!prewarm.is_zero())
                 .then(|| due.checked_sub(prewarm))
                 .flatten()
@@ -1198,7 +1198,6 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
             }
             ended |= r.step(stop).is_some_and(|ingest_ns| ingest_ns >= end_ns);
         }
-
         if ended || (ask_now && monotonic_ns() >= end_ns) {
             break;
         }
