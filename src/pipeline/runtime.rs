@@ -477,14 +477,6 @@ pub fn run_group(
             let _ = writeln!(std::io::stderr(), "{}", services_line(r.p, &r.prefix));
         }
     }
-    if group.len() > 1 {
-        let clock = crate::stages::PaceClock::now();
-        for r in &mut group {
-            if let Some((source, _)) = &mut r.hot {
-                source.share_clock(clock);
-            }
-        }
-    }
     let prewarm = members
         .iter()
         .map(|(p, _)| p.prewarm)
@@ -1143,6 +1135,7 @@ impl<'a> Running<'a> {
 
 /// The hot thread: sleep until the earliest sample of the group is due (asking at once any
 /// source that does not know when), then run every pipeline whose sample is due, in order.
+/// After the first round the paced sources share one clock (one wake-up serves them all).
 /// Ends at a stop, at `--duration` (a sample already taken is always processed) or when every
 /// ingest has ended.
 fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
@@ -1152,6 +1145,7 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
     let end_ns = opts.duration.map_or(u64::MAX, |d| {
         monotonic_ns().saturating_add(d.as_nanos() as u64)
     });
+    let mut first_round = true;
     while !stop.load(Ordering::Relaxed) {
         let mut due: Option<std::time::Instant> = None;
         let mut ask_now = false;
@@ -1200,6 +1194,17 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
         }
         if ended || (ask_now && monotonic_ns() >= end_ns) {
             break;
+        }
+        if first_round {
+            // The first samples met everything cold (code, stage state, shared memory): the
+            // clock starts once they are through, so that their cost makes no later sample late.
+            first_round = false;
+            let clock = crate::stages::PaceClock::now();
+            for r in group.iter_mut() {
+                if let Some((source, _)) = &mut r.hot {
+                    source.share_clock(clock);
+                }
+            }
         }
     }
 }

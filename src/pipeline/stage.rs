@@ -63,9 +63,12 @@ pub trait Source {
         None
     }
 
-    /// Pace from `clock` instead of from the first poll, so that the samples of pipelines
-    /// sharing one hot thread fall due together and one wake-up serves them all. Called before
-    /// the first poll. Default: nothing (a source that does not pace itself).
+    /// Pace from `clock` from now on: the sample taken first is due at its start (the next
+    /// one a sample period later, and so on). The runtime gives every source of a daemon the
+    /// same clock after their first samples, so that samples of pipelines sharing the hot
+    /// thread fall due together and one wake-up serves them all, and so that the first
+    /// samples' cold cost makes no later one late. Default: nothing (a source that does not
+    /// pace itself).
     fn share_clock(&mut self, _clock: crate::stages::PaceClock) {}
 }
 

@@ -192,6 +192,9 @@ impl Source for BlockReplay {
     }
 
     fn share_clock(&mut self, clock: PaceClock) {
-        self.shared = Some(clock);
+        match &mut self.start {
+            Some((start, _)) => *start = clock,
+            None => self.shared = Some(clock),
+        }
     }
 }
