@@ -148,19 +148,23 @@ fn thread_cpu_seconds() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
-/// Sleep to each 1 ms due time for `secs`, doing nothing else: the CPU share any 1 kHz paced
-/// loop pays here just to wake up (timer, context switches; on a VM, the exits).
-fn sleeper_cpu(secs: f64) -> f64 {
+/// Sleep to each 1 ms due time for `secs`, doing nothing else: how late each wake-up came, and
+/// the CPU share any 1 kHz paced loop pays here just to wake up (timer, context switches; on a
+/// VM, the exits).
+fn sleeper(secs: f64) -> (Histogram<u64>, f64) {
+    let mut late = hist();
     let cpu0 = thread_cpu_seconds();
     let start = Instant::now();
-    for k in 0..(secs * 1000.0) as u32 {
-        let due = start + Duration::from_millis(u64::from(k));
+    for k in 1..(secs * 1000.0) as u64 {
+        let due = start + Duration::from_millis(k);
         let now = Instant::now();
         if due > now {
             std::thread::sleep(due - now);
         }
+        late.saturating_record((Instant::now() - due).as_nanos().max(1) as u64);
     }
-    (thread_cpu_seconds() - cpu0) / start.elapsed().as_secs_f64()
+    let cpu = (thread_cpu_seconds() - cpu0) / start.elapsed().as_secs_f64();
+    (late, cpu)
 }
 
 /// Run a paced pipeline for `secs` with this process subscribed to `service`.
@@ -242,7 +246,7 @@ fn main() {
     let mut r = row_from("bare iceoryx2 chain, 4 hops, 1 kHz", &bare_1k);
     r.cpu = format!("{:.1}%", bare_cpu * 100.0);
     rows.push(r);
-    let idle_cpu = sleeper_cpu(bare_secs / 3.0);
+    let (_, idle_cpu) = sleeper(bare_secs / 3.0);
 
     // 2. Demo at 1 kHz with a separate-process subscriber; then the same with the stages
     // prewarmed 150 us before each sample is due.
@@ -511,17 +515,7 @@ fn wait_cpu_seconds(child: std::process::Child, timeout: Duration) -> f64 {
 fn sleeper_beside(secs: f64) -> std::thread::JoinHandle<Histogram<u64>> {
     std::thread::spawn(move || {
         realtime(50);
-        let mut h = hist();
-        let start = Instant::now();
-        for k in 1..(secs * 1000.0) as u64 {
-            let due = start + Duration::from_millis(k);
-            let now = Instant::now();
-            if due > now {
-                std::thread::sleep(due - now);
-            }
-            h.saturating_record((Instant::now() - due).as_nanos().max(1) as u64);
-        }
-        h
+        sleeper(secs).0
     })
 }
 

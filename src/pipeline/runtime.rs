@@ -554,20 +554,19 @@ pub fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
             file(b)
         )));
     }
-    let cpus = members
+    let cpus: Vec<(i64, &Pipeline)> = members
         .iter()
-        .filter_map(|(p, _)| p.cpu.map(|v| (v as i64, *p)));
+        .filter_map(|(p, _)| Some((p.cpu? as i64, *p)))
+        .collect();
     let priorities = members
         .iter()
-        .filter_map(|(p, _)| p.realtime_priority.map(|v| (i64::from(v), *p)));
-    for (what, mut set) in [
-        ("cpu", cpus.collect::<Vec<_>>()),
-        ("realtime_priority", priorities.collect()),
-    ]
-    .map(|(what, set)| (what, set.into_iter()))
-    {
-        let Some((va, a)) = set.next() else { continue };
-        if let Some((vb, b)) = set.find(|(v, _)| *v != va) {
+        .filter_map(|(p, _)| Some((i64::from(p.realtime_priority?), *p)))
+        .collect();
+    for (what, set) in [("cpu", cpus), ("realtime_priority", priorities)] {
+        let Some(&(va, a)) = set.first() else {
+            continue;
+        };
+        if let Some(&(vb, b)) = set.iter().find(|(v, _)| *v != va) {
             return Err(RunError::Group(format!(
                 "{} sets {what} = {va} and {} sets {what} = {vb}: one hot thread serves the \
                  group; give the same value, or set it in one file only",
