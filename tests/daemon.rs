@@ -6,59 +6,17 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::{
-    collect, csv, csv_pipeline, finish, qos, raw, report, signal, start, test_rates, wait_ready,
-    Dir, Prefix,
+    collect, csv, csv_pipeline, external_pipeline, finish, offline_denoised, qos, raw, report,
+    signal, start, test_rates, wait_ready, Dir, Prefix,
 };
 use driftless::transport::{
     GyroSample, RawSample, Transport, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
     FLAG_MOVING, FLAG_STILL, FLAG_TIME_BACKWARDS, FLAG_WARMING_UP, RAW_INVALID,
 };
-use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
-use driftless::wavelet::threshold::ThresholdFn;
 
 const SIGINT: i32 = 2;
 const SIGTERM: i32 = 15;
 const SIGKILL: i32 = 9;
-
-/// A pipeline reading raw samples from `t/sensor` (this test publishes them).
-fn external_pipeline(denoise: &str, buffer: usize) -> String {
-    format!(
-        r#"
-name = "t"
-rate_hz = 1000.0
-axes = 3
-input_units = "rad/s"
-report_interval_s = 60.0
-
-[iceoryx2]
-buffer_size = {buffer}
-
-[[stage]]
-name = "sensor"
-kind = "ingest.iceoryx2"
-input = "t/sensor"
-output = "t/raw"
-
-[[stage]]
-name = "denoise"
-{denoise}
-input = "t/raw"
-output = "t/denoised"
-
-[[stage]]
-name = "predict"
-kind = "predict.none"
-input = "t/denoised"
-output = "t/predicted"
-
-[[stage]]
-name = "publish"
-kind = "publish"
-input = "t/predicted"
-output = "t/corrected"
-"#
-    )
-}
 
 #[test]
 fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
@@ -66,7 +24,7 @@ fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
     let prefix = Prefix::new("order");
     let dir = Dir::new();
     let denoise = "kind = \"denoise.wavelet\"\nwavelet = \"db4\"\nlevel = 4\nthreshold = \"soft\"\nwindow = 256\nlag = 32";
-    let file = dir.write("p.toml", &external_pipeline(denoise, 4096));
+    let file = dir.write("p.toml", &external_pipeline("t", denoise, 4096));
     let report_path = dir.path("report.json");
 
     // This process: the sensor driver and the navigation subscriber.
@@ -97,29 +55,7 @@ fn every_sample_arrives_once_in_order_equal_to_the_offline_denoiser() {
     assert_eq!(code, Some(0), "stderr: {err}");
 
     assert_eq!(got.len(), N, "all samples arrive");
-    let cfg = StreamConfig {
-        wavelet: "db4".into(),
-        level: 4,
-        threshold: ThresholdFn::Soft,
-        window: 256,
-        lag: 32,
-        sigma: Sigma::Mad,
-    };
-    let mut expected = vec![[0.0; 3]; N];
-    for axis in 0..3 {
-        let mut d = StreamingDenoiser::new(&cfg).unwrap();
-        let mut out = Vec::new();
-        for r in &input {
-            out.extend(d.push(r[axis]));
-        }
-        while let Some(v) = d.flush() {
-            out.push(v);
-        }
-        assert_eq!(out.len(), N);
-        for (e, v) in expected.iter_mut().zip(out) {
-            e[axis] = v;
-        }
-    }
+    let expected = offline_denoised(&input, "db4", 4, 256, 32);
     for (i, s) in got.iter().enumerate() {
         assert_eq!(s.seq, i as u64, "in order, exactly once");
         assert_eq!(s.t_ns, i as u64 * 1_000_000);
@@ -156,7 +92,10 @@ impl Rig {
     fn new(tag: &str) -> Self {
         let prefix = Prefix::new(tag);
         let dir = Dir::new();
-        let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+        let file = dir.write(
+            "p.toml",
+            &external_pipeline("t", "kind = \"denoise.none\"", 256),
+        );
         let report_path = dir.path("report.json");
         let node = Transport::new(&prefix.0, "test", qos(256)).expect("node");
         let corrected = node.input::<GyroSample>("t/corrected").expect("subscriber");
@@ -575,10 +514,10 @@ fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
         ),
         (
             "bad-lag",
-            external_pipeline("kind = \"denoise.wavelet\"\nwavelet = \"db2\"\nlevel = 2\nlag = 99", 16),
+            external_pipeline("t", "kind = \"denoise.wavelet\"\nwavelet = \"db2\"\nlevel = 2\nlag = 99", 16),
             "lag must be in 0..=9",
         ),
-        ("rbf", external_pipeline("kind = \"predict.rbf\"", 16), "predict.rbf needs `model`"),
+        ("rbf", external_pipeline("t", "kind = \"predict.rbf\"", 16), "predict.rbf needs `model`"),
     ];
     for (name, text, message) in cases {
         let file = dir.write(&format!("{name}.toml"), &text);
@@ -797,7 +736,10 @@ fn a_subscriber_that_dies_never_blocks_the_daemon_and_is_cleaned_up() {
 fn a_driver_service_with_iceoryx2_defaults_is_refused_and_ours_is_read() {
     let prefix = Prefix::new("drvqos");
     let dir = Dir::new();
-    let file = dir.write("p.toml", &external_pipeline("kind = \"denoise.none\"", 256));
+    let file = dir.write(
+        "p.toml",
+        &external_pipeline("t", "kind = \"denoise.none\"", 256),
+    );
 
     // A driver written from iceoryx2's examples starts first: its service has iceoryx2's
     // defaults (a subscriber buffer of 2, safe overflow on), which lose samples silently.

@@ -51,7 +51,8 @@ use crate::pipeline::stage::Role;
 use crate::pipeline::stage::{Poll, Source, Stage};
 use crate::transport::{
     monotonic_ns, remove_prefix_leftovers, GyroSample, Input, NodeHolder, Output, Qos, RawSample,
-    StatsSnapshot, Transport, TransportError, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
+    StatsSnapshot, Transport, TransportError, WakeSet, FLAG_FLUSHED, FLAG_GAP_BEFORE,
+    FLAG_OUTPUT_REPAIRED,
 };
 
 /// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
@@ -456,6 +457,16 @@ pub fn run_group(
             }
         }
     }
+    let notified = match Notified::of(&group) {
+        Ok(n) => n,
+        Err(e) => {
+            for r in group {
+                let _ = r.finish();
+            }
+            remove_leftovers(members);
+            return Err(e.into());
+        }
+    };
     let stats = group.iter_mut().filter_map(|r| r.stats.take()).collect();
     let reporter = match spawn_reporter(stats) {
         Ok(h) => h,
@@ -482,7 +493,7 @@ pub fn run_group(
         .map(|(p, _)| p.prewarm)
         .max()
         .unwrap_or_default();
-    serve(&mut group, opts, prewarm);
+    serve(&mut group, opts, prewarm, notified);
     let finished: Vec<Result<(), RunError>> = group.into_iter().map(Running::finish).collect();
     // Every sender is gone now: the reporting thread ends with the final reports.
     let reports = reporter.join();
@@ -509,26 +520,12 @@ fn remove_leftovers(members: &[(&Pipeline, String)]) {
 }
 
 /// What stops a set of pipelines from sharing one daemon: the same pipeline or service twice
-/// under one prefix, different settings for the one hot thread, or an ingest that wakes on
-/// another process's samples.
+/// under one prefix, or different settings for the one hot thread.
 pub fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {
     if members.len() < 2 {
         return Ok(());
     }
     let file = |p: &Pipeline| p.path.display().to_string();
-    if let Some(p) = members
-        .iter()
-        .map(|(p, _)| *p)
-        .find(|p| matches!(p.stages[0].kind.role, Role::Ingest { has_input: true }))
-    {
-        return Err(RunError::Group(format!(
-            "{}: its ingest `{}` wakes on another process's samples and cannot share the hot \
-             thread with other pipelines; run it as a daemon of its own (`driftless run {}`)",
-            file(p),
-            p.stages[0].kind.name,
-            file(p)
-        )));
-    }
     let names = members
         .iter()
         .map(|(p, prefix)| ((prefix.as_str(), p.name.as_str()), *p));
@@ -878,6 +875,8 @@ struct Running<'a> {
     stats: Option<Stats>,
     failure: Option<RunError>,
     transport: Transport,
+    /// The source's last answer was a sample (a notified source is asked again at once).
+    more: bool,
 }
 
 /// What the daemon's reporting thread takes of each pipeline: its reporter, the channel its
@@ -970,6 +969,7 @@ impl<'a> Running<'a> {
             stats: None,
             failure: None,
             transport,
+            more: false,
         };
 
         // Later segments: one thread each, started before the ingest so that their subscribers
@@ -1058,11 +1058,18 @@ impl<'a> Running<'a> {
         self.hot.as_ref().map(|(source, _)| source.next_due())
     }
 
+    /// What the source is notified on, while the ingest runs ([`Source::waker`]).
+    fn waker(&self) -> Option<(&crate::transport::Waker, Duration)> {
+        self.hot.as_ref().and_then(|(source, _)| source.waker())
+    }
+
     /// Ask the source once and run what it gives through the chain; returns the ingest time of
     /// a sample.
     fn step(&mut self, stop: &AtomicBool) -> Option<u64> {
         let (source, chain) = self.hot.as_mut()?;
-        match source.poll(stop) {
+        let poll = source.poll(stop);
+        self.more = matches!(poll, Poll::Sample(..));
+        match poll {
             Poll::Sample(raw, ingest_ns, late_ns) => match chain.ingest(&raw, ingest_ns, late_ns) {
                 Ok(()) => Some(ingest_ns),
                 Err(e) => {
@@ -1132,12 +1139,46 @@ impl<'a> Running<'a> {
     }
 }
 
-/// The hot thread: sleep until the earliest sample of the group is due (asking at once any
-/// source that does not know when), then run every pipeline whose sample is due, in order.
-/// After the first round the paced sources share one clock (one wake-up serves them all).
-/// Ends at a stop, at `--duration` (a sample already taken is always processed) or when every
-/// ingest has ended.
-fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
+/// The sleep of a group whose sources include some that other processes notify
+/// ([`Source::waker`]): one set over all their wakers, and the longest sleep any of them allows.
+struct Notified {
+    set: WakeSet,
+    timeout: Duration,
+}
+
+impl Notified {
+    /// `None` when no source of the group is notified (the paced sleep alone serves it).
+    fn of(group: &[Running<'_>]) -> Result<Option<Self>, TransportError> {
+        let mut notified: Option<Notified> = None;
+        for (i, r) in group.iter().enumerate() {
+            if let Some((waker, timeout)) = r.waker() {
+                if notified.is_none() {
+                    notified = Some(Notified {
+                        set: WakeSet::new()?,
+                        timeout,
+                    });
+                }
+                if let Some(n) = &mut notified {
+                    n.set.add(waker, i)?;
+                    n.timeout = n.timeout.min(timeout);
+                }
+            }
+        }
+        Ok(notified)
+    }
+}
+
+/// The hot thread: sleep until the earliest sample of the group is due or a notified source
+/// has news (asking at once any source that does not know when), then run every pipeline whose
+/// sample is due or whose source is notified, in order. After the first round the paced
+/// sources share one clock (one wake-up serves them all). Ends at a stop, at `--duration` (a
+/// sample already taken is always processed) or when every ingest has ended.
+fn serve(
+    group: &mut [Running<'_>],
+    opts: &RunOptions,
+    prewarm: Duration,
+    mut notified: Option<Notified>,
+) {
     let stop = &*opts.stop;
     // The end of --duration on the clock the ingest stamps samples with (no extra clock read
     // per sample).
@@ -1155,7 +1196,8 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
             }
             match r.next_due() {
                 Some(Some(d)) => due = Some(due.map_or(d, |e| e.min(d))),
-                Some(None) => ask_now = true,
+                // A notified source that has just given a sample may have more.
+                Some(None) => ask_now |= r.more || r.waker().is_none(),
                 None => continue,
             }
             live = true;
@@ -1163,7 +1205,26 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
         if !live {
             break;
         }
-        if let (false, Some(due)) = (ask_now, due) {
+        if ask_now {
+            // No sleep: a source is asked at once.
+        } else if let Some(n) = &mut notified {
+            let woken = n.set.wait(due, n.timeout, |i| {
+                if let Some((waker, _)) = group[i].waker() {
+                    // A failed drain leaves the waker readable: the next sleep is short, and
+                    // the source is asked anyway.
+                    let _ = waker.drain();
+                }
+            });
+            if let Err(e) = woken {
+                for r in group.iter_mut().filter(|r| r.waker().is_some()) {
+                    let stage = r.p.stages[0].name.clone();
+                    r.fail(RunError::Stage {
+                        stage,
+                        message: e.to_string(),
+                    });
+                }
+            }
+        } else if let Some(due) = due {
             // Wake `prewarm` early for the pipelines due next, then sleep to the due time.
             if let Some(early) = (!prewarm.is_zero())
                 .then(|| due.checked_sub(prewarm))
@@ -1191,7 +1252,8 @@ fn serve(group: &mut [Running<'_>], opts: &RunOptions, prewarm: Duration) {
             }
             ended |= r.step(stop).is_some_and(|ingest_ns| ingest_ns >= end_ns);
         }
-        if ended || (ask_now && monotonic_ns() >= end_ns) {
+        // Sources that do not pace themselves may give nothing for a long time.
+        if ended || ((ask_now || notified.is_some()) && monotonic_ns() >= end_ns) {
             break;
         }
         if first_round {

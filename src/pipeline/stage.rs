@@ -53,8 +53,8 @@ pub enum Poll {
 
 /// An ingest stage.
 pub trait Source {
-    /// The next raw sample; may sleep until it is due, but returns `Idle` within a few
-    /// milliseconds when `stop` is set. Must not allocate.
+    /// The next raw sample; may sleep until it is due (unless it has a [`waker`](Self::waker)),
+    /// but returns `Idle` within a few milliseconds when `stop` is set. Must not allocate.
     fn poll(&mut self, stop: &AtomicBool) -> Poll;
 
     /// When the sample the next [`poll`](Self::poll) returns is due, where the source paces
@@ -70,6 +70,15 @@ pub trait Source {
     /// samples' cold cost makes no later one late. Default: nothing (a source that does not
     /// pace itself).
     fn share_clock(&mut self, _clock: crate::stages::PaceClock) {}
+
+    /// For a source that another process tells of new samples: what the runtime sleeps on
+    /// for it, and for how long at most before asking anyway (a driver that does not notify).
+    /// Such a source's `poll` never sleeps: the runtime sleeps on every waker of the daemon at
+    /// once, with the paced sources' due times, and drains a waker it reports before asking
+    /// its source. Default: none.
+    fn waker(&self) -> Option<(&crate::transport::Waker, std::time::Duration)> {
+        None
+    }
 }
 
 /// The true rate per axis, in the pipeline's input units, at sensor time `t` (s).

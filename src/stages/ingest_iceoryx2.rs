@@ -1,7 +1,8 @@
 //! `ingest.iceoryx2`: raw samples that a sensor driver in another process publishes on an
-//! iceoryx2 service ([`crate::transport::RawSample`]). The stage sleeps on the event service of
-//! the same name (a driver should notify it after each sample) with a timeout, so a driver that
-//! does not notify is still read within `poll_timeout_us`.
+//! iceoryx2 service ([`crate::transport::RawSample`]). The daemon's hot thread sleeps on the
+//! event service of the same name (a driver should notify it after each sample), together with
+//! every other source of the daemon, and with a timeout, so a driver that does not notify is
+//! still read within `poll_timeout_us`.
 //!
 //! ```toml
 //! [[stage]]
@@ -80,16 +81,13 @@ impl ExternalRaw {
 
 impl Source for ExternalRaw {
     fn poll(&mut self, _stop: &AtomicBool) -> Poll {
-        for attempt in 0..2 {
-            match self.input.receive() {
-                Ok(Some(s)) => return Poll::Sample(s, monotonic_ns(), None),
-                Ok(None) if attempt == 0 => {
-                    // Sleep until the driver notifies (or the timeout), then look again.
-                    let _ = self.waker.wait(self.timeout);
-                }
-                Ok(None) | Err(_) => return Poll::Idle,
-            }
+        match self.input.receive() {
+            Ok(Some(s)) => Poll::Sample(s, monotonic_ns(), None),
+            Ok(None) | Err(_) => Poll::Idle,
         }
-        Poll::Idle
+    }
+
+    fn waker(&self) -> Option<(&Waker, Duration)> {
+        Some((&self.waker, self.timeout))
     }
 }

@@ -282,3 +282,80 @@ pub fn subcommands() -> Vec<String> {
         .filter(|c| c != "help")
         .collect()
 }
+
+/// Pipeline `name` reading raw samples from `{name}/sensor` (published by the test, as a
+/// sensor driver would) through `denoise` and `predict.none` to `{name}/corrected`.
+pub fn external_pipeline(name: &str, denoise: &str, buffer: usize) -> String {
+    format!(
+        r#"
+name = "{name}"
+rate_hz = 1000.0
+axes = 3
+input_units = "rad/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = {buffer}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.iceoryx2"
+input = "{name}/sensor"
+output = "{name}/raw"
+
+[[stage]]
+name = "denoise"
+{denoise}
+input = "{name}/raw"
+output = "{name}/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.none"
+input = "{name}/denoised"
+output = "{name}/predicted"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "{name}/predicted"
+output = "{name}/corrected"
+"#
+    )
+}
+
+/// What the one-stream denoiser (soft threshold, MAD noise estimate: `threshold = "soft"` in
+/// a pipeline) makes of `input`, each axis alone, flushed at the end.
+pub fn offline_denoised(
+    input: &[[f64; 3]],
+    wavelet: &str,
+    level: usize,
+    window: usize,
+    lag: usize,
+) -> Vec<[f64; 3]> {
+    use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
+    let cfg = StreamConfig {
+        wavelet: wavelet.into(),
+        level,
+        threshold: driftless::wavelet::threshold::ThresholdFn::Soft,
+        window,
+        lag,
+        sigma: Sigma::Mad,
+    };
+    let mut expected = vec![[0.0; 3]; input.len()];
+    for axis in 0..3 {
+        let mut d = StreamingDenoiser::new(&cfg).expect("denoiser");
+        let mut out = Vec::new();
+        for r in input {
+            out.extend(d.push(r[axis]));
+        }
+        while let Some(v) = d.flush() {
+            out.push(v);
+        }
+        assert_eq!(out.len(), input.len());
+        for (e, v) in expected.iter_mut().zip(out) {
+            e[axis] = v;
+        }
+    }
+    expected
+}
