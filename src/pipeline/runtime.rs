@@ -51,7 +51,7 @@ use crate::pipeline::stage::Role;
 use crate::pipeline::stage::{Poll, Source, Stage};
 use crate::transport::{
     monotonic_ns, remove_prefix_leftovers, GyroSample, Input, NodeHolder, Output, Qos, RawSample,
-    StatsSnapshot, Transport, TransportError, WakeSet, FLAG_FLUSHED, FLAG_GAP_BEFORE,
+    StatsSnapshot, Transport, TransportError, WakeSet, Waker, FLAG_FLUSHED, FLAG_GAP_BEFORE,
     FLAG_OUTPUT_REPAIRED,
 };
 
@@ -1059,7 +1059,7 @@ impl<'a> Running<'a> {
     }
 
     /// What the source is notified on, while the ingest runs ([`Source::waker`]).
-    fn waker(&self) -> Option<(&crate::transport::Waker, Duration)> {
+    fn waker(&self) -> Option<(&Waker, Duration)> {
         self.hot.as_ref().and_then(|(source, _)| source.waker())
     }
 
@@ -1140,7 +1140,7 @@ impl<'a> Running<'a> {
 }
 
 /// The sleep of a group whose sources include some that other processes notify
-/// ([`Source::waker`]): one set over all their wakers, and the longest sleep any of them allows.
+/// ([`Source::waker`]): one set over all their wakers, and the shortest of their timeouts.
 struct Notified {
     set: WakeSet,
     timeout: Duration,
@@ -1151,18 +1151,18 @@ impl Notified {
     fn of(group: &[Running<'_>]) -> Result<Option<Self>, TransportError> {
         let mut notified: Option<Notified> = None;
         for (i, r) in group.iter().enumerate() {
-            if let Some((waker, timeout)) = r.waker() {
-                if notified.is_none() {
-                    notified = Some(Notified {
-                        set: WakeSet::new()?,
-                        timeout,
-                    });
-                }
-                if let Some(n) = &mut notified {
-                    n.set.add(waker, i)?;
-                    n.timeout = n.timeout.min(timeout);
-                }
-            }
+            let Some((waker, timeout)) = r.waker() else {
+                continue;
+            };
+            let n = match &mut notified {
+                Some(n) => n,
+                None => notified.insert(Notified {
+                    set: WakeSet::new()?,
+                    timeout,
+                }),
+            };
+            n.set.add(waker, i)?;
+            n.timeout = n.timeout.min(timeout);
         }
         Ok(notified)
     }
