@@ -66,16 +66,14 @@ fn waiting_on_a_sensor_driver_does_not_allocate_per_sample() {
     const HOPS: u64 = 4;
     let calibration = Prefix::new("alloccaldrv");
     let per_send = alloc_counter::iceoryx2_allocations_per_send(&calibration.0);
-    let (short, n_short) = driver_allocations_for(1_000, "allocdrvshort");
-    let (long, n_long) = driver_allocations_for(11_000, "allocdrvlong");
-    let extra_samples = n_long - n_short;
-    let extra_allocs = long.saturating_sub(short);
-    eprintln!("allocations: {short} for {n_short} samples, {long} for {n_long}; iceoryx2: {per_send} per send");
-    let allowed = per_send * HOPS * extra_samples + 50;
-    assert!(
-        extra_allocs <= allowed,
-        "{extra_allocs} more allocations for {extra_samples} more samples \
-         (iceoryx2's own loans account for {})",
-        per_send * HOPS * extra_samples
+    alloc_counter::assert_only_iceoryx2_allocates_per_sample(
+        HOPS,
+        per_send,
+        driver_allocations_for(1_000, "allocdrvshort"),
+        driver_allocations_for(31_000, "allocdrvlong"),
+        // The set-up allocates 48,400-52,900 times from one run to the next here (the driver
+        // and the daemon connect in varying order); one allocation of ours per sample would
+        // be 30,000 more.
+        8_000,
     );
 }

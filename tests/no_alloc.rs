@@ -79,18 +79,11 @@ fn the_hot_loop_does_not_allocate_per_sample() {
     const HOPS: u64 = 4;
     let calibration = Prefix::new("alloccal");
     let per_send = alloc_counter::iceoryx2_allocations_per_send(&calibration.0);
-    let (short, n_short) = allocations_for(1_000, "allocshort");
-    let (long, n_long) = allocations_for(21_000, "alloclong");
-    let extra_samples = n_long - n_short;
-    let extra_allocs = long.saturating_sub(short);
-    eprintln!(
-        "allocations: {short} for {n_short} samples, {long} for {n_long}; iceoryx2: {per_send} per send"
-    );
-    let allowed = per_send * HOPS * extra_samples + 50;
-    assert!(
-        extra_allocs <= allowed,
-        "{extra_allocs} more allocations for {extra_samples} more samples \
-         (iceoryx2's own loans account for {})",
-        per_send * HOPS * extra_samples
+    alloc_counter::assert_only_iceoryx2_allocates_per_sample(
+        HOPS,
+        per_send,
+        allocations_for(1_000, "allocshort"),
+        allocations_for(21_000, "alloclong"),
+        50,
     );
 }

@@ -95,3 +95,29 @@ pub fn iceoryx2_allocations_per_send(prefix: &str) -> u64 {
     );
     per
 }
+
+/// The pipeline test's verdict: `long` = (allocations, samples) of a long run and `short` of a
+/// short run of the same pipeline; the difference may be no more than iceoryx2's own
+/// `per_send` allocations on each of `hops` hops per extra sample, plus `slack` for what
+/// set-up and clean-up allocate differently from one run to the next.
+#[allow(dead_code)]
+pub fn assert_only_iceoryx2_allocates_per_sample(
+    hops: u64,
+    per_send: u64,
+    short: (u64, u64),
+    long: (u64, u64),
+    slack: u64,
+) {
+    let extra_samples = long.1 - short.1;
+    let extra_allocs = long.0.saturating_sub(short.0);
+    eprintln!(
+        "allocations: {} for {} samples, {} for {}; iceoryx2: {per_send} per send",
+        short.0, short.1, long.0, long.1
+    );
+    let iceoryx2 = per_send * hops * extra_samples;
+    assert!(
+        extra_allocs <= iceoryx2 + slack,
+        "{extra_allocs} more allocations for {extra_samples} more samples \
+         (iceoryx2's own loans account for {iceoryx2})"
+    );
+}
