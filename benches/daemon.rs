@@ -4,7 +4,8 @@
 //! ```text
 //! cargo bench --bench daemon                       # 10^5 samples at 1 kHz (100 s) + the rest
 //! DRIFTLESS_BENCH_SECONDS=20 cargo bench --bench daemon   # shorter
-//! DRIFTLESS_BENCH_ONLY=scale cargo bench --bench daemon    # run 5 alone
+//! DRIFTLESS_BENCH_ONLY=scale cargo bench --bench daemon    # runs 5 and 6 alone
+//! DRIFTLESS_BENCH_ONLY=drivers cargo bench --bench daemon  # run 6 alone
 //! ```
 //!
 //! Runs, in order (each alone on the machine):
@@ -16,9 +17,13 @@
 //! 4. CSV replay as fast as possible through all stages, and the bare chain as fast as possible;
 //! 5. scale: N 1 kHz 3-axis pipelines of the demo at once (`DRIFTLESS_BENCH_PIPELINES`, default
 //!    "8,32"), for the same time as run 2, laid out three ways: N separate daemons, one daemon
-//!    running all N on its hot thread, and two daemons of N/2 (a hot thread per core).
+//!    running all N on its hot thread, and two daemons of N/2 (a hot thread per core);
+//! 6. drivers: the same N pipelines reading sensor drivers (`ingest.iceoryx2`) instead of the
+//!    simulator, this process publishing every IMU's sample each 1 ms and reading every
+//!    corrected service; N daemons against one daemon.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 #[path = "support/mod.rs"]
@@ -29,7 +34,9 @@ use support::{
     start_daemon, start_group, wait_exit,
 };
 
-use driftless::transport::{monotonic_ns, GyroSample, Qos, RawSample, Transport, FLAG_FLUSHED};
+use driftless::transport::{
+    monotonic_ns, GyroSample, Qos, RawSample, StatsSnapshot, Transport, WakeSet, FLAG_FLUSHED,
+};
 use hdrhistogram::Histogram;
 use serde_json::Value;
 
@@ -226,9 +233,13 @@ fn us(ns: u64) -> String {
 fn main() {
     let secs = bench_seconds(100.0);
     let dir = tempfile::tempdir().expect("tempdir");
-    if std::env::var("DRIFTLESS_BENCH_ONLY").is_ok_and(|v| v == "scale") {
+    let only = std::env::var("DRIFTLESS_BENCH_ONLY").unwrap_or_default();
+    if only == "scale" || only == "drivers" {
         println!("load average at the start: {}", loadavg());
-        scale(secs, dir.path());
+        if only == "scale" {
+            scale(secs, dir.path());
+        }
+        drivers(secs, dir.path());
         return;
     }
     let mut rows = Vec::new();
@@ -402,6 +413,7 @@ fn main() {
         us(demo["algorithmic_delay_ns"].as_u64().unwrap_or(0))
     );
     scale(secs, dir.path());
+    drivers(secs, dir.path());
     println!("load average at the end: {}", loadavg());
 }
 
@@ -577,4 +589,181 @@ fn scale_row(label: &str, groups: &[Vec<&Path>], secs: f64, dir: &Path, goal: bo
             misses == 0 && due_over == 0 && lost == 0
         );
     }
+}
+
+/// `lag` of the demo's denoiser, in samples.
+const DEMO_LAG: u64 = 64;
+
+/// Run 6: `n` IMUs whose samples come from sensor drivers (`ingest.iceoryx2`, the demo's
+/// processing): one thread of this process (SCHED_FIFO 50) publishes every IMU's raw sample
+/// each 1 ms and notifies, as drivers woken by one clock would; another reads every corrected
+/// service, sleeping on all their wakers at once (`transport::WakeSet`, as a navigation process
+/// with several IMUs would), and times each sample from its send to its receipt (the driver
+/// notes when it sent each sample). A daemon per IMU against one daemon for all: the
+/// daemon's end-to-end figures start when it takes the sample, so a pipeline waiting for others
+/// in its round shows only in send to receipt.
+fn drivers(secs: f64, dir: &Path) {
+    let counts: Vec<usize> = std::env::var("DRIFTLESS_BENCH_PIPELINES")
+        .unwrap_or_else(|_| "8,32".into())
+        .split(',')
+        .filter_map(|v| v.trim().parse().ok())
+        .collect();
+    let demo = std::fs::read_to_string(root().join("pipelines/demo.toml")).expect("demo.toml");
+    let sim = "kind = \"ingest.sim\"\noutput = \"demo/raw\"\nprofile = \"adis16405\"\nmotion = \"stop-and-go\"\nseed = 1\n";
+    assert!(
+        demo.contains(sim) && demo.contains(&format!("\nlag = {DEMO_LAG}\n")),
+        "demo.toml's ingest and lag as this run expects"
+    );
+    let driven = demo.replace(
+        sim,
+        "kind = \"ingest.iceoryx2\"\ninput = \"demo/sensor\"\noutput = \"demo/raw\"\n",
+    );
+    println!();
+    println!("| 1 kHz 3-axis IMUs from sensor drivers | samples received (all) | send to receipt p50 / p99 / p99.9 / max us, over 1 ms | misses from ingest (all) | lost | CPU, all daemons |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for n in counts {
+        let imus: Vec<PathBuf> = (0..n)
+            .map(|i| {
+                let file = dir.join(format!("drv{i}.toml"));
+                std::fs::write(&file, driven.replace("demo", &format!("drv{i}"))).expect("write");
+                file
+            })
+            .collect();
+        let one: Vec<&Path> = imus.iter().map(PathBuf::as_path).collect();
+        let separate: Vec<Vec<&Path>> = one.iter().map(|f| vec![*f]).collect();
+        for (label, groups) in [
+            (format!("{n} daemons"), separate),
+            (format!("{n} in one daemon"), vec![one.clone()]),
+        ] {
+            drivers_row(&label, n, &groups, secs, dir);
+        }
+    }
+}
+
+/// Start one daemon per group, drive and read all `n` IMUs for `secs`, print the row.
+fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Path) {
+    let p = prefix("drivers");
+    clean(&p);
+    let duration = format!("{}s", secs + 3.0);
+    let runs: Vec<(PathBuf, std::process::Child)> = groups
+        .iter()
+        .enumerate()
+        .map(|(j, files)| {
+            let report = dir.join(format!("drivers{j}.json"));
+            let child = start_group(files, &p, &report, &["--duration", &duration]);
+            (report, child)
+        })
+        .collect();
+    let probe = Transport::new(&p, "probe", Qos::default()).expect("probe node");
+    let end = Instant::now() + Duration::from_secs(30);
+    while (0..n).any(|i| {
+        !probe
+            .service_exists::<StatsSnapshot>(&format!("drv{i}/stats"))
+            .unwrap_or(false)
+    }) && Instant::now() < end
+    {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let ticks = (secs * 1000.0) as u64;
+    // When the driver sent each IMU's sample k, at [i * ticks + k].
+    let sent: std::sync::Arc<Vec<AtomicU64>> =
+        std::sync::Arc::new((0..n as u64 * ticks).map(|_| AtomicU64::new(0)).collect());
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let reader = {
+        let (p, stop, sent) = (p.clone(), stop.clone(), sent.clone());
+        std::thread::spawn(move || {
+            realtime(50);
+            let t = Transport::new(&p, "reader", Qos::default()).expect("node");
+            let names: Vec<String> = (0..n).map(|i| format!("drv{i}/corrected")).collect();
+            let inputs: Vec<_> = names
+                .iter()
+                .map(|s| t.input::<GyroSample>(s).expect("subscriber"))
+                .collect();
+            let wakers: Vec<_> = names.iter().map(|s| t.waker(s).expect("waker")).collect();
+            let mut set = WakeSet::new().expect("wake set");
+            for (i, w) in wakers.iter().enumerate() {
+                set.add(w, i).expect("watch");
+            }
+            let mut h = hist();
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                let _ = set.wait(None, Duration::from_millis(10), |i| {
+                    let _ = wakers[i].drain();
+                });
+                let now = monotonic_ns();
+                for (i, input) in inputs.iter().enumerate() {
+                    while let Ok(Some(s)) = input.receive() {
+                        // The output of sample q leaves with sample q + lag (the denoiser's
+                        // delay): time it from that one's send.
+                        let k = s.seq + DEMO_LAG;
+                        if s.flags & FLAG_FLUSHED == 0 && k < ticks {
+                            let at = sent[i * ticks as usize + k as usize].load(Ordering::Relaxed);
+                            h.record(now.saturating_sub(at).max(1)).expect("record");
+                        }
+                    }
+                }
+            }
+            h
+        })
+    };
+    // The driver: every IMU's sample at each 1 ms, on one clock.
+    realtime(50);
+    let outs: Vec<_> = (0..n)
+        .map(|i| {
+            probe
+                .output::<RawSample>(&format!("drv{i}/sensor"), true)
+                .expect("driver")
+        })
+        .collect();
+    let start = Instant::now();
+    for k in 0..ticks {
+        let due = start + Duration::from_micros(k * 1000);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+        let t = (k as f64) * 1e-3;
+        for (i, out) in outs.iter().enumerate() {
+            let rate = [(t + i as f64).sin(), (2.0 * t).cos(), 0.1 * (t * 7.0).sin()];
+            let t_ns = monotonic_ns();
+            sent[i * ticks as usize + k as usize].store(t_ns, Ordering::Relaxed);
+            let sample = RawSample {
+                t_ns,
+                seq: k,
+                rate,
+                flags: 0,
+                epoch: 0,
+            };
+            let _ = out.send(&sample);
+            out.notify();
+        }
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let h = reader.join().expect("reader thread");
+    let mut cpu = 0.0;
+    let (mut misses, mut lost) = (0u64, 0u64);
+    for (_, child) in &runs {
+        // SAFETY: kill(2) on our own child: stop it now rather than at its --duration.
+        unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+    }
+    for (report, child) in runs {
+        cpu += wait_cpu_seconds(child, Duration::from_secs(60));
+        let r = read_report(&report);
+        for r in r.as_array().cloned().unwrap_or_else(|| vec![r]) {
+            misses += r["deadline_misses"].as_u64().unwrap_or(0);
+            lost += r["lost"].as_u64().unwrap_or(0);
+        }
+    }
+    drop((outs, probe));
+    clean(&p);
+    println!(
+        "| {label} | {} of {} | {} / {} / {} / {}, {} | {misses} | {lost} | {:.0}% |",
+        h.len(),
+        n as u64 * ticks,
+        us(h.value_at_quantile(0.5)),
+        us(h.value_at_quantile(0.99)),
+        us(h.value_at_quantile(0.999)),
+        us(h.max()),
+        h.count_between(1_000_001, u64::MAX),
+        cpu / secs * 100.0,
+    );
 }
