@@ -457,24 +457,12 @@ enum Layout {
 /// for those before it in the round), which its end-to-end latency from ingest does not show:
 /// the due-to-publish columns do, and count too.
 fn scale(secs: f64, dir: &Path) {
-    let counts: Vec<usize> = std::env::var("DRIFTLESS_BENCH_PIPELINES")
-        .unwrap_or_else(|_| "8,32".into())
-        .split(',')
-        .filter_map(|v| v.trim().parse().ok())
-        .collect();
     let demo = std::fs::read_to_string(root().join("pipelines/demo.toml")).expect("demo.toml");
     println!();
     println!("| 1 kHz 3-axis pipelines at once | samples each (min) | misses (all) | worst e2e p99 us | worst e2e p99.9 us | worst e2e max us | due to publish: worst p99.9 / max us, over 1 ms | lost | CPU (all) | a 1 kHz sleeper beside them, woken late: p99.9 / max us, over 1 ms |");
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for n in counts {
-        // The demo, renamed per IMU: each publishes its own services.
-        let imus: Vec<PathBuf> = (0..n)
-            .map(|i| {
-                let file = dir.join(format!("imu{i}.toml"));
-                std::fs::write(&file, demo.replace("demo", &format!("imu{i}"))).expect("write");
-                file
-            })
-            .collect();
+    for n in pipeline_counts() {
+        let imus = per_imu(&demo, "imu", n, dir);
         let demo_path = root().join("pipelines/demo.toml");
         for layout in [Layout::Separate, Layout::Daemons(1), Layout::Daemons(2)] {
             let (label, groups): (String, Vec<Vec<&Path>>) = match layout {
@@ -495,6 +483,27 @@ fn scale(secs: f64, dir: &Path) {
             scale_row(&label, &groups, secs, dir, n == 32);
         }
     }
+}
+
+/// How many pipelines runs 5 and 6 lay out (`DRIFTLESS_BENCH_PIPELINES`, default "8,32").
+fn pipeline_counts() -> Vec<usize> {
+    std::env::var("DRIFTLESS_BENCH_PIPELINES")
+        .unwrap_or_else(|_| "8,32".into())
+        .split(',')
+        .filter_map(|v| v.trim().parse().ok())
+        .collect()
+}
+
+/// `n` copies of the pipeline `text` (named and publishing as "demo"), renamed `{stem}{i}`
+/// so that each publishes its own services; their files in `dir`.
+fn per_imu(text: &str, stem: &str, n: usize, dir: &Path) -> Vec<PathBuf> {
+    (0..n)
+        .map(|i| {
+            let file = dir.join(format!("{stem}{i}.toml"));
+            std::fs::write(&file, text.replace("demo", &format!("{stem}{i}"))).expect("write");
+            file
+        })
+        .collect()
 }
 
 /// Wait for `child` to exit (killed after `timeout`); the CPU seconds it used, all threads.
@@ -603,11 +612,6 @@ const DEMO_LAG: u64 = 64;
 /// daemon's end-to-end figures start when it takes the sample, so a pipeline waiting for others
 /// in its round shows only in send to receipt.
 fn drivers(secs: f64, dir: &Path) {
-    let counts: Vec<usize> = std::env::var("DRIFTLESS_BENCH_PIPELINES")
-        .unwrap_or_else(|_| "8,32".into())
-        .split(',')
-        .filter_map(|v| v.trim().parse().ok())
-        .collect();
     let demo = std::fs::read_to_string(root().join("pipelines/demo.toml")).expect("demo.toml");
     let sim = "kind = \"ingest.sim\"\noutput = \"demo/raw\"\nprofile = \"adis16405\"\nmotion = \"stop-and-go\"\nseed = 1\n";
     assert!(
@@ -621,14 +625,8 @@ fn drivers(secs: f64, dir: &Path) {
     println!();
     println!("| 1 kHz 3-axis IMUs from sensor drivers | samples received (all) | send to receipt p50 / p99 / p99.9 / max us, over 1 ms | misses from ingest (all) | lost | CPU, all daemons |");
     println!("|---|---:|---:|---:|---:|---:|");
-    for n in counts {
-        let imus: Vec<PathBuf> = (0..n)
-            .map(|i| {
-                let file = dir.join(format!("drv{i}.toml"));
-                std::fs::write(&file, driven.replace("demo", &format!("drv{i}"))).expect("write");
-                file
-            })
-            .collect();
+    for n in pipeline_counts() {
+        let imus = per_imu(&driven, "drv", n, dir);
         let one: Vec<&Path> = imus.iter().map(PathBuf::as_path).collect();
         let separate: Vec<Vec<&Path>> = one.iter().map(|f| vec![*f]).collect();
         for (label, groups) in [
