@@ -377,7 +377,8 @@ fn sensor_drivers_and_a_simulated_imu_share_a_daemon() {
     // The simulator kept its pace beside the drivers: woken at its due times, not at a
     // driver's sample or a millisecond's rounding.
     let late = reports[2]["woken_late_ns"]["p50"].as_u64().expect("paced");
-    assert!(late < 250_000, "woken {late} ns late (p50): {}", reports[2]);
+    // (With epoll's millisecond timeouts instead of the timer: ~520 us.)
+    assert!(late < 350_000, "woken {late} ns late (p50): {}", reports[2]);
     let cpu = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     let busy = cpu(usage.ru_utime) + cpu(usage.ru_stime);
     eprintln!("simulator woken {late} ns late (p50); daemon {busy:.2} s of CPU in {wall:.2} s");
