@@ -23,7 +23,8 @@
 //!    corrected service; N daemons against one daemon.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[path = "support/mod.rs"]
@@ -631,7 +632,7 @@ fn drivers(secs: f64, dir: &Path) {
         let separate: Vec<Vec<&Path>> = one.iter().map(|f| vec![*f]).collect();
         for (label, groups) in [
             (format!("{n} daemons"), separate),
-            (format!("{n} in one daemon"), vec![one.clone()]),
+            (format!("{n} in one daemon"), vec![one]),
         ] {
             drivers_row(&label, n, &groups, secs, dir);
         }
@@ -664,9 +665,9 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
     }
     let ticks = (secs * 1000.0) as u64;
     // When the driver sent each IMU's sample k, at [i * ticks + k].
-    let sent: std::sync::Arc<Vec<AtomicU64>> =
-        std::sync::Arc::new((0..n as u64 * ticks).map(|_| AtomicU64::new(0)).collect());
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let sent: Arc<Vec<AtomicU64>> =
+        Arc::new((0..n as u64 * ticks).map(|_| AtomicU64::new(0)).collect());
+    let stop = Arc::new(AtomicBool::new(false));
     let reader = {
         let (p, stop, sent) = (p.clone(), stop.clone(), sent.clone());
         std::thread::spawn(move || {
@@ -683,7 +684,7 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
                 set.add(w, i).expect("watch");
             }
             let mut h = hist();
-            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            while !stop.load(Ordering::Relaxed) {
                 let _ = set.wait(None, Duration::from_millis(10), |i| {
                     let _ = wakers[i].drain();
                 });
@@ -735,7 +736,7 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
         }
     }
     std::thread::sleep(Duration::from_millis(200));
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    stop.store(true, Ordering::Relaxed);
     let h = reader.join().expect("reader thread");
     let mut cpu = 0.0;
     let (mut misses, mut lost) = (0u64, 0u64);

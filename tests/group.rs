@@ -98,6 +98,26 @@ fn start_group(files: &[&Path], prefix: &Prefix, extra: &[&str]) -> std::process
     start(first, prefix, &args)
 }
 
+/// Wait for the daemon `child` to exit 0 (its stderr in the message if not); the resources it
+/// used, all threads (from wait4: std's wait does not give them).
+fn reap_with_usage(child: &mut std::process::Child) -> libc::rusage {
+    let pid = child.id() as libc::pid_t;
+    let mut status = 0;
+    // SAFETY: a zeroed rusage is valid; wait4 on our own child, which std has not reaped.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let rc = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    let mut err = String::new();
+    if let Some(mut e) = child.stderr.take() {
+        let _ = std::io::Read::read_to_string(&mut e, &mut err);
+    }
+    assert_eq!(rc, pid);
+    assert!(
+        libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
+        "stderr: {err}"
+    );
+    usage
+}
+
 fn read_json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).expect("report written");
     serde_json::from_str(&text).expect("report is JSON")
@@ -247,14 +267,8 @@ fn simulated_imus_sharing_a_daemon_wake_together() {
     let all: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     // Reaped below by wait4, which gives the rusage that std's wait does not.
     #[allow(clippy::zombie_processes)]
-    let child = start_group(&all, &prefix, &["--report", report.to_str().unwrap()]);
-    let pid = child.id() as libc::pid_t;
-    let mut status = 0;
-    // SAFETY: a zeroed rusage is valid; wait4 on our own child, which std has not reaped.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let rc = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
-    assert_eq!(rc, pid);
-    assert!(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0);
+    let mut child = start_group(&all, &prefix, &["--report", report.to_str().unwrap()]);
+    let usage = reap_with_usage(&mut child);
     for r in read_json(&report).as_array().expect("array") {
         assert_eq!(r["samples_out"], N as u64, "{r}");
         let due = &r["due_to_published_ns"];
@@ -344,21 +358,8 @@ fn sensor_drivers_and_a_simulated_imu_share_a_daemon() {
     for (c, got) in corrected.iter().zip(&mut got) {
         got.extend(collect(c, 32, Duration::from_secs(10)));
     }
-    let pid = child.id() as libc::pid_t;
-    let mut status = 0;
-    // SAFETY: a zeroed rusage is valid; wait4 on our own child, which std has not reaped.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let rc = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    let usage = reap_with_usage(&mut child);
     let wall = started.elapsed().as_secs_f64();
-    let mut err = String::new();
-    if let Some(mut e) = child.stderr.take() {
-        let _ = std::io::Read::read_to_string(&mut e, &mut err);
-    }
-    assert_eq!(rc, pid);
-    assert!(
-        libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
-        "stderr: {err}"
-    );
 
     for ((name, got), input) in names.iter().zip(&got).zip(&inputs) {
         assert_eq!(got.len(), N, "{name}: every sample once");

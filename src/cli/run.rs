@@ -66,24 +66,23 @@ fn write_report(path: &Path, reports: &[Option<crate::metrics::Report>]) -> Resu
 /// Load every pipeline file and the prefix each runs under; one daemon has one iceoryx2 root.
 fn load_all(args: &Args) -> Result<Vec<(Pipeline, String)>, CliError> {
     let mut out: Vec<(Pipeline, String)> = Vec::new();
-    let mut root: Option<PathBuf> = None;
+    // The first file's root, which every other must share.
+    let mut first_root: Option<PathBuf> = None;
     for path in &args.pipelines {
         let pipeline: Pipeline = config::load(path)?;
         let prefix = args.iceoryx2.resolve(Some(&pipeline.iceoryx2))?;
         let here = transport::root();
-        if let (Some(first), Some((p0, _))) = (&root, out.first()) {
-            if *first != here {
-                return Err(CliError::input(format!(
-                    "{} uses iceoryx2 root {} and {} uses {}: one daemon has one root; give \
-                     the same `root_path`, or --root-path",
-                    p0.path.display(),
-                    first.display(),
-                    path.display(),
-                    here.display()
-                )));
-            }
+        let first = first_root.get_or_insert_with(|| here.clone());
+        if *first != here {
+            return Err(CliError::input(format!(
+                "{} uses iceoryx2 root {} and {} uses {}: one daemon has one root; give the \
+                 same `root_path`, or --root-path",
+                args.pipelines[0].display(),
+                first.display(),
+                path.display(),
+                here.display()
+            )));
         }
-        root = Some(here);
         out.push((pipeline, prefix));
     }
     Ok(out)

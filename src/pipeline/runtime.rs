@@ -444,41 +444,34 @@ pub fn run_group(
             });
         }
     }
+    // Starting is all or nothing: stop what did start, then say why.
+    let abandon = |group: Vec<Running<'_>>, e: RunError| {
+        for r in group {
+            let _ = r.finish();
+        }
+        remove_leftovers(members);
+        Err(e)
+    };
     let mut group: Vec<Running<'_>> = Vec::with_capacity(members.len());
     for (p, prefix) in members {
         match Running::start(p, prefix, opts.print_summary) {
             Ok(r) => group.push(r),
-            Err(e) => {
-                for r in group {
-                    let _ = r.finish();
-                }
-                remove_leftovers(members);
-                return Err(e);
-            }
+            Err(e) => return abandon(group, e),
         }
     }
     let notified = match Notified::of(&group) {
         Ok(n) => n,
-        Err(e) => {
-            for r in group {
-                let _ = r.finish();
-            }
-            remove_leftovers(members);
-            return Err(e.into());
-        }
+        Err(e) => return abandon(group, e.into()),
     };
     let stats = group.iter_mut().filter_map(|r| r.stats.take()).collect();
     let reporter = match spawn_reporter(stats) {
         Ok(h) => h,
         Err(e) => {
-            for r in group {
-                let _ = r.finish();
-            }
-            remove_leftovers(members);
-            return Err(RunError::Stage {
+            let e = RunError::Stage {
                 stage: "reporter".into(),
                 message: e.to_string(),
-            });
+            };
+            return abandon(group, e);
         }
     };
     // After the reporting thread is spawned, so only the hot thread gets these settings.
