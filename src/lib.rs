@@ -1,19 +1,25 @@
 //! # driftless
 //!
-//! Real-time cleaning of MEMS gyroscope rates. A sample enters at **ingest** (a sensor service, a
-//! CSV replay or the built-in simulator), passes a **windowed wavelet denoiser**, then a **drift
-//! predictor** (an RBF network trained on the gyro's drift), and leaves at **publish**; every hop is
-//! a zero-copy iceoryx2 service. Offline commands characterise a gyro (Allan deviation, IEEE 952
-//! noise terms), denoise logs, and train and evaluate the drift model.
+//! Real-time cleaning of MEMS gyroscope rates. A sample enters at **ingest** (a sensor driver's
+//! iceoryx2 service, a CSV or MCAP replay, or the built-in simulator), passes a **windowed
+//! wavelet denoiser** (or none), then a **drift predictor** (by default a Kalman filter on the
+//! bias, driven by the gyro's own Allan terms and re-measured at each stop; or the paper's RBF
+//! network), and leaves at **publish**; every hop is a zero-copy iceoryx2 service. Offline
+//! commands characterise a gyro (Allan deviation, IEEE 952 noise terms), denoise logs, train and
+//! evaluate the drift model, and judge every method by the heading error a navigator would see.
 //!
-//! The maths modules ([`wavelet`], ...) are pure: no I/O, no transport, usable as a library.
-//! Layers, from the ground up: maths -> pipeline and stages -> transport -> [`cli`].
+//! Layers, from the ground up (ARCHITECTURE.md; `tests/layers.rs` checks them): [`clock`] and
+//! the maths ([`wavelet`], [`allan`], [`sim`], [`drift`], [`nav`], ...: no I/O, no transport,
+//! usable as a library) -> [`transport`] (the only module that touches iceoryx2) -> [`io`]
+//! (files) -> [`metrics`] -> [`stages`] (the stage contract and every stage kind) ->
+//! [`pipeline`] (the pipeline file, the runtime) -> [`cli`]. Each imports only from below.
 
 #![warn(missing_docs)]
 
 pub mod allan;
 pub mod bigbuf;
 pub mod cli;
+pub mod clock;
 pub mod drift;
 pub mod io;
 pub mod metrics;

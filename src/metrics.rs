@@ -129,7 +129,7 @@ impl HeadingSummary {
 /// Integrates the heading error of a segment's samples against the truth, in the hot thread:
 /// a few additions and the truth's evaluation per sample, no allocation.
 pub struct HeadingTracker {
-    truth: crate::pipeline::stage::TrueRate,
+    truth: crate::sim::TrueRate,
     /// rad/s per input unit (the truth's units).
     scale: f64,
     dt: f64,
@@ -140,12 +140,7 @@ pub struct HeadingTracker {
 impl HeadingTracker {
     /// A tracker for samples at `rate_hz` of `axes` axes, the truth in input units scaled to
     /// rad/s by `scale`.
-    pub fn new(
-        truth: crate::pipeline::stage::TrueRate,
-        scale: f64,
-        rate_hz: f64,
-        axes: usize,
-    ) -> Self {
+    pub fn new(truth: crate::sim::TrueRate, scale: f64, rate_hz: f64, axes: usize) -> Self {
         HeadingTracker {
             truth,
             scale,

@@ -203,6 +203,10 @@ pub enum SimError {
     BadLsb(f64),
 }
 
+/// The true rate per axis at sensor time `t` (s), in the units the samples are in: what a
+/// source that knows the truth (the simulator) gives the daemon to measure heading error against.
+pub type TrueRate = Box<dyn Fn(f64) -> [f64; 3] + Send>;
+
 /// Everything the simulator needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {

@@ -101,7 +101,7 @@ output = "a/corrected"
         std::fs::write(&file, &text).unwrap();
         let p = config::load(&file).expect("valid pipeline");
         let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
-        let mut stage = driftless::stages::build(spec, &p).expect("stage");
+        let mut stage = spec.params.stage(&p.context()).expect("stage");
         let (allocations, n) = alloc_counter::allocations_during(|| {
             let mut n = 0;
             for t in 0..5000u64 {

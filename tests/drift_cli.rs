@@ -409,7 +409,7 @@ fn predict_rbf_with_the_ar_predictor_is_the_models_ar_in_the_same_compensator() 
         std::fs::write(&file, pipeline(predictor)).unwrap();
         let p = config::load(&file).expect("valid pipeline");
         let spec = p.stages.iter().find(|s| s.name == "predict").unwrap();
-        let mut stage = driftless::stages::build(spec, &p).expect("stage");
+        let mut stage = spec.params.stage(&p.context()).expect("stage");
         input
             .iter()
             .enumerate()

@@ -1,5 +1,6 @@
 //! `driftless man [--dir DIR]`: the manual page (clap_mangen), on stdout or one page per
-//! command into a folder.
+//! command into a folder; `driftless man --markdown`: the command reference as Markdown
+//! (`docs/reference/cli.md`, see `reference.rs`).
 
 use std::path::PathBuf;
 
@@ -14,11 +15,19 @@ pub struct Args {
     /// instead of printing driftless.1.
     #[arg(long)]
     pub dir: Option<PathBuf>,
+    /// Print the command reference as Markdown instead (the file docs/reference/cli.md): every
+    /// command with its usage, arguments and options.
+    #[arg(long, conflicts_with = "dir")]
+    pub markdown: bool,
 }
 
 /// Print or write the manual pages.
 pub fn run(args: Args) -> Result<(), CliError> {
     let cmd = Cli::command();
+    if args.markdown {
+        print!("{}", super::reference::markdown(cmd));
+        return Ok(());
+    }
     match args.dir {
         None => clap_mangen::Man::new(cmd)
             .render(&mut std::io::stdout())

@@ -27,6 +27,7 @@ pub mod man;
 pub mod nav_eval;
 pub mod num;
 pub mod record;
+pub mod reference;
 pub mod relay;
 pub mod run;
 pub mod simulate;
@@ -81,8 +82,17 @@ enum Command {
     Simulate(simulate::Args),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     Completions(completions::Args),
-    /// Print the manual page (roff), or write one page per command into a folder.
+    /// Print the manual page (roff), or write one page per command into a folder, or print the
+    /// command reference as Markdown (--markdown).
     Man(man::Args),
+}
+
+/// The whole command line as clap sees it: what parses `driftless ...`, prints `--help` and
+/// renders the manual pages and `docs/reference/cli.md`. Parsing with it
+/// (`try_get_matches_from`) checks a command line without running anything.
+pub fn command() -> clap::Command {
+    use clap::CommandFactory as _;
+    Cli::command()
 }
 
 /// A command's failure: the message for stderr and the process exit code (module docs).

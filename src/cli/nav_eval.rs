@@ -26,9 +26,8 @@ use crate::nav::{
 };
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::offline::Offline;
-use crate::pipeline::schema::Src;
 use crate::sim::{SimConfig, Simulator};
-use crate::transport::RawSample;
+use crate::stages::schema::Src;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -236,15 +235,12 @@ fn bias_chain(src: &Source) -> Result<Chain, CliError> {
         .terms
         .iter()
         .map(|t| {
-            let keys = format!(
-                "kind = \"predict.bias\"\narw = {:e}\nbias_instability = {:e}\nrrw = {:e}\nquantization = {:e}\nlsb = {:e}",
-                t.n * 60.0,
-                t.b * 3600.0,
-                t.k * 216_000.0,
-                t.q,
-                t.lsb
-            );
-            builtin_pipeline(src.rate, &keys, "<built-in denoise.wavelet -> predict.bias>")
+            let keys = format!("kind = \"predict.bias\"\n{}", t.stage_keys());
+            builtin_pipeline(
+                src.rate,
+                &keys,
+                "<built-in denoise.wavelet -> predict.bias>",
+            )
         })
         .collect::<Result<_, _>>()?;
     Ok(Chain {
@@ -323,45 +319,6 @@ fn file_chain(path: &Path, rate: f64) -> Result<Chain, CliError> {
         ),
         pipelines: vec![p],
     })
-}
-
-/// Corrected rates (deg/s) of `inputs` (one measured series per axis, equal lengths) through
-/// `p`'s stages; lanes beyond the pipeline's axes run in further passes.
-fn run_chain(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, CliError> {
-    let lanes = p.axes;
-    let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
-    let n = inputs.first().map_or(0, |x| x.len());
-    let mut out = Vec::with_capacity(inputs.len());
-    for chunk in inputs.chunks(lanes) {
-        let mut off = Offline::new(p).map_err(CliError::input)?;
-        let mut got: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; chunk.len()];
-        let mut put = |g: crate::transport::GyroSample| {
-            let k = g.seq as usize;
-            for (lane, col) in got.iter_mut().enumerate() {
-                if k < n {
-                    col[k] = g.rate[lane].to_degrees();
-                }
-            }
-        };
-        for k in 0..n {
-            let mut rate = [0.0; 3];
-            for (lane, r) in rate.iter_mut().enumerate().take(lanes) {
-                // Unused lanes repeat the first axis (their output is not read).
-                *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
-            }
-            let raw = RawSample {
-                t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
-                seq: k as u64,
-                rate,
-                flags: 0,
-                epoch: 0,
-            };
-            off.push(&raw, &mut put);
-        }
-        off.finish(&mut put);
-        out.extend(got);
-    }
-    Ok(out)
 }
 
 /// The motion added to the windows: a built-in profile, drawn anew for each window and axis
@@ -561,12 +518,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 if c.pipelines.len() > 1 {
                     let mut per_axis = Vec::with_capacity(src.axes.len());
                     for (p, y) in c.pipelines.iter().zip(&measured) {
-                        per_axis.extend(run_chain(p, &[y])?);
+                        per_axis.extend(Offline::run_series(p, &[y]).map_err(CliError::input)?);
                     }
                     chain_out.push(per_axis);
                 } else {
                     let inputs: Vec<&[f64]> = measured.iter().map(Vec::as_slice).collect();
-                    chain_out.push(run_chain(&c.pipelines[0], &inputs)?);
+                    chain_out.push(
+                        Offline::run_series(&c.pipelines[0], &inputs).map_err(CliError::input)?,
+                    );
                 }
             }
             for (a, m) in motion_traces.iter().enumerate() {

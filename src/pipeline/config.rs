@@ -43,9 +43,9 @@ use toml::Spanned;
 
 use crate::io::InputError;
 use crate::pipeline::registry::{self, Entry};
-use crate::pipeline::schema::Src;
-pub use crate::pipeline::schema::{Context, Units};
-use crate::pipeline::stage::{Kind, Params, Role};
+use crate::stages::contract::{Kind, Params, Role};
+use crate::stages::schema::Src;
+pub use crate::stages::schema::{Context, Units};
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]

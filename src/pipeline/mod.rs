@@ -1,14 +1,15 @@
-//! Pipelines: the pipeline file ([`config`]: top-level keys, `[iceoryx2]`, the chain), the kinds
-//! by name ([`registry`]), the helpers every stage kind reads its own table with ([`schema`]),
-//! the stage contract
-//! ([`stage`]), the input guard ([`guard`]) and the executor ([`runtime`]).
+//! Pipelines: a pipeline file read into a chain of stages, and run.
+//!
+//! The file's schema ([`config`]: top-level keys, `[iceoryx2]`, the chain), the stage kinds by
+//! name ([`registry`], over [`crate::stages::KINDS`]), the input guard every raw sample passes
+//! ([`guard`]), the executor ([`runtime`]: the hot thread, its clock, shutdown) and the same
+//! chain run offline on a log ([`offline`]). What a stage is, and every kind, is in
+//! [`crate::stages`]: this module uses it and it never uses this one.
 
 pub mod config;
 pub mod guard;
 pub mod offline;
 pub mod registry;
 pub mod runtime;
-pub mod schema;
-pub mod stage;
 
 pub use config::{Pipeline, StageSpec};

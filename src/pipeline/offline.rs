@@ -7,7 +7,7 @@
 
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
-use crate::pipeline::stage::{Role, Stage};
+use crate::stages::contract::{Role, Stage};
 use crate::transport::{GyroSample, RawSample};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
@@ -64,6 +64,47 @@ impl Offline {
     /// Total algorithmic delay of the stages, samples.
     pub fn lag(&self) -> usize {
         self.stages.iter().map(|s| s.lag()).sum()
+    }
+
+    /// Rates (deg/s) through `p`'s stages: `inputs` holds one measured series per axis (deg/s,
+    /// equal lengths, sample k at time k / `rate_hz`); the result has one corrected series per
+    /// input, aligned with it (the stages' lag undone by the flush at the end). Lanes beyond the
+    /// pipeline's `axes` run in further passes. What `driftless nav-eval` judges a chain by.
+    pub fn run_series(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, String> {
+        let lanes = p.axes;
+        let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
+        let n = inputs.first().map_or(0, |x| x.len());
+        let mut out = Vec::with_capacity(inputs.len());
+        for chunk in inputs.chunks(lanes) {
+            let mut off = Offline::new(p)?;
+            let mut got: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; chunk.len()];
+            let mut put = |g: GyroSample| {
+                let k = g.seq as usize;
+                for (lane, col) in got.iter_mut().enumerate() {
+                    if k < n {
+                        col[k] = g.rate[lane].to_degrees();
+                    }
+                }
+            };
+            for k in 0..n {
+                let mut rate = [0.0; 3];
+                for (lane, r) in rate.iter_mut().enumerate().take(lanes) {
+                    // Unused lanes repeat the first axis (their output is not read).
+                    *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
+                }
+                let raw = RawSample {
+                    t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
+                    seq: k as u64,
+                    rate,
+                    flags: 0,
+                    epoch: 0,
+                };
+                off.push(&raw, &mut put);
+            }
+            off.finish(&mut put);
+            out.extend(got);
+        }
+        Ok(out)
     }
 
     fn run_from(&mut self, first: usize, mut s: GyroSample, out: &mut impl FnMut(GyroSample)) {

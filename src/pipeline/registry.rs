@@ -11,8 +11,8 @@ use toml::Spanned;
 
 use crate::io::InputError;
 use crate::pipeline::config::StageSpec;
-use crate::pipeline::schema::{Context, Src, StageTable};
-use crate::pipeline::stage::{Kind, Params};
+use crate::stages::contract::{Kind, Params};
+use crate::stages::schema::{Context, Src, StageTable};
 pub use crate::stages::KINDS;
 
 /// The kind called `name` in pipeline files.

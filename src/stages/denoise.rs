@@ -16,8 +16,8 @@
 use toml::Spanned;
 
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Role, Stage};
+use crate::stages::contract::{Kind, Params, Role, Stage};
+use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::{GyroSample, FLAG_FLUSHED, FLAG_WARMING_UP};
 use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;

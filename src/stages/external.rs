@@ -23,8 +23,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use crate::io::InputError;
-use crate::pipeline::schema::{StageTable, POLL_TIMEOUT_US};
-use crate::pipeline::stage::{Kind, Params, Role};
+use crate::stages::contract::{Kind, Params, Role};
+use crate::stages::schema::{StageTable, POLL_TIMEOUT_US};
 use crate::transport::{GyroSample, Qos, Transport, TransportError};
 
 /// `external`.

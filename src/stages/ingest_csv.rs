@@ -24,9 +24,9 @@ use std::path::PathBuf;
 use toml::Spanned;
 
 use crate::io::{InputError, RowRead, RowReader};
-use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Role, Source};
+use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Pace, LOOP, PACE};
+use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::{RawSample, RAW_INVALID};
 
 const FILE: Key = Key {

@@ -17,8 +17,8 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, StageTable, POLL_TIMEOUT_US};
-use crate::pipeline::stage::{Kind, Params, Poll, Role, Source};
+use crate::stages::contract::{Kind, Params, Poll, Role, Source};
+use crate::stages::schema::{Context, StageTable, POLL_TIMEOUT_US};
 use crate::transport::{monotonic_ns, Input, RawSample, Transport, TransportError, Waker};
 
 /// `ingest.iceoryx2`.

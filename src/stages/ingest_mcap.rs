@@ -26,9 +26,9 @@ use toml::Spanned;
 
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Role, Source};
+use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Pace, LOOP, PACE};
+use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::RawSample;
 
 const FILE: Key = Key {

@@ -17,11 +17,11 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
+use crate::clock::PaceClock;
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable, Type, Units};
-use crate::pipeline::stage::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::sim::{SimConfig, Simulator};
-use crate::stages::PaceClock;
+use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
+use crate::stages::schema::{Context, Key, StageTable, Type, Units};
 use crate::transport::{monotonic_ns, RawSample};
 
 const PROFILE: Key = Key {

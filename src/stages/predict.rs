@@ -22,8 +22,8 @@ use toml::Spanned;
 use crate::drift::compensator::{Compensator, Mode};
 use crate::drift::{ModelPredictor, PredictorKind};
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Role, Stage};
+use crate::stages::contract::{Kind, Params, Role, Stage};
+use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::{GyroSample, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 
 const MODEL: Key = Key {

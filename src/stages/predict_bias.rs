@@ -25,8 +25,8 @@
 use super::predict::motion_flags;
 use crate::drift::bias::{BiasMode, BiasTerms, BiasTracker, TrackerConfig, DEFAULT_INITIAL_SD};
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Role, Stage};
+use crate::stages::contract::{Kind, Params, Role, Stage};
+use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::GyroSample;
 #[cfg(doc)]
 use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};

@@ -12,8 +12,8 @@
 use toml::Spanned;
 
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable, Type};
-use crate::pipeline::stage::{Kind, Params, Role, Stage};
+use crate::stages::contract::{Kind, Params, Role, Stage};
+use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::{GyroSample, FLAG_OUTPUT_REPAIRED};
 
 const NOTIFY: Key = Key {

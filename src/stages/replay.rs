@@ -9,9 +9,9 @@ use std::time::Duration;
 
 use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
 
-use crate::pipeline::schema::{Key, Type};
-use crate::pipeline::stage::{Poll, Source};
-use crate::stages::PaceClock;
+use crate::clock::PaceClock;
+use crate::stages::contract::{Poll, Source};
+use crate::stages::schema::{Key, Type};
 use crate::transport::{monotonic_ns, RawSample};
 
 /// Samples per block the reader thread hands to the hot thread.

@@ -13,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use crate::io::InputError;
-use crate::pipeline::schema::{Context, Key, StageTable};
+use crate::stages::schema::{Context, Key, StageTable};
 use crate::transport::{GyroSample, RawSample};
 
 /// A processing stage: one sample in, at most one sample out.
@@ -69,7 +69,7 @@ pub trait Source {
     /// thread fall due together and one wake-up serves them all, and so that the first
     /// samples' cold cost makes no later one late. Default: nothing (a source that does not
     /// pace itself).
-    fn share_clock(&mut self, _clock: crate::stages::PaceClock) {}
+    fn share_clock(&mut self, _clock: crate::clock::PaceClock) {}
 
     /// For a source that another process tells of new samples: what the runtime sleeps on
     /// for it, and for how long at most before asking anyway (a driver that does not notify).
@@ -81,8 +81,7 @@ pub trait Source {
     }
 }
 
-/// The true rate per axis, in the pipeline's input units, at sensor time `t` (s).
-pub type TrueRate = Box<dyn Fn(f64) -> [f64; 3] + Send>;
+pub use crate::sim::TrueRate;
 
 /// Where a kind sits in the chain.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,0 +1,71 @@
+//! Time: the one clock every timestamp of ours is read on, and the pacing of sources that
+//! follow a sensor's clock (the simulator, a replay in real time).
+//!
+//! [`monotonic_ns`] is `CLOCK_MONOTONIC`: the `ingest_ns` stamps on the wire, every latency the
+//! daemon measures and every subscriber's "now" are on it, so they compare between processes on
+//! one host. A [`PaceClock`] is when a paced source's first sample was due; the runtime shares
+//! one between the pipelines of a daemon, so that their samples fall due together.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// CLOCK_MONOTONIC in nanoseconds: comparable between processes on one host.
+pub fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC is always available on Linux.
+    unsafe {
+        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+    }
+    (ts.tv_sec as u64)
+        .wrapping_mul(1_000_000_000)
+        .wrapping_add(ts.tv_nsec as u64)
+}
+
+/// The clock of a paced source: when its first sample is due, as an instant to sleep until and
+/// as [`monotonic_ns`] to measure lateness on. The pipelines of one daemon share one.
+#[derive(Debug, Clone, Copy)]
+pub struct PaceClock {
+    start: Instant,
+    start_ns: u64,
+}
+
+impl PaceClock {
+    /// A clock starting now.
+    pub fn now() -> Self {
+        PaceClock {
+            start: Instant::now(),
+            start_ns: monotonic_ns(),
+        }
+    }
+
+    /// The instant `offset` after the start.
+    pub fn at(&self, offset: Duration) -> Instant {
+        self.start + offset
+    }
+
+    /// Sleep until `offset` after the start (noticing `stop`); returns when that was due, in
+    /// monotonic ns, or None when stopped first.
+    pub fn wait(&self, offset: Duration, stop: &AtomicBool) -> Option<u64> {
+        sleep_until(self.at(offset), stop)
+            .then(|| self.start_ns.saturating_add(offset.as_nanos() as u64))
+    }
+}
+
+/// Sleep until `due` (a monotonic instant), in slices short enough to notice `stop`.
+/// Returns false when stopped first.
+pub fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {
+    const SLICE: Duration = Duration::from_millis(20);
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return false;
+        }
+        let now = Instant::now();
+        if now >= due {
+            return true;
+        }
+        std::thread::sleep((due - now).min(SLICE));
+    }
+}

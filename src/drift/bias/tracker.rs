@@ -1,0 +1,479 @@
+//! [`BiasTracker`]: what decides which samples the filter sees (stillness from the terms,
+//! the delay window, the recovered ends of a stop) and what the stage outputs meanwhile.
+
+use super::*;
+use crate::drift::stillness::{StillnessConfig, StillnessDetector};
+
+/// Settings of the stillness gating and delay of a [`BiasTracker`], in seconds and in standard
+/// deviations of the still statistics (thresholds from the noise terms, see
+/// [`stillness_from_terms`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerConfig {
+    /// Detector window, s.
+    pub window_s: f64,
+    /// Quiet time after the window before "still", s.
+    pub settle_s: f64,
+    /// Delay window: a still sample enters the filter only after the detector stayed still this
+    /// long after it, s.
+    pub delay_s: f64,
+    /// When the detector turns still, this much of its window before the current sample (at
+    /// most the window) joins the stop, s: the window's test has just judged those samples
+    /// still, so a stop is measured from (nearly) its start, not from when it was confirmed.
+    pub backfill_s: f64,
+    /// When a movement is detected, the waiting samples older than its estimated onset by more
+    /// than this still enter the filter, s (at least the delay: all are dropped, as before
+    /// onset estimation).
+    pub onset_guard_s: f64,
+    /// A stop confirmed for less than this is dropped whole when a movement is detected, s
+    /// (no onset estimation: a short "stop" within a movement is likely a lull in it).
+    pub min_stop_s: f64,
+    /// Variance exit threshold: standard deviations of the window variance above its still value.
+    pub var_sigmas: f64,
+    /// Mean-shift exit threshold: standard deviations of the window mean.
+    pub mean_sigmas: f64,
+    /// The enter (back to moving) thresholds are this many times the exit distances (>= 1).
+    pub hysteresis: f64,
+    /// The mean-shift test tolerates this many standard deviations of the bias estimate.
+    pub estimate_sigmas: f64,
+    /// How bias instability becomes states (None: [`Instability::from_terms`]).
+    pub instability: Option<Instability>,
+}
+
+impl Default for TrackerConfig {
+    /// Window 1 s, settle 0.25 s, delay 1 s, onset guard 0.5 s, shortest stop 0.5 s, backfill
+    /// 0.5 s, variance 4 sd, mean 4 sd, hysteresis 1.5, estimate 3 sd, the default instability
+    /// ([`Instability::from_terms`]). Measured on heading (docs/navigation.md): the backfill
+    /// and the onset estimate let a stop be used from its start to its end.
+    fn default() -> Self {
+        TrackerConfig {
+            window_s: 1.0,
+            settle_s: 0.25,
+            delay_s: 1.0,
+            onset_guard_s: 0.5,
+            min_stop_s: 0.5,
+            backfill_s: 0.5,
+            var_sigmas: 4.0,
+            mean_sigmas: 4.0,
+            hysteresis: 1.5,
+            estimate_sigmas: 3.0,
+            instability: None,
+        }
+    }
+}
+
+fn samples(name: &'static str, s: f64, rate_hz: f64) -> Result<usize, BiasError> {
+    if !(s.is_finite() && s >= 0.0) {
+        return Err(BiasError::BadTime(name, s));
+    }
+    let n = (s * rate_hz).round();
+    if n > MAX_DELAY as f64 {
+        return Err(BiasError::DelayTooLong(n as usize));
+    }
+    Ok(n as usize)
+}
+
+/// Stillness thresholds from noise terms: over a window of w samples a still sensor's variance
+/// is sigma^2 = [`BiasTerms::sample_variance`] with relative spread sqrt(2/w), and its mean is
+/// the bias with spread sqrt(N^2/T + 2 Q^2/T^2 + rest/w), T = w/rate, where rest is sigma^2
+/// less its white and quantisation parts. Quantisation noise is a differenced white angle: its
+/// window mean telescopes to two samples' worth, so it must not widen the mean test as white
+/// noise of the same per-sample variance would (on a sensor with a large Q, such as the
+/// ADXRS450's, that hid 10 deg/s turns). Exit thresholds sit
+/// `var_sigmas` and `mean_sigmas` of those spreads above; the enter thresholds `hysteresis`
+/// times as far.
+pub fn stillness_from_terms(
+    terms: &BiasTerms,
+    rate_hz: f64,
+    cfg: &TrackerConfig,
+) -> Result<StillnessConfig, BiasError> {
+    terms.check()?;
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(BiasError::BadRate(rate_hz));
+    }
+    for (name, v) in [
+        ("var_sigmas", cfg.var_sigmas),
+        ("mean_sigmas", cfg.mean_sigmas),
+        ("hysteresis", cfg.hysteresis),
+        ("estimate_sigmas", cfg.estimate_sigmas),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(BiasError::BadFactor(name, v));
+        }
+    }
+    if cfg.hysteresis < 1.0 {
+        return Err(BiasError::BadFactor("hysteresis (>= 1)", cfg.hysteresis));
+    }
+    let window = samples("window_s", cfg.window_s, rate_hz)?.max(2);
+    let settle = samples("settle_s", cfg.settle_s, rate_hz)?;
+    let w = window as f64;
+    let var = terms.sample_variance(rate_hz);
+    let spread = (2.0 / w).sqrt();
+    let white = terms.n * terms.n * rate_hz;
+    let quant = 2.0 * terms.q * terms.q * rate_hz * rate_hz;
+    let t = w / rate_hz;
+    let mean_sd = (terms.n * terms.n / t
+        + 2.0 * terms.q * terms.q / (t * t)
+        + (var - white - quant).max(0.0) / w)
+        .sqrt();
+    let c = StillnessConfig {
+        window,
+        var_exit: var * (1.0 + cfg.var_sigmas * spread),
+        var_enter: var * (1.0 + cfg.hysteresis * cfg.var_sigmas * spread),
+        mean_exit: cfg.mean_sigmas * mean_sd,
+        mean_enter: cfg.hysteresis * cfg.mean_sigmas * mean_sd,
+        settle,
+    };
+    c.check().map_err(BiasError::Stillness)?;
+    Ok(c)
+}
+
+/// What the tracker knows at a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BiasMode {
+    /// The detector's first window is not full: still or moving cannot be told yet.
+    Warming,
+    /// Still (confirmed by the detector, or by the gate).
+    Still,
+    /// Moving: the estimate is held, its variance grows.
+    Moving,
+}
+
+/// One sample's output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasStep {
+    /// Bias estimate, deg/s (subtract it from the rate).
+    pub bias: f64,
+    /// Its standard deviation, deg/s.
+    pub std: f64,
+    /// The mode.
+    pub mode: BiasMode,
+    /// Whether the estimate rests on a still sample (taken by the filter or waiting in the
+    /// delay window); false: it is the prior.
+    pub informed: bool,
+}
+
+/// Log-likelihood ratio of "moving" (a mean shift and a variance rise of unknown sizes) against
+/// "still" for `n` standardised residuals of sum `sum` and sum of squares `sum2` (residual over
+/// the still model's standard deviation). A variance *below* the model's counts as still, as a
+/// band-limited real sensor's is.
+fn moving_llr(n: f64, sum: f64, sum2: f64) -> f64 {
+    let mean = sum / n;
+    let s2 = sum2 / n - mean * mean;
+    if s2 > 1.0 {
+        0.5 * (sum2 - n - n * s2.ln())
+    } else {
+        0.5 * sum * mean
+    }
+}
+
+/// How many of `samples`, counted from the first, form the run most likely moving (the largest
+/// [`moving_llr`] of their residuals from `bias`, times `inv_sd`), if that ratio exceeds
+/// `floor`.
+fn likeliest_moving_run(
+    samples: impl Iterator<Item = f64>,
+    bias: f64,
+    inv_sd: f64,
+    floor: f64,
+) -> Option<usize> {
+    let (mut n, mut sum, mut sum2) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut best, mut len) = (floor, None);
+    for (i, x) in samples.enumerate() {
+        let z = (x - bias) * inv_sd;
+        n += 1.0;
+        sum += z;
+        sum2 += z * z;
+        let llr = moving_llr(n, sum, sum2);
+        if llr > best {
+            best = llr;
+            len = Some(i + 1);
+        }
+    }
+    len
+}
+
+/// Below this [`moving_llr`], a stop's confirming window holds no movement worth cutting off:
+/// the largest of ~100 prefix ratios of still noise stays below it but for about one in 10^3.
+const MOVING_EVIDENCE: f64 = 8.0;
+
+/// Still samples waiting until the sensor has stayed still for the window's length after them
+/// (see the module documentation): a fixed ring and its running sum.
+#[derive(Debug, Clone)]
+pub(super) struct DelayWindow {
+    ring: Vec<f64>,
+    head: usize,
+    pub(super) pending: usize,
+    sum: f64,
+}
+
+impl DelayWindow {
+    fn new(len: usize) -> Self {
+        DelayWindow {
+            ring: vec![0.0; len],
+            head: 0,
+            pending: 0,
+            sum: 0.0,
+        }
+    }
+
+    /// A still sample in; the oldest waiting one, if the window is full, into `filter`. A
+    /// non-finite sample is skipped.
+    fn push(&mut self, x: f64, filter: &mut BiasFilter) {
+        if !x.is_finite() {
+            return;
+        }
+        let d = self.ring.len();
+        if d == 0 {
+            filter.update(x);
+            return;
+        }
+        if self.pending == d {
+            let old = self.ring[self.head];
+            filter.update(old);
+            self.sum -= old;
+        } else {
+            self.pending += 1;
+        }
+        self.ring[self.head] = x;
+        self.head = if self.head + 1 == d { 0 } else { self.head + 1 };
+        self.sum += x;
+    }
+
+    /// A movement was detected at `moving` (not waiting): find where it began among the
+    /// waiting samples, put those older than its onset by more than `guard` samples into
+    /// `filter`, and drop the rest. The onset is the start of the most likely moving suffix
+    /// (`moving` included) under [`moving_llr`] against "still around `bias` with per-sample
+    /// variance `var`". O(waiting) once per movement, no allocation.
+    fn release_before_onset(
+        &mut self,
+        moving: f64,
+        bias: f64,
+        var: f64,
+        guard: usize,
+        filter: &mut BiasFilter,
+    ) {
+        let d = self.ring.len();
+        if self.pending > 0 && var > 0.0 && moving.is_finite() && bias.is_finite() {
+            let inv_sd = 1.0 / var.sqrt();
+            let newest = (self.head + d - 1) % d;
+            let ring = &self.ring;
+            let waiting = (1..=self.pending).map(|age| ring[(newest + d - (age - 1)) % d]);
+            let best_len = likeliest_moving_run(
+                std::iter::once(moving).chain(waiting),
+                bias,
+                inv_sd,
+                f64::NEG_INFINITY,
+            )
+            .unwrap_or(0);
+            let keep = self
+                .pending
+                .saturating_sub((best_len + guard).saturating_sub(1));
+            let oldest = (self.head + d - self.pending) % d;
+            for i in 0..keep {
+                filter.update(self.ring[(oldest + i) % d]);
+            }
+        }
+        self.clear();
+    }
+
+    /// Drop every waiting sample.
+    fn clear(&mut self) {
+        self.head = 0;
+        self.pending = 0;
+        self.sum = 0.0;
+    }
+
+    /// The mean and count of the waiting samples.
+    fn mean(&self) -> Option<(f64, usize)> {
+        (self.pending > 0).then(|| (self.sum / self.pending as f64, self.pending))
+    }
+}
+
+/// The live bias estimator of one axis: a [`BiasFilter`], its own [`StillnessDetector`], and the
+/// delay window (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct BiasTracker {
+    filter: BiasFilter,
+    detector: StillnessDetector,
+    estimate_sigmas: f64,
+    backfill: usize,
+    guard: usize,
+    still_var: f64,
+    min_run: usize,
+    run: usize,
+    pub(super) delay: DelayWindow,
+    mode: BiasMode,
+}
+
+impl BiasTracker {
+    /// A tracker for `terms` at `rate_hz` (model from `cfg.instability`, thresholds from
+    /// [`stillness_from_terms`]).
+    pub fn new(terms: &BiasTerms, rate_hz: f64, cfg: &TrackerConfig) -> Result<Self, BiasError> {
+        let instability = cfg
+            .instability
+            .unwrap_or_else(|| Instability::from_terms(terms));
+        let model = BiasModel::new(terms, rate_hz, instability)?;
+        Self::with_model(model, terms, rate_hz, cfg)
+    }
+
+    /// A tracker around any bias model (e.g. [`BiasModel::simulator_truth`]); the detector's
+    /// thresholds still come from `terms`.
+    pub fn with_model(
+        model: BiasModel,
+        terms: &BiasTerms,
+        rate_hz: f64,
+        cfg: &TrackerConfig,
+    ) -> Result<Self, BiasError> {
+        let still = stillness_from_terms(terms, rate_hz, cfg)?;
+        let delay = samples("delay_s", cfg.delay_s, rate_hz)?;
+        let backfill = samples("backfill_s", cfg.backfill_s, rate_hz)?.min(still.window);
+        Ok(BiasTracker {
+            filter: BiasFilter::new(model),
+            detector: StillnessDetector::new(still),
+            estimate_sigmas: cfg.estimate_sigmas,
+            backfill,
+            guard: samples("onset_guard_s", cfg.onset_guard_s, rate_hz)?,
+            still_var: terms.sample_variance(rate_hz),
+            min_run: samples("min_stop_s", cfg.min_stop_s, rate_hz)?,
+            run: 0,
+            // Backfilled samples wait their `delay` like the rest: room for both.
+            delay: DelayWindow::new(delay + backfill),
+            mode: BiasMode::Warming,
+        })
+    }
+
+    /// The default tracker of a named sensor ([`BiasTerms::profile`], [`TrackerConfig::default`]).
+    pub fn for_profile(name: &str, rate_hz: f64) -> Result<Self, BiasError> {
+        Self::new(
+            &BiasTerms::profile(name)?,
+            rate_hz,
+            &TrackerConfig::default(),
+        )
+    }
+
+    /// The filter.
+    pub fn filter(&self) -> &BiasFilter {
+        &self.filter
+    }
+
+    /// The detector's thresholds.
+    pub fn stillness(&self) -> &StillnessConfig {
+        self.detector.config()
+    }
+
+    /// The delay window, samples.
+    pub fn delay(&self) -> usize {
+        self.delay.ring.len() - self.backfill
+    }
+
+    /// Whether the last sample was judged still.
+    pub fn is_still(&self) -> bool {
+        self.mode == BiasMode::Still
+    }
+
+    /// Forget everything (back to warming at the prior).
+    pub fn reset(&mut self) {
+        self.filter.reset();
+        self.detector.reset();
+        self.delay.clear();
+        self.run = 0;
+        self.mode = BiasMode::Warming;
+    }
+
+    /// One rate sample (deg/s) with the tracker's own stillness detection.
+    pub fn push(&mut self, x: f64) -> BiasStep {
+        let (reference, tol) = if self.filter.updates() > 0 {
+            (
+                self.filter.estimate(),
+                self.estimate_sigmas * self.filter.variance().sqrt(),
+            )
+        } else {
+            (f64::NAN, 0.0)
+        };
+        let was_still = self.detector.is_still();
+        let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
+        if still && !was_still && self.backfill > 0 {
+            self.backfill_stop();
+        }
+        let known = self.detector.is_ready();
+        self.step(x, still, known)
+    }
+
+    /// The stop began before the detector confirmed it: the last `backfill` samples of its
+    /// window before this one join it (the filter's time update already ran for them), all but
+    /// those up to `guard` after the end of a movement still in the window. That end is the
+    /// end of the most likely moving prefix under [`moving_llr`] against the mean of the
+    /// window's newest half, if that prefix is evidence of movement at all
+    /// ([`MOVING_EVIDENCE`]). O(window) once per stop, no allocation.
+    fn backfill_stop(&mut self) {
+        let w = self.detector.config().window;
+        let half = (w / 2).max(1);
+        let bias = self.detector.window().skip(w - half).sum::<f64>() / half as f64;
+        let inv_sd = 1.0 / self.still_var.sqrt();
+        let first = likeliest_moving_run(
+            self.detector.window().take(w - 1),
+            bias,
+            inv_sd,
+            MOVING_EVIDENCE,
+        )
+        .map_or(0, |len| len + self.guard);
+        let first = first.max((w - 1).saturating_sub(self.backfill));
+        for v in self
+            .detector
+            .window()
+            .skip(first)
+            .take((w - 1).saturating_sub(first))
+        {
+            self.delay.push(v, &mut self.filter);
+        }
+    }
+
+    /// One rate sample with stillness decided outside (a known stop, another sensor): the same
+    /// filter and delay window, the tracker's detector unused.
+    pub fn push_gated(&mut self, x: f64, still: bool) -> BiasStep {
+        self.step(x, still, true)
+    }
+
+    /// `known`: whether "not still" means moving (false while the detector's window fills).
+    fn step(&mut self, x: f64, still: bool, known: bool) -> BiasStep {
+        self.filter.predict();
+        let still = still && x.is_finite();
+        if still {
+            self.delay.push(x, &mut self.filter);
+            self.run += 1;
+        } else {
+            match self.delay.mean() {
+                // A stop confirmed for less than `min_run` is more likely a lull within a
+                // movement (a zero-mean oscillation whose window mean passed) than a stop.
+                Some((mean, count)) if self.run >= self.min_run => {
+                    let (bias, _) = self.filter.with_mean(mean, count);
+                    self.delay.release_before_onset(
+                        x,
+                        bias,
+                        self.still_var,
+                        self.guard,
+                        &mut self.filter,
+                    );
+                }
+                _ => self.delay.clear(),
+            }
+            self.run = 0;
+        }
+        let (bias, var) = match self.delay.mean() {
+            Some((mean, count)) => self.filter.with_mean(mean, count),
+            None => (self.filter.estimate(), self.filter.variance()),
+        };
+        self.mode = if still {
+            BiasMode::Still
+        } else if known {
+            BiasMode::Moving
+        } else {
+            BiasMode::Warming
+        };
+        BiasStep {
+            bias,
+            std: var.sqrt(),
+            mode: self.mode,
+            informed: self.delay.pending > 0 || self.filter.updates() > 0,
+        }
+    }
+}

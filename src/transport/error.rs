@@ -1,0 +1,83 @@
+//! [`TransportError`]: what failed, on which name, and for a refusal on permissions, whose files.
+
+use std::fmt::Debug;
+
+use super::permissions::{access_problem, foreign_directory};
+
+/// A transport failure, with what was being done.
+#[derive(Debug, thiserror::Error)]
+pub enum TransportError {
+    /// A service, port or node name is not acceptable to iceoryx2.
+    #[error("invalid name {name:?}: {reason}")]
+    Name {
+        /// The name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// Setting up a node, service or port failed.
+    #[error("{what} {name:?}: {reason}")]
+    Setup {
+        /// What was being set up.
+        what: &'static str,
+        /// Its name.
+        name: String,
+        /// iceoryx2's error.
+        reason: String,
+    },
+    /// An existing input service, created by another process, would lose samples silently.
+    #[error(
+        "service {name:?} was created by another process with a subscriber buffer of {buffer} \
+         and safe overflow {overflow}: it would lose samples silently. driftless needs a buffer \
+         of at least {need} (the pipeline's buffer_size) and safe overflow off: start the daemon \
+         first (it creates the service), or create it with subscriber_max_buffer_size >= {need} \
+         and enable_safe_overflow(false)",
+        overflow = if *safe_overflow { "on" } else { "off" }
+    )]
+    Qos {
+        /// The service.
+        name: String,
+        /// Its creator's subscriber buffer limit.
+        buffer: usize,
+        /// Whether its creator enabled safe overflow (new samples overwrite unread ones).
+        safe_overflow: bool,
+        /// The buffer the pipeline asks for.
+        need: usize,
+    },
+    /// iceoryx2's files belong to another user: what, whose, and how to fix it.
+    #[error("{what} {name:?}: {problem}")]
+    Permission {
+        /// What was being set up.
+        what: &'static str,
+        /// Its name.
+        name: String,
+        /// Which file or directory, its owner and mode, and the ways out.
+        problem: String,
+    },
+    /// Sending or receiving failed at run time.
+    #[error("{what}: {reason}")]
+    Io {
+        /// What failed.
+        what: &'static str,
+        /// iceoryx2's error.
+        reason: String,
+    },
+}
+
+pub(super) fn setup(what: &'static str, name: &str, e: impl Debug) -> TransportError {
+    let reason = format!("{e:?}");
+    // iceoryx2 says only `InsufficientPermissions`, or even `InternalError`: say whose files.
+    let culprit = foreign_directory();
+    if culprit.is_some() || reason.contains("Permission") {
+        return TransportError::Permission {
+            what,
+            name: name.to_string(),
+            problem: access_problem(culprit, &reason),
+        };
+    }
+    TransportError::Setup {
+        what,
+        name: name.to_string(),
+        reason,
+    }
+}

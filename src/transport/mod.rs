@@ -1,0 +1,68 @@
+//! Everything iceoryx2: the wire types, where its files live, node and port set-up, discovery,
+//! clean-up and waking on other processes.
+//!
+//! This is the only module that imports `iceoryx2` (and its submodule `zenoh` the only one that
+//! imports `zenoh`, feature `zenoh`); the rest of the crate sees plain Rust types
+//! ([`RawSample`], [`GyroSample`], [`StatsSnapshot`]) and the small port wrappers
+//! ([`Output`], [`Input`], [`Waker`], [`WakeSet`]). Everything public is re-exported here, so
+//! callers write `transport::X` whichever file `X` lives in:
+//!
+//! | file | concern |
+//! |---|---|
+//! | `wire.rs` | the wire types, their flags and type names, the clock of their stamps |
+//! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`] |
+//! | `node.rs` | [`Transport`]: one node and the services and ports it sets up |
+//! | `ports.rs` | [`Output`] and [`Input`] |
+//! | `wake.rs` | [`Waker`] and [`WakeSet`]: sleeping until another process notifies |
+//! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline |
+//! | `cleanup.rs` | what iceoryx2 leaves behind, removed |
+//! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
+//!
+//! # Quality of service
+//! One definition ([`Qos`]) is used for every service the daemon creates: history 0, safe
+//! overflow off, a publisher never blocks (backpressure strategy `DiscardData`): a subscriber
+//! whose buffer is full loses the new sample (it keeps the older ones it has not read) and the
+//! publisher counts the loss ([`Output::lost`]: subscribers registered minus served). Readers of
+//! our services open them without requirements, so they never conflict with the creator's
+//! settings.
+
+mod cleanup;
+mod config;
+mod discovery;
+mod error;
+mod node;
+mod permissions;
+mod ports;
+mod wake;
+mod wire;
+
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
+
+/// iceoryx2's marker of a type that can live in shared memory (our wire types derive it); for
+/// code generic over them.
+pub use iceoryx2::prelude::ZeroCopySend;
+
+pub use cleanup::remove_prefix_leftovers;
+pub use config::{
+    check_prefix, check_root, check_service_name, quiet_logging, root, set_root, Qos,
+    DEFAULT_PREFIX, DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
+};
+pub use discovery::{
+    display_name, ListedNode, ListedService, Listing, NodeHolder, NodeLife, ServiceKind, WireType,
+};
+pub use error::TransportError;
+pub use node::Transport;
+pub use permissions::user_name;
+pub use ports::{Input, Output};
+pub use wake::{WakeSet, Waker};
+pub use wire::*;
+
+/// The clock of the wire's `ingest_ns` stamps (a subscriber reads its "now" on it).
+pub use crate::clock::monotonic_ns;
+
+/// The iceoryx2 service flavour used everywhere: inter-process, even inside one process
+/// (`local` lost wake-ups at high rates on our machines).
+type Svc = iceoryx2::prelude::ipc::Service;
+
+type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;

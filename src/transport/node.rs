@@ -1,0 +1,308 @@
+//! [`Transport`]: one iceoryx2 node and the services and ports it sets up for a pipeline.
+
+use std::fmt::Debug;
+use std::sync::atomic::AtomicU64;
+use std::sync::Arc;
+
+use iceoryx2::node::NodeView as _;
+use iceoryx2::prelude::*;
+
+use super::cleanup::{remove_unsized_segments, restrict_global_segment};
+use super::config::{config, service_name, Qos};
+use super::discovery::{holder, NodeHolder};
+use super::error::{setup, TransportError};
+use super::ports::{Input, Output};
+use super::wake::Waker;
+use super::{PubSubFactory, Svc, ZeroCopySend};
+
+/// One iceoryx2 node and the ports it creates. Not `Send`: create it in the thread that uses it.
+pub struct Transport {
+    pub(super) node: Node<Svc>,
+    pub(super) qos: Qos,
+    pub(super) prefix: String,
+}
+
+impl Transport {
+    /// Create a node named `node_name` under `prefix`. Creating a node also removes the
+    /// resources of dead nodes (a daemon killed with SIGKILL) of the same prefix.
+    pub fn new(prefix: &str, node_name: &str, qos: Qos) -> Result<Self, TransportError> {
+        let cfg = config(prefix)?;
+        remove_unsized_segments(prefix);
+        let name = NodeName::new(node_name).map_err(|e| TransportError::Name {
+            name: node_name.to_string(),
+            reason: format!("{e:?}"),
+        })?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&cfg)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Svc>()
+            .map_err(|e| setup("node", node_name, e))?;
+        node.try_cleanup_dead_nodes();
+        restrict_global_segment(prefix);
+        Ok(Transport {
+            node,
+            qos,
+            prefix: prefix.to_string(),
+        })
+    }
+
+    /// The prefix this node lives under.
+    pub fn prefix(&self) -> &str {
+        &self.prefix
+    }
+
+    /// Remove the resources of dead nodes of this prefix; returns how many were cleaned.
+    pub fn cleanup_dead_nodes(&self) -> u64 {
+        self.node.try_cleanup_dead_nodes().cleanups
+    }
+
+    /// Number of live nodes named `node_name` under `prefix`, other than the caller's.
+    pub fn live_nodes_named(prefix: &str, node_name: &str) -> Result<usize, TransportError> {
+        Ok(Self::holders_of(prefix, node_name)?.len())
+    }
+
+    /// The live nodes named `node_name` under `prefix` (other than the caller's), described as
+    /// far as iceoryx2's node list and `/proc` tell: who holds a pipeline.
+    pub fn holders_of(prefix: &str, node_name: &str) -> Result<Vec<NodeHolder>, TransportError> {
+        let cfg = config(prefix)?;
+        let mut holders = Vec::new();
+        Node::<Svc>::list(&cfg, |state| {
+            if let NodeState::Alive(view) = &state {
+                if view.details().as_ref().map(|d| d.name().as_str()) == Some(node_name) {
+                    holders.extend(holder(view, true));
+                }
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
+        Ok(holders)
+    }
+
+    /// Number of nodes (alive or dead) under `prefix`.
+    pub fn node_count(prefix: &str) -> Result<usize, TransportError> {
+        let cfg = config(prefix)?;
+        let mut count = 0;
+        Node::<Svc>::list(&cfg, |_| {
+            count += 1;
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
+        Ok(count)
+    }
+
+    fn pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>,
+        TransportError,
+    > {
+        self.node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .history_size(0)
+            .enable_safe_overflow(false)
+            .subscriber_max_buffer_size(self.qos.buffer_size)
+            .max_subscribers(self.qos.max_subscribers)
+            .max_publishers(1)
+            .open_or_create()
+            .map_err(|e| setup("service", name, e))
+    }
+
+    /// The publishing side of service `name`, with an event service of the same name that is
+    /// notified after every send when `notify` is set (so readers can sleep until data comes).
+    /// Fails if another process already publishes on it (one publisher per service).
+    pub fn output<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+        notify: bool,
+    ) -> Result<Output<T>, TransportError> {
+        let service = self.pubsub::<T>(name)?;
+        self.output_on(service, name, notify)
+    }
+
+    /// Like [`Transport::output`] for a service another process may have created first (the
+    /// input of an `external` stage, or an external stage's own output): opened without
+    /// requirements if it exists, created with our QoS otherwise.
+    pub fn external_output<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+        notify: bool,
+    ) -> Result<Output<T>, TransportError> {
+        if !self.service_exists::<T>(name)? {
+            return self.output(name, notify);
+        }
+        let service = self
+            .node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .open()
+            .map_err(|e| setup("service", name, e))?;
+        self.output_on(service, name, notify)
+    }
+
+    fn output_on<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        service: PubSubFactory<T>,
+        name: &str,
+        notify: bool,
+    ) -> Result<Output<T>, TransportError> {
+        let lost = Arc::new(AtomicU64::new(0));
+        let publisher = service
+            .publisher_builder()
+            .backpressure_strategy(BackpressureStrategy::DiscardData)
+            .create()
+            .map_err(|e| setup("publisher (is another daemon running?)", name, e))?;
+        let notifier = if notify {
+            let event = self
+                .node
+                .service_builder(&service_name(name)?)
+                .event()
+                .open_or_create()
+                .map_err(|e| setup("event service", name, e))?;
+            Some(
+                event
+                    .notifier_builder()
+                    .create()
+                    .map_err(|e| setup("notifier", name, e))?,
+            )
+        } else {
+            None
+        };
+        Ok(Output {
+            service,
+            publisher,
+            notifier,
+            lost,
+        })
+    }
+
+    /// A subscriber to service `name`, created with our QoS if it does not exist yet.
+    pub fn input<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<Input<T>, TransportError> {
+        let service = self.pubsub::<T>(name)?;
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(self.qos.buffer_size)
+            .create()
+            .map_err(|e| setup("subscriber", name, e))?;
+        Ok(Input { subscriber })
+    }
+
+    /// A subscriber to a service another process publishes (a sensor driver, an external
+    /// stage): created with our QoS if it does not exist yet; if it does, its creator's settings
+    /// are checked, because a small buffer or safe overflow (iceoryx2's defaults: 2 samples,
+    /// overwrite the oldest) loses samples under ordinary jitter without the publisher
+    /// knowing. Refused ([`TransportError::Qos`]) unless it holds our buffer with safe overflow
+    /// off.
+    pub fn external_input<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<Input<T>, TransportError> {
+        if !self.service_exists::<T>(name)? {
+            return self.input(name);
+        }
+        let service = self
+            .node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .open()
+            .map_err(|e| setup("service", name, e))?;
+        let cfg = service.static_config();
+        let (buffer, safe_overflow) = (cfg.subscriber_max_buffer_size(), cfg.has_safe_overflow());
+        if buffer < self.qos.buffer_size || safe_overflow {
+            return Err(TransportError::Qos {
+                name: name.to_string(),
+                buffer,
+                safe_overflow,
+                need: self.qos.buffer_size,
+            });
+        }
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(self.qos.buffer_size)
+            .create()
+            .map_err(|e| setup("subscriber", name, e))?;
+        Ok(Input { subscriber })
+    }
+
+    /// A subscriber to an existing service `name` whatever its creator's QoS (for `tap`,
+    /// `stats` and external consumers), with the largest buffer the service allows.
+    pub fn open_input<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<Input<T>, TransportError> {
+        let service = self
+            .node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>()
+            .open()
+            .map_err(|e| setup("service", name, e))?;
+        let max = service.static_config().subscriber_max_buffer_size();
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(max)
+            .create()
+            .map_err(|e| setup("subscriber", name, e))?;
+        Ok(Input { subscriber })
+    }
+
+    /// A listener on the event service `name` (opened or created), to sleep until a publisher
+    /// announces new data.
+    pub fn waker(&self, name: &str) -> Result<Waker, TransportError> {
+        let event = self
+            .node
+            .service_builder(&service_name(name)?)
+            .event()
+            .open_or_create()
+            .map_err(|e| setup("event service", name, e))?;
+        let listener = event
+            .listener_builder()
+            .create()
+            .map_err(|e| setup("listener", name, e))?;
+        Ok(Waker { listener })
+    }
+
+    /// A listener on the event service `name` if its publisher created one (the services a
+    /// daemon notifies, e.g. the corrected one); `None` otherwise, creating nothing.
+    pub fn existing_waker(&self, name: &str) -> Result<Option<Waker>, TransportError> {
+        let sn = service_name(name)?;
+        let exists = ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::Event)
+            .map_err(|e| setup("service lookup", name, e))?;
+        if exists {
+            self.waker(name).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// The payload type name of the publish-subscribe service `name` (e.g.
+    /// `driftless::GyroSample`), or `None` when no such service exists under this prefix.
+    pub fn payload_type_name(&self, name: &str) -> Result<Option<String>, TransportError> {
+        let sn = service_name(name)?;
+        let details =
+            ipc::Service::details(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
+                .map_err(|e| setup("service lookup", name, e))?;
+        Ok(details.map(|d| {
+            d.static_details
+                .publish_subscribe()
+                .message_type_details()
+                .payload
+                .type_name()
+                .to_string()
+        }))
+    }
+
+    /// Whether a publish-subscribe service `name` of type `T` exists under this prefix.
+    pub fn service_exists<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<bool, TransportError> {
+        let sn = service_name(name)?;
+        ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
+            .map_err(|e| setup("service lookup", name, e))
+    }
+}

@@ -1,0 +1,106 @@
+//! The ports a stage sees: [`Output`] (publish, notify, count losses) and [`Input`] (receive).
+
+use std::fmt::Debug;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections as _;
+use iceoryx2::prelude::*;
+
+use super::error::TransportError;
+use super::{PubSubFactory, Svc, ZeroCopySend};
+
+/// The sending side of one service. Sending never blocks: a subscriber with a full buffer
+/// loses the sample, counted in [`Output::lost`].
+pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
+    pub(super) service: PubSubFactory<T>,
+    pub(super) publisher: Publisher<Svc, T, ()>,
+    pub(super) notifier: Option<Notifier<Svc>>,
+    pub(super) lost: Arc<AtomicU64>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
+    /// Connect to the subscribers that exist now, so that the first [`send`](Self::send) does
+    /// not pay for it (mapping their shared memory) on the hot path.
+    pub fn connect(&self) -> Result<(), TransportError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| TransportError::Io {
+                what: "connect",
+                reason: format!("{e:?}"),
+            })
+    }
+
+    /// Publish a copy of `value` (zero-copy into shared memory); returns the number of
+    /// subscribers that received it. Does not notify: call [`Output::notify`] after it.
+    /// Allocation-free on our side (iceoryx2 0.10 allocates one small `Arc` per loan).
+    pub fn send(&self, value: &T) -> Result<usize, TransportError> {
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| TransportError::Io {
+                what: "loan",
+                reason: format!("{e:?}"),
+            })?;
+        let n = sample
+            .write_payload(*value)
+            .send()
+            .map_err(|e| TransportError::Io {
+                what: "send",
+                reason: format!("{e:?}"),
+            })?;
+        // Subscribers registered on the service but not served: their buffers were full.
+        let subscribers = self.service.dynamic_config().number_of_subscribers();
+        if n < subscribers {
+            self.lost
+                .fetch_add((subscribers - n) as u64, Ordering::Relaxed);
+        }
+        Ok(n)
+    }
+
+    /// Wake the readers sleeping on the event service of the same name (if this output was
+    /// created with `notify`). A separate call so the caller can timestamp the publish first.
+    pub fn notify(&self) {
+        if let Some(notifier) = &self.notifier {
+            // A failed wake-up only delays a reader until its own timeout.
+            let _ = notifier.notify();
+        }
+    }
+
+    /// Samples that subscribers could not take so far (their buffers were full).
+    pub fn lost(&self) -> u64 {
+        self.lost.load(Ordering::Relaxed)
+    }
+
+    /// A handle on the loss counter, readable from another thread.
+    pub fn lost_counter(&self) -> Arc<AtomicU64> {
+        Arc::clone(&self.lost)
+    }
+}
+
+/// The receiving side of one service.
+pub struct Input<T: Debug + ZeroCopySend + Copy + 'static> {
+    pub(super) subscriber: Subscriber<Svc, T, ()>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Input<T> {
+    /// Samples this subscriber holds unread before it loses new ones.
+    pub fn buffer_size(&self) -> usize {
+        self.subscriber.buffer_size()
+    }
+
+    /// The oldest sample not yet taken, copied out of shared memory. Allocation-free.
+    pub fn receive(&self) -> Result<Option<T>, TransportError> {
+        match self.subscriber.receive() {
+            Ok(Some(sample)) => Ok(Some(*sample.payload())),
+            Ok(None) => Ok(None),
+            Err(e) => Err(TransportError::Io {
+                what: "receive",
+                reason: format!("{e:?}"),
+            }),
+        }
+    }
+}

@@ -1,0 +1,395 @@
+//! The wire types: what crosses shared memory, byte for byte, and the flags that qualify it.
+//!
+//! All are `#[repr(C)]`, contain only `u64`/`u32`/`f64`/`u8` fields with no implicit padding,
+//! and carry a stable iceoryx2 type name so that C, C++ or Python subscribers can open the
+//! services with iceoryx2's own bindings (docs/wire-types.md). [`monotonic_ns`] is the clock
+//! their `ingest_ns` stamps are read on.
+
+use iceoryx2::prelude::*;
+
+/// Raw-sample flag: the sensor driver marks the sample as invalid.
+pub const RAW_INVALID: u32 = 1;
+
+/// Output flag: a stage is still filling (denoiser window, predictor warm-up).
+pub const FLAG_WARMING_UP: u32 = 1;
+/// Output flag: the input was NaN/Inf or marked invalid; the last valid value was held.
+pub const FLAG_INPUT_INVALID: u32 = 1 << 1;
+/// Output flag: one or more sequence numbers are missing before this sample.
+pub const FLAG_GAP_BEFORE: u32 = 1 << 2;
+/// Output flag: the sensor timestamp went backwards at this sample.
+pub const FLAG_TIME_BACKWARDS: u32 = 1 << 3;
+/// Output flag: emitted while draining at shutdown (a lagged stage's held samples).
+pub const FLAG_FLUSHED: u32 = 1 << 4;
+/// Output flag: a non-finite value was produced by a stage and replaced by 0 before publishing.
+pub const FLAG_OUTPUT_REPAIRED: u32 = 1 << 5;
+/// Output flag (`predict.rbf`): every axis judged still; the drift model was re-anchored on the
+/// measured drift.
+pub const FLAG_STILL: u32 = 1 << 6;
+/// Output flag (`predict.rbf`): an axis judged moving; its drift model runs on its own
+/// predictions, so the rotation is not subtracted.
+pub const FLAG_MOVING: u32 = 1 << 7;
+
+/// The output flags by name, in bit order (`tap`, `record` and reports decode them with it).
+pub const FLAG_NAMES: [(u32, &str); 8] = [
+    (FLAG_WARMING_UP, "warming_up"),
+    (FLAG_INPUT_INVALID, "input_invalid"),
+    (FLAG_GAP_BEFORE, "gap_before"),
+    (FLAG_TIME_BACKWARDS, "time_backwards"),
+    (FLAG_FLUSHED, "flushed"),
+    (FLAG_OUTPUT_REPAIRED, "output_repaired"),
+    (FLAG_STILL, "still"),
+    (FLAG_MOVING, "moving"),
+];
+
+/// Names of the flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as its hex
+/// value, so nothing is hidden.
+pub fn flag_names(flags: u32) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut rest = flags;
+    for (bit, name) in FLAG_NAMES {
+        if flags & bit != 0 {
+            names.push(name.to_string());
+            rest &= !bit;
+        }
+    }
+    for i in 0..32 {
+        if rest & (1 << i) != 0 {
+            names.push(format!("{:#x}", 1u32 << i));
+        }
+    }
+    names
+}
+
+/// Type name of [`RawSample`] on the wire.
+pub const RAW_TYPE_NAME: &str = "driftless::RawSample";
+/// Type name of [`GyroSample`] on the wire.
+pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample";
+/// Type name of [`StatsSnapshot`] on the wire.
+pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
+
+/// A raw gyro sample as a sensor driver publishes it (48 bytes, 8-byte aligned).
+///
+/// | offset | type | field |
+/// |---:|---|---|
+/// | 0 | u64 | `t_ns` sensor timestamp, ns |
+/// | 8 | u64 | `seq` sequence number |
+/// | 16 | `[f64; 3]` | `rate` x, y, z in the pipeline's `input_units` |
+/// | 40 | u32 | `flags` (bit 0: [`RAW_INVALID`]) |
+/// | 44 | u32 | `epoch` the publisher's run id (see [`GyroSample::epoch`]); a driver may leave it 0 |
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::RawSample")]
+pub struct RawSample {
+    /// Sensor timestamp in nanoseconds (any epoch, monotonic per sensor).
+    pub t_ns: u64,
+    /// Sequence number, +1 per sample; a jump is a gap.
+    pub seq: u64,
+    /// Angular rate per axis, in the pipeline's input units.
+    pub rate: [f64; 3],
+    /// Validity flags (bit 0: invalid).
+    pub flags: u32,
+    /// The publisher's run id: when it changes, `seq` starts again (see [`GyroSample::epoch`]).
+    /// A driver that sets it (any non-zero value per driver start) lets the daemon tell a
+    /// driver restart from lost samples; 0 means "not given".
+    pub epoch: u32,
+}
+
+/// A processed gyro sample: every hop after the ingest carries one (104 bytes, 8-byte aligned).
+///
+/// | offset | type | field |
+/// |---:|---|---|
+/// | 0 | u64 | `t_ns` sensor timestamp of this sample, ns |
+/// | 8 | u64 | `seq` sequence number, unchanged from the raw sample |
+/// | 16 | u64 | `ingest_ns` CLOCK_MONOTONIC ns when the sample completing this output was ingested |
+/// | 24 | `[f64; 3]` | `rate` corrected rate, rad/s (= denoised - drift) |
+/// | 48 | `[f64; 3]` | `drift` drift estimate, rad/s |
+/// | 72 | `[f64; 3]` | `denoised` denoised rate, rad/s |
+/// | 96 | u32 | `flags` ([`FLAG_WARMING_UP`], [`FLAG_INPUT_INVALID`], ...) |
+/// | 100 | u32 | `epoch` the stream's run id: `seq` counts within one epoch |
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::GyroSample")]
+pub struct GyroSample {
+    /// Sensor timestamp of this sample in nanoseconds.
+    pub t_ns: u64,
+    /// Sequence number, passed through every stage unchanged.
+    pub seq: u64,
+    /// CLOCK_MONOTONIC nanoseconds at the ingest of the sample that completed this output
+    /// (see [`monotonic_ns`]); a subscriber on the same host measures its latency from it.
+    pub ingest_ns: u64,
+    /// Corrected angular rate, rad/s.
+    pub rate: [f64; 3],
+    /// Drift estimate removed from `denoised`, rad/s.
+    pub drift: [f64; 3],
+    /// Denoised angular rate, rad/s.
+    pub denoised: [f64; 3],
+    /// Flags, see the `FLAG_*` constants.
+    pub flags: u32,
+    /// The stream's run id, never 0 from the daemon: random at each daemon start, +1 whenever
+    /// the source restarts (a driver's own `epoch` changes, or its `seq` returns to 0). `seq`
+    /// counts within one epoch: a subscriber that sees the epoch change starts counting again,
+    /// instead of taking the new run's samples for duplicates or reordered ones.
+    pub epoch: u32,
+}
+
+/// A sample type that crosses a network as its documented little-endian bytes: the same layout
+/// as in shared memory (`repr(C)`, no padding), written field by field so that it holds on any
+/// host. What `driftless bridge` puts on Zenoh and takes back (docs/bridge.md).
+pub trait WireBytes: Sized {
+    /// Size of the encoded sample in bytes (its `size_of`).
+    const SIZE: usize;
+    /// The type name, as on iceoryx2 ([`RAW_TYPE_NAME`], [`GYRO_TYPE_NAME`]).
+    const TYPE_NAME: &'static str;
+    /// Append the sample's bytes to `out` (cleared first).
+    fn encode(&self, out: &mut Vec<u8>);
+    /// The sample from exactly [`WireBytes::SIZE`] bytes; `None` for any other length.
+    fn decode(bytes: &[u8]) -> Option<Self>;
+}
+
+/// Little-endian reader over a byte slice of known length.
+struct Le<'a>(&'a [u8]);
+
+impl Le<'_> {
+    fn u64(&mut self) -> u64 {
+        let (head, rest) = self.0.split_at(8);
+        self.0 = rest;
+        u64::from_le_bytes(head.try_into().expect("8 bytes"))
+    }
+    fn u32(&mut self) -> u32 {
+        let (head, rest) = self.0.split_at(4);
+        self.0 = rest;
+        u32::from_le_bytes(head.try_into().expect("4 bytes"))
+    }
+    fn f64x3(&mut self) -> [f64; 3] {
+        [(); 3].map(|_| f64::from_bits(self.u64()))
+    }
+}
+
+fn put_f64x3(out: &mut Vec<u8>, v: &[f64; 3]) {
+    for x in v {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+impl WireBytes for RawSample {
+    const SIZE: usize = 48;
+    const TYPE_NAME: &'static str = RAW_TYPE_NAME;
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&self.t_ns.to_le_bytes());
+        out.extend_from_slice(&self.seq.to_le_bytes());
+        put_f64x3(out, &self.rate);
+        out.extend_from_slice(&self.flags.to_le_bytes());
+        out.extend_from_slice(&self.epoch.to_le_bytes());
+    }
+
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::SIZE {
+            return None;
+        }
+        let mut r = Le(bytes);
+        Some(RawSample {
+            t_ns: r.u64(),
+            seq: r.u64(),
+            rate: r.f64x3(),
+            flags: r.u32(),
+            epoch: r.u32(),
+        })
+    }
+}
+
+impl WireBytes for GyroSample {
+    const SIZE: usize = 104;
+    const TYPE_NAME: &'static str = GYRO_TYPE_NAME;
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&self.t_ns.to_le_bytes());
+        out.extend_from_slice(&self.seq.to_le_bytes());
+        out.extend_from_slice(&self.ingest_ns.to_le_bytes());
+        put_f64x3(out, &self.rate);
+        put_f64x3(out, &self.drift);
+        put_f64x3(out, &self.denoised);
+        out.extend_from_slice(&self.flags.to_le_bytes());
+        out.extend_from_slice(&self.epoch.to_le_bytes());
+    }
+
+    fn decode(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::SIZE {
+            return None;
+        }
+        let mut r = Le(bytes);
+        Some(GyroSample {
+            t_ns: r.u64(),
+            seq: r.u64(),
+            ingest_ns: r.u64(),
+            rate: r.f64x3(),
+            drift: r.f64x3(),
+            denoised: r.f64x3(),
+            flags: r.u32(),
+            epoch: r.u32(),
+        })
+    }
+}
+
+/// Latency percentiles of one histogram, in nanoseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::Percentiles")]
+pub struct Percentiles {
+    /// Number of recorded values.
+    pub count: u64,
+    /// Median.
+    pub p50: u64,
+    /// 99th percentile.
+    pub p99: u64,
+    /// 99.9th percentile.
+    pub p999: u64,
+    /// Maximum.
+    pub max: u64,
+}
+
+/// Most stages a [`StatsSnapshot`] describes.
+pub const MAX_STATS_STAGES: usize = 8;
+
+/// One stage in a [`StatsSnapshot`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StageStats")]
+pub struct StageStats {
+    /// Stage name, UTF-8, NUL-padded (truncated to 32 bytes).
+    pub name: [u8; 32],
+    /// Samples that entered the stage.
+    pub samples_in: u64,
+    /// Samples the stage emitted.
+    pub samples_out: u64,
+    /// Samples a subscriber of the stage's output could not take (its buffer was full).
+    pub lost: u64,
+    /// Compute time per sample.
+    pub compute: Percentiles,
+}
+
+/// The daemon's statistics, published on the pipeline's stats service every report interval.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StatsSnapshot")]
+pub struct StatsSnapshot {
+    /// Nanoseconds since the pipeline started.
+    pub uptime_ns: u64,
+    /// Samples ingested.
+    pub samples_in: u64,
+    /// Samples published by the final stage.
+    pub samples_out: u64,
+    /// Ingest rate over the last interval, Hz.
+    pub rate_hz: f64,
+    /// Outputs whose end-to-end latency exceeded the deadline.
+    pub deadline_misses: u64,
+    /// Samples lost by subscribers of any of our services (full buffers).
+    pub lost: u64,
+    /// Samples flagged (invalid input, gap, time backwards).
+    pub flagged: u64,
+    /// Sequence numbers missing in the input.
+    pub gap_samples: u64,
+    /// Per-sample metric records the reporting thread could not take (histograms incomplete).
+    pub metric_drops: u64,
+    /// The deadline, ns.
+    pub deadline_ns: u64,
+    /// Algorithmic delay of the chain (sum of the stages' lags / rate), ns.
+    pub algorithmic_delay_ns: u64,
+    /// End-to-end latency: ingest of the completing sample to publish of the output.
+    pub end_to_end: Percentiles,
+    /// Number of valid entries in `stages`.
+    pub stage_count: u64,
+    /// Per-stage statistics.
+    pub stages: [StageStats; MAX_STATS_STAGES],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_layouts_are_the_documented_ones() {
+        assert_eq!(std::mem::size_of::<RawSample>(), 48);
+        assert_eq!(std::mem::align_of::<RawSample>(), 8);
+        assert_eq!(std::mem::offset_of!(RawSample, rate), 16);
+        assert_eq!(std::mem::offset_of!(RawSample, flags), 40);
+        assert_eq!(std::mem::size_of::<GyroSample>(), 104);
+        assert_eq!(std::mem::offset_of!(GyroSample, ingest_ns), 16);
+        assert_eq!(std::mem::offset_of!(GyroSample, rate), 24);
+        assert_eq!(std::mem::offset_of!(GyroSample, drift), 48);
+        assert_eq!(std::mem::offset_of!(GyroSample, denoised), 72);
+        assert_eq!(std::mem::offset_of!(GyroSample, flags), 96);
+    }
+
+    /// The bytes a bridge sends are the bytes in shared memory (on this little-endian host),
+    /// and they decode back to the identical sample.
+    #[test]
+    fn wire_bytes_are_the_memory_layout_and_round_trip() {
+        fn memory<T>(v: &T) -> Vec<u8> {
+            // SAFETY: the wire types are repr(C) with no padding: every byte is initialised.
+            unsafe {
+                std::slice::from_raw_parts(v as *const T as *const u8, std::mem::size_of::<T>())
+            }
+            .to_vec()
+        }
+        let g = GyroSample {
+            t_ns: 1,
+            seq: u64::MAX - 3,
+            ingest_ns: 0x0102_0304_0506_0708,
+            rate: [1.5, -0.0, f64::MIN_POSITIVE],
+            drift: [f64::MAX, 2e-300, -7.25],
+            denoised: [0.1, 0.2, 0.3],
+            flags: FLAG_STILL | FLAG_GAP_BEFORE,
+            epoch: 0xdead_beef,
+        };
+        let r = RawSample {
+            t_ns: 9,
+            seq: 10,
+            rate: [-1.0, 1e-9, 3.0],
+            flags: RAW_INVALID,
+            epoch: 77,
+        };
+        let mut out = Vec::new();
+        g.encode(&mut out);
+        assert_eq!(out.len(), GyroSample::SIZE);
+        if cfg!(target_endian = "little") {
+            assert_eq!(out, memory(&g));
+        }
+        assert_eq!(&out[8..16], &g.seq.to_le_bytes());
+        assert_eq!(&out[96..100], &g.flags.to_le_bytes());
+        assert_eq!(GyroSample::decode(&out), Some(g));
+        assert_eq!(GyroSample::decode(&out[..103]), None);
+        r.encode(&mut out);
+        assert_eq!(out.len(), RawSample::SIZE);
+        if cfg!(target_endian = "little") {
+            assert_eq!(out, memory(&r));
+        }
+        assert_eq!(&out[44..48], &77u32.to_le_bytes());
+        assert_eq!(RawSample::decode(&out), Some(r));
+        assert_eq!(RawSample::decode(&[0; 104]), None);
+    }
+
+    #[test]
+    fn stats_layout_is_the_documented_one() {
+        assert_eq!(std::mem::size_of::<Percentiles>(), 40);
+        assert_eq!(std::mem::size_of::<StageStats>(), 96);
+        assert_eq!(std::mem::offset_of!(StageStats, compute), 56);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, rate_hz), 24);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, end_to_end), 88);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stage_count), 128);
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stages), 136);
+        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 904);
+    }
+
+    #[test]
+    fn type_names_are_stable() {
+        // SAFETY: type_name only returns the static string of the derive attribute.
+        unsafe {
+            assert_eq!(RawSample::type_name(), RAW_TYPE_NAME);
+            assert_eq!(GyroSample::type_name(), GYRO_TYPE_NAME);
+            assert_eq!(StatsSnapshot::type_name(), STATS_TYPE_NAME);
+        }
+    }
+}
