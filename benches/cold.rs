@@ -2,7 +2,7 @@
 //! lag 64 / window 1024, `LaneDenoiser<3>` as `denoise.wavelet` runs it) timed back to back
 //! (warm), after an 8 MB write that evicts the caches, after a 1 ms sleep, and after a 1 ms
 //! sleep followed by `prewarm` (at once, or with another 100 us sleep in between, as
-//! `prewarm_us` does). The ratios to warm, same run, are the figures docs/daemon.md
+//! `prewarm_us` does). The ratios to warm, same run, are the figures docs/performance.md
 //! ("Prewarming") quotes. The thread asks for SCHED_FIFO 50 and says whether it got it; pin it
 //! with `taskset -c 1 cargo bench --bench cold` to keep the other core's work off it.
 //! `DRIFTLESS_COLD_SAMPLES` (default 5000) per sleeping mode.

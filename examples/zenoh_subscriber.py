@@ -6,7 +6,7 @@
     driftless bridge demo/corrected --listen tcp/127.0.0.1:7447 --no-multicast-scouting &
     python3 examples/zenoh_subscriber.py --connect tcp/127.0.0.1:7447 --count 2000
 
-The payload is driftless::GyroSample's 104 little-endian bytes (README.md, "Wire types"):
+The payload is driftless::GyroSample's 104 little-endian bytes (docs/wire-types.md, "Layouts"):
     0 u64 t_ns | 8 u64 seq | 16 u64 ingest_ns | 24 f64[3] rate | 48 f64[3] drift
     72 f64[3] denoised | 96 u32 flags | 100 u32 epoch
 Checks that seq rises by one within each epoch (a jump is a loss, a repeat or a step back is an

@@ -177,7 +177,7 @@ impl Bridge {
     }
 }
 
-/// Decoded at the offsets README.md documents (not with the crate's own decoder).
+/// Decoded at the offsets docs/wire-types.md documents (not with the crate's own decoder).
 fn decode_gyro(b: &[u8]) -> GyroSample {
     assert_eq!(b.len(), 104, "a GyroSample is 104 bytes");
     let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
@@ -683,7 +683,7 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
     let input = test_rates(N);
     let t0 = Instant::now();
     for (i, r) in input.iter().enumerate() {
-        // The README's layout, written by hand as another language would.
+        // docs/wire-types.md's layout, written by hand as another language would.
         let mut b = Vec::with_capacity(48);
         b.extend_from_slice(&(i as u64 * 1_000_000).to_le_bytes());
         b.extend_from_slice(&(i as u64).to_le_bytes());

@@ -1,4 +1,4 @@
-//! One rule for exit codes, every kind of command (README, "Command-line conventions"): 0 done
+//! One rule for exit codes, every kind of command (docs/commands.md, "Exit codes"): 0 done
 //! (and --help), 1 a run-time failure (nothing to read, already running), 2 bad usage or bad
 //! input. Failures are one `driftless: error:` line on stderr, never a panic.
 

@@ -401,7 +401,7 @@ fn bad_input_is_one_line_with_the_documented_exit_code_and_no_file() {
     std::fs::write(&part, b"someone's").unwrap();
     let busy = dir.path("busy.mcap").to_str().unwrap().to_string();
     let cases: [(&[&str], i32, &str); 6] = [
-        // Nothing to read is a run-time failure, as for `tap` (README, exit codes).
+        // Nothing to read is a run-time failure, as for `tap` (docs/commands.md, "Exit codes").
         (
             &["rec/nothing", "-o", &out_s],
             1,

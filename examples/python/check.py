@@ -14,7 +14,7 @@
 4. the denoiser holds its last `lag` samples until the input ends, and a driver that stops does
    not end the daemon's input (it waits for more): so the check waits until the subscriber has
    exactly N - lag samples, sends SIGTERM, and the daemon drains the held samples (flagged
-   0x10) before it exits 0 (docs/daemon.md, "Shutdown and failures");
+   0x10) before it exits 0 (docs/operations.md, "Restarts and crashes");
 5. asserts: driver, daemon and subscriber exit 0; the subscriber got seq 0..N-1 exactly once, in
    order, in one epoch (the daemon's), with the driver's values, `lag` of them flushed at
    shutdown; the daemon's report says N in, N out, nothing lost, no source restart.

@@ -182,7 +182,7 @@ def _own_segments(prefix: str):
 
 def _restrict_global_segment(prefix: str) -> None:
     """iceoryx2 0.10 makes the prefix's node counter in /dev/shm 0666; take that back, as the
-    daemon does (README, "Users and permissions")."""
+    daemon does (docs/operations.md, "Users and permissions")."""
     for p, st in _own_segments(prefix):
         if p.endswith(".global_mgmt") and st.st_mode & 0o077:
             try:

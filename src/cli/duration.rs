@@ -6,7 +6,7 @@
 //! The forms are humantime's: a number with a unit (`500ms`, `10s`, `1.5s`, `90min`, `2m`, `3h`,
 //! `0.5h`, `2d`), or several (`1h 30min`). One extension: a plain number is seconds (`600`,
 //! `0.25`). humantime insists on a unit, but these options always took bare seconds, and the
-//! README, scripts and tests pass them so.
+//! docs/commands.md ("Conventions"), scripts and tests pass them so.
 
 use std::time::Duration;
 

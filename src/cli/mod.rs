@@ -1,6 +1,6 @@
 //! The command line: one file per command; this file only dispatches and maps errors to exit codes.
 //!
-//! Exit codes, the same for every command (README, "Command-line conventions"):
+//! Exit codes, the same for every command (docs/commands.md, "Exit codes"):
 //! - 0: done, including a daemon, `tap`, `stats`, `record`, `relay` or `bridge` stopped by
 //!   SIGINT/SIGTERM, `--duration` or `--count`, and `list` with nothing running; `--help` and
 //!   `--version`.

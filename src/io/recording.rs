@@ -2,7 +2,7 @@
 //! channel per recorded service, JSON messages with a JSON Schema each (what Foxglove opens and
 //! plots without plugins), and a metadata record with the recording's counts.
 //!
-//! Layout (README, "driftless record"):
+//! Layout (docs/wire-types.md, "Recordings (MCAP)"):
 //! - topic `/<service>` (e.g. `/demo/corrected`), message encoding `json`, schema encoding
 //!   `jsonschema`, schema named after the wire type: [`RAW_SCHEMA`], [`GYRO_SCHEMA`],
 //!   [`STATS_SCHEMA`];

@@ -28,7 +28,7 @@
 //!
 //! Nothing else changes: the pipeline file's reader finds the kind in [`KINDS`], rejects keys
 //! the kind does not declare (naming the kind a stray key belongs to), and `driftless validate
-//! --kinds` and the stage table of `docs/daemon.md` list the new keys.
+//! --kinds` and `docs/reference/stages.md` (generated from it) list the new keys.
 
 pub mod contract;
 pub mod schema;

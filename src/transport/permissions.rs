@@ -68,8 +68,8 @@ pub(super) fn access_problem(culprit: Option<String>, reason: &str) -> String {
         culprit.unwrap_or_else(|| format!("iceoryx2 says {reason} (under {})", root.display()));
     format!(
         "{culprit}; this process runs as {}. iceoryx2's files are for one user: run the daemon \
-         and every process that talks to it as the same user (README, \"Users and \
-         permissions\"), or give your own pipelines their own directory: `root_path = \"...\"` \
+         and every process that talks to it as the same user (docs/operations.md, \"Users \
+         and permissions\"), or give your own pipelines their own directory: `root_path = \"...\"` \
          under [iceoryx2] in the pipeline file, or {ROOT_ENV}=..., or --root-path, the same for \
          the daemon and its subscribers",
         who(me)

@@ -126,8 +126,8 @@ pub(super) fn schedule_hot_thread((cpu, priority): (Option<usize>, Option<i32>))
                 "driftless: warning: cannot set SCHED_FIFO priority {priority}: {}; running with \
                  default scheduling. It needs CAP_SYS_NICE (`setcap cap_sys_nice+ep` on the \
                  driftless binary, or AmbientCapabilities= in a systemd unit) or an rtprio limit \
-                 of at least {priority} (LimitRTPRIO=, or rtprio in limits.conf); see README, \
-                 \"Users and permissions\"",
+                 of at least {priority} (LimitRTPRIO=, or rtprio in limits.conf); see \
+                 docs/operations.md, \"Real-time scheduling without root\"",
                 std::io::Error::last_os_error()
             );
         }
