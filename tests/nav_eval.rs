@@ -105,6 +105,12 @@ fn on_the_simulator_the_stages_are_judged_with_the_baselines() {
     assert!(med(raw, "rms_ratio_to_zaru_oracle") > 20.0);
     let r = med(chain, "rms_ratio_to_zaru_oracle");
     assert!(r < 1.5, "the stages against oracle ZARU: {r}");
+    // x-io Fusion's deployed algorithm is judged too: it removes most of the bias.
+    let fusion = med(method(s, "x-io Fusion bias"), "rms_ratio_to_zaru_oracle");
+    assert!(
+        fusion.is_finite() && fusion < med(raw, "rms_ratio_to_zaru_oracle") / 5.0,
+        "Fusion against oracle ZARU: {fusion}"
+    );
     // The simulator knows its noise model: the floor is reported.
     method(s, "floor");
 }
@@ -138,7 +144,7 @@ fn on_the_real_log_the_product_beats_the_navigators_own_baselines() {
         method(all, "denoise.wavelet -> predict.bias"),
         "rms_heading_deg",
     );
-    for baseline in ["power-on", "ZARU detected"] {
+    for baseline in ["power-on", "ZARU detected", "x-io Fusion bias"] {
         let b = med(method(all, baseline), "rms_heading_deg");
         assert!(chain < b, "stages {chain} deg against {baseline} {b} deg");
     }

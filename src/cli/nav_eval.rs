@@ -21,8 +21,9 @@ use crate::io::csv_table::read_table;
 use crate::io::plot::{self, Panel, PanelStyle, Series};
 use crate::io::truth::read_truth;
 use crate::nav::{
-    evaluate, format_table_labelled, generate, heading_error, summarize_methods, BiasEstimator,
-    HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile, Setup, Zaru,
+    evaluate, format_table_labelled, fusion, generate, heading_error, summarize_methods,
+    BiasEstimator, HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile,
+    Setup, Zaru,
 };
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::offline::Offline;
@@ -321,6 +322,9 @@ fn file_chain(path: &Path, rate: f64) -> Result<Chain, CliError> {
     })
 }
 
+/// The column of x-io Fusion's gyroscope bias algorithm ([`fusion`]).
+const FUSION_LABEL: &str = "x-io Fusion bias (imufusion defaults)";
+
 /// The motion added to the windows: a built-in profile, drawn anew for each window and axis
 /// (seed `3 w + axis`), or a truth file's motion, the same for every window.
 enum Motion {
@@ -490,6 +494,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         methods.push(Method::Floor);
     }
     let mut labels: Vec<String> = methods.iter().map(|m| m.label().to_string()).collect();
+    labels.push(FUSION_LABEL.into());
     labels.extend(chains.iter().map(|c| c.label.clone()));
 
     let windows = (src.axes[0].1.len() - src.first_window) / window;
@@ -511,6 +516,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
                         .map(|(x, t)| x + t)
                         .collect()
                 })
+                .collect();
+            // Each axis alone, the others still: nav-eval gives every axis its own motion, so
+            // a case is one axis of a vehicle whose stops are that axis's (Fusion waits for all
+            // three axes to be still; other axes' unrelated motion would only handicap it).
+            let fusion_out: Vec<Vec<f64>> = measured
+                .iter()
+                .map(|y| fusion::correct(&[y], rate).remove(0))
                 .collect();
             // Stage methods: per-axis pipelines one axis at a time, a file's all axes at once.
             let mut chain_out: Vec<Vec<Vec<f64>>> = Vec::with_capacity(chains.len());
@@ -538,6 +550,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 }
                 let mut metrics = evaluate(&measured[a], &m.truth, &m.still, &setup, &methods)
                     .map_err(|e| CliError::input(format!("{}: {e}", src.name)))?;
+                metrics.push(metrics_of(&fusion_out[a], &m.truth, dt));
                 for out in &chain_out {
                     metrics.push(metrics_of(&out[a], &m.truth, dt));
                 }

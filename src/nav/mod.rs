@@ -8,6 +8,7 @@
 //! - [`baselines`]: causal per-sample bias estimators behind [`baselines::BiasEstimator`]: raw,
 //!   power-on bias, ZARU with oracle or detected stops, and the new estimator
 //!   ([`crate::drift::bias::BiasTracker`]).
+//! - [`fusion`]: x-io Fusion's gyroscope bias algorithm, three axes at once, as deployed.
 //! - [`eval`]: every method on one window, and summaries against a reference (oracle ZARU).
 //!
 //! Pure: no I/O. Results on the real ADIS16405 log and the simulator: docs/navigation.md and
@@ -15,6 +16,7 @@
 
 pub mod baselines;
 pub mod eval;
+pub mod fusion;
 pub mod metrics;
 pub mod profiles;
 
