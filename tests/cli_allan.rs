@@ -451,3 +451,91 @@ fn terms_print_in_datasheet_units_or_per_second_on_request_as_plain_decimals() {
     let o = driftless(&["allan", &path, "--rate", "100", "--term-units", "hours"]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// The pipeline around a `predict.bias` table: a driver's samples in, the table, publish.
+fn pipeline_around(table: &str) -> String {
+    format!(
+        r#"name = "own"
+rate_hz = 100.0
+axes = 1
+input_units = "deg/s"
+
+[[stage]]
+name = "sensor"
+kind = "ingest.iceoryx2"
+input = "sensor/raw"
+output = "nav/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "nav/raw"
+output = "nav/denoised"
+
+{table}
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "nav/predicted"
+output = "nav/corrected"
+"#
+    )
+}
+
+/// `allan --stage` prints a table a pipeline takes as it is: every key given, the fit's terms,
+/// what was done with the terms the record cannot identify; and a table that gives some terms
+/// but not all, without naming a sensor, is refused rather than filled in with one's.
+#[test]
+fn allan_stage_prints_a_table_the_pipeline_takes_with_every_term() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulate(dir.path(), &[]);
+    let o = driftless(&["allan", &log, "--rate", "100", "--stage", "--lsb", "0.01"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = String::from_utf8(o.stdout).unwrap();
+    for key in [
+        "arw = ",
+        "bias_instability = ",
+        "rrw = ",
+        "quantization = ",
+        "lsb = 1e-2",
+    ] {
+        assert!(table.contains(key), "{key} missing in:\n{table}");
+    }
+    // 300 s cannot identify K: the comments say so and which value stands in.
+    assert!(
+        table.contains("not identifiable") && table.contains("the fit's best value"),
+        "{table}"
+    );
+    let arw: f64 = table
+        .lines()
+        .find_map(|l| l.strip_prefix("arw = "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    // The simulated N is 1.5 deg/sqrt(h).
+    assert!((arw - 1.5).abs() < 0.1, "arw {arw}");
+    let file = dir.path().join("own.toml");
+    std::fs::write(&file, pipeline_around(&table)).unwrap();
+    let v = driftless(&["validate", file.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&v.stdout);
+    assert!(v.status.success(), "{}\n{}", out, stderr(&v));
+    assert!(out.contains(&format!("N {arw:.3} deg/sqrt(h)")), "{out}");
+    assert!(out.contains("lsb 0.01 deg/s"), "{out}");
+
+    // Some terms without a profile: refused, the missing ones named.
+    let partial = "[[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"nav/denoised\"\noutput = \"nav/predicted\"\narw = 1.5\n";
+    std::fs::write(&file, pipeline_around(partial)).unwrap();
+    assert_input_error(
+        &driftless(&["validate", file.to_str().unwrap()]),
+        "bias_instability and rrw not given",
+    );
+    // With the sensor named, its terms fill in the rest, as documented.
+    std::fs::write(
+        &file,
+        pipeline_around(&format!("{partial}profile = \"adis16405\"\n")),
+    )
+    .unwrap();
+    let v = driftless(&["validate", file.to_str().unwrap()]);
+    assert!(v.status.success(), "{}", stderr(&v));
+    assert!(String::from_utf8_lossy(&v.stdout).contains("N 1.500 deg/sqrt(h), B 33.77 deg/h"));
+}

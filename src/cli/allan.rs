@@ -7,6 +7,7 @@ use crate::allan::{
     TermUnits,
 };
 use crate::cli::num::sig;
+use crate::drift::bias::BiasTerms;
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::{progress, read_table, write_table};
 use serde_json::{json, Map, Value};
@@ -46,6 +47,20 @@ pub struct Args {
     /// Write the tau table as CSV.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: Option<PathBuf>,
+    /// Print a ready `predict.bias` [[stage]] table with the fitted terms instead of the tables:
+    /// every key given (no sensor's defaults fill in), the largest of each term over the
+    /// columns (the stage takes one set for all axes), and what was done with a term the record
+    /// cannot identify said in its comments.
+    #[arg(long, conflicts_with = "json")]
+    pub stage: bool,
+    /// With --stage: the output step of the raw rate, in the log's units (0: not quantised).
+    #[arg(
+        long,
+        default_value = "0",
+        requires = "stage",
+        allow_hyphen_values = true
+    )]
+    pub lsb: String,
 }
 
 /// The analysis of one column.
@@ -269,6 +284,92 @@ fn format_term(t: &TermFit, units: TermUnits) -> String {
     }
 }
 
+/// The `predict.bias` table of `--stage`: the largest of each term over the columns, every
+/// key written out, and per term and column what the fit said (`lsb` in the log's units).
+fn stage_table(
+    results: &[ColumnResult],
+    args: &Args,
+    rate: f64,
+    unit: RateUnit,
+    lsb: f64,
+) -> Result<String, CliError> {
+    let shown = args.input.display();
+    let mut terms: Option<BiasTerms> = None;
+    let mut notes = Vec::new();
+    for term in [Term::N, Term::B, Term::K, Term::Q] {
+        let key = match term {
+            Term::N => "arw",
+            Term::B => "bias_instability",
+            Term::K => "rrw",
+            _ => "quantization",
+        };
+        notes.push(format!("#   {} ({key}):", term));
+        for r in results {
+            let fit = r.fit.as_ref().map_err(|e| {
+                CliError::input(format!(
+                    "{shown}: column '{}': no noise terms to give predict.bias ({e})",
+                    r.name
+                ))
+            })?;
+            let t = fit.get(term);
+            let what = match t.estimate {
+                Some(_) => format_term(t, TermUnits::Datasheet),
+                None => {
+                    let (u, f) = term.unit_in(TermUnits::Datasheet);
+                    format!(
+                        "{}; the fit's best value, {} {u}, is used",
+                        format_term(t, TermUnits::Datasheet),
+                        sig(fit.theta[term as usize].max(0.0).sqrt() * f, 5)
+                    )
+                }
+            };
+            notes.push(format!("#     {}: {what}", r.name));
+        }
+    }
+    for r in results {
+        let fit = r.fit.as_ref().expect("checked above");
+        let t = BiasTerms::from_fit(fit, lsb * unit.to_deg_per_s()).map_err(|e| {
+            CliError::input(format!(
+                "{shown}: column '{}': {e}: the record cannot give predict.bias its terms",
+                r.name
+            ))
+        })?;
+        terms = Some(match terms {
+            None => t,
+            Some(m) => BiasTerms {
+                n: m.n.max(t.n),
+                b: m.b.max(t.b),
+                k: m.k.max(t.k),
+                q: m.q.max(t.q),
+                ..m
+            },
+        });
+    }
+    let Some(mut terms) = terms else {
+        return Err(CliError::input(format!("{shown}: no column to analyse")));
+    };
+    // The stage reads lsb in the pipeline's input units, which are the log's here.
+    terms.lsb = lsb;
+    let columns: Vec<&str> = results.iter().map(|r| r.name.as_str()).collect();
+    let samples = results.first().map_or(0, |r| r.samples);
+    let mut out = format!(
+        "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {unit}),\n\
+         # from `driftless allan ... --stage`. One set for every axis: the largest of each term\n\
+         # over the columns. Every key is given, so no sensor's defaults fill in. The pipeline's\n\
+         # input_units must be {unit} (lsb is in them). Set input and output to your chain's services.\n",
+        columns.join(", ")
+    );
+    for n in notes {
+        out.push_str(&n);
+        out.push('\n');
+    }
+    out.push_str(&format!(
+        "[[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"nav/denoised\"\noutput = \"nav/predicted\"\n{}\n",
+        terms.stage_keys()
+    ));
+    Ok(out)
+}
+
 /// Run `driftless allan`.
 pub fn run(args: Args) -> Result<(), CliError> {
     let rate = super::simulate::parse_number("--rate", &args.rate)?;
@@ -324,6 +425,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     if let Some(path) = &args.plot {
         plot::write_loglog(path, &chart(&results, kind, unit)).map_err(CliError::input)?;
+    }
+    if args.stage {
+        let lsb = super::simulate::parse_number("--lsb", &args.lsb)?;
+        if !(lsb.is_finite() && lsb >= 0.0) {
+            return Err(CliError::input(format!(
+                "--lsb '{}' must be >= 0",
+                args.lsb
+            )));
+        }
+        print!("{}", stage_table(&results, &args, rate, unit, lsb)?);
+        return Ok(());
     }
     if args.json {
         let columns: Vec<Value> = results

@@ -9,7 +9,8 @@
 //! kind = "predict.bias"
 //! input = "demo/denoised"
 //! output = "demo/predicted"
-//! profile = "adis16405"        # default terms; or give them, as `driftless allan` prints:
+//! profile = "adis16405"        # a named sensor's terms; or your own, all three at least, as
+//! #                            # `driftless allan LOG --rate HZ --stage` prints them:
 //! # arw = 2.3                  # N, deg/sqrt(h)
 //! # bias_instability = 34.0    # B, deg/h
 //! # rrw = 0.0                  # K, deg/h/sqrt(h)
@@ -34,37 +35,37 @@ use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 const PROFILE: Key = Key {
     name: "profile",
     ty: Type::Choice(&["adis16405", "adxrs450"]),
-    default: "\"adis16405\" (unless the terms are given)",
-    doc: "the default noise terms of a named sensor",
+    default: "\"adis16405\" (unless arw, bias_instability and rrw are all given)",
+    doc: "the noise terms of a named sensor; with it, any term given replaces that sensor's",
 };
 const ARW: Key = Key {
     name: "arw",
     ty: Type::Positive(1e6),
-    default: "the profile's",
+    default: "the profile's (without a profile: required)",
     doc: "angle random walk N, deg/sqrt(h) (as `driftless allan` prints it)",
 };
 const BIAS_INSTABILITY: Key = Key {
     name: "bias_instability",
     ty: Type::Float(">= 0"),
-    default: "the profile's",
+    default: "the profile's (without a profile: required)",
     doc: "bias instability B, deg/h",
 };
 const RRW: Key = Key {
     name: "rrw",
     ty: Type::Float(">= 0"),
-    default: "the profile's",
+    default: "the profile's (without a profile: required)",
     doc: "rate random walk K, deg/h/sqrt(h)",
 };
 const QUANTIZATION: Key = Key {
     name: "quantization",
     ty: Type::Float(">= 0"),
-    default: "the profile's",
+    default: "the profile's (without a profile: 0)",
     doc: "quantisation noise Q, deg (as `driftless allan` prints it)",
 };
 const LSB: Key = Key {
     name: "lsb",
     ty: Type::Float(">= 0"),
-    default: "the profile's",
+    default: "the profile's (without a profile: 0)",
     doc: "output step of the raw rate, input units (0: not quantised)",
 };
 const INITIAL_SD: Key = Key {
@@ -129,8 +130,32 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         Some(v) => Some(src.float_in(&v, "delay_s", 0.0, 60.0)?),
         None => None,
     };
+    // Your own terms, or a named sensor's: never a sensor's terms for the ones you left out
+    // unless you name it (a gyro that is not an ADIS16405 must not get its noise silently).
+    let given = [
+        ("arw", arw.is_some()),
+        ("bias_instability", b.is_some()),
+        ("rrw", k.is_some()),
+    ];
+    let own = given.iter().any(|(_, g)| *g);
+    if profile.is_none() && own {
+        let missing: Vec<&str> = given.iter().filter(|(_, g)| !g).map(|(n, _)| *n).collect();
+        if !missing.is_empty() {
+            return Err(t.error(format!(
+                "predict.bias: {} not given: give arw, bias_instability and rrw (`driftless \
+                 allan LOG --rate HZ --stage` prints them all), or name the sensor whose terms \
+                 fill in the rest (profile = \"adis16405\")",
+                missing.join(" and ")
+            )));
+        }
+    }
     let name = profile.as_deref().unwrap_or("adis16405");
     let mut terms = BiasTerms::profile(name).map_err(|e| t.error(format!("predict.bias: {e}")))?;
+    if profile.is_none() && own {
+        // Not that sensor: what is not given is not there.
+        terms.q = 0.0;
+        terms.lsb = 0.0;
+    }
     // Given terms are in the units `driftless allan` prints; the filter works in deg/s.
     let to_deg = t.cx.units.to_rad_per_sec().to_degrees();
     if let Some(n) = arw {
