@@ -6,6 +6,7 @@
 //! DRIFTLESS_BENCH_SECONDS=20 cargo bench --bench daemon   # shorter
 //! DRIFTLESS_BENCH_ONLY=scale cargo bench --bench daemon    # runs 5 and 6 alone
 //! DRIFTLESS_BENCH_ONLY=drivers cargo bench --bench daemon  # run 6 alone
+//! DRIFTLESS_BENCH_ONLY=single cargo bench --bench daemon   # runs 1-4 alone (one pipeline)
 //! ```
 //!
 //! Runs, in order (each alone on the machine):
@@ -413,8 +414,10 @@ fn main() {
         "algorithmic delay of the demo's denoiser (lag / rate): {} us, reported beside the end-to-end latency",
         us(demo["algorithmic_delay_ns"].as_u64().unwrap_or(0))
     );
-    scale(secs, dir.path());
-    drivers(secs, dir.path());
+    if only != "single" {
+        scale(secs, dir.path());
+        drivers(secs, dir.path());
+    }
     println!("load average at the end: {}", loadavg());
 }
 

@@ -209,7 +209,7 @@ pub struct Counters {
     pub repaired: AtomicU64,
     /// The stream's first epoch (set once before the segments start).
     pub epoch: AtomicU64,
-    /// Source restarts (each started a new epoch).
+    /// New epochs: source restarts, and sequence numbers that repeated or stepped back.
     pub restarts: AtomicU64,
     /// Published outputs carrying each of [`Outputs::FLAGS`].
     pub outputs: [AtomicU64; 4],
@@ -396,7 +396,8 @@ pub struct Report {
     pub lost: u64,
     /// The stream's epoch at start ([`crate::transport::GyroSample::epoch`]).
     pub epoch: u32,
-    /// Source restarts seen (each started the next epoch).
+    /// New epochs after the first: source restarts, and sequence numbers that repeated or
+    /// stepped back (each started the next epoch).
     pub source_restarts: u64,
     /// Flagged input.
     pub flagged: Flagged,
@@ -443,7 +444,7 @@ impl Report {
             self.epoch,
             match self.source_restarts {
                 0 => String::new(),
-                n => format!(" then {n} more (source restarts)"),
+                n => format!(" then {n} more (source restarts, or its seq falling back)"),
             }
         ));
         s.push_str(&format!(

@@ -2,7 +2,9 @@
 //! checks on every raw sample (non-finite or driver-invalid values, sequence gaps, timestamps
 //! going backwards). A bad value is replaced by the last good one, flagged and counted: no NaN
 //! or Inf ever enters a stage. It also keeps the stream's epoch ([`GyroSample::epoch`]): a
-//! source restart starts a new epoch instead of counting as a gap.
+//! source restart starts a new epoch instead of counting as a gap, so that within an epoch
+//! `seq` always rises. A driver whose `seq` repeats or steps back (not to 0) also starts a new
+//! epoch, and that sample is flagged and counted as a gap: subscribers count on the rise.
 
 use crate::pipeline::config::Units;
 use crate::transport::{
@@ -14,13 +16,13 @@ use crate::transport::{
 pub struct GuardCounts {
     /// Samples with a non-finite or driver-invalid rate.
     pub invalid: u64,
-    /// Gaps (a sequence jump).
+    /// Gaps: a sequence jump, or a sequence number that repeated or stepped back.
     pub gaps: u64,
     /// Sequence numbers missing in total.
     pub missing: u64,
     /// Timestamps that went backwards.
     pub backwards: u64,
-    /// Source restarts (each started a new epoch).
+    /// New epochs: source restarts, and sequence numbers that repeated or stepped back.
     pub restarts: u64,
 }
 
@@ -34,6 +36,8 @@ pub struct Guard {
     last_t: Option<u64>,
     epoch: u32,
     source_epoch: Option<u32>,
+    /// Flags [`Guard::stamp`] found for the sample [`Guard::admit`] takes next.
+    pending: u32,
     /// What was flagged so far.
     pub counts: GuardCounts,
 }
@@ -49,6 +53,7 @@ impl Guard {
             last_t: None,
             epoch: epoch.max(1),
             source_epoch: None,
+            pending: 0,
             counts: GuardCounts::default(),
         }
     }
@@ -65,7 +70,15 @@ impl Guard {
     pub fn stamp(&mut self, raw: &RawSample) -> RawSample {
         let new_source_run = raw.epoch != 0 && self.source_epoch.is_some_and(|e| e != raw.epoch);
         let seq_restarted = raw.seq == 0 && self.last_seq.is_some();
-        if new_source_run || seq_restarted {
+        // A repeat or a step back within a run: a driver's fault, flagged, and a new epoch so
+        // that no subscriber sees seq fall within one.
+        let seq_fell =
+            !new_source_run && !seq_restarted && self.last_seq.is_some_and(|last| raw.seq <= last);
+        if seq_fell {
+            self.pending |= FLAG_GAP_BEFORE;
+            self.counts.gaps += 1;
+        }
+        if new_source_run || seq_restarted || seq_fell {
             self.epoch = self.epoch.checked_add(1).unwrap_or(1);
             self.counts.restarts += 1;
             self.last_seq = None;
@@ -82,7 +95,7 @@ impl Guard {
 
     /// Check and convert one raw sample ingested at `ingest_ns`.
     pub fn admit(&mut self, raw: &RawSample, ingest_ns: u64) -> GyroSample {
-        let mut flags = 0;
+        let mut flags = std::mem::take(&mut self.pending);
         let mut rate = [0.0; 3];
         let driver_invalid = raw.flags & RAW_INVALID != 0;
         let finite = raw.rate[..self.axes].iter().all(|v| v.is_finite());
@@ -195,8 +208,15 @@ mod tests {
         assert_eq!((s.epoch, s.flags), (9, 0));
         // A jump within a run is still a gap.
         assert_eq!(admit(run(5, 43)).flags, FLAG_GAP_BEFORE);
-        assert_eq!(g.counts.gaps, 1);
+        // A repeat (and a step back) within a run: flagged, counted, and a new epoch, so seq
+        // never falls within one; the next sample is clean.
+        let s = admit(run(5, 43));
+        assert_eq!((s.epoch, s.flags), (10, FLAG_GAP_BEFORE));
+        assert_eq!(admit(run(6, 43)).flags, 0);
+        let s = admit(run(3, 43));
+        assert_eq!((s.epoch, s.flags), (11, FLAG_GAP_BEFORE));
+        assert_eq!(g.counts.gaps, 3);
         assert_eq!(g.counts.missing, 3);
-        assert_eq!(g.counts.restarts, 2);
+        assert_eq!(g.counts.restarts, 4);
     }
 }
