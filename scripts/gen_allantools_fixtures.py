@@ -17,21 +17,11 @@ import numpy as np
 import allantools
 from allantools import ci as at_ci
 
+from splitmix import splitmix64  # scripts/splitmix.py
+
 assert importlib.metadata.version("allantools") == "2024.6", importlib.metadata.version("allantools")
 
 OUT = pathlib.Path(__file__).resolve().parent.parent / "tests" / "fixtures" / "allantools"
-MASK = (1 << 64) - 1
-
-
-def splitmix64(seed):
-    state = seed & MASK
-    while True:
-        state = (state + 0x9E3779B97F4A7C15) & MASK
-        z = state
-        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK
-        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK
-        z ^= z >> 31
-        yield (z >> 11) * 2.0 ** -53
 
 
 def take(gen, n):

@@ -27,29 +27,17 @@ import os
 import imufusion
 import numpy as np
 
+from splitmix import splitmix64  # scripts/splitmix.py
+
 VERSION = "1.3.3"
 assert importlib.metadata.version("imufusion") == VERSION, "pin imufusion==" + VERSION
 
 HERE = os.path.join(os.path.dirname(__file__), "..", "tests", "fixtures", "fusion")
 
 
-M64 = (1 << 64) - 1
-
-
-def splitmix(seed):
-    state = seed
-    while True:
-        state = (state + 0x9E3779B97F4A7C15) & M64
-        z = state
-        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & M64
-        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & M64
-        z ^= z >> 31
-        yield (z >> 11) * 2.0**-53
-
-
 def signal(rate, seconds, seed):
     """Sample k, axis a: bias[a] + 0.6 (u - 0.5) + motion; u drawn k-major, then by axis."""
-    u = splitmix(seed)
+    u = splitmix64(seed)
     bias = [0.4, -0.3, 0.2]
     rows = []
     for k in range(int(rate * seconds)):

@@ -42,10 +42,11 @@ import pathlib
 import numpy as np
 import pywt
 
+from splitmix import splitmix64  # scripts/splitmix.py
+
 # pywt.__version__ reads "1.8.0" inside the 1.9.0 wheel; the distribution metadata is right.
 assert importlib.metadata.version("PyWavelets") == "1.9.0"
 
-MASK = (1 << 64) - 1
 MODES = ["zero", "constant", "symmetric", "reflect", "periodic", "smooth", "periodization"]
 WAVELETS = ["haar", "db1", "db2", "db4", "db6", "db10", "db20", "sym2", "sym5", "sym8", "sym10",
             "sym20", "coif1", "coif3", "coif5", "coif17"]
@@ -54,16 +55,7 @@ WEIGHT_SEED = 0xC0FFEE
 
 def splitmix(seed, n):
     """n samples in [-0.5, 0.5), bit-identical to the Rust twin."""
-    state = seed & MASK
-    out = np.empty(n)
-    for i in range(n):
-        state = (state + 0x9E3779B97F4A7C15) & MASK
-        z = state
-        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK
-        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK
-        z = z ^ (z >> 31)
-        out[i] = (z >> 11) * 2.0**-53 - 0.5
-    return out
+    return np.fromiter(splitmix64(seed), dtype=float, count=n) - 0.5
 
 
 _signals = {}

@@ -294,40 +294,16 @@ fn stage_table(
     lsb: f64,
 ) -> Result<String, CliError> {
     let shown = args.input.display();
+    // Each column's fit and terms, or the reason the record cannot give them.
+    let mut fits = Vec::with_capacity(results.len());
     let mut terms: Option<BiasTerms> = None;
-    let mut notes = Vec::new();
-    for term in [Term::N, Term::B, Term::K, Term::Q] {
-        let key = match term {
-            Term::N => "arw",
-            Term::B => "bias_instability",
-            Term::K => "rrw",
-            _ => "quantization",
-        };
-        notes.push(format!("#   {} ({key}):", term));
-        for r in results {
-            let fit = r.fit.as_ref().map_err(|e| {
-                CliError::input(format!(
-                    "{shown}: column '{}': no noise terms to give predict.bias ({e})",
-                    r.name
-                ))
-            })?;
-            let t = fit.get(term);
-            let what = match t.estimate {
-                Some(_) => format_term(t, TermUnits::Datasheet),
-                None => {
-                    let (u, f) = term.unit_in(TermUnits::Datasheet);
-                    format!(
-                        "{}; the fit's best value, {} {u}, is used",
-                        format_term(t, TermUnits::Datasheet),
-                        sig(fit.theta[term as usize].max(0.0).sqrt() * f, 5)
-                    )
-                }
-            };
-            notes.push(format!("#     {}: {what}", r.name));
-        }
-    }
     for r in results {
-        let fit = r.fit.as_ref().expect("checked above");
+        let fit = r.fit.as_ref().map_err(|e| {
+            CliError::input(format!(
+                "{shown}: column '{}': no noise terms to give predict.bias ({e})",
+                r.name
+            ))
+        })?;
         let t = BiasTerms::from_fit(fit, lsb * unit.to_deg_per_s()).map_err(|e| {
             CliError::input(format!(
                 "{shown}: column '{}': {e}: the record cannot give predict.bias its terms",
@@ -344,10 +320,35 @@ fn stage_table(
                 ..m
             },
         });
+        fits.push((r.name.as_str(), fit));
     }
     let Some(mut terms) = terms else {
         return Err(CliError::input(format!("{shown}: no column to analyse")));
     };
+    let mut notes = Vec::new();
+    for (term, key) in [
+        (Term::N, "arw"),
+        (Term::B, "bias_instability"),
+        (Term::K, "rrw"),
+        (Term::Q, "quantization"),
+    ] {
+        notes.push(format!("#   {term} ({key}):"));
+        for (name, fit) in &fits {
+            let t = fit.get(term);
+            let what = match t.estimate {
+                Some(_) => format_term(t, TermUnits::Datasheet),
+                None => {
+                    let (u, f) = term.unit_in(TermUnits::Datasheet);
+                    format!(
+                        "{}; the fit's best value, {} {u}, is used",
+                        format_term(t, TermUnits::Datasheet),
+                        sig(fit.theta[term as usize].max(0.0).sqrt() * f, 5)
+                    )
+                }
+            };
+            notes.push(format!("#     {name}: {what}"));
+        }
+    }
     // The stage reads lsb in the pipeline's input units, which are the log's here.
     terms.lsb = lsb;
     let columns: Vec<&str> = results.iter().map(|r| r.name.as_str()).collect();

@@ -133,12 +133,12 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     // Your own terms, or a named sensor's: never a sensor's terms for the ones you left out
     // unless you name it (a gyro that is not an ADIS16405 must not get its noise silently).
     let given = [
-        ("arw", arw.is_some()),
-        ("bias_instability", b.is_some()),
-        ("rrw", k.is_some()),
+        (ARW.name, arw.is_some()),
+        (BIAS_INSTABILITY.name, b.is_some()),
+        (RRW.name, k.is_some()),
     ];
-    let own = given.iter().any(|(_, g)| *g);
-    if profile.is_none() && own {
+    let own = profile.is_none() && given.iter().any(|(_, g)| *g);
+    if own {
         let missing: Vec<&str> = given.iter().filter(|(_, g)| !g).map(|(n, _)| *n).collect();
         if !missing.is_empty() {
             return Err(t.error(format!(
@@ -151,7 +151,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     }
     let name = profile.as_deref().unwrap_or("adis16405");
     let mut terms = BiasTerms::profile(name).map_err(|e| t.error(format!("predict.bias: {e}")))?;
-    if profile.is_none() && own {
+    if own {
         // Not that sensor: what is not given is not there.
         terms.q = 0.0;
         terms.lsb = 0.0;
