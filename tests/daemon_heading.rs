@@ -94,3 +94,92 @@ output = "h/corrected"
         "{err}"
     );
 }
+
+/// `run`'s report says per axis what walk each `predict.bias` stage uses against the
+/// configured one: learnt from its stops with `learn_walk = "always"`, the configured one
+/// with the default (no stops given from outside in this chain).
+#[test]
+fn the_report_says_what_the_bias_filter_learnt() {
+    let prefix = Prefix::new("learnt");
+    let dir = Dir::new();
+    let stage = |name: &str, input: &str, output: &str, extra: &str| {
+        format!(
+            "\n[[stage]]\nname = \"{name}\"\nkind = \"predict.bias\"\ninput = \"{input}\"\n\
+             output = \"{output}\"\nprofile = \"adis16405\"\n{extra}\n"
+        )
+    };
+    let text = format!(
+        r#"
+name = "l"
+rate_hz = 100.0
+axes = 3
+report_interval_s = 600.0
+
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "l/raw"
+profile = "adis16405"
+motion = "stop-and-go"
+seed = 3
+samples = 60000
+pace = "asap"
+{}{}
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "l/fixed"
+output = "l/corrected"
+"#,
+        stage("learns", "l/raw", "l/learnt", "learn_walk = \"always\""),
+        stage("keeps", "l/learnt", "l/fixed", "")
+    );
+    let file = dir.write("p.toml", &text);
+    let child = start(
+        &file,
+        &prefix,
+        &["--report", dir.path("report.json").to_str().unwrap()],
+    );
+    let (code, err) = finish(child, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{err}");
+    let r = report(&dir);
+    let lines: Vec<&str> = r["learnt"]
+        .as_array()
+        .expect("learnt lines")
+        .iter()
+        .map(|l| l.as_str().unwrap())
+        .collect();
+    assert_eq!(lines.len(), 6, "{lines:?}");
+    // "NAME: AXIS: walk W deg/h/sqrt(h) from S stops (configured C, bounds LO..HI; learn_walk = L)"
+    let parse = |l: &str| -> (f64, u64, f64, f64, f64) {
+        let num = |after: &str, until: char| -> f64 {
+            let rest = &l[l.find(after).unwrap() + after.len()..];
+            rest[..rest.find(until).unwrap()].parse().unwrap()
+        };
+        let bounds = &l[l.find("bounds ").unwrap() + 7..l.find(';').unwrap()];
+        let (lo, hi) = bounds.split_once("..").unwrap();
+        (
+            num("walk ", ' '),
+            num("from ", ' ') as u64,
+            num("configured ", ','),
+            lo.parse().unwrap(),
+            hi.parse().unwrap(),
+        )
+    };
+    for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+        let learns = lines[i];
+        assert!(
+            learns.starts_with(&format!("learns: {axis}: walk ")),
+            "{learns}"
+        );
+        assert!(learns.ends_with("learn_walk = always)"), "{learns}");
+        let (walk, stops, configured, lo, hi) = parse(learns);
+        assert!(stops >= 5, "{learns}");
+        assert!(walk != configured && walk >= lo && walk <= hi, "{learns}");
+        let keeps = lines[3 + i];
+        assert!(keeps.starts_with(&format!("keeps: {axis}: ")), "{keeps}");
+        assert!(keeps.ends_with("learn_walk = given-stops)"), "{keeps}");
+        let (walk, stops, configured, _, _) = parse(keeps);
+        assert_eq!((walk, stops), (configured, 0), "{keeps}");
+    }
+}

@@ -489,6 +489,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Method::ZaruDenoised,
         Method::KfDetected,
         Method::KfOracle,
+        Method::KfOracleFixed,
     ];
     if src.floor.is_some() {
         methods.push(Method::Floor);

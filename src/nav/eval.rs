@@ -7,7 +7,7 @@
 use super::baselines::{BiasEstimator, Raw, Tracked, Zaru};
 use super::metrics::{summarize, HeadingAccumulator, HeadingMetrics, Summary};
 use crate::drift::bias::{
-    stillness_from_terms, BiasError, BiasModel, BiasTerms, BiasTracker, TrackerConfig,
+    stillness_from_terms, BiasError, BiasModel, BiasTerms, BiasTracker, LearnWalk, TrackerConfig,
 };
 use crate::wavelet::stream::{StreamConfig, StreamingDenoiser};
 use crate::wavelet::WaveletError;
@@ -28,8 +28,12 @@ pub enum Method {
     ZaruDenoised,
     /// The bias Kalman filter with its own detector and delay window (the new estimator).
     KfDetected,
-    /// The same filter gated by the oracle's stops, no delay.
+    /// The same filter gated by the oracle's stops, no delay: what a navigator with a stop
+    /// signal from the vehicle gets. It learns its walk from those stops
+    /// ([`crate::drift::bias::LearnWalk::GivenStops`]).
     KfOracle,
+    /// [`Method::KfOracle`] keeping the configured walk (what learning it gains).
+    KfOracleFixed,
     /// [`Method::KfDetected`] plus heading hold: output 0 while the detector says still.
     KfHold,
     /// [`Method::KfDetected`] on the streaming-denoised rate (its output is the denoised rate
@@ -43,7 +47,7 @@ pub enum Method {
 
 impl Method {
     /// Every method, in table order.
-    pub const ALL: [Method; 10] = [
+    pub const ALL: [Method; 11] = [
         Method::Raw,
         Method::PowerOn,
         Method::ZaruOracle,
@@ -51,6 +55,7 @@ impl Method {
         Method::ZaruDenoised,
         Method::KfDetected,
         Method::KfOracle,
+        Method::KfOracleFixed,
         Method::KfHold,
         Method::KfDenoised,
         Method::Floor,
@@ -66,6 +71,7 @@ impl Method {
             Method::ZaruDenoised => "ZARU detected, denoised",
             Method::KfDetected => "KF detected",
             Method::KfOracle => "KF oracle",
+            Method::KfOracleFixed => "KF oracle, configured walk",
             Method::KfHold => "KF detected + hold",
             Method::KfDenoised => "KF detected, denoised",
             Method::Floor => "floor (true model, oracle)",
@@ -207,8 +213,19 @@ pub fn evaluate(
                 dt,
                 m == Method::KfHold,
             ),
-            Method::KfOracle => run(
-                &mut Tracked::oracle(BiasTracker::new(&setup.terms, rate, &oracle_cfg)?),
+            Method::KfOracle | Method::KfOracleFixed => run(
+                &mut Tracked::oracle(BiasTracker::new(
+                    &setup.terms,
+                    rate,
+                    &TrackerConfig {
+                        learn_walk: if m == Method::KfOracle {
+                            oracle_cfg.learn_walk
+                        } else {
+                            LearnWalk::Off
+                        },
+                        ..oracle_cfg
+                    },
+                )?),
                 measured,
                 truth,
                 still,

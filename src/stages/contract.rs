@@ -36,6 +36,12 @@ pub trait Stage {
     /// finds it in the cache: after the hot thread's sleep between paced samples a stage's
     /// state has left it. Called `prewarm_us` before a sample is due. Default: nothing.
     fn prewarm(&self) {}
+
+    /// What the stage learnt while running, one line each, for `run`'s report (called once,
+    /// after the last sample; may allocate). Default: nothing.
+    fn learnt(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// What a source has for the runtime.

@@ -24,7 +24,10 @@
 //! first stop is therefore `MOVING | WARMING_UP`.
 
 use super::predict::motion_flags;
-use crate::drift::bias::{BiasMode, BiasTerms, BiasTracker, TrackerConfig, DEFAULT_INITIAL_SD};
+use crate::drift::bias::{
+    default_walk_bounds, BiasMode, BiasModel, BiasTerms, BiasTracker, Instability, LearnWalk,
+    TrackerConfig, DEFAULT_INITIAL_SD,
+};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, Key, StageTable, Type};
@@ -81,6 +84,30 @@ const DELAY_S: Key = Key {
     doc: "a still sample enters the filter only after the sensor stayed still this long after it",
 };
 
+const LEARN_WALK: Key = Key {
+    name: "learn_walk",
+    ty: Type::Choice(&["given-stops", "always", "off"]),
+    default: "\"given-stops\"",
+    doc: "which stops teach the filter how fast this unit's bias wanders: stops given from outside, every stop (our detector's too), or none (keep the terms' walk)",
+};
+const WALK_MIN: Key = Key {
+    name: "walk_min",
+    ty: Type::Positive(1e9),
+    default: "the terms' walk / 100",
+    doc: "least walk learnt, as a rate random walk in deg/h/sqrt(h)",
+};
+const WALK_MAX: Key = Key {
+    name: "walk_max",
+    ty: Type::Positive(1e9),
+    default: "the terms' walk x 10",
+    doc: "largest walk learnt, deg/h/sqrt(h)",
+};
+
+/// A walk in (deg/s)^2/s as a rate random walk in deg/h/sqrt(h), the unit of `rrw`.
+pub fn walk_to_rrw(walk: f64) -> f64 {
+    walk.max(0.0).sqrt() * 216_000.0
+}
+
 /// `predict.bias`.
 pub const KIND: Kind = Kind {
     name: "predict.bias",
@@ -95,6 +122,9 @@ pub const KIND: Kind = Kind {
         LSB,
         INITIAL_SD,
         DELAY_S,
+        LEARN_WALK,
+        WALK_MIN,
+        WALK_MAX,
     ],
     parse,
 };
@@ -178,6 +208,31 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     if let Some(d) = delay_s {
         tracker.delay_s = d;
     }
+    if let Some(name) = t.choice(&LEARN_WALK, "learn_walk", false)? {
+        for l in [LearnWalk::Off, LearnWalk::GivenStops, LearnWalk::Always] {
+            if l.name() == name {
+                tracker.learn_walk = l;
+            }
+        }
+    }
+    let walk_min = t.positive(&WALK_MIN, "walk_min")?;
+    let walk_max = t.positive(&WALK_MAX, "walk_max")?;
+    if walk_min.is_some() || walk_max.is_some() {
+        let configured = BiasModel::new(&terms, t.cx.rate_hz, Instability::from_terms(&terms))
+            .map(|m| m.walk_per_s(t.cx.rate_hz))
+            .unwrap_or(0.0);
+        let (lo, hi) = default_walk_bounds(configured);
+        let from_rrw = |k: f64| (k / 216_000.0).powi(2);
+        let (lo, hi) = (walk_min.map_or(lo, from_rrw), walk_max.map_or(hi, from_rrw));
+        if lo > hi {
+            return Err(t.error(format!(
+                "predict.bias: walk_min ({}) is above walk_max ({}) deg/h/sqrt(h)",
+                walk_to_rrw(lo),
+                walk_to_rrw(hi)
+            )));
+        }
+        tracker.walk_range = Some((lo, hi));
+    }
     let params = BiasParams { terms, tracker };
     BiasTracker::new(&params.terms, t.cx.rate_hz, &params.tracker)
         .map_err(|e| t.error(format!("predict.bias: {e}")))?;
@@ -193,7 +248,10 @@ impl Params for BiasParams {
                     .map_err(|e| e.to_string())?,
             );
         }
-        Ok(Box::new(BiasStage { trackers }))
+        Ok(Box::new(BiasStage {
+            trackers,
+            learn: self.tracker.learn_walk,
+        }))
     }
 
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
@@ -213,9 +271,30 @@ impl Params for BiasParams {
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
 pub struct BiasStage {
     trackers: Vec<BiasTracker>,
+    learn: LearnWalk,
 }
 
 impl Stage for BiasStage {
+    fn learnt(&self) -> Vec<String> {
+        self.trackers
+            .iter()
+            .zip(["x", "y", "z"])
+            .filter_map(|(tr, axis)| {
+                let w = tr.filter().walk()?;
+                Some(format!(
+                    "{axis}: walk {:.1} deg/h/sqrt(h) from {} stops (configured {:.1}, bounds \
+                     {:.1}..{:.1}; learn_walk = {})",
+                    walk_to_rrw(w.walk),
+                    w.stops,
+                    walk_to_rrw(w.configured),
+                    walk_to_rrw(w.lo),
+                    walk_to_rrw(w.hi),
+                    self.learn.name()
+                ))
+            })
+            .collect()
+    }
+
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
         let (mut still, mut moving, mut warming) = (true, false, false);

@@ -148,6 +148,12 @@ impl BiasModel {
         Ok(m)
     }
 
+    /// The random walk of the turn-on state, (deg/s)^2 per second at `rate_hz`: the walk a
+    /// [`WalkLearner`] starts from.
+    pub fn walk_per_s(&self, rate_hz: f64) -> f64 {
+        self.q[0] * rate_hz
+    }
+
     /// Number of states.
     pub fn states(&self) -> usize {
         self.states
@@ -168,6 +174,8 @@ impl BiasModel {
 #[derive(Debug, Clone)]
 pub struct BiasFilter {
     model: BiasModel,
+    learner: Option<WalkLearner>,
+    dt: f64,
     x: [f64; MAX_STATES],
     p: Box<[[f64; MAX_STATES]; MAX_STATES]>,
     phi2: Box<[[f64; MAX_STATES]; MAX_STATES]>,
@@ -186,6 +194,8 @@ impl BiasFilter {
         }
         let mut f = BiasFilter {
             model,
+            learner: None,
+            dt: 1.0,
             x: [0.0; MAX_STATES],
             p: Box::new([[0.0; MAX_STATES]; MAX_STATES]),
             phi2,
@@ -195,8 +205,44 @@ impl BiasFilter {
         f
     }
 
+    /// A filter that learns its random walk from the stops ([`WalkLearner`]), starting from
+    /// `walk`; `dt` is the sample period (s). Only a one-state model (the default
+    /// [`Instability::RandomWalk`]) has a single walk to learn: others are refused.
+    pub fn learning(model: BiasModel, walk: WalkConfig, dt: f64) -> Result<Self, BiasError> {
+        if model.states != 1 {
+            return Err(BiasError::Walk(
+                "only the random-walk bias model (one state) can learn its walk".into(),
+            ));
+        }
+        let learner = WalkLearner::new(walk, dt).map_err(BiasError::Walk)?;
+        let mut f = BiasFilter::new(model);
+        f.model.q[0] = walk.configured * dt;
+        f.learner = Some(learner);
+        f.dt = dt;
+        Ok(f)
+    }
+
+    /// What the walk learner has learnt, if the filter learns.
+    pub fn walk(&self) -> Option<WalkReport> {
+        self.learner.as_ref().map(WalkLearner::report)
+    }
+
+    /// A stop ended. If it `teaches`, the walk learner takes its innovation and the walk it
+    /// returns is used from now on; if not, the learner only notes where the estimate stands
+    /// (the next stop's innovation is measured from here). Nothing without a learner.
+    pub fn end_stop(&mut self, teaches: bool) {
+        let (v, r) = (self.variance(), self.model.r);
+        if let Some(l) = &mut self.learner {
+            self.model.q[0] = l.end_stop(v, r, teaches) * self.dt;
+        }
+    }
+
     /// Back to the prior.
     pub fn reset(&mut self) {
+        if let Some(l) = &mut self.learner {
+            l.reset();
+            self.model.q[0] = l.walk() * self.dt;
+        }
         self.x = [0.0; MAX_STATES];
         for row in self.p.iter_mut() {
             *row = [0.0; MAX_STATES];
@@ -214,6 +260,9 @@ impl BiasFilter {
 
     /// Time update by one sample: the states decay, their variance grows.
     pub fn predict(&mut self) {
+        if let Some(l) = &mut self.learner {
+            l.step();
+        }
         let n = self.model.states;
         for i in 0..n {
             self.x[i] *= self.model.phi[i];
@@ -229,6 +278,9 @@ impl BiasFilter {
     pub fn update(&mut self, z: f64) -> f64 {
         if !z.is_finite() {
             return f64::NAN;
+        }
+        if let Some(l) = &mut self.learner {
+            l.sample(z, self.x[..self.model.states].iter().sum());
         }
         let n = self.model.states;
         let mut pu = [0.0; MAX_STATES];

@@ -53,13 +53,19 @@
 //!
 //! Files: this one holds the terms and the errors; `filter.rs` the Kalman filter itself
 //! ([`BiasModel`], [`BiasFilter`]); `tracker.rs` what feeds it ([`BiasTracker`]: stillness, the
-//! delay window, the ends of a stop).
+//! delay window, the ends of a stop); `walk.rs` how the filter learns its random walk from the
+//! stops ([`WalkLearner`], [`LearnWalk`]).
 
 mod filter;
 mod tracker;
+mod walk;
 
 pub use filter::{BiasFilter, BiasModel, DEFAULT_MATCH_S};
-pub use tracker::{stillness_from_terms, BiasMode, BiasStep, BiasTracker, TrackerConfig};
+pub use tracker::{
+    default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,
+    TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
+};
+pub use walk::{WalkConfig, WalkLearner, WalkReport};
 
 use crate::allan::fit::NoiseFit;
 use crate::allan::Term;
@@ -111,6 +117,9 @@ pub enum BiasError {
     /// The derived stillness thresholds are invalid.
     #[error("stillness: {0}")]
     Stillness(String),
+    /// The walk to learn or its bounds are invalid.
+    #[error("learning the walk: {0}")]
+    Walk(String),
 }
 
 /// Noise terms of one gyro axis in base units (see [`crate::allan::units`]): what the bias

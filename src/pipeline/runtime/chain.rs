@@ -266,6 +266,16 @@ impl Chain {
         }
     }
 
+    /// What the stages learnt ([`Stage::learnt`]), each line after its stage's name.
+    pub(super) fn learnt(&self, p: &crate::pipeline::Pipeline) -> Vec<String> {
+        let mut out = Vec::new();
+        for (k, stage) in self.stages.iter().enumerate() {
+            let name = &p.stages[self.first + k].name;
+            out.extend(stage.learnt().into_iter().map(|l| format!("{name}: {l}")));
+        }
+        out
+    }
+
     /// Drain the lagged stages, oldest first, through the rest of the segment.
     pub(super) fn drain(&mut self) -> Result<(), TransportError> {
         for k in 0..self.stages.len() {
@@ -413,7 +423,7 @@ pub(super) fn run_segment(
     upstream_done: &AtomicBool,
     stop: &AtomicBool,
     ready: crossbeam_channel::Sender<Ready>,
-) -> Result<(), RunError> {
+) -> Result<Vec<String>, RunError> {
     let ext = &p.stages[span.lo - 1];
     let poll_timeout = ext.params.poll_timeout();
     if ext.kind.role != Role::External {
@@ -437,7 +447,7 @@ pub(super) fn run_segment(
                 stage: ext.name.clone(),
                 message: e.to_string(),
             }));
-            return Ok(());
+            return Ok(Vec::new());
         }
     };
     let _ = ready.send(Ok((lost, lag)));
@@ -491,6 +501,7 @@ pub(super) fn run_segment(
         }
     }
     chain.send_batch();
+    let learnt = chain.learnt(p);
     drop(chain);
     drop((input, waker));
     drop(transport);
@@ -500,6 +511,6 @@ pub(super) fn run_segment(
             stop.store(true, Ordering::Relaxed);
             Err(e.into())
         }
-        None => Ok(()),
+        None => Ok(learnt),
     }
 }

@@ -144,7 +144,9 @@ pub(super) struct Running<'a> {
     pub(super) stop: Arc<AtomicBool>,
     /// Per segment: it has finished (segment 1's is set when the ingest ends).
     pub(super) done: Vec<Arc<AtomicBool>>,
-    pub(super) segment_threads: Vec<std::thread::JoinHandle<Result<(), RunError>>>,
+    pub(super) segment_threads: Vec<std::thread::JoinHandle<Result<Vec<String>, RunError>>>,
+    /// What the stages learnt ([`crate::stages::Stage::learnt`]), once their segments ended.
+    pub(super) learnt: Vec<String>,
     /// Until the daemon's reporting thread takes it.
     pub(super) stats: Option<Stats>,
     pub(super) failure: Option<RunError>,
@@ -246,6 +248,7 @@ impl<'a> Running<'a> {
             stop: Arc::default(),
             done: spans.iter().map(|_| Arc::default()).collect(),
             segment_threads: Vec::new(),
+            learnt: Vec::new(),
             stats: None,
             failure: None,
             transport,
@@ -392,14 +395,16 @@ impl<'a> Running<'a> {
             }
         }
         chain.send_batch();
+        self.learnt.extend(chain.learnt(self.p));
         drop(source);
         drop(chain);
         // The later segments drain what the external stages still relay, then flush.
         self.done[0].store(true, Ordering::Release);
     }
 
-    /// End the ingest if it still runs and wait for the later segments; the first failure.
-    pub(super) fn finish(mut self) -> Result<(), RunError> {
+    /// End the ingest if it still runs and wait for the later segments; what the stages
+    /// learnt, or the first failure.
+    pub(super) fn finish(mut self) -> Result<Vec<String>, RunError> {
         self.end_ingest();
         let mut failure = self.failure.take();
         for h in std::mem::take(&mut self.segment_threads) {
@@ -409,13 +414,15 @@ impl<'a> Running<'a> {
                     message: "a segment thread panicked".into(),
                 })
             });
-            if let (Err(e), None) = (result, &failure) {
-                failure = Some(e);
+            match (result, &failure) {
+                (Ok(learnt), _) => self.learnt.extend(learnt),
+                (Err(e), None) => failure = Some(e),
+                (Err(_), Some(_)) => {}
             }
         }
         drop(self.stats.take());
         drop(self.transport);
-        failure.map_or(Ok(()), Err)
+        failure.map_or(Ok(self.learnt), Err)
     }
 }
 

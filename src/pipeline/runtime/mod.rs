@@ -228,7 +228,8 @@ pub fn run_group(
         .max()
         .unwrap_or_default();
     serve(&mut group, opts, prewarm, notified);
-    let finished: Vec<Result<(), RunError>> = group.into_iter().map(Running::finish).collect();
+    let finished: Vec<Result<Vec<String>, RunError>> =
+        group.into_iter().map(Running::finish).collect();
     // Every sender is gone now: the reporting thread ends with the final reports.
     let reports = reporter.join();
     remove_leftovers(members);
@@ -239,7 +240,12 @@ pub fn run_group(
     Ok(finished
         .into_iter()
         .zip(reports)
-        .map(|(f, report)| f.map(|()| report))
+        .map(|(f, mut report)| {
+            f.map(|learnt| {
+                report.learnt = learnt;
+                report
+            })
+        })
         .collect())
 }
 
