@@ -1,5 +1,5 @@
 //! Files and terminals: CSV tables with positioned errors, atomic output, progress bars, plots,
-//! truth files for the heading benchmark.
+//! truth files for the heading benchmark, ROS 2 bags.
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
@@ -10,6 +10,7 @@ pub mod model_file;
 pub mod plot;
 pub mod progress;
 pub mod recording;
+pub mod ros2;
 pub mod truth;
 
 pub use csv_table::{

@@ -1,0 +1,259 @@
+#!/usr/bin/env python3
+"""ROS 2 bag fixtures for tests/ros2_bag.rs, made and checked by an independent peer: the
+`rosbags` package (pure Python, no ROS install), version pinned below.
+
+    python3 -m venv /tmp/rosbags-venv
+    /tmp/rosbags-venv/bin/pip install --only-binary=:all: rosbags==0.11.9
+    /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py            # write imu.mcap, imu.csv
+    DRIFTLESS_BLESS=1 cargo test --test ros2_bag committed               # rewrite written.mcap
+    /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py check \\
+        tests/fixtures/ros2/written.mcap > tests/fixtures/ros2/written.json
+
+Run from the repository root; `cargo test` itself never needs Python.
+
+`gen` (the default) writes tests/fixtures/ros2/imu.mcap, a rosbag2 MCAP file as rosbags writes
+it (zstd chunks, profile ros2, rosbags' own ros2msg definitions), and metadata.yaml, the
+rosbag2 directory's metadata rosbags writes beside it (the test makes a bag directory of the
+two). Topics: `/imu/data`, sensor_msgs/msg/Imu, 1,800 messages at 100 Hz, frame_id imu_link,
+values from scripts/splitmix.py (see `imu_message`); `/chatter`, std_msgs/msg/String, every
+tenth step, so that topic selection is exercised. The log time is the stamp plus a varying
+delay, as a recorder's receive time would be, so a reader that took the log time for the
+stamp fails. imu.csv holds what a reader must decode: stamp_ns and angular_velocity x, y, z
+as repr() (exact doubles); the other fields follow from the formulas in `imu_message`.
+
+`check PATH` reads an MCAP file that driftless's writer wrote (tests/ros2_bag.rs makes
+written.mcap: `written_messages` there is `written_message` here) with rosbags' reader and
+deserializer, asserts every field of every message against the same formulas, and prints
+what it read as JSON; the test compares its own reading of the file with that JSON.
+"""
+
+import csv
+import importlib.metadata
+import json
+import os
+import shutil
+import sys
+import tempfile
+
+import numpy as np
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
+from rosbags.interfaces import QosTime
+from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+from rosbags.typesys import Stores, get_typestore
+
+from splitmix import splitmix64  # scripts/splitmix.py
+
+VERSION = "0.11.9"
+assert importlib.metadata.version("rosbags") == VERSION, "pin rosbags==" + VERSION
+
+HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "fixtures", "ros2")
+STORE = get_typestore(Stores.ROS2_JAZZY)
+IMU = "sensor_msgs/msg/Imu"
+
+# Stamps: 2023-11-14T22:13:20.123456789Z and on, every 10 ms.
+T0_NS = 1_700_000_000_123_456_789
+STEP_NS = 10_000_000
+COUNT = 1800  # 18 s; with imu.csv, under 300 KB of fixtures
+SEED = 30  # issue 30
+
+# Infinite durations as rmw reports them (RMW_DURATION_INFINITE).
+INFINITE = QosTime(9223372036, 854775807)
+RELIABLE_KEEP_LAST_10 = Qos(
+    QosHistory.KEEP_LAST,
+    10,
+    QosReliability.RELIABLE,
+    QosDurability.VOLATILE,
+    INFINITE,
+    INFINITE,
+    QosLiveliness.AUTOMATIC,
+    INFINITE,
+    False,
+)
+
+
+def diag(a, b, c):
+    return np.array([a, 0.0, 0.0, 0.0, b, 0.0, 0.0, 0.0, c], dtype=np.float64)
+
+
+def imu_message(k, u):
+    """Message k of /imu/data; u yields the splitmix doubles (3 per message, x, y, z)."""
+    types = STORE.types
+    stamp = T0_NS + k * STEP_NS
+    gyro = [b + 0.02 * (next(u) - 0.5) for b in (0.011, -0.007, 0.003)]
+    return types[IMU](
+        header=types["std_msgs/msg/Header"](
+            stamp=types["builtin_interfaces/msg/Time"](
+                sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000
+            ),
+            frame_id="imu_link",
+        ),
+        # A unit quaternion of exact, distinct components, so a swapped field shows.
+        orientation=types["geometry_msgs/msg/Quaternion"](x=0.48, y=0.6, z=0.0, w=0.64),
+        orientation_covariance=diag(0.01, 0.02, 0.03),
+        angular_velocity=types["geometry_msgs/msg/Vector3"](x=gyro[0], y=gyro[1], z=gyro[2]),
+        angular_velocity_covariance=diag(1e-6, 2e-6, 3e-6),
+        # Constant (random values would double the file), distinct per axis.
+        linear_acceleration=types["geometry_msgs/msg/Vector3"](x=0.125, y=-0.25, z=9.80665),
+        linear_acceleration_covariance=diag(1e-4, 1e-4, 1e-4),
+    ), stamp
+
+
+def gen():
+    tmp = tempfile.mkdtemp()
+    try:
+        bag = os.path.join(tmp, "imu")
+        rows = []
+        writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        with writer:
+            imu = writer.add_connection(
+                "/imu/data", IMU, typestore=STORE, offered_qos_profiles=[RELIABLE_KEEP_LAST_10]
+            )
+            chatter = writer.add_connection(
+                "/chatter",
+                "std_msgs/msg/String",
+                typestore=STORE,
+                offered_qos_profiles=[RELIABLE_KEEP_LAST_10],
+            )
+            u = splitmix64(SEED)
+            for k in range(COUNT):
+                msg, stamp = imu_message(k, u)
+                # A receive time: the stamp plus 1.0-1.6 ms.
+                log_time = stamp + 1_000_000 + (k % 7) * 100_000
+                writer.write(imu, log_time, bytes(STORE.serialize_cdr(msg, IMU)))
+                rows.append([stamp] + [repr(v) for v in (
+                    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z)])
+                if k % 10 == 5:
+                    text = STORE.types["std_msgs/msg/String"](data=f"tick {k}")
+                    writer.write(
+                        chatter,
+                        log_time + 50_000,
+                        bytes(STORE.serialize_cdr(text, "std_msgs/msg/String")),
+                    )
+        os.makedirs(HERE, exist_ok=True)
+        shutil.copyfile(os.path.join(bag, "imu.mcap"), os.path.join(HERE, "imu.mcap"))
+        shutil.copyfile(os.path.join(bag, "metadata.yaml"), os.path.join(HERE, "metadata.yaml"))
+    finally:
+        shutil.rmtree(tmp)
+    with open(os.path.join(HERE, "imu.csv"), "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["stamp_ns", "wx", "wy", "wz"])
+        w.writerows(rows)
+    print("wrote imu.mcap, metadata.yaml, imu.csv in", os.path.normpath(HERE), COUNT, "messages")
+
+
+# --- check: what driftless's writer wrote, read by rosbags --------------------------------
+
+WRITTEN_COUNT = 200
+WRITTEN_SEED = 7
+WRITTEN_T0_NS = 1_700_000_000_000_000_000
+WRITTEN_STEP_NS = 5_000_000  # 200 Hz
+
+
+def written_message(k, u):
+    """Message k that tests/ros2_bag.rs wrote (its `written_messages`): the corrected rate as
+    angular_velocity, orientation and linear acceleration not provided (element 0 of their
+    covariance -1, as the message definition asks)."""
+    stamp = WRITTEN_T0_NS + k * WRITTEN_STEP_NS
+    gyro = [0.5 * (next(u) - 0.5) for _ in range(3)]
+    var = [(1.0 + a) * 1e-6 for a in range(3)]
+    return {
+        "sec": stamp // 1_000_000_000,
+        "nanosec": stamp % 1_000_000_000,
+        "frame_id": "imu_link",
+        "orientation": [0.0, 0.0, 0.0, 1.0],
+        "orientation_covariance": [-1.0] + [0.0] * 8,
+        "angular_velocity": gyro,
+        "angular_velocity_covariance": [var[0], 0, 0, 0, var[1], 0, 0, 0, var[2]],
+        "linear_acceleration": [0.0, 0.0, 0.0],
+        "linear_acceleration_covariance": [-1.0] + [0.0] * 8,
+    }, stamp
+
+
+def as_dict(msg):
+    h = msg.header
+    return {
+        "sec": h.stamp.sec,
+        "nanosec": h.stamp.nanosec,
+        "frame_id": h.frame_id,
+        "orientation": [msg.orientation.x, msg.orientation.y, msg.orientation.z,
+                        msg.orientation.w],
+        "orientation_covariance": [float(v) for v in msg.orientation_covariance],
+        "angular_velocity": [msg.angular_velocity.x, msg.angular_velocity.y,
+                             msg.angular_velocity.z],
+        "angular_velocity_covariance": [float(v) for v in msg.angular_velocity_covariance],
+        "linear_acceleration": [msg.linear_acceleration.x, msg.linear_acceleration.y,
+                                msg.linear_acceleration.z],
+        "linear_acceleration_covariance": [float(v) for v in
+                                           msg.linear_acceleration_covariance],
+    }
+
+
+def same(a, b):
+    """Equal bit for bit (floats compared by their bytes, so -0.0 != 0.0)."""
+    if isinstance(a, list):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) or isinstance(b, float):
+        return np.float64(a).tobytes() == np.float64(b).tobytes()
+    return a == b
+
+
+def check(path):
+    u = splitmix64(WRITTEN_SEED)
+    topics = {}
+    sums = [0.0, 0.0, 0.0]
+    count = 0
+    first = last = None
+    with Reader(path) as reader:
+        for c in reader.connections:
+            topics[c.topic] = {
+                "type": c.msgtype,
+                "message_encoding": c.ext.serialization_format,
+                "offered_qos_profiles": [q._asdict() | {
+                    k: getattr(q, k).name.lower()
+                    for k in ("history", "reliability", "durability", "liveliness")
+                } for q in c.ext.offered_qos_profiles],
+                "definition_format": c.msgdef.format.name,
+                "definition": c.msgdef.data,
+                "messages": c.msgcount,
+            }
+        for c, log_time, data in reader.messages():
+            assert c.msgtype == IMU, c.msgtype
+            got = as_dict(STORE.deserialize_cdr(data, IMU))
+            want, stamp = written_message(count, u)
+            assert same(got, want), (count, got, want)
+            assert log_time == stamp, (count, log_time, stamp)
+            for a in range(3):
+                sums[a] += got["angular_velocity"][a]
+            first = first or got
+            last = got
+            count += 1
+    assert count == WRITTEN_COUNT, count
+    for t in topics.values():
+        for q in t["offered_qos_profiles"]:
+            for k in ("deadline", "lifespan", "liveliness_lease_duration"):
+                q[k] = list(q[k])
+    json.dump(
+        {
+            "reader": f"rosbags {VERSION}",
+            "rihs01": STORE.hash_rihs01(IMU),
+            "topics": topics,
+            "count": count,
+            "first": first,
+            "last": last,
+            "angular_velocity_sums": [repr(s) for s in sums],
+            "every_message_as_written": True,
+        },
+        sys.stdout,
+        indent=1,
+        sort_keys=True,
+    )
+    sys.stdout.write("\n")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) >= 2 and sys.argv[1] == "check":
+        check(sys.argv[2])
+    else:
+        gen()

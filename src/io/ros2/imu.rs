@@ -1,0 +1,644 @@
+//! The `sensor_msgs/msg/Imu` message: its fields, its CDR encoding and decoding (by hand: see
+//! [`crate::io::ros2`] for why), and its `ros2msg` definition as rosbag2 records it.
+
+/// The complete `ros2msg` definition of sensor_msgs/msg/Imu as `ros2 bag record` writes it
+/// (rosbag2_cpp's LocalMessageDefinitionSource): the installed `.msg` file verbatim, then each
+/// dependency, depth first in sorted order, after a blank line, 80 `=` and `MSG: pkg/Type`.
+/// The files are those of Iron and later (ros2/common_interfaces and ros2/rcl_interfaces,
+/// rolling, jazzy and iron alike); Humble's Time.msg says `[0, 10e9)` in its last comment.
+pub const IMU_DEFINITION: &str = concat!(
+    r#"# This is a message to hold data from an IMU (Inertial Measurement Unit)
+#
+# Accelerations should be in m/s^2 (not in g's), and rotational velocity should be in rad/sec
+#
+# If the covariance of the measurement is known, it should be filled in (if all you know is the
+# variance of each measurement, e.g. from the datasheet, just put those along the diagonal)
+# A covariance matrix of all zeros will be interpreted as "covariance unknown", and to use the
+# data a covariance will have to be assumed or gotten from some other source
+#
+# If you have no estimate for one of the data elements (e.g. your IMU doesn't produce an
+# orientation estimate), please set element 0 of the associated covariance matrix to -1
+# If you are interpreting this message, please check for a value of -1 in the first element of each
+# covariance matrix, and disregard the associated estimate.
+
+std_msgs/Header header
+
+geometry_msgs/Quaternion orientation
+float64[9] orientation_covariance # Row major about x, y, z axes
+
+geometry_msgs/Vector3 angular_velocity
+float64[9] angular_velocity_covariance # Row major about x, y, z axes
+
+geometry_msgs/Vector3 linear_acceleration
+float64[9] linear_acceleration_covariance # Row major x, y z
+"#,
+    "\n================================================================================\n",
+    "MSG: geometry_msgs/Quaternion\n",
+    r#"# This represents an orientation in free space in quaternion form.
+
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+"#,
+    "\n================================================================================\n",
+    "MSG: geometry_msgs/Vector3\n",
+    r#"# This represents a vector in free space.
+
+# This is semantically different than a point.
+# A vector is always anchored at the origin.
+# When a transform is applied to a vector, only the rotational component is applied.
+
+float64 x
+float64 y
+float64 z
+"#,
+    "\n================================================================================\n",
+    "MSG: std_msgs/Header\n",
+    r#"# Standard metadata for higher-level stamped data types.
+# This is generally used to communicate timestamped data
+# in a particular coordinate frame.
+
+# Two-integer timestamp that is expressed as seconds and nanoseconds.
+builtin_interfaces/Time stamp
+
+# Transform frame with which this data is associated.
+string frame_id
+"#,
+    "\n================================================================================\n",
+    "MSG: builtin_interfaces/Time\n",
+    r#"# This message communicates ROS Time defined here:
+# https://design.ros2.org/articles/clock_and_time.html
+
+# The seconds component, valid over all int32 values.
+int32 sec
+
+# The nanoseconds component, valid in the range [0, 1e9).
+uint32 nanosec
+"#
+);
+
+/// A ROS 2 time (`builtin_interfaces/msg/Time`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Time {
+    /// Seconds since the epoch.
+    pub sec: i32,
+    /// Nanoseconds, in [0, 1e9) in a valid time.
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// The time in ns since the epoch: exact for every (sec, nanosec), a stamp before 1970
+    /// negative; compare consecutive stamps with it to find time going backwards.
+    pub fn ns(self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
+
+    /// [`Time::ns`] as an MCAP timestamp: None before 1970.
+    pub fn ns_u64(self) -> Option<u64> {
+        u64::try_from(self.ns()).ok()
+    }
+
+    /// The time `ns` since the epoch; None when its seconds do not fit an i32 (after 2038).
+    pub fn from_ns(ns: i64) -> Option<Time> {
+        Some(Time {
+            sec: i32::try_from(ns.div_euclid(1_000_000_000)).ok()?,
+            // In [0, 1e9): fits.
+            nanosec: ns.rem_euclid(1_000_000_000) as u32,
+        })
+    }
+}
+
+/// A `sensor_msgs/msg/Imu` message. Units as the definition says (REP 103): rad/s, m/s^2;
+/// covariances row major about x, y, z; element 0 of a covariance -1 when the estimate is not
+/// provided, all zeros when its covariance is unknown.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Imu {
+    /// `header.stamp`: when the sample was taken.
+    pub stamp: Time,
+    /// `header.frame_id`: the frame the data is in (e.g. `imu_link`).
+    pub frame_id: String,
+    /// Orientation as a quaternion x, y, z, w.
+    pub orientation: [f64; 4],
+    /// Covariance of the orientation (rad^2).
+    pub orientation_covariance: [f64; 9],
+    /// Angular velocity x, y, z, rad/s.
+    pub angular_velocity: [f64; 3],
+    /// Covariance of the angular velocity (rad^2/s^2).
+    pub angular_velocity_covariance: [f64; 9],
+    /// Linear acceleration x, y, z, m/s^2.
+    pub linear_acceleration: [f64; 3],
+    /// Covariance of the linear acceleration (m^2/s^4).
+    pub linear_acceleration_covariance: [f64; 9],
+}
+
+/// Why bytes are not a CDR Imu message (or an Imu cannot be written as one).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CdrError {
+    /// Fewer bytes than the encapsulation header.
+    #[error("{0} bytes, shorter than the 4-byte CDR encapsulation header")]
+    NoHeader(usize),
+    /// An encapsulation other than plain CDR.
+    #[error(
+        "encapsulation {a:02x} {b:02x} is not plain CDR (00 01 little-endian or 00 00 \
+         big-endian){}",
+        if *a == 0 && *b >= 6 { "; XCDR2 is not read" } else { "" }
+    )]
+    Encapsulation {
+        /// The header's first byte.
+        a: u8,
+        /// Its second byte.
+        b: u8,
+    },
+    /// The message ends inside a field.
+    #[error("ends inside {field}: {need} bytes needed at byte {at}, the message has {len}")]
+    Truncated {
+        /// The field cut short.
+        field: String,
+        /// Where it starts, from the message's first byte.
+        at: usize,
+        /// Its size (with alignment padding).
+        need: usize,
+        /// The message's size.
+        len: usize,
+    },
+    /// The string does not end with its NUL.
+    #[error("header.frame_id does not end with a NUL byte")]
+    NoNul,
+    /// The string is not UTF-8.
+    #[error("header.frame_id is not UTF-8")]
+    NotUtf8,
+    /// More than padding after the last field.
+    #[error("{0} bytes after the message's last field (at most 3 bytes of padding may follow)")]
+    Trailing(usize),
+    /// A frame_id too long for a CDR string (writing).
+    #[error("header.frame_id of {0} bytes is too long for CDR")]
+    FrameIdTooLong(usize),
+}
+
+/// The 37 doubles after the header, in order.
+const DOUBLES: usize = 4 + 9 + 3 + 9 + 3 + 9;
+
+/// The name of double `i` of [`DOUBLES`], for errors.
+fn double_name(i: usize) -> String {
+    const GROUPS: [(&str, usize); 6] = [
+        ("orientation", 4),
+        ("orientation_covariance", 9),
+        ("angular_velocity", 3),
+        ("angular_velocity_covariance", 9),
+        ("linear_acceleration", 3),
+        ("linear_acceleration_covariance", 9),
+    ];
+    let mut i = i;
+    for (name, n) in GROUPS {
+        if i < n {
+            return match n {
+                3 | 4 => format!("{name}.{}", ["x", "y", "z", "w"][i]),
+                _ => format!("{name}[{i}]"),
+            };
+        }
+        i -= n;
+    }
+    "the end".into()
+}
+
+/// A cursor over the bytes after the encapsulation header (alignment is relative to them).
+struct Cursor<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    big: bool,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize, field: impl FnOnce() -> String) -> Result<&'a [u8], CdrError> {
+        match self.pos.checked_add(n) {
+            Some(end) if end <= self.buf.len() => {
+                let s = &self.buf[self.pos..end];
+                self.pos = end;
+                Ok(s)
+            }
+            _ => Err(CdrError::Truncated {
+                field: field(),
+                at: self.pos + 4,
+                need: n,
+                len: self.buf.len() + 4,
+            }),
+        }
+    }
+
+    fn word(&mut self, field: &'static str) -> Result<[u8; 4], CdrError> {
+        let pad = (4 - self.pos % 4) % 4;
+        let s = self.take(pad + 4, || field.to_string())?;
+        let mut w = [0u8; 4];
+        w.copy_from_slice(&s[pad..]);
+        Ok(w)
+    }
+
+    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
+        let w = self.word(field)?;
+        Ok(if self.big {
+            u32::from_be_bytes(w)
+        } else {
+            u32::from_le_bytes(w)
+        })
+    }
+}
+
+impl Imu {
+    /// Decode a CDR message (encapsulation header included). Never panics: any bytes that are
+    /// not an Imu message are an error naming what is wrong and where.
+    pub fn from_cdr(bytes: &[u8]) -> Result<Imu, CdrError> {
+        let mut imu = Imu::default();
+        imu.read_cdr(bytes)?;
+        Ok(imu)
+    }
+
+    /// Decode into `self`, reusing its frame_id's buffer (what a reader of many messages
+    /// calls). On an error `self` holds a partly decoded message.
+    pub fn read_cdr(&mut self, bytes: &[u8]) -> Result<(), CdrError> {
+        if bytes.len() < 4 {
+            return Err(CdrError::NoHeader(bytes.len()));
+        }
+        let big = match (bytes[0], bytes[1]) {
+            (0, 1) => false,
+            (0, 0) => true,
+            (a, b) => return Err(CdrError::Encapsulation { a, b }),
+        };
+        let mut c = Cursor {
+            buf: &bytes[4..],
+            pos: 0,
+            big,
+        };
+        self.stamp.sec = c.u32("header.stamp.sec")? as i32;
+        self.stamp.nanosec = c.u32("header.stamp.nanosec")?;
+        // The length is checked against the bytes left before anything is taken: a huge one is
+        // an error, never an allocation.
+        let len = c.u32("header.frame_id's length")? as usize;
+        let text = c.take(len, || "header.frame_id".to_string())?;
+        self.frame_id.clear();
+        // A length of 0 (no NUL) is not valid CDR, but some writers send it for "".
+        if let Some((&last, text)) = text.split_last() {
+            if last != 0 {
+                return Err(CdrError::NoNul);
+            }
+            self.frame_id
+                .push_str(std::str::from_utf8(text).map_err(|_| CdrError::NotUtf8)?);
+        }
+        let pad = (8 - c.pos % 8) % 8;
+        let first = c.pos + pad;
+        let have = c.buf.len().saturating_sub(first) / 8;
+        if have < DOUBLES {
+            // Name the first double missing, where it starts (with the padding before the
+            // first one when that is cut too).
+            let (at, need) = if c.buf.len() < first {
+                (c.pos, pad + 8)
+            } else {
+                (first + 8 * have, 8)
+            };
+            return Err(CdrError::Truncated {
+                field: double_name(have),
+                at: 4 + at,
+                need,
+                len: bytes.len(),
+            });
+        }
+        let body = c.take(pad + 8 * DOUBLES, || double_name(0))?;
+        let mut values = body[pad..].chunks_exact(8).map(|b| {
+            let mut w = [0u8; 8];
+            w.copy_from_slice(b);
+            if big {
+                f64::from_be_bytes(w)
+            } else {
+                f64::from_le_bytes(w)
+            }
+        });
+        for dst in [
+            &mut self.orientation[..],
+            &mut self.orientation_covariance[..],
+            &mut self.angular_velocity[..],
+            &mut self.angular_velocity_covariance[..],
+            &mut self.linear_acceleration[..],
+            &mut self.linear_acceleration_covariance[..],
+        ] {
+            for (d, v) in dst.iter_mut().zip(&mut values) {
+                *d = v;
+            }
+        }
+        let trailing = c.buf.len() - c.pos;
+        if trailing > 3 {
+            return Err(CdrError::Trailing(trailing));
+        }
+        Ok(())
+    }
+
+    /// Encode as little-endian CDR, header included, into `out` (cleared first), as ROS 2 on
+    /// a little-endian machine sends it.
+    pub fn write_cdr(&self, out: &mut Vec<u8>) -> Result<(), CdrError> {
+        self.write_cdr_in(out, false)
+    }
+
+    /// [`Imu::write_cdr`] into a new vector.
+    pub fn to_cdr(&self) -> Result<Vec<u8>, CdrError> {
+        let mut out = Vec::with_capacity(4 + 12 + self.frame_id.len() + 8 + 8 * DOUBLES);
+        self.write_cdr(&mut out)?;
+        Ok(out)
+    }
+
+    /// Encode in either byte order (big-endian: encapsulation `00 00`).
+    fn write_cdr_in(&self, out: &mut Vec<u8>, big: bool) -> Result<(), CdrError> {
+        let len = u32::try_from(self.frame_id.len() + 1)
+            .map_err(|_| CdrError::FrameIdTooLong(self.frame_id.len()))?;
+        let u32b = |v: u32| {
+            if big {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }
+        };
+        out.clear();
+        out.extend_from_slice(&[0, u8::from(!big), 0, 0]);
+        out.extend_from_slice(&u32b(self.stamp.sec as u32));
+        out.extend_from_slice(&u32b(self.stamp.nanosec));
+        out.extend_from_slice(&u32b(len));
+        out.extend_from_slice(self.frame_id.as_bytes());
+        out.push(0);
+        while (out.len() - 4) % 8 != 0 {
+            out.push(0);
+        }
+        for group in [
+            &self.orientation[..],
+            &self.orientation_covariance[..],
+            &self.angular_velocity[..],
+            &self.angular_velocity_covariance[..],
+            &self.linear_acceleration[..],
+            &self.linear_acceleration_covariance[..],
+        ] {
+            for v in group {
+                out.extend_from_slice(&if big {
+                    v.to_be_bytes()
+                } else {
+                    v.to_le_bytes()
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const Z: [u8; 8] = [0; 8];
+    const ONE: [u8; 8] = [0, 0, 0, 0, 0, 0, 0xf0, 0x3f];
+    const MINUS_ONE: [u8; 8] = [0, 0, 0, 0, 0, 0, 0xf0, 0xbf];
+    const HALF: [u8; 8] = [0, 0, 0, 0, 0, 0, 0xe0, 0x3f];
+
+    fn small() -> Imu {
+        Imu {
+            stamp: Time { sec: 1, nanosec: 2 },
+            frame_id: "ab".into(),
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            orientation_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            angular_velocity: [0.5, -1.0, 1.0],
+            angular_velocity_covariance: [0.0; 9],
+            linear_acceleration: [1.0, 0.5, 0.0],
+            linear_acceleration_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// The bytes of `small()`, computed by hand from the CDR rules.
+    fn small_bytes() -> Vec<u8> {
+        let mut b = vec![
+            0x00, 0x01, 0x00, 0x00, // encapsulation: CDR little-endian, options 0
+            0x01, 0x00, 0x00, 0x00, // header.stamp.sec = 1 (offset 0 after the header)
+            0x02, 0x00, 0x00, 0x00, // header.stamp.nanosec = 2 (offset 4)
+            0x03, 0x00, 0x00, 0x00, // frame_id length 3: "ab" and its NUL (offset 8)
+            b'a', b'b', 0x00, // offsets 12-14
+            0x00, // padding: the first double goes at offset 16, a multiple of 8
+        ];
+        let doubles: [[u8; 8]; 37] = [
+            Z, Z, Z, ONE, // orientation x, y, z, w
+            MINUS_ONE, Z, Z, Z, Z, Z, Z, Z, Z, // orientation_covariance
+            HALF, MINUS_ONE, ONE, // angular_velocity
+            Z, Z, Z, Z, Z, Z, Z, Z, Z, // angular_velocity_covariance
+            ONE, HALF, Z, // linear_acceleration
+            MINUS_ONE, Z, Z, Z, Z, Z, Z, Z, Z, // linear_acceleration_covariance
+        ];
+        for d in doubles {
+            b.extend_from_slice(&d);
+        }
+        b
+    }
+
+    #[test]
+    fn the_cdr_layout_is_the_hand_computed_one() {
+        let bytes = small_bytes();
+        assert_eq!(bytes.len(), 4 + 16 + 296);
+        assert_eq!(small().to_cdr().unwrap(), bytes);
+        assert_eq!(Imu::from_cdr(&bytes).unwrap(), small());
+        // frame_id "imu_link": 4 + 4 + 4 + 9 bytes, 3 of padding, the first double at 24.
+        let imu = Imu {
+            frame_id: "imu_link".into(),
+            ..small()
+        };
+        let b = imu.to_cdr().unwrap();
+        assert_eq!(&b[12..16], &[9, 0, 0, 0]);
+        assert_eq!(&b[16..25], b"imu_link\0");
+        assert_eq!(&b[25..28], &[0, 0, 0]);
+        assert_eq!(&b[28 + 3 * 8..28 + 4 * 8], &ONE, "orientation.w");
+        assert_eq!(b.len(), 4 + 24 + 296);
+        // An empty frame_id is its NUL alone.
+        let b = Imu::default().to_cdr().unwrap();
+        assert_eq!(&b[12..16], &[1, 0, 0, 0]);
+        assert_eq!(b.len(), 4 + 16 + 296);
+    }
+
+    #[test]
+    fn big_endian_reads_the_same_message() {
+        let mut be = Vec::new();
+        small().write_cdr_in(&mut be, true).unwrap();
+        assert_eq!(
+            &be[..8],
+            &[0, 0, 0, 0, 0, 0, 0, 1],
+            "00 00 then sec = 1 big-endian"
+        );
+        assert_eq!(&be[12..16], &[0, 0, 0, 3]);
+        assert_eq!(&be[20 + 3 * 8..20 + 4 * 8], &[0x3f, 0xf0, 0, 0, 0, 0, 0, 0]);
+        assert_eq!(Imu::from_cdr(&be).unwrap(), small());
+    }
+
+    #[test]
+    fn bad_messages_say_what_is_wrong() {
+        let good = small_bytes();
+        let e = |b: &[u8]| Imu::from_cdr(b).unwrap_err().to_string();
+        assert_eq!(
+            e(&good[..3]),
+            "3 bytes, shorter than the 4-byte CDR encapsulation header"
+        );
+        let mut x = good.clone();
+        x[1] = 0x07;
+        assert!(e(&x).contains("00 07 is not plain CDR") && e(&x).contains("XCDR2"));
+        assert_eq!(
+            e(&good[..10]),
+            "ends inside header.stamp.nanosec: 4 bytes needed at byte 8, the message has 10"
+        );
+        let mut huge = good.clone();
+        huge[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert_eq!(
+            e(&huge),
+            "ends inside header.frame_id: 4294967295 bytes needed at byte 16, the message has 316"
+        );
+        assert_eq!(
+            e(&good[..good.len() - 1]),
+            "ends inside linear_acceleration_covariance[8]: 8 bytes needed at byte 308, the \
+             message has 315"
+        );
+        assert!(e(&good[..25]).contains("ends inside orientation.x"));
+        assert!(e(&good[..20 + 8 * 14]).contains("ends inside angular_velocity.y"));
+        let mut no_nul = good.clone();
+        no_nul[18] = b'c';
+        assert_eq!(e(&no_nul), "header.frame_id does not end with a NUL byte");
+        let mut latin1 = good.clone();
+        latin1[16] = 0xe9;
+        assert_eq!(e(&latin1), "header.frame_id is not UTF-8");
+        let mut padded = good.clone();
+        padded.extend_from_slice(&[0, 0, 0]);
+        assert_eq!(Imu::from_cdr(&padded).unwrap(), small());
+        padded.push(0);
+        assert_eq!(
+            e(&padded),
+            "4 bytes after the message's last field (at most 3 bytes of padding may follow)"
+        );
+    }
+
+    #[test]
+    fn stamps_in_ns() {
+        let t = Time {
+            sec: 1_700_000_000,
+            nanosec: 123_456_789,
+        };
+        assert_eq!(t.ns(), 1_700_000_000_123_456_789);
+        assert_eq!(Time::from_ns(t.ns()), Some(t));
+        let before = Time {
+            sec: -1,
+            nanosec: 999_999_999,
+        };
+        assert_eq!(before.ns(), -1);
+        assert_eq!(before.ns_u64(), None);
+        assert_eq!(Time::from_ns(-1), Some(before));
+        assert_eq!(
+            Time::from_ns(i64::from(i32::MAX) * 1_000_000_000 + 1_000_000_000),
+            None
+        );
+        let extreme = Time {
+            sec: i32::MIN,
+            nanosec: u32::MAX,
+        };
+        assert_eq!(
+            extreme.ns(),
+            i64::from(i32::MIN) * 1_000_000_000 + 4_294_967_295
+        );
+        assert!(
+            t < Time {
+                sec: t.sec,
+                nanosec: t.nanosec + 1
+            }
+        );
+    }
+
+    #[test]
+    fn the_definition_is_rosbag2s_layout() {
+        let parts: Vec<&str> = IMU_DEFINITION
+            .split(&format!("\n{}\n", "=".repeat(80)))
+            .collect();
+        assert_eq!(parts.len(), 5);
+        assert!(parts[0].starts_with("# This is a message to hold data from an IMU"));
+        assert!(
+            parts[0].ends_with("float64[9] linear_acceleration_covariance # Row major x, y z\n")
+        );
+        let headers: Vec<&str> = parts[1..]
+            .iter()
+            .map(|p| p.lines().next().unwrap())
+            .collect();
+        assert_eq!(
+            headers,
+            [
+                "MSG: geometry_msgs/Quaternion",
+                "MSG: geometry_msgs/Vector3",
+                "MSG: std_msgs/Header",
+                "MSG: builtin_interfaces/Time"
+            ]
+        );
+        assert!(IMU_DEFINITION.ends_with("uint32 nanosec\n"));
+        assert!(!IMU_DEFINITION.lines().any(|l| l.ends_with(' ')));
+    }
+
+    fn bits(imu: &Imu) -> Vec<u64> {
+        imu.orientation
+            .iter()
+            .chain(&imu.orientation_covariance)
+            .chain(&imu.angular_velocity)
+            .chain(&imu.angular_velocity_covariance)
+            .chain(&imu.linear_acceleration)
+            .chain(&imu.linear_acceleration_covariance)
+            .map(|v| v.to_bits())
+            .collect()
+    }
+
+    fn any_imu() -> impl Strategy<Value = Imu> {
+        (
+            any::<i32>(),
+            any::<u32>(),
+            "\\PC{0,20}",
+            proptest::collection::vec(any::<u64>(), 37),
+        )
+            .prop_map(|(sec, nanosec, frame_id, v)| {
+                let f = |i: usize| f64::from_bits(v[i]);
+                Imu {
+                    stamp: Time { sec, nanosec },
+                    frame_id,
+                    orientation: std::array::from_fn(f),
+                    orientation_covariance: std::array::from_fn(|i| f(4 + i)),
+                    angular_velocity: std::array::from_fn(|i| f(13 + i)),
+                    angular_velocity_covariance: std::array::from_fn(|i| f(16 + i)),
+                    linear_acceleration: std::array::from_fn(|i| f(25 + i)),
+                    linear_acceleration_covariance: std::array::from_fn(|i| f(28 + i)),
+                }
+            })
+    }
+
+    proptest! {
+        #[test]
+        fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+            let _ = Imu::from_cdr(&bytes);
+            // With a valid header too, so the fields' decoding is reached.
+            let mut b = vec![0, 1, 0, 0];
+            b.extend_from_slice(&bytes);
+            let _ = Imu::from_cdr(&b);
+            b[1] = 0;
+            let _ = Imu::from_cdr(&b);
+        }
+
+        #[test]
+        fn every_message_reads_back_bit_for_bit_and_every_truncation_fails(
+            imu in any_imu(),
+            big in any::<bool>(),
+            cut in any::<prop::sample::Index>(),
+            len in any::<u32>(),
+        ) {
+            let mut b = Vec::new();
+            imu.write_cdr_in(&mut b, big).unwrap();
+            let back = Imu::from_cdr(&b).unwrap();
+            prop_assert_eq!((back.stamp, &back.frame_id), (imu.stamp, &imu.frame_id));
+            prop_assert_eq!(bits(&back), bits(&imu));
+            let n = cut.index(b.len());
+            prop_assert!(Imu::from_cdr(&b[..n]).is_err(), "{} of {} bytes decoded", n, b.len());
+            // Any string length: an error or (the true one) the message, never a panic.
+            let mut bad = b.clone();
+            bad[12..16].copy_from_slice(&if big { len.to_be_bytes() } else { len.to_le_bytes() });
+            let _ = Imu::from_cdr(&bad);
+        }
+    }
+}
