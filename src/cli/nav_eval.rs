@@ -196,6 +196,16 @@ fn sim_source(sensor: &str, args: &Args, rate: f64, window: usize) -> Result<Sou
 /// A one-axis pipeline at `rate`: `denoise.wavelet` (defaults) then `predict` (its kind and
 /// keys, TOML), as a pipeline file would say it.
 fn builtin_pipeline(rate: f64, predict: &str, name: &str) -> Result<Pipeline, CliError> {
+    builtin_pipeline_with(rate, "denoise.wavelet", predict, name)
+}
+
+/// [`builtin_pipeline`] with another denoise kind (its defaults).
+fn builtin_pipeline_with(
+    rate: f64,
+    denoise: &str,
+    predict: &str,
+    name: &str,
+) -> Result<Pipeline, CliError> {
     let text = format!(
         r#"name = "nav-eval"
 rate_hz = {rate}
@@ -209,7 +219,7 @@ output = "nav-eval/raw"
 
 [[stage]]
 name = "denoise"
-kind = "denoise.wavelet"
+kind = "{denoise}"
 input = "nav-eval/raw"
 output = "nav-eval/denoised"
 
@@ -246,6 +256,32 @@ fn bias_chain(src: &Source) -> Result<Chain, CliError> {
         .collect::<Result<_, _>>()?;
     Ok(Chain {
         label: "denoise.wavelet -> predict.bias (stages)".into(),
+        pipelines,
+    })
+}
+
+/// The chain for navigators with the vehicle's stop signal, `denoise.none -> predict.bias`
+/// reading `stop_input`, with each axis' terms: [`Offline::run_series`] publishes each case's
+/// true stops on it. What a navigator whose vehicle says when it stands gets.
+fn stop_signal_chain(src: &Source) -> Result<Chain, CliError> {
+    let pipelines = src
+        .terms
+        .iter()
+        .map(|t| {
+            let keys = format!(
+                "kind = \"predict.bias\"\nstop_input = \"nav-eval/stop\"\n{}",
+                t.stage_keys()
+            );
+            builtin_pipeline_with(
+                src.rate,
+                "denoise.none",
+                &keys,
+                "<built-in denoise.none -> predict.bias, stop signal>",
+            )
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(Chain {
+        label: "denoise.none -> predict.bias (stages; stop signal: the true stops)".into(),
         pipelines,
     })
 }
@@ -309,14 +345,20 @@ fn file_chain(path: &Path, rate: f64) -> Result<Chain, CliError> {
     }
     Offline::new(&p).map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     let kinds: Vec<&str> = p.stages.iter().skip(1).map(|s| s.kind.name).collect();
+    let stops = p.stages.iter().any(|s| !s.params.side_inputs().is_empty());
     Ok(Chain {
         label: format!(
-            "{} ({})",
+            "{} ({}{})",
             path.file_name().map_or_else(
                 || path.display().to_string(),
                 |f| f.to_string_lossy().into_owned()
             ),
-            kinds.join(" -> ")
+            kinds.join(" -> "),
+            if stops {
+                "; stop signal: the true stops"
+            } else {
+                ""
+            }
         ),
         pipelines: vec![p],
     })
@@ -473,7 +515,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }],
         None => profiles.into_iter().map(Motion::Profile).collect(),
     };
-    let mut chains = vec![bias_chain(&src)?];
+    let mut chains = vec![bias_chain(&src)?, stop_signal_chain(&src)?];
     if !args.models.is_empty() {
         chains.push(rbf_chain(&src, &args.models, PredictorKind::Rbf)?);
         chains.push(rbf_chain(&src, &args.models, PredictorKind::Ar)?);
@@ -526,18 +568,28 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 .map(|y| fusion::correct(&[y], rate).remove(0))
                 .collect();
             // Stage methods: per-axis pipelines one axis at a time, a file's all axes at once.
+            // A chain reading a stop signal gets each axis's true stops, so it runs each axis
+            // alone (the axes' motions, and so their stops, differ).
             let mut chain_out: Vec<Vec<Vec<f64>>> = Vec::with_capacity(chains.len());
             for c in &chains {
-                if c.pipelines.len() > 1 {
+                let reads_stops = c
+                    .pipelines
+                    .iter()
+                    .any(|p| p.stages.iter().any(|s| !s.params.side_inputs().is_empty()));
+                if c.pipelines.len() > 1 || reads_stops {
                     let mut per_axis = Vec::with_capacity(src.axes.len());
-                    for (p, y) in c.pipelines.iter().zip(&measured) {
-                        per_axis.extend(Offline::run_series(p, &[y]).map_err(CliError::input)?);
+                    for (a, y) in measured.iter().enumerate() {
+                        let p = &c.pipelines[a.min(c.pipelines.len() - 1)];
+                        let stops = reads_stops.then_some(motion_traces[a].still.as_slice());
+                        per_axis
+                            .extend(Offline::run_series(p, &[y], stops).map_err(CliError::input)?);
                     }
                     chain_out.push(per_axis);
                 } else {
                     let inputs: Vec<&[f64]> = measured.iter().map(Vec::as_slice).collect();
                     chain_out.push(
-                        Offline::run_series(&c.pipelines[0], &inputs).map_err(CliError::input)?,
+                        Offline::run_series(&c.pipelines[0], &inputs, None)
+                            .map_err(CliError::input)?,
                     );
                 }
             }

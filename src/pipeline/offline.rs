@@ -7,8 +7,8 @@
 
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
-use crate::stages::contract::{Role, Stage};
-use crate::transport::{GyroSample, RawSample};
+use crate::stages::contract::{Role, Side, SideKind, Stage};
+use crate::transport::{GyroSample, RawSample, StopSignal};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
 pub const OFFLINE_EPOCH: u32 = 1;
@@ -17,6 +17,8 @@ pub const OFFLINE_EPOCH: u32 = 1;
 pub struct Offline {
     guard: Guard,
     stages: Vec<Box<dyn Stage>>,
+    /// Per stage, what its side inputs carry, by slot.
+    sides: Vec<Vec<SideKind>>,
 }
 
 impl Offline {
@@ -25,7 +27,15 @@ impl Offline {
     pub fn new(p: &Pipeline) -> Result<Self, String> {
         let cx = p.context();
         let mut stages = Vec::with_capacity(p.stages.len());
+        let mut sides = Vec::with_capacity(p.stages.len());
         for spec in p.stages.iter().skip(1) {
+            sides.push(
+                spec.params
+                    .side_inputs()
+                    .into_iter()
+                    .map(|(_, k)| k)
+                    .collect(),
+            );
             if spec.kind.role == Role::External {
                 return Err(format!(
                     "stage {:?} is external (another process): the pipeline cannot run offline",
@@ -41,14 +51,31 @@ impl Offline {
         Ok(Offline {
             guard: Guard::new(p.input_units, p.axes, OFFLINE_EPOCH),
             stages,
+            sides,
         })
     }
 
+    /// Hand `value` to every side input that carries its kind, as the daemon does when a new
+    /// value arrives on the service: offline, the caller publishes the side inputs.
+    pub fn side(&mut self, value: &Side) {
+        let kind = match value {
+            Side::Stop(_) => SideKind::Stop,
+        };
+        for (stage, kinds) in self.stages.iter_mut().zip(&self.sides) {
+            for (slot, k) in kinds.iter().enumerate() {
+                if *k == kind {
+                    stage.side(slot, value);
+                }
+            }
+        }
+    }
+
     /// One raw sample through the guard and every stage; `out` receives what the last stage
-    /// publishes (nothing while a lagged stage fills up).
+    /// publishes (nothing while a lagged stage fills up). Offline, the sample's own time
+    /// stands for its ingest time (`ingest_ns`, what a side input's age is judged against).
     pub fn push(&mut self, raw: &RawSample, out: &mut impl FnMut(GyroSample)) {
         let raw = self.guard.stamp(raw);
-        let s = self.guard.admit(&raw, 0);
+        let s = self.guard.admit(&raw, raw.t_ns);
         self.run_from(0, s, out);
     }
 
@@ -69,8 +96,14 @@ impl Offline {
     /// Rates (deg/s) through `p`'s stages: `inputs` holds one measured series per axis (deg/s,
     /// equal lengths, sample k at time k / `rate_hz`); the result has one corrected series per
     /// input, aligned with it (the stages' lag undone by the flush at the end). Lanes beyond the
-    /// pipeline's `axes` run in further passes. What `driftless nav-eval` judges a chain by.
-    pub fn run_series(p: &Pipeline, inputs: &[&[f64]]) -> Result<Vec<Vec<f64>>, String> {
+    /// pipeline's `axes` run in further passes. `stops`, when given, is the vehicle's stop
+    /// signal at each sample, handed to every stop side input before the sample (stamped with
+    /// its time). What `driftless nav-eval` judges a chain by.
+    pub fn run_series(
+        p: &Pipeline,
+        inputs: &[&[f64]],
+        stops: Option<&[bool]>,
+    ) -> Result<Vec<Vec<f64>>, String> {
         let lanes = p.axes;
         let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
         let n = inputs.first().map_or(0, |x| x.len());
@@ -99,6 +132,14 @@ impl Offline {
                     flags: 0,
                     epoch: 0,
                 };
+                if let Some(stopped) = stops.and_then(|s| s.get(k)) {
+                    off.side(&Side::Stop(StopSignal {
+                        t_ns: raw.t_ns.max(1),
+                        speed_m_s: f64::NAN,
+                        stopped: u32::from(*stopped),
+                        reserved: 0,
+                    }));
+                }
                 off.push(&raw, &mut put);
             }
             off.finish(&mut put);

@@ -14,7 +14,22 @@ use std::time::Duration;
 
 use crate::io::InputError;
 use crate::stages::schema::{Context, Key, StageTable};
-use crate::transport::{GyroSample, RawSample};
+use crate::transport::{GyroSample, RawSample, StopSignal};
+
+/// What a side input carries: a service a stage reads beside its chain input
+/// ([`Params::side_inputs`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SideKind {
+    /// [`StopSignal`]: whether the vehicle stands.
+    Stop,
+}
+
+/// The newest value of a side input ([`Stage::side`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Side {
+    /// A [`StopSignal`].
+    Stop(StopSignal),
+}
 
 /// A processing stage: one sample in, at most one sample out.
 pub trait Stage {
@@ -42,6 +57,11 @@ pub trait Stage {
     fn learnt(&self) -> Vec<String> {
         Vec::new()
     }
+
+    /// The newest value of side input `slot` (the index in [`Params::side_inputs`]), handed
+    /// over before the sample it precedes whenever a new one arrived; never waited for. Must
+    /// not allocate. Default: ignored.
+    fn side(&mut self, _slot: usize, _value: &Side) {}
 }
 
 /// What a source has for the runtime.
@@ -139,6 +159,13 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     /// reports the heading error of what it publishes against the truth.
     fn truth(&self, _cx: &Context) -> Option<TrueRate> {
         None
+    }
+
+    /// The services this stage reads beside its input, and what each carries: the runtime
+    /// subscribes to them and hands the stage the newest value ([`Stage::side`]). Another
+    /// process publishes them (a vehicle's stop signal). Default: none.
+    fn side_inputs(&self) -> Vec<(String, SideKind)> {
+        Vec::new()
     }
 
     /// Extra lines for `driftless validate` (indented by the caller).

@@ -44,7 +44,7 @@ pub mod predict_bias;
 pub mod publish;
 pub mod replay;
 
-pub use contract::{Kind, Params, Poll, Role, Source, Stage};
+pub use contract::{Kind, Params, Poll, Role, Side, SideKind, Source, Stage};
 
 /// Every stage kind, in the order listed in messages and documentation.
 pub const KINDS: &[&Kind] = &[

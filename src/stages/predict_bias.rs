@@ -30,8 +30,9 @@ use crate::drift::bias::{
 };
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
+use crate::stages::contract::{Side, SideKind};
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::GyroSample;
+use crate::transport::{GyroSample, StopSignal, FLAG_STOP_CONTRADICTED};
 #[cfg(doc)]
 use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 
@@ -103,6 +104,25 @@ const WALK_MAX: Key = Key {
     doc: "largest walk learnt, deg/h/sqrt(h)",
 };
 
+const STOP_INPUT: Key = Key {
+    name: "stop_input",
+    ty: Type::Str("a service of StopSignal another process publishes"),
+    default: "none: our own stillness detector alone",
+    doc: "the vehicle's stop signal (wheel odometry, speed): trusted while fresh, checked against the gyro; our detector decides while it is stale",
+};
+const STOP_MAX_AGE_S: Key = Key {
+    name: "stop_max_age_s",
+    ty: Type::Positive(60.0),
+    default: "0.5",
+    doc: "a stop signal older than this (its t_ns against the sample's ingest_ns) is unknown, never still",
+};
+const STOP_SPEED: Key = Key {
+    name: "stop_speed",
+    ty: Type::Positive(100.0),
+    default: "none: the signal's `stopped` field decides",
+    doc: "stands when the signal's speed_m_s is at most this, m/s (a NaN speed: unknown)",
+};
+
 /// A walk in (deg/s)^2/s as a rate random walk in deg/h/sqrt(h), the unit of `rrw`.
 pub fn walk_to_rrw(walk: f64) -> f64 {
     walk.max(0.0).sqrt() * 216_000.0
@@ -125,17 +145,53 @@ pub const KIND: Kind = Kind {
         LEARN_WALK,
         WALK_MIN,
         WALK_MAX,
+        STOP_INPUT,
+        STOP_MAX_AGE_S,
+        STOP_SPEED,
     ],
     parse,
 };
 
 /// `predict.bias` parameters: the terms (deg/s based) and the tracker's settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BiasParams {
     /// The noise terms, deg/s based.
     pub terms: BiasTerms,
     /// Stillness gating and delay.
     pub tracker: TrackerConfig,
+    /// The vehicle's stop signal, if any.
+    pub stop: Option<StopConfig>,
+}
+
+/// How `predict.bias` reads a stop signal ([`StopSignal`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StopConfig {
+    /// Its service.
+    pub service: String,
+    /// Older than this it is unknown, ns.
+    pub max_age_ns: u64,
+    /// Stands at or below this speed (m/s); None: the `stopped` field decides.
+    pub speed: Option<f64>,
+}
+
+impl StopConfig {
+    /// What `signal` says at ingest time `now_ns`: stands, moves, or unknown (stale, from the
+    /// future by more than its age, or not said).
+    pub fn judge(&self, signal: &StopSignal, now_ns: u64) -> Option<bool> {
+        let age = now_ns.abs_diff(signal.t_ns);
+        if signal.t_ns == 0 || age > self.max_age_ns {
+            return None;
+        }
+        match self.speed {
+            Some(limit) if signal.speed_m_s.is_finite() => Some(signal.speed_m_s.abs() <= limit),
+            Some(_) => None,
+            None => match signal.stopped {
+                0 => Some(false),
+                1 => Some(true),
+                _ => None,
+            },
+        }
+    }
 }
 
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
@@ -233,7 +289,32 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         }
         tracker.walk_range = Some((lo, hi));
     }
-    let params = BiasParams { terms, tracker };
+    let stop = match t.get::<String>(&STOP_INPUT)? {
+        Some(v) => Some(StopConfig {
+            service: src.service(&v)?,
+            max_age_ns: (t
+                .positive(&STOP_MAX_AGE_S, "stop_max_age_s")?
+                .unwrap_or(0.5)
+                * 1e9) as u64,
+            speed: t.positive(&STOP_SPEED, "stop_speed")?,
+        }),
+        None => {
+            for key in [&STOP_MAX_AGE_S, &STOP_SPEED] {
+                if t.get::<toml::Value>(key)?.is_some() {
+                    return Err(t.error(format!(
+                        "predict.bias: {} needs stop_input (the service of the stop signal)",
+                        key.name
+                    )));
+                }
+            }
+            None
+        }
+    };
+    let params = BiasParams {
+        terms,
+        tracker,
+        stop,
+    };
     BiasTracker::new(&params.terms, t.cx.rate_hz, &params.tracker)
         .map_err(|e| t.error(format!("predict.bias: {e}")))?;
     Ok(Box::new(params))
@@ -251,7 +332,16 @@ impl Params for BiasParams {
         Ok(Box::new(BiasStage {
             trackers,
             learn: self.tracker.learn_walk,
+            stop: self.stop.clone(),
+            signal: None,
         }))
+    }
+
+    fn side_inputs(&self) -> Vec<(String, SideKind)> {
+        self.stop
+            .iter()
+            .map(|s| (s.service.clone(), SideKind::Stop))
+            .collect()
     }
 
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
@@ -265,6 +355,19 @@ impl Params for BiasParams {
             t.lsb,
             self.tracker.delay_s
         )]
+        .into_iter()
+        .chain(self.stop.iter().map(|s| {
+            format!(
+                "stop signal: {} (unknown after {} s; stands {})",
+                s.service,
+                s.max_age_ns as f64 / 1e9,
+                match s.speed {
+                    Some(v) => format!("at speed <= {v} m/s"),
+                    None => "by its stopped field".into(),
+                }
+            )
+        }))
+        .collect()
     }
 }
 
@@ -272,10 +375,17 @@ impl Params for BiasParams {
 pub struct BiasStage {
     trackers: Vec<BiasTracker>,
     learn: LearnWalk,
+    stop: Option<StopConfig>,
+    /// The newest stop signal.
+    signal: Option<StopSignal>,
 }
 
 impl Stage for BiasStage {
     fn learnt(&self) -> Vec<String> {
+        // Stops given from outside teach it: without a stop signal it cannot learn.
+        if self.learn == LearnWalk::GivenStops && self.stop.is_none() {
+            return Vec::new();
+        }
         self.trackers
             .iter()
             .zip(["x", "y", "z"])
@@ -295,11 +405,28 @@ impl Stage for BiasStage {
             .collect()
     }
 
+    fn side(&mut self, _slot: usize, value: &Side) {
+        let Side::Stop(s) = value;
+        self.signal = Some(*s);
+    }
+
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
         let (mut still, mut moving, mut warming) = (true, false, false);
+        let stopped = match (&self.stop, &self.signal) {
+            (Some(cfg), Some(s)) => cfg.judge(s, input.ingest_ns),
+            _ => None,
+        };
         for (axis, tr) in self.trackers.iter_mut().enumerate() {
-            let step = tr.push(input.denoised[axis].to_degrees());
+            let x = input.denoised[axis].to_degrees();
+            let step = if self.stop.is_some() {
+                tr.push_signal(x, stopped)
+            } else {
+                tr.push(x)
+            };
+            if step.contradicted {
+                out.flags |= FLAG_STOP_CONTRADICTED;
+            }
             out.drift[axis] = step.bias.to_radians();
             out.rate[axis] = input.denoised[axis] - out.drift[axis];
             match step.mode {
@@ -311,5 +438,51 @@ impl Stage for BiasStage {
         }
         out.flags |= motion_flags(still, moving, warming);
         Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn signal(t_ns: u64, speed_m_s: f64, stopped: u32) -> StopSignal {
+        StopSignal {
+            t_ns,
+            speed_m_s,
+            stopped,
+            reserved: 0,
+        }
+    }
+
+    #[test]
+    fn a_stop_signal_is_judged_by_age_then_speed_or_flag() {
+        let by_flag = StopConfig {
+            service: "v/stop".into(),
+            max_age_ns: 500_000_000,
+            speed: None,
+        };
+        let now = 10_000_000_000;
+        assert_eq!(
+            by_flag.judge(&signal(now - 1000, f64::NAN, 1), now),
+            Some(true)
+        );
+        assert_eq!(by_flag.judge(&signal(now, 3.0, 0), now), Some(false));
+        assert_eq!(by_flag.judge(&signal(now, 0.0, 7), now), None, "unknown");
+        // Stale, or from the future by more than the age: unknown, never still.
+        assert_eq!(by_flag.judge(&signal(now - 600_000_000, 0.0, 1), now), None);
+        assert_eq!(by_flag.judge(&signal(now + 600_000_000, 0.0, 1), now), None);
+        assert_eq!(
+            by_flag.judge(&signal(0, 0.0, 1), now),
+            None,
+            "never stamped"
+        );
+        let by_speed = StopConfig {
+            speed: Some(0.05),
+            ..by_flag
+        };
+        assert_eq!(by_speed.judge(&signal(now, 0.04, 0), now), Some(true));
+        assert_eq!(by_speed.judge(&signal(now, -0.04, 0), now), Some(true));
+        assert_eq!(by_speed.judge(&signal(now, 0.2, 1), now), Some(false));
+        assert_eq!(by_speed.judge(&signal(now, f64::NAN, 1), now), None);
     }
 }

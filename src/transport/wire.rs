@@ -28,9 +28,12 @@ pub const FLAG_STILL: u32 = 1 << 6;
 /// Output flag (`predict.rbf`): an axis judged moving; its drift model runs on its own
 /// predictions, so the rotation is not subtracted.
 pub const FLAG_MOVING: u32 = 1 << 7;
+/// Output flag (`predict.bias` with a stop signal): the vehicle said it stands while the gyro
+/// clearly turned; the signal was not trusted for this sample (it counts as moving).
+pub const FLAG_STOP_CONTRADICTED: u32 = 1 << 8;
 
 /// The output flags by name, in bit order (`tap`, `record` and reports decode them with it).
-pub const FLAG_NAMES: [(u32, &str); 8] = [
+pub const FLAG_NAMES: [(u32, &str); 9] = [
     (FLAG_WARMING_UP, "warming_up"),
     (FLAG_INPUT_INVALID, "input_invalid"),
     (FLAG_GAP_BEFORE, "gap_before"),
@@ -39,6 +42,7 @@ pub const FLAG_NAMES: [(u32, &str); 8] = [
     (FLAG_OUTPUT_REPAIRED, "output_repaired"),
     (FLAG_STILL, "still"),
     (FLAG_MOVING, "moving"),
+    (FLAG_STOP_CONTRADICTED, "stop_contradicted"),
 ];
 
 /// Names of the flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as its hex
@@ -66,6 +70,33 @@ pub const RAW_TYPE_NAME: &str = "driftless::RawSample";
 pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample";
 /// Type name of [`StatsSnapshot`] on the wire.
 pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
+/// Type name of [`StopSignal`] on the wire.
+pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
+
+/// Whether the vehicle stands, as its own sensors say (wheel odometry, a speed over ground,
+/// the drive's state): what a vehicle's process publishes for `predict.bias`'s `stop_input`
+/// (24 bytes, 8-byte aligned). Publish it whenever it is known, at any rate; the stage reads the
+/// newest at each gyro sample and treats one older than its `stop_max_age_s` as unknown.
+///
+/// | offset | type | field |
+/// |---:|---|---|
+/// | 0 | u64 | `t_ns` CLOCK_MONOTONIC ns when the state was measured ([`monotonic_ns`]) |
+/// | 8 | f64 | `speed_m_s` speed, m/s (NaN: not measured) |
+/// | 16 | u32 | `stopped` 1: stands, 0: moves, anything else: unknown |
+/// | 20 | u32 | `reserved` 0 |
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StopSignal")]
+pub struct StopSignal {
+    /// CLOCK_MONOTONIC nanoseconds when the state was measured (the clock of `ingest_ns`).
+    pub t_ns: u64,
+    /// Speed, m/s; NaN when not measured.
+    pub speed_m_s: f64,
+    /// 1: the vehicle stands; 0: it moves; anything else: unknown.
+    pub stopped: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
 
 /// A raw gyro sample as a sensor driver publishes it (48 bytes, 8-byte aligned).
 ///
@@ -390,6 +421,9 @@ mod tests {
             assert_eq!(RawSample::type_name(), RAW_TYPE_NAME);
             assert_eq!(GyroSample::type_name(), GYRO_TYPE_NAME);
             assert_eq!(StatsSnapshot::type_name(), STATS_TYPE_NAME);
+            assert_eq!(StopSignal::type_name(), STOP_TYPE_NAME);
         }
+        assert_eq!(std::mem::size_of::<StopSignal>(), 24);
+        assert_eq!(std::mem::offset_of!(StopSignal, stopped), 16);
     }
 }

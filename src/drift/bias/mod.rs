@@ -475,6 +475,57 @@ mod tests {
     }
 
     #[test]
+    fn a_stop_signal_is_used_to_its_end_checked_and_stale_falls_back() {
+        let t = terms();
+        let cfg = TrackerConfig::default();
+        // 10 s still then a turn (0.5 s ramp to 10 deg/s); the signal says "stands" for the
+        // still part and "moves" from the turn's first sample.
+        let (x, n_still) = stop_then_turn(10.0, 5);
+        let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut flagged = 0;
+        for (k, &v) in x.iter().enumerate() {
+            let s = tr.push_signal(v, Some(k < n_still));
+            flagged += usize::from(s.contradicted);
+            if k == 10 {
+                // Given stops need no detector window: still from the first samples.
+                assert_eq!((s.mode, s.informed), (BiasMode::Still, true));
+            }
+        }
+        assert_eq!(flagged, 0);
+        // Every still sample entered the filter (the signal says where the stop ends).
+        assert_eq!(tr.filter().updates() as usize, n_still);
+        let sd_mean = t.n / 10f64.sqrt();
+        assert!((tr.filter().estimate() - 0.4).abs() < 4.0 * sd_mean);
+
+        // A signal that says "stands" through the turn is not trusted there.
+        let mut liar = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut flagged = 0;
+        let mut last = None;
+        for &v in &x {
+            let s = liar.push_signal(v, Some(true));
+            flagged += usize::from(s.contradicted);
+            last = Some(s);
+        }
+        let last = last.unwrap();
+        assert!(
+            last.contradicted && last.mode == BiasMode::Moving,
+            "{last:?}"
+        );
+        assert!(flagged > 250, "{flagged} of the turn's 300 samples flagged");
+        assert!(
+            (last.bias - 0.4).abs() < 4.0 * sd_mean,
+            "the turn leaked: {last:?}"
+        );
+
+        // Unknown (stale) throughout: exactly our detector's verdicts.
+        let mut stale = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut own = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        for &v in &x {
+            assert_eq!(stale.push_signal(v, None), own.push(v));
+        }
+    }
+
+    #[test]
     fn gated_pushes_and_profiles() {
         let mut tr = BiasTracker::for_profile("adis16405", 100.0).unwrap();
         assert!(tr.delay() == 100);

@@ -203,6 +203,9 @@ pub struct BiasStep {
     /// Whether the estimate rests on a still sample (taken by the filter or waiting in the
     /// delay window); false: it is the prior.
     pub informed: bool,
+    /// A stop signal said "stands" while the gyro clearly turned: not trusted
+    /// ([`BiasTracker::push_signal`]).
+    pub contradicted: bool,
 }
 
 /// Log-likelihood ratio of "moving" (a mean shift and a variance rise of unknown sizes) against
@@ -328,6 +331,16 @@ impl DelayWindow {
         self.clear();
     }
 
+    /// Put every waiting sample into `filter`, oldest first.
+    fn release_all(&mut self, filter: &mut BiasFilter) {
+        let d = self.ring.len();
+        let oldest = (self.head + d - self.pending) % d.max(1);
+        for i in 0..self.pending {
+            filter.update(self.ring[(oldest + i) % d]);
+        }
+        self.clear();
+    }
+
     /// Drop every waiting sample.
     fn clear(&mut self) {
         self.head = 0;
@@ -356,8 +369,63 @@ pub struct BiasTracker {
     pub(super) delay: DelayWindow,
     mode: BiasMode,
     learn: LearnWalk,
-    /// Whether the last sample's stillness was given from outside.
-    gated: bool,
+    /// Whether a still sample of the current stop came from the tracker's own detector (such a
+    /// stop does not teach the walk under [`LearnWalk::GivenStops`]).
+    stop_detected: bool,
+    /// The newest samples, for the check of a stop signal against the gyro.
+    recent: RecentMean,
+}
+
+/// A stop signal is not trusted while the mean of the last [`CHECK_S`] of rate lies more than
+/// [`CHECK_SIGMAS`] of its still spread (plus the estimate's `estimate_sigmas`) from the bias
+/// estimate: the gyro clearly turns.
+pub const CHECK_S: f64 = 0.1;
+/// See [`CHECK_S`].
+pub const CHECK_SIGMAS: f64 = 6.0;
+
+/// The mean of the last `len` samples: a fixed ring and its sum.
+#[derive(Debug, Clone)]
+struct RecentMean {
+    ring: Vec<f64>,
+    head: usize,
+    filled: usize,
+    sum: f64,
+}
+
+impl RecentMean {
+    fn new(len: usize) -> Self {
+        RecentMean {
+            ring: vec![0.0; len.max(1)],
+            head: 0,
+            filled: 0,
+            sum: 0.0,
+        }
+    }
+
+    fn push(&mut self, x: f64) {
+        if !x.is_finite() {
+            return;
+        }
+        let len = self.ring.len();
+        if self.filled == len {
+            self.sum -= self.ring[self.head];
+        } else {
+            self.filled += 1;
+        }
+        self.ring[self.head] = x;
+        self.head = (self.head + 1) % len;
+        self.sum += x;
+    }
+
+    fn mean(&self) -> Option<f64> {
+        (self.filled > 0).then(|| self.sum / self.filled as f64)
+    }
+
+    fn clear(&mut self) {
+        self.head = 0;
+        self.filled = 0;
+        self.sum = 0.0;
+    }
 }
 
 impl BiasTracker {
@@ -408,7 +476,8 @@ impl BiasTracker {
             delay: DelayWindow::new(delay + backfill),
             mode: BiasMode::Warming,
             learn: cfg.learn_walk,
-            gated: false,
+            stop_detected: false,
+            recent: RecentMean::new(samples("check", CHECK_S, rate_hz)?),
         })
     }
 
@@ -448,11 +517,20 @@ impl BiasTracker {
         self.delay.clear();
         self.run = 0;
         self.mode = BiasMode::Warming;
+        self.stop_detected = false;
+        self.recent.clear();
     }
 
     /// One rate sample (deg/s) with the tracker's own stillness detection.
     pub fn push(&mut self, x: f64) -> BiasStep {
-        self.gated = false;
+        let still = self.detect(x, true);
+        let known = self.detector.is_ready();
+        self.step(x, still, known, false)
+    }
+
+    /// Our detector's verdict on `x`; when it turns still and `backfill`, the stop's start
+    /// joins it (not when stillness comes from outside: the window before may be motion).
+    fn detect(&mut self, x: f64, backfill: bool) -> bool {
         let (reference, tol) = if self.filter.updates() > 0 {
             (
                 self.filter.estimate(),
@@ -463,11 +541,10 @@ impl BiasTracker {
         };
         let was_still = self.detector.is_still();
         let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
-        if still && !was_still && self.backfill > 0 {
+        if backfill && still && !was_still && self.backfill > 0 && self.run == 0 {
             self.backfill_stop();
         }
-        let known = self.detector.is_ready();
-        self.step(x, still, known)
+        still
     }
 
     /// The stop began before the detector confirmed it: the last `backfill` samples of its
@@ -502,21 +579,60 @@ impl BiasTracker {
     /// One rate sample with stillness decided outside (a known stop, another sensor): the same
     /// filter and delay window, the tracker's detector unused.
     pub fn push_gated(&mut self, x: f64, still: bool) -> BiasStep {
-        self.gated = true;
-        self.step(x, still, true)
+        self.step(x, still, true, true)
     }
 
-    /// `known`: whether "not still" means moving (false while the detector's window fills).
-    fn step(&mut self, x: f64, still: bool, known: bool) -> BiasStep {
+    /// One rate sample with a stop signal from outside (a vehicle's own sensors), `None`
+    /// when it is unknown or stale. Our detector runs on every sample: it decides while the
+    /// signal is unknown, and a signal of "stands" while the gyro clearly turns (the mean of
+    /// the last [`CHECK_S`] beyond [`CHECK_SIGMAS`] from the estimate) is not trusted: the
+    /// sample counts as moving and [`BiasStep::contradicted`] says so. "Moves" is trusted.
+    pub fn push_signal(&mut self, x: f64, stopped: Option<bool>) -> BiasStep {
+        self.recent.push(x);
+        let detected = self.detect(x, stopped.is_none());
+        match stopped {
+            None => {
+                let known = self.detector.is_ready();
+                self.step(x, detected, known, false)
+            }
+            Some(false) => self.step(x, false, true, true),
+            Some(true) => {
+                let (estimate, var) = match self.delay.mean() {
+                    Some((mean, count)) => self.filter.with_mean(mean, count),
+                    None => (self.filter.estimate(), self.filter.variance()),
+                };
+                let spread = (self.still_var / self.recent.filled.max(1) as f64).sqrt();
+                let limit = CHECK_SIGMAS * spread + self.estimate_sigmas * var.sqrt();
+                let turning = self
+                    .recent
+                    .mean()
+                    .is_some_and(|m| (m - estimate).abs() > limit);
+                // A contradicted sample's verdict is ours, not the signal's.
+                let mut step = self.step(x, !turning, true, !turning);
+                step.contradicted = turning;
+                step
+            }
+        }
+    }
+
+    /// `known`: whether "not still" means moving (false while the detector's window fills);
+    /// `given`: whether stillness came from outside.
+    fn step(&mut self, x: f64, still: bool, known: bool, given: bool) -> BiasStep {
         self.filter.predict();
         let still = still && x.is_finite();
         if still {
             self.delay.push(x, &mut self.filter);
             self.run += 1;
+            self.stop_detected |= !given;
         } else {
             match self.delay.mean() {
                 // A stop confirmed for less than `min_run` is more likely a lull within a
                 // movement (a zero-mean oscillation whose window mean passed) than a stop.
+                // A stop given from outside ends where it says: every waiting sample is
+                // still (our detector sees an end late, so its onset is estimated).
+                Some(_) if self.run >= self.min_run && given && !self.stop_detected => {
+                    self.delay.release_all(&mut self.filter)
+                }
                 Some((mean, count)) if self.run >= self.min_run => {
                     let (bias, _) = self.filter.with_mean(mean, count);
                     self.delay.release_before_onset(
@@ -533,12 +649,13 @@ impl BiasTracker {
                 // A stop teaches the walk only if it came from where this tracker trusts.
                 let teaches = match self.learn {
                     LearnWalk::Off => false,
-                    LearnWalk::GivenStops => self.gated,
+                    LearnWalk::GivenStops => !self.stop_detected,
                     LearnWalk::Always => true,
                 };
                 self.filter.end_stop(teaches);
             }
             self.run = 0;
+            self.stop_detected = false;
         }
         let (bias, var) = match self.delay.mean() {
             Some((mean, count)) => self.filter.with_mean(mean, count),
@@ -556,6 +673,7 @@ impl BiasTracker {
             std: var.sqrt(),
             mode: self.mode,
             informed: self.delay.pending > 0 || self.filter.updates() > 0,
+            contradicted: false,
         }
     }
 }

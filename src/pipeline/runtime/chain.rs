@@ -12,12 +12,38 @@ use super::RunError;
 use crate::metrics::{Batch, Counters, HeadingTracker, Outputs, Record, BATCH, MAX_STAGES};
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
-use crate::stages::contract::Role;
-use crate::stages::contract::Stage;
+use crate::stages::contract::{Role, Side, SideKind, Stage};
 use crate::transport::{
-    monotonic_ns, GyroSample, Input, Output, Qos, RawSample, Transport, TransportError,
+    monotonic_ns, GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError,
     FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
 };
+
+/// A side input's subscriber ([`crate::stages::Params::side_inputs`]).
+pub(super) enum SidePort {
+    Stop(Input<StopSignal>),
+}
+
+impl SidePort {
+    fn open(transport: &Transport, name: &str, kind: SideKind) -> Result<Self, TransportError> {
+        Ok(match kind {
+            SideKind::Stop => SidePort::Stop(transport.input::<StopSignal>(name)?),
+        })
+    }
+
+    /// The newest value waiting, if any (the older ones are read and dropped: a side input
+    /// is a state, not a stream).
+    fn newest(&self) -> Result<Option<Side>, TransportError> {
+        match self {
+            SidePort::Stop(input) => {
+                let mut newest = None;
+                while let Some(v) = input.receive()? {
+                    newest = Some(v);
+                }
+                Ok(newest.map(Side::Stop))
+            }
+        }
+    }
+}
 
 /// Counts kept by a segment's thread, stored into the shared [`Counters`] at each batch.
 #[derive(Debug, Default)]
@@ -44,6 +70,8 @@ pub(super) struct Chain {
     /// Chain position of `stages[0]`.
     pub(super) first: usize,
     pub(super) stages: Vec<Box<dyn Stage>>,
+    /// Per stage, its side inputs' subscribers, by slot.
+    pub(super) sides: Vec<Vec<SidePort>>,
     pub(super) outs: Vec<Output<GyroSample>>,
     pub(super) ins: Vec<Input<GyroSample>>,
     pub(super) is_final: bool,
@@ -128,6 +156,11 @@ impl Chain {
         while k < self.stages.len() {
             let pos = self.first + k;
             self.local.stage_in[pos] += 1;
+            for (slot, port) in self.sides[k].iter().enumerate() {
+                if let Some(v) = port.newest()? {
+                    self.stages[k].side(slot, &v);
+                }
+            }
             let out = self.stages[k].process(&input);
             let t1 = monotonic_ns();
             rec.stage_ns[pos] = (t1.saturating_sub(now)).min(u64::from(u32::MAX)) as u32;
@@ -333,6 +366,7 @@ pub(super) fn build_segment(
     tx: Sender<Batch>,
 ) -> Result<(Chain, Vec<Arc<AtomicU64>>, usize), RunError> {
     let mut stage_objs = Vec::new();
+    let mut sides = Vec::new();
     let mut outs = Vec::new();
     let mut ins = Vec::new();
     let mut lag = 0usize;
@@ -347,6 +381,13 @@ pub(super) fn build_segment(
             })?;
         lag += stage.lag();
         stage_objs.push(stage);
+        sides.push(
+            spec.params
+                .side_inputs()
+                .iter()
+                .map(|(name, kind)| SidePort::open(transport, name, *kind))
+                .collect::<Result<Vec<_>, _>>()?,
+        );
         let feeds_external = !span.is_final && i + 1 == span.hi;
         if feeds_external {
             // The external process may have created the service first.
@@ -376,6 +417,7 @@ pub(super) fn build_segment(
         ),
         first: span.lo,
         stages: stage_objs,
+        sides,
         outs,
         ins,
         is_final: span.is_final,
