@@ -597,10 +597,7 @@ impl BiasTracker {
             }
             Some(false) => self.step(x, false, true, true),
             Some(true) => {
-                let (estimate, var) = match self.delay.mean() {
-                    Some((mean, count)) => self.filter.with_mean(mean, count),
-                    None => (self.filter.estimate(), self.filter.variance()),
-                };
+                let (estimate, var) = self.output();
                 let spread = (self.still_var / self.recent.filled.max(1) as f64).sqrt();
                 let limit = CHECK_SIGMAS * spread + self.estimate_sigmas * var.sqrt();
                 let turning = self
@@ -612,6 +609,15 @@ impl BiasTracker {
                 step.contradicted = turning;
                 step
             }
+        }
+    }
+
+    /// The estimate and its variance as output now: the filter's, with the waiting samples'
+    /// mean as a provisional measurement.
+    fn output(&self) -> (f64, f64) {
+        match self.delay.mean() {
+            Some((mean, count)) => self.filter.with_mean(mean, count),
+            None => (self.filter.estimate(), self.filter.variance()),
         }
     }
 
@@ -657,10 +663,7 @@ impl BiasTracker {
             self.run = 0;
             self.stop_detected = false;
         }
-        let (bias, var) = match self.delay.mean() {
-            Some((mean, count)) => self.filter.with_mean(mean, count),
-            None => (self.filter.estimate(), self.filter.variance()),
-        };
+        let (bias, var) = self.output();
         self.mode = if still {
             BiasMode::Still
         } else if known {

@@ -126,11 +126,7 @@ impl WalkLearner {
         let mut ln_q = [0.0; GRID];
         let mut ln_prior = [0.0; GRID];
         for j in 0..GRID {
-            let v = if GRID == 1 {
-                centre
-            } else {
-                lo + (hi - lo) * j as f64 / (GRID - 1) as f64
-            };
+            let v = lo + (hi - lo) * j as f64 / (GRID - 1) as f64;
             ln_q[j] = v;
             ln_prior[j] = -0.5 * ((v - centre) / sd).powi(2);
         }
