@@ -41,6 +41,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::io::atomic::AtomicFile;
+use crate::io::recording::{limited_reader, map_mcap, McapOpenError};
 
 mod imu;
 
@@ -68,9 +69,7 @@ durability: 2\n  deadline:\n    sec: 9223372036\n    nsec: 854775807\n  lifespan
 sec: 9223372036\n    nsec: 854775807\n  liveliness: 1\n  liveliness_lease_duration:\n    \
 sec: 9223372036\n    nsec: 854775807\n  avoid_ros_namespace_conventions: false";
 
-/// The largest chunk, uncompressed, a bag may have (rosbag2's presets write 1-4 MiB chunks);
-/// a larger record length is taken for corruption, not allocated.
-pub const MAX_CHUNK_BYTES: u64 = 64 << 20;
+pub use crate::io::recording::MAX_CHUNK_BYTES;
 
 /// What went wrong with a bag, for a caller that acts on the kind (the message says it all).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -170,33 +169,21 @@ struct BagFile {
 impl BagFile {
     fn open(path: &Path) -> Result<BagFile, BagError> {
         let shown = path.display();
-        let file = File::open(path).map_err(|e| err(BagErrorKind::Io, format!("{shown}: {e}")))?;
-        // SAFETY: the map is only read. Like any reader of a file it sees what another process
-        // writes into it meanwhile; a file truncated under us would fault (SIGBUS): bags are
-        // read once their recorder has closed them.
-        let map = unsafe { memmap2::Mmap::map(&file) }
-            .map_err(|e| err(BagErrorKind::Io, format!("{shown}: {e}")))?;
-        if !map.starts_with(mcap::MAGIC) {
-            return Err(err(
+        let (map, summary) = map_mcap(path).map_err(|e| match e {
+            McapOpenError::Io(e) => err(BagErrorKind::Io, format!("{shown}: {e}")),
+            McapOpenError::NotMcap => err(
                 BagErrorKind::NotMcap,
                 format!("{shown}: not an MCAP file (no MCAP magic at its start)"),
-            ));
-        }
-        let incomplete = |why: String| {
-            err(
+            ),
+            McapOpenError::Incomplete(why) => err(
                 BagErrorKind::Incomplete,
                 format!(
                     "{shown}: an incomplete MCAP file ({why}): truncated, or still being \
                      written; a complete bag ends with its summary and footer (`mcap recover` \
                      or `ros2 bag reindex` rebuilds them)"
                 ),
-            )
-        };
-        let summary = match mcap::Summary::read(&map) {
-            Ok(Some(s)) => s,
-            Ok(None) => return Err(incomplete("no summary section".into())),
-            Err(e) => return Err(incomplete(e.to_string())),
-        };
+            ),
+        })?;
         Ok(BagFile {
             path: path.to_path_buf(),
             map,
@@ -510,14 +497,7 @@ impl ImuMessages<'_> {
             }
             self.channels.insert(*id, mine);
         }
-        // Not mcap's MessageStream: it sets no record length limit, and a corrupt length made
-        // it allocate what the length claimed (found by fuzzing the recording reader).
-        self.reader = Some(
-            mcap::sans_io::linear_reader::LinearReader::new_with_options(
-                mcap::sans_io::linear_reader::LinearReaderOptions::default()
-                    .with_record_length_limit(MAX_CHUNK_BYTES as usize),
-            ),
-        );
+        self.reader = Some(limited_reader());
         self.rest = &f.map[..];
         Ok(())
     }
