@@ -294,7 +294,13 @@ fn a_message_that_does_not_decode_names_file_topic_number_and_log_time() {
         )
     );
     one_line(&e.message);
-    assert!(it.next().is_none(), "the iteration ends at the error");
+    let next = it.next().unwrap().unwrap();
+    assert_eq!(
+        (next.number, next.log_time_ns),
+        (3, 300),
+        "the message after the bad one comes next"
+    );
+    assert!(it.next().is_none());
 }
 
 /// The first chunk record of an MCAP file: (where its compressed records start, their size).

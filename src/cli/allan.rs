@@ -6,21 +6,26 @@ use crate::allan::{
     chi2, edf, fit_terms, read_offs, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit,
     TermUnits,
 };
+use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
 use crate::drift::bias::BiasTerms;
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
-use crate::io::{progress, read_table, write_table};
+use crate::io::{progress, write_table};
 use serde_json::{json, Map, Value};
 use std::path::PathBuf;
 
 /// Arguments of `driftless allan`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Rate log (CSV with a header, or headerless; .gz read transparently).
+    /// Rate log: CSV with a header, or headerless (.gz read transparently), or a ROS 2 bag
+    /// (an MCAP file or a rosbag2 directory, see --topic).
     pub input: PathBuf,
-    /// Sample rate in Hz.
+    /// Sample rate in Hz (required for CSV; a bag's comes from its stamps).
     #[arg(long, allow_hyphen_values = true)]
-    pub rate: String,
+    pub rate: Option<String>,
+    /// The bag's topic.
+    #[command(flatten)]
+    pub bag: BagArgs,
     /// Column to analyse (repeat for several; default: every numeric column but a time column
     /// named t, t_s, time, time_s or timestamp).
     #[arg(long = "column", value_name = "NAME")]
@@ -31,9 +36,10 @@ pub struct Args {
     /// Deviation: oadev, adev, mdev or hdev (overlapping Hadamard).
     #[arg(long, default_value = "oadev")]
     pub kind: String,
-    /// Unit of the samples: deg/s or rad/s (terms are always reported in degree units).
-    #[arg(long, default_value = "deg/s")]
-    pub units: String,
+    /// Unit of the samples: deg/s or rad/s (terms are always reported in degree units;
+    /// default deg/s, a bag's rad/s).
+    #[arg(long)]
+    pub units: Option<String>,
     /// Units of the noise terms: datasheet (N deg/sqrt(h), B deg/h, K deg/h/sqrt(h)) or
     /// seconds (deg/sqrt(s), deg/s, deg/s/sqrt(s)); the other is shown beside N.
     #[arg(long, default_value = "datasheet")]
@@ -373,13 +379,18 @@ fn stage_table(
 
 /// Run `driftless allan`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let rate = super::simulate::parse_number("--rate", &args.rate)?;
-    if !(rate.is_finite() && rate > 0.0) {
-        return Err(CliError::input(format!(
-            "--rate must be a positive number of Hz, not {}",
-            rate
-        )));
-    }
+    let given_rate = match &args.rate {
+        Some(r) => {
+            let rate = super::simulate::parse_number("--rate", r)?;
+            if !(rate.is_finite() && rate > 0.0) {
+                return Err(CliError::input(format!(
+                    "--rate must be a positive number of Hz, not {rate}"
+                )));
+            }
+            Some(rate)
+        }
+        None => None,
+    };
     let grid: TauGrid = args
         .taus
         .parse()
@@ -388,11 +399,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .kind
         .parse()
         .map_err(|e| CliError::input(format!("--kind: {e}")))?;
-    let unit: RateUnit = args
-        .units
+    let log = log_input::open(&args.input, &args.columns, &args.bag, false)?;
+    let rate = log.origin.rate(given_rate).map_err(CliError::input)?;
+    let unit: RateUnit = log
+        .origin
+        .units(args.units.as_deref())
+        .map_err(CliError::input)?
         .parse()
         .map_err(|e| CliError::input(format!("--units: {e}")))?;
-    let table = read_table(&args.input, &args.columns)?;
+    let table = log.table;
     let shown = args.input.display().to_string();
     let mut results = Vec::new();
     for (name, y) in table.names.iter().zip(&table.columns) {

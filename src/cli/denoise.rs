@@ -2,9 +2,10 @@
 
 use super::CliError;
 use crate::allan::RateUnit;
+use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
 use crate::io::plot::{LineStyle, Panel, PanelStyle, Series};
-use crate::io::{read_table, read_table_keeping_time, write_table_with_time, Table};
+use crate::io::{read_table, write_table_with_time, Table};
 use crate::synthetic::{self, Regime};
 use crate::wavelet::denoise::{compare, denoise, Comparison, DenoiseConfig, NoiseSigma, Rule};
 use crate::wavelet::threshold::ThresholdFn;
@@ -25,9 +26,13 @@ const SECONDS_COLUMNS: [&str; 4] = ["t", "t_s", "time", "time_s"];
 /// Arguments of `driftless denoise`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input CSV (with or without a header). Not needed with --synthetic.
+    /// Input CSV (with or without a header), or a ROS 2 bag (an MCAP file or a rosbag2
+    /// directory, see --topic). Not needed with --synthetic.
     #[arg(required_unless_present = "synthetic")]
     input: Option<PathBuf>,
+    /// The bag's topic.
+    #[command(flatten)]
+    bag: BagArgs,
     /// Column to denoise, by name (repeatable; default: every numeric column but a time column such
     /// as t_s; c0, c1, ... without a header).
     #[arg(long = "column")]
@@ -99,12 +104,12 @@ pub struct Args {
     /// t_s, time or time_s, read as seconds).
     #[arg(long, conflicts_with = "synthetic")]
     rate: Option<f64>,
-    /// Units of the input's rates, for the tables and the plot's axes: deg/s or rad/s (the
-    /// synthetic records are in deg/s).
-    #[arg(long, default_value = "deg/s", conflicts_with = "synthetic")]
-    units: String,
+    /// Units of the input's rates, for the tables and the plot's axes: deg/s or rad/s
+    /// (default deg/s; a bag's are rad/s; the synthetic records are in deg/s).
+    #[arg(long, conflicts_with = "synthetic")]
+    units: Option<String>,
     /// Use the seeded synthetic benchmark record instead of a file: static or dynamic.
-    #[arg(long, conflicts_with_all = ["input", "truth"])]
+    #[arg(long, conflicts_with_all = ["input", "truth", "topic"])]
     synthetic: Option<String>,
     /// Seed of the synthetic record.
     #[arg(long, default_value_t = 1, requires = "synthetic")]
@@ -118,6 +123,8 @@ pub struct Args {
 struct Data {
     source: String,
     table: Table,
+    /// The units of the table's rates.
+    units: RateUnit,
     truths: Vec<Option<Vec<f64>>>,
     truth_source: Option<String>,
 }
@@ -181,6 +188,7 @@ fn load(args: &Args) -> Result<Data, CliError> {
                 has_header: true,
                 time: None,
             },
+            units: RateUnit::DegPerS,
             truths: vec![Some(record.truth)],
             truth_source: Some("the synthetic truth".into()),
         });
@@ -189,12 +197,17 @@ fn load(args: &Args) -> Result<Data, CliError> {
         .input
         .as_ref()
         .expect("clap requires input without --synthetic");
-    // `-o` carries the input's time column through; the plot takes its time axis from it.
-    let table = if args.output.is_some() || args.plot.is_some() {
-        read_table_keeping_time(input, &args.columns)?
-    } else {
-        read_table(input, &args.columns)?
-    };
+    // `-o` carries the input's time column through (a bag's stamps as t_s); the plot takes
+    // its time axis from it.
+    let keep_time = args.output.is_some() || args.plot.is_some();
+    let log = log_input::open(input, &args.columns, &args.bag, keep_time)?;
+    let units: RateUnit = log
+        .origin
+        .units(args.units.as_deref())
+        .map_err(CliError::input)?
+        .parse()
+        .map_err(|e| CliError::input(format!("--units: {e}")))?;
+    let table = log.table;
     let mut truths = vec![None; table.names.len()];
     let mut truth_source = None;
     if let Some(truth_path) = &args.truth {
@@ -226,6 +239,7 @@ fn load(args: &Args) -> Result<Data, CliError> {
     Ok(Data {
         source: input.display().to_string(),
         table,
+        units,
         truths,
         truth_source,
     })
@@ -540,11 +554,8 @@ impl Figure<'_> {
 /// Run `driftless denoise`.
 pub fn run(args: Args) -> Result<(), CliError> {
     let cfg = config(&args)?;
-    let units: RateUnit = args
-        .units
-        .parse()
-        .map_err(|e| CliError::input(format!("--units: {e}")))?;
     let data = load(&args)?;
+    let units = data.units;
     let rows = data.table.rows();
     let (times, shown) = match &args.plot {
         Some(_) => {

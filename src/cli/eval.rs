@@ -5,6 +5,7 @@
 use super::train::{check_rate, read_column};
 use super::CliError;
 use crate::allan::{self, chi2, Kind, TauGrid, Term, TermUnits};
+use crate::cli::log_input::BagArgs;
 use crate::cli::num::sig;
 use crate::drift::baselines::{self, Mean, Persistence, Predictor, Score};
 use crate::drift::compensator::{Compensator, Mode};
@@ -24,18 +25,23 @@ const PLOT_POINTS: usize = 4000;
 /// Arguments of `driftless eval`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Gyro log (CSV, optionally .gz).
+    /// Gyro log: CSV (optionally .gz), or a ROS 2 bag (an MCAP file or a rosbag2 directory,
+    /// see --topic).
     input: PathBuf,
+    /// The bag's topic.
+    #[command(flatten)]
+    bag: BagArgs,
     /// Model file from `driftless train`.
     #[arg(long)]
     model: PathBuf,
     /// Column (default: the model's axis).
     #[arg(long)]
     column: Option<String>,
-    /// Sample rate of the log, Hz (must be the model's; default: the model's).
+    /// Sample rate of the log, Hz (must be the model's; default: the model's; a bag's stamps
+    /// must agree with it).
     #[arg(long)]
     rate: Option<f64>,
-    /// Units of the log (must be the model's; default: the model's).
+    /// Units of the log (must be the model's; default: the model's; a bag's are rad/s).
     #[arg(long)]
     units: Option<String>,
     /// First sample scored (default: after the model's training range when the file is the
@@ -183,8 +189,31 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    let column = args.column.clone().unwrap_or_else(|| model.axis.clone());
-    let col = read_column(&args.input, Some(&column))?;
+    let is_bag = crate::io::rate_log::is_bag(&args.input);
+    let column = match &args.column {
+        Some(c) => c.clone(),
+        // A bag's columns are x, y, z whatever the model's training log called its axis.
+        None if is_bag => "x".to_string(),
+        None => model.axis.clone(),
+    };
+    let col = read_column(&args.input, Some(&column), &args.bag)?;
+    if col.origin.bag.is_some() {
+        col.origin.rate(Some(rate)).map_err(|e| {
+            CliError::input(format!(
+                "{e} (model {} is at {rate} Hz)",
+                args.model.display()
+            ))
+        })?;
+        let units = col.origin.units(None).map_err(CliError::input)?;
+        if units != model.units {
+            return Err(CliError::input(format!(
+                "{}: a bag's rates are in {units} but model {} is in {}",
+                args.input.display(),
+                args.model.display(),
+                model.units
+            )));
+        }
+    }
     let n = col.values.len();
     let hash = sha256_file(&args.input).map_err(CliError::input)?;
     let training_file = hash == model.provenance.sha256 && column == model.provenance.column;

@@ -23,6 +23,7 @@ pub mod duration;
 pub mod eval;
 pub mod iceoryx2;
 pub mod list;
+pub mod log_input;
 pub mod man;
 pub mod nav_eval;
 pub mod num;

@@ -15,10 +15,11 @@ use super::duration::parse_seconds;
 use super::simulate::parse_number;
 use super::CliError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
+use crate::cli::log_input::{self, BagArgs};
 use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
 use crate::drift::PredictorKind;
-use crate::io::csv_table::read_table;
 use crate::io::plot::{self, Panel, PanelStyle, Series};
+use crate::io::rate_log::RateLog;
 use crate::io::truth::read_truth;
 use crate::nav::{
     evaluate, format_table_labelled, fusion, generate, heading_error, summarize_methods,
@@ -35,9 +36,14 @@ use std::path::{Path, PathBuf};
 /// Arguments of `driftless nav-eval`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A static gyro log (CSV, `.gz` too), rates in deg/s; or `--sim SENSOR` instead.
+    /// A static gyro log: CSV (`.gz` too) with rates in deg/s, or a ROS 2 bag (an MCAP file or
+    /// a rosbag2 directory, see --topic); or `--sim SENSOR` instead.
     pub input: Option<PathBuf>,
-    /// Sample rate of the log, Hz (with `--sim`: default 100).
+    /// The bag's topic.
+    #[command(flatten)]
+    pub bag: BagArgs,
+    /// Sample rate of the log, Hz (required for CSV; a bag's comes from its stamps; with
+    /// `--sim`: default 100).
     #[arg(long, allow_hyphen_values = true)]
     pub rate: Option<String>,
     /// Columns to use, one axis each (repeatable; default: every numeric column but time).
@@ -110,8 +116,15 @@ struct Chain {
     pipelines: Vec<Pipeline>,
 }
 
-fn log_source(path: &Path, args: &Args, rate: f64, window: usize) -> Result<Source, CliError> {
-    let table = read_table(path, &args.columns)?;
+fn log_source(log: RateLog, args: &Args, rate: f64, window: usize) -> Result<Source, CliError> {
+    let mut table = log.table;
+    let path = table.path.clone();
+    if log.origin.bag.is_some() {
+        // A bag's rates are rad/s; the navigation and its terms here are in deg/s.
+        for c in &mut table.columns {
+            c.iter_mut().for_each(|v| *v = v.to_degrees());
+        }
+    }
     let characterise = (parse_seconds(&args.characterise)
         .map_err(|e| CliError::input(format!("--characterise {e}")))?
         * rate)
@@ -450,19 +463,27 @@ fn summary_json(s: &MethodSummary, label: &str) -> Value {
 
 /// Run `driftless nav-eval`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let rate = match (&args.rate, &args.sim) {
-        (Some(r), _) => parse_number("--rate", r)?,
-        (None, Some(_)) => 100.0,
-        (None, None) => return Err(CliError::input("--rate is required with a log")),
+    // Profiles before the log, so a typo fails at once.
+    let profiles = parse_profiles(args.motion.as_deref().unwrap_or("all"))?;
+    let given = match &args.rate {
+        Some(r) => Some(parse_number("--rate", r)?),
+        None => None,
+    };
+    let log = match (&args.input, &args.sim) {
+        (Some(p), None) => Some(log_input::open(p, &args.columns, &args.bag, false)?),
+        _ => None,
+    };
+    let rate = match (&log, &args.sim) {
+        (Some(log), _) => log.origin.rate(given).map_err(CliError::input)?,
+        (None, Some(_)) => given.unwrap_or(100.0),
+        (None, None) => return Err(CliError::input("give a log or --sim SENSOR")),
     };
     if !(rate.is_finite() && rate > 0.0 && rate <= 1e6) {
         return Err(CliError::input(format!(
             "--rate {rate} must be in (0, 1e6] Hz"
         )));
     }
-    // Profiles before the log, so a typo fails at once; a truth file too: its length is the
-    // window's.
-    let profiles = parse_profiles(args.motion.as_deref().unwrap_or("all"))?;
+    // A truth file before the windows: its length is the window's.
     let truth = match &args.truth {
         Some(path) => Some(read_truth(path, rate)?),
         None => None,
@@ -492,7 +513,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     }
     let src = match (&args.input, &args.sim) {
-        (Some(p), None) => log_source(p, &args, rate, window)?,
+        (Some(_), None) => log_source(log.expect("read above"), &args, rate, window)?,
         (None, Some(s)) => {
             if !(1..=1000).contains(&args.windows) {
                 return Err(CliError::input("--windows must be 1..=1000"));

@@ -3,6 +3,7 @@
 
 use super::duration::parse_seconds;
 use super::CliError;
+use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
 use crate::drift::baselines::{self, Ar, Mean, Persistence, Score};
 use crate::drift::model::{
@@ -15,23 +16,27 @@ use crate::drift::stillness::StillnessConfig;
 use crate::drift::training::{self, AdamConfig, CentreMethod, TrainConfig};
 use crate::drift::Predictor;
 use crate::io::model_file::{sha256_file, write_model};
-use crate::io::read_table;
+use crate::io::rate_log::{LogOrigin, RateLog};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `driftless train`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Static gyro log (CSV, optionally .gz).
+    /// Static gyro log: CSV (optionally .gz), or a ROS 2 bag (an MCAP file or a rosbag2
+    /// directory, see --topic).
     input: PathBuf,
-    /// Sample rate of the log, Hz.
+    /// The bag's topic.
+    #[command(flatten)]
+    bag: BagArgs,
+    /// Sample rate of the log, Hz (required for CSV; a bag's comes from its stamps).
     #[arg(long)]
-    rate: f64,
+    rate: Option<f64>,
     /// Column to train on (default: the first numeric column that is not time: t, t_s, time, ...).
     #[arg(long)]
     column: Option<String>,
-    /// Units of the rate: deg/s or rad/s.
-    #[arg(long, default_value = "deg/s")]
-    units: String,
+    /// Units of the rate: deg/s or rad/s (default deg/s; a bag's are rad/s).
+    #[arg(long)]
+    units: Option<String>,
     /// Lagged drift values fed to the network (p).
     #[arg(long, default_value_t = 4)]
     lags: usize,
@@ -122,20 +127,22 @@ pub struct Column {
     pub name: String,
     /// Its values.
     pub values: Vec<f64>,
+    /// Where it came from (a bag's rate and units).
+    pub origin: LogOrigin,
 }
 
 /// Read one column (without `column`: the first numeric one that is not a time column, as
-/// `driftless simulate` writes) and refuse non-finite values.
-pub fn read_column(path: &Path, column: Option<&str>) -> Result<Column, CliError> {
+/// `driftless simulate` writes; a bag's x) and refuse non-finite values.
+pub fn read_column(path: &Path, column: Option<&str>, bag: &BagArgs) -> Result<Column, CliError> {
     let wanted: Vec<String> = column.map(|c| vec![c.to_string()]).unwrap_or_default();
-    let mut table = read_table(path, &wanted)?;
+    let RateLog { mut table, origin } = log_input::open(path, &wanted, bag, false)?;
     if table.columns.is_empty() {
         return Err(CliError::input(format!(
             "{}: no numeric column",
             path.display()
         )));
     }
-    // Without --column, read_table has already left out time columns.
+    // Without --column, the reader has already left out time columns.
     let name = table.names[0].clone();
     let values = std::mem::take(&mut table.columns[0]);
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
@@ -146,7 +153,11 @@ pub fn read_column(path: &Path, column: Option<&str>) -> Result<Column, CliError
             values[i]
         )));
     }
-    Ok(Column { name, values })
+    Ok(Column {
+        name,
+        values,
+        origin,
+    })
 }
 
 fn parse<T: std::str::FromStr<Err = String>>(what: &str, s: &str) -> Result<T, CliError> {
@@ -167,14 +178,22 @@ pub fn check_rate(rate: f64) -> Result<(), CliError> {
 
 /// Run `driftless train`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    check_rate(args.rate)?;
-    if !UNITS.contains(&args.units.as_str()) {
+    if let Some(r) = args.rate {
+        check_rate(r)?;
+    }
+    if let Some(u) = args.units.as_deref().filter(|u| !UNITS.contains(u)) {
         return Err(CliError::input(format!(
-            "--units '{}' (valid: {})",
-            args.units,
+            "--units '{u}' (valid: {})",
             UNITS.join(", ")
         )));
     }
+    let col = read_column(&args.input, args.column.as_deref(), &args.bag)?;
+    let rate = col.origin.rate(args.rate).map_err(CliError::input)?;
+    let units = col
+        .origin
+        .units(args.units.as_deref())
+        .map_err(CliError::input)?
+        .to_string();
     for (name, v) in [
         ("horizon", args.horizon),
         ("still-window", args.still_window),
@@ -185,8 +204,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    let horizon = (args.horizon * args.rate).round().max(1.0) as usize;
-    let still_window = (args.still_window * args.rate).round().max(2.0) as usize;
+    let horizon = (args.horizon * rate).round().max(1.0) as usize;
+    let still_window = (args.still_window * rate).round().max(2.0) as usize;
     if still_window > args.train {
         return Err(CliError::input(format!(
             "--still-window {} s is {still_window} samples, more than the {} training samples",
@@ -224,7 +243,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
         wavelet: args.wavelet.clone(),
         level: args.drift_level,
     };
-    let col = read_column(&args.input, args.column.as_deref())?;
     let n = col.values.len();
     let end = args.start + args.train + args.test;
     if end > n {
@@ -292,9 +310,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let model = DriftModel {
         format: FORMAT.into(),
         version: VERSION,
-        rate_hz: args.rate,
+        rate_hz: rate,
         axis: col.name.clone(),
-        units: args.units.clone(),
+        units: units.clone(),
         separation: Separation { denoise, lowband },
         stillness,
         max_step,
@@ -320,7 +338,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
          held out {}..{}",
         args.input.display(),
         col.name,
-        args.rate,
+        rate,
         args.start,
         args.start + args.train,
         args.start + warm,
@@ -328,7 +346,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         args.start + t0,
         args.start + t1
     );
-    print_scores(&scores, &args.units, args.horizon);
+    print_scores(&scores, &units, args.horizon);
     let rbf = &scores[3];
     let ar_s = &scores[2];
     println!(

@@ -41,6 +41,9 @@ pub enum InputError {
         /// What is wrong there.
         message: String,
     },
+    /// A fault of a ROS 2 bag (its message names the file, and the message where there is one).
+    #[error(transparent)]
+    Bag(#[from] super::ros2::BagError),
     /// A fault of the file as a whole.
     #[error("{path}: {message}")]
     File {

@@ -1,5 +1,5 @@
 //! Files and terminals: CSV tables with positioned errors, atomic output, progress bars, plots,
-//! truth files for the heading benchmark, ROS 2 bags.
+//! truth files for the heading benchmark, ROS 2 bags, and rate logs read from either.
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
@@ -9,6 +9,7 @@ pub mod csv_table;
 pub mod model_file;
 pub mod plot;
 pub mod progress;
+pub mod rate_log;
 pub mod recording;
 pub mod ros2;
 pub mod truth;

@@ -1,13 +1,21 @@
 //! `ingest.mcap`: replay the raw samples of a recording made by `driftless record` (an MCAP file,
-//! [`crate::io::recording`]) in real time or as fast as possible, optionally looping. The
-//! samples enter the pipeline as they were recorded (`seq`, `t_ns`, `epoch`, rates and flags
-//! bit for bit), so replaying a recording of a pipeline's raw service through the same stages
-//! reproduces what that pipeline published. On later passes of a loop, `seq` and `t_ns` are
-//! shifted to keep rising.
+//! [`crate::io::recording`]), or the `sensor_msgs/msg/Imu` topic of a ROS 2 bag (an MCAP file
+//! or a rosbag2 directory, [`crate::io::ros2`]), in real time or as fast as possible,
+//! optionally looping.
+//!
+//! A recording's samples enter the pipeline as they were recorded (`seq`, `t_ns`, `epoch`,
+//! rates and flags bit for bit), so replaying a recording of a pipeline's raw service through
+//! the same stages reproduces what that pipeline published. A bag's message `n` (from 1) enters
+//! as `seq` n - 1, `t_ns` its `header.stamp`, `rate` its `angular_velocity` (rad/s: the
+//! pipeline's `input_units` must be rad/s), `epoch` 0. A message that does not decode enters
+//! as an invalid sample (`RAW_INVALID`, its time held, said on stderr): the daemon flags it
+//! and keeps serving; a stamp going backwards enters as it is and is flagged downstream
+//! (`time_backwards`). On later passes of a loop, `seq` and `t_ns` are shifted to keep rising.
 //!
 //! Validation opens the file (its summary and footer: a truncated file or one still being
-//! written fails there), finds the topic and decodes its first [`CHECKED_MESSAGES`] messages;
-//! the run streams the file chunk by chunk from a reader thread.
+//! written fails there), finds the topic and decodes its first [`CHECKED_MESSAGES`] messages (a
+//! bag's stamps must give the pipeline's rate within 1 %); the run streams the file chunk by
+//! chunk from a reader thread.
 //!
 //! ```toml
 //! [[stage]]
@@ -15,7 +23,7 @@
 //! kind = "ingest.mcap"
 //! output = "demo/raw"
 //! file = "run.mcap"          # relative to the pipeline file
-//! topic = "demo/raw"         # default: the file's only raw-sample topic
+//! topic = "demo/raw"         # default: the file's only raw-sample topic (a bag: Imu topic)
 //! pace = "asap"              # or "realtime" (default)
 //! loop = false
 //! ```
@@ -25,30 +33,32 @@ use std::path::PathBuf;
 use toml::Spanned;
 
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
+use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Pace, LOOP, PACE};
+use crate::stages::schema::Units;
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::RawSample;
+use crate::transport::{RawSample, RAW_INVALID};
 
 const FILE: Key = Key {
     name: "file",
-    ty: Type::Str("an MCAP file from `driftless record`, relative to the pipeline file"),
+    ty: Type::Str("an MCAP file from `driftless record`, or a ROS 2 bag (an MCAP file or a rosbag2 directory), relative to the pipeline file"),
     default: "required",
-    doc: "the recording to replay; its summary and first 1000 messages of the topic checked at validation, then streamed",
+    doc: "the recording or bag to replay; its summary and first 1000 messages of the topic checked at validation, then streamed",
 };
 const TOPIC: Key = Key {
     name: "topic",
-    ty: Type::Str("a recorded raw service: \"demo/raw\" or its topic \"/demo/raw\""),
-    default: "the file's only driftless.RawSample topic",
-    doc: "which recorded service to replay",
+    ty: Type::Str("a recorded raw service: \"demo/raw\" or its topic \"/demo/raw\"; or a bag's sensor_msgs/msg/Imu topic: \"/imu/data\""),
+    default: "the file's only driftless.RawSample topic, else its only sensor_msgs/msg/Imu topic",
+    doc: "which recorded service or Imu topic to replay",
 };
 
 /// `ingest.mcap`.
 pub const KIND: Kind = Kind {
     name: "ingest.mcap",
     role: Role::Ingest { has_input: false },
-    summary: "the raw samples of a `driftless record` recording (MCAP) replayed as recorded, at their rate or as fast as possible, optionally looping",
+    summary: "the raw samples of a `driftless record` recording (MCAP) replayed as recorded, or a ROS 2 bag's sensor_msgs/msg/Imu topic (rad/s, stamps as times), at their rate or as fast as possible, optionally looping",
     keys: &[FILE, TOPIC, PACE, LOOP],
     parse,
 };
@@ -59,9 +69,11 @@ pub const CHECKED_MESSAGES: usize = 1000;
 /// An MCAP replay: checked at validation, streamed while it runs.
 #[derive(Debug, Clone)]
 pub struct McapParams {
-    /// The recording.
+    /// The recording or bag.
     pub file: PathBuf,
-    /// The topic replayed (`/` and the service name).
+    /// What it holds.
+    pub format: Format,
+    /// The topic replayed (a recording's: `/` and the service name).
     pub topic: String,
     /// Messages on the topic.
     pub messages: u64,
@@ -71,6 +83,15 @@ pub struct McapParams {
     pub looped: bool,
 }
 
+/// What an MCAP replay reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// A `driftless record` recording's raw samples.
+    Recording,
+    /// A ROS 2 bag's Imu messages.
+    Ros2Bag,
+}
+
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let topic_key = t.get::<String>(&TOPIC)?;
@@ -78,11 +99,25 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let looped = t.get::<bool>(&LOOP)?.is_some_and(Spanned::into_inner);
     let src = t.src;
     let file = src.resolve(file_key.get_ref());
+    if file.is_dir() {
+        return parse_bag(t, file, &file_key, topic_key.as_ref(), pace, looped);
+    }
     if !file.is_file() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
     }
     let rec = Recording::open(&file).map_err(|e| src.span(&file_key, e))?;
     let channels = rec.channels();
+    // A bag's Imu topic, chosen or the only kind of topic the file can replay.
+    let is_imu = |c: &recording::ChannelInfo| c.schema == IMU_TYPE;
+    let bag = match &topic_key {
+        Some(k) => channels
+            .iter()
+            .any(|c| c.topic == *k.get_ref() && is_imu(c)),
+        None => !channels.iter().any(|c| c.schema == RAW_SCHEMA) && channels.iter().any(is_imu),
+    };
+    if bag {
+        return parse_bag(t, file, &file_key, topic_key.as_ref(), pace, looped);
+    }
     let topics = || {
         let list: Vec<String> = channels
             .iter()
@@ -127,8 +162,8 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
                 return Err(src.span(
                     &file_key,
                     format!(
-                        "no {RAW_SCHEMA} topic in {} (topics: {}): not a `driftless record` \
-                         recording of a raw service",
+                        "no {RAW_SCHEMA} or {IMU_TYPE} topic in {} (topics: {}): neither a \
+                         `driftless record` recording of a raw service nor a ROS 2 bag of an IMU",
                         file.display(),
                         topics()
                     ),
@@ -194,6 +229,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     }
     Ok(Box::new(McapParams {
         file,
+        format: Format::Recording,
         topic: channel.topic.clone(),
         messages: channel.messages,
         pace,
@@ -210,7 +246,10 @@ impl Params for McapParams {
     ) -> Result<Box<dyn Source>, String> {
         let (params, period_ns) = (self.clone(), (1e9 / cx.rate_hz).round() as u64);
         let replay = BlockReplay::spawn("driftless-mcap", self.pace, move |sink| {
-            read_messages(&params, period_ns, sink)
+            match params.format {
+                Format::Recording => read_messages(&params, period_ns, sink),
+                Format::Ros2Bag => read_bag(&params, period_ns, sink),
+            }
         })?;
         Ok(Box::new(replay))
     }
@@ -224,6 +263,167 @@ impl Params for McapParams {
         )]
     }
 }
+
+/// A ROS 2 bag's Imu topic, checked: the pipeline's units rad/s, its rate the stamps' (within
+/// 1 %) over the first [`CHECKED_MESSAGES`] messages, none of which may be corrupt.
+fn parse_bag(
+    t: &StageTable<'_, '_>,
+    file: PathBuf,
+    file_key: &Spanned<String>,
+    topic_key: Option<&Spanned<String>>,
+    pace: Pace,
+    looped: bool,
+) -> Result<Box<dyn Params>, InputError> {
+    let src = t.src;
+    let bag = Bag::open(&file).map_err(|e| src.span(file_key, e))?;
+    let topic = match topic_key {
+        Some(k) => bag
+            .imu_topic(Some(k.get_ref()))
+            .map_err(|e| src.span(k, e))?,
+        None => bag.imu_topic(None).map_err(|e| src.span(file_key, e))?,
+    };
+    let at = topic_key.map_or(file_key.span().start, |k| k.span().start);
+    let shown = file.display();
+    if t.cx.units != Units::RadPerSec {
+        return Err(src.at(
+            at,
+            format!(
+                "topic {topic} of {shown} is a sensor_msgs/msg/Imu: its angular velocity is in \
+                 rad/s (REP 103), but the pipeline's input_units is {}: set input_units = \
+                 \"rad/s\"",
+                t.cx.units.name()
+            ),
+        ));
+    }
+    let mut stamps = Vec::with_capacity(CHECKED_MESSAGES);
+    for m in bag
+        .imu_messages(&topic)
+        .map_err(|e| src.at(at, e))?
+        .take(CHECKED_MESSAGES)
+    {
+        match m {
+            Ok(m) => stamps.push(m.imu.stamp.ns()),
+            // Replayed as an invalid sample, flagged: not a reason to refuse the bag.
+            Err(e) if e.kind == BagErrorKind::Cdr => {}
+            Err(e) => return Err(src.at(at, e)),
+        }
+    }
+    let mut intervals: Vec<i64> = stamps.windows(2).map(|w| w[1] - w[0]).collect();
+    if intervals.is_empty() {
+        return Err(src.at(
+            at,
+            format!("topic {topic} of {shown}: fewer than 2 messages with a stamp: no rate"),
+        ));
+    }
+    let mid = intervals.len() / 2;
+    let median = *intervals.select_nth_unstable(mid).1;
+    let stamps_hz = 1e9 / median as f64;
+    if !(median > 0 && (stamps_hz - t.cx.rate_hz).abs() <= 0.01 * t.cx.rate_hz) {
+        return Err(src.at(
+            at,
+            format!(
+                "topic {topic} of {shown}: its stamps step {median} ns at the median ({stamps_hz:.6} \
+                 Hz), but the pipeline's rate is {} Hz",
+                t.cx.rate_hz
+            ),
+        ));
+    }
+    let messages = bag
+        .topics()
+        .iter()
+        .find(|i| i.topic == topic)
+        .map_or(0, |i| i.messages);
+    Ok(Box::new(McapParams {
+        file,
+        format: Format::Ros2Bag,
+        topic,
+        messages,
+        pace,
+        looped,
+    }))
+}
+
+/// The reader thread of a bag: message `n` of the topic as raw sample `n - 1`, its stamp as
+/// the time; a message that does not decode as an invalid sample, its time held; `seq` and
+/// `t_ns` shifted on later passes. Ends at the end of the bag (without `loop`), at a corrupt
+/// chunk (on stderr), or when the replay is dropped.
+fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
+    let shown = params.file.display();
+    let bag = match Bag::open(&params.file) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("driftless: error: {e} (the replay ends here)");
+            return;
+        }
+    };
+    let (mut seq_offset, mut t_offset, mut bad) = (0u64, 0u64, 0u64);
+    loop {
+        let messages = match bag.imu_messages(&params.topic) {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("driftless: error: {e} (the replay ends here)");
+                return;
+            }
+        };
+        let (mut seq, mut first_t, mut last_t) = (0u64, None::<u64>, 0u64);
+        for m in messages {
+            let mut s = RawSample {
+                t_ns: last_t,
+                seq,
+                rate: [f64::NAN; 3],
+                flags: RAW_INVALID,
+                epoch: 0,
+            };
+            match m {
+                Ok(m) => {
+                    s.rate = m.imu.angular_velocity;
+                    s.flags = 0;
+                    // Before 1970 a stamp has no place on the u64 clock: held, flagged invalid.
+                    match m.imu.stamp.ns_u64() {
+                        Some(t) => s.t_ns = t,
+                        None => s.flags = RAW_INVALID,
+                    }
+                }
+                Err(e) if e.kind == BagErrorKind::Cdr => {
+                    bad += 1;
+                    if seq_offset == 0 && bad <= REPORTED_BAD_MESSAGES {
+                        eprintln!(
+                            "driftless: warning: {e} (replayed as an invalid sample: flagged)"
+                        );
+                    }
+                }
+                Err(e) => {
+                    eprintln!("driftless: error: {e} (the replay ends here)");
+                    return;
+                }
+            }
+            first_t.get_or_insert(s.t_ns);
+            last_t = s.t_ns;
+            s.seq = seq.wrapping_add(seq_offset);
+            s.t_ns = s.t_ns.wrapping_add(t_offset);
+            seq += 1;
+            if !sink.push(s) {
+                return;
+            }
+        }
+        if bad > REPORTED_BAD_MESSAGES && seq_offset == 0 {
+            eprintln!(
+                "driftless: warning: {shown}: topic {}: {bad} messages that do not decode \
+                 replayed as invalid samples",
+                params.topic
+            );
+        }
+        let Some(first_t) = first_t else { return };
+        if !params.looped {
+            return;
+        }
+        seq_offset = seq_offset.wrapping_add(seq);
+        t_offset = t_offset.wrapping_add(last_t.saturating_sub(first_t) + period_ns);
+    }
+}
+
+/// Undecodable messages of a bag named one by one on stderr; the rest are counted.
+const REPORTED_BAD_MESSAGES: u64 = 10;
 
 /// The reader thread: the topic's messages as raw samples, as recorded on the first pass,
 /// `seq` and `t_ns` shifted on later ones. Ends at the end of the file (without `loop`), at a

@@ -92,6 +92,10 @@ pub enum BagErrorKind {
     Corrupt,
     /// A message that does not decode.
     Cdr,
+    /// A stamp that does not rise (the reader of a log checks it).
+    Stamp,
+    /// A value a log cannot hold (a non-finite rate).
+    Value,
     /// A message that cannot be written (a stamp before 1970, a bad topic name).
     Write,
 }
@@ -105,6 +109,12 @@ pub struct BagError {
     pub kind: BagErrorKind,
     /// The line to show.
     pub message: String,
+}
+
+impl From<BagError> for String {
+    fn from(e: BagError) -> String {
+        e.message
+    }
 }
 
 fn err(kind: BagErrorKind, message: String) -> BagError {
@@ -312,8 +322,8 @@ impl Bag {
     }
 
     /// The messages of Imu topic `topic` in file order, decoded. The topic is checked first
-    /// ([`Bag::imu_topic`]); then each item is a message or the error that ends the iteration
-    /// (a corrupt chunk, a message that does not decode).
+    /// ([`Bag::imu_topic`]); then each item is a message or an error: a corrupt chunk ends the
+    /// iteration, a message that does not decode does not (the next item is the next message).
     pub fn imu_messages<'a>(&'a self, topic: &str) -> Result<ImuMessages<'a>, BagError> {
         let topic = self.imu_topic(Some(topic))?;
         Ok(ImuMessages {
@@ -590,7 +600,9 @@ impl Iterator for ImuMessages<'_> {
             match self.next_in_file() {
                 Some(Ok(r)) => return Some(Ok(r)),
                 Some(Err(e)) => {
-                    self.failed = true;
+                    // A message that does not decode leaves the file's framing intact: the
+                    // caller may read on (a replay flags it and keeps serving).
+                    self.failed = e.kind != BagErrorKind::Cdr;
                     return Some(Err(e));
                 }
                 None => self.file += 1,

@@ -1,0 +1,335 @@
+//! A rate log, whatever holds it: a CSV table ([`crate::io::csv_table`]) or the
+//! `sensor_msgs/msg/Imu` topic of a ROS 2 bag ([`crate::io::ros2`]). The offline commands
+//! (`allan`, `denoise`, `nav-eval`, `train`, `eval`) read their input through [`read_log`].
+//!
+//! A bag gives three columns, `x`, `y`, `z`: the messages' `angular_velocity` in rad/s as the
+//! message definition has it (REP 103), unconverted, so that the same doubles give the same
+//! results from a bag as from a CSV file. Its rate comes from the stamps ([`Stamps`]): the
+//! median interval between consecutive `header.stamp`s, robust to gaps. A stamp that does not
+//! rise, a message that does not decode and a non-finite rate are errors naming the file, the
+//! topic, the message's number and its log time; gaps and jitter are counted and reported
+//! ([`Stamps::irregular`]), never filled in.
+
+use std::path::{Path, PathBuf};
+
+use super::csv_table::{read_table, read_table_keeping_time, InputError, Table, TimeColumn};
+use super::ros2::{Bag, BagError, BagErrorKind};
+
+/// The column names a bag's angular velocity is read into.
+pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
+
+/// An interval further than this fraction from the median interval is irregular.
+const IRREGULAR_FRACTION: f64 = 0.5;
+
+/// Whether `path` is read as a ROS 2 bag: a directory (a rosbag2 bag), or a file that starts
+/// with the MCAP magic. Anything else is read as CSV.
+pub fn is_bag(path: &Path) -> bool {
+    if path.is_dir() {
+        return true;
+    }
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+        .is_ok_and(|()| head[..] == mcap::MAGIC[..])
+}
+
+/// What a bag's stamps say about its sampling.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stamps {
+    /// Messages read.
+    pub count: u64,
+    /// The first and last stamps, ns since the epoch.
+    pub first_ns: i64,
+    /// See `first_ns`.
+    pub last_ns: i64,
+    /// The median interval between consecutive stamps, ns (0 with fewer than 2 messages).
+    pub median_interval_ns: i64,
+    /// Intervals longer than 1.5x the median: samples missing.
+    pub gaps: u64,
+    /// The longest interval, ns.
+    pub longest_ns: i64,
+    /// Intervals shorter than 0.5x the median.
+    pub short: u64,
+    /// The shortest interval, ns.
+    pub shortest_ns: i64,
+}
+
+impl Stamps {
+    /// The sample rate the stamps give, Hz (from the median interval); None with fewer than
+    /// two messages.
+    pub fn rate_hz(&self) -> Option<f64> {
+        (self.median_interval_ns > 0).then(|| 1e9 / self.median_interval_ns as f64)
+    }
+
+    /// From the stamps in order (each rising).
+    fn from_stamps(stamps: &[i64]) -> Stamps {
+        let mut intervals: Vec<i64> = stamps.windows(2).map(|w| w[1] - w[0]).collect();
+        let mut s = Stamps {
+            count: stamps.len() as u64,
+            first_ns: stamps.first().copied().unwrap_or(0),
+            last_ns: stamps.last().copied().unwrap_or(0),
+            median_interval_ns: 0,
+            gaps: 0,
+            longest_ns: 0,
+            short: 0,
+            shortest_ns: 0,
+        };
+        if intervals.is_empty() {
+            return s;
+        }
+        let mid = intervals.len() / 2;
+        let median = *intervals.select_nth_unstable(mid).1;
+        s.median_interval_ns = median;
+        let (lo, hi) = (
+            median as f64 * (1.0 - IRREGULAR_FRACTION),
+            median as f64 * (1.0 + IRREGULAR_FRACTION),
+        );
+        s.longest_ns = i64::MIN;
+        s.shortest_ns = i64::MAX;
+        for &d in &intervals {
+            s.gaps += u64::from(d as f64 > hi);
+            s.short += u64::from((d as f64) < lo);
+            s.longest_ns = s.longest_ns.max(d);
+            s.shortest_ns = s.shortest_ns.min(d);
+        }
+        s
+    }
+
+    /// One line on what is irregular in the stamps, None when every interval is within 50 %
+    /// of the median.
+    pub fn irregular(&self) -> Option<String> {
+        if self.gaps == 0 && self.short == 0 {
+            return None;
+        }
+        let period = self.median_interval_ns as f64;
+        let mut parts = Vec::new();
+        if self.gaps > 0 {
+            parts.push(format!(
+                "{} gaps (intervals over 1.5x the median {:.6} s; the longest {:.6} s, {:.1} \
+                 periods): samples are missing there",
+                self.gaps,
+                period * 1e-9,
+                self.longest_ns as f64 * 1e-9,
+                self.longest_ns as f64 / period
+            ));
+        }
+        if self.short > 0 {
+            parts.push(format!(
+                "{} intervals under half the median (the shortest {:.6} s)",
+                self.short,
+                self.shortest_ns as f64 * 1e-9
+            ));
+        }
+        Some(parts.join("; "))
+    }
+}
+
+/// What a bag log was read from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BagLog {
+    /// The Imu topic read.
+    pub topic: String,
+    /// What its stamps say.
+    pub stamps: Stamps,
+}
+
+/// A rate log: its columns, and where they came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateLog {
+    /// The rate columns (a bag's: [`BAG_COLUMNS`], rad/s).
+    pub table: Table,
+    /// Where they came from.
+    pub origin: LogOrigin,
+}
+
+/// Where a log's columns came from: the file, and for a bag its topic and stamps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogOrigin {
+    /// The file or bag directory.
+    pub path: PathBuf,
+    /// Set when the log is a bag.
+    pub bag: Option<BagLog>,
+}
+
+impl LogOrigin {
+    /// The sample rate to use: `given` (a command's `--rate`) for a CSV file, where it is
+    /// required; for a bag the stamps' rate, which `given` must match within 1 %.
+    pub fn rate(&self, given: Option<f64>) -> Result<f64, String> {
+        let shown = self.path.display();
+        let Some(bag) = &self.bag else {
+            return given.ok_or_else(|| {
+                format!(
+                    "{shown}: --rate is needed for a CSV log (a bag's rate comes from its stamps)"
+                )
+            });
+        };
+        let Some(stamps) = bag.stamps.rate_hz() else {
+            return Err(format!(
+                "{shown}: topic {}: {} message(s): too few stamps to give a rate",
+                bag.topic, bag.stamps.count
+            ));
+        };
+        match given {
+            Some(r) if (r - stamps).abs() > 0.01 * stamps => Err(format!(
+                "{shown}: topic {}: --rate {r} Hz, but the stamps say {stamps:.6} Hz (median \
+                 interval {} ns)",
+                bag.topic, bag.stamps.median_interval_ns
+            )),
+            Some(r) => Ok(r),
+            None => Ok(stamps),
+        }
+    }
+
+    /// The units of the log's rates: a bag's are rad/s; `given` (a command's `--units`) must
+    /// agree; a CSV log's are `given`, deg/s without it.
+    pub fn units<'a>(&self, given: Option<&'a str>) -> Result<&'a str, String> {
+        match (&self.bag, given) {
+            (None, given) => Ok(given.unwrap_or("deg/s")),
+            (Some(_), None | Some("rad/s")) => Ok("rad/s"),
+            (Some(bag), Some(other)) => Err(format!(
+                "{}: topic {}: a sensor_msgs/msg/Imu angular velocity is in rad/s (REP 103), \
+                 not {other}: leave --units out",
+                self.path.display(),
+                bag.topic
+            )),
+        }
+    }
+
+    /// A note for stderr when a bag's stamps are irregular.
+    pub fn stamp_note(&self) -> Option<String> {
+        let bag = self.bag.as_ref()?;
+        bag.stamps.irregular().map(|what| {
+            format!(
+                "{}: topic {}: irregular stamps: {what}",
+                self.path.display(),
+                bag.topic
+            )
+        })
+    }
+}
+
+/// Read a rate log: a bag ([`is_bag`]) through its Imu topic (`topic`, or its only one), or a
+/// CSV file as [`read_table`] (with `keep_time`, [`read_table_keeping_time`]) does. `wanted`
+/// names columns (a bag's: `x`, `y`, `z`); empty, every rate column. `topic` with a CSV file
+/// is an error.
+pub fn read_log(
+    path: &Path,
+    wanted: &[String],
+    topic: Option<&str>,
+    keep_time: bool,
+) -> Result<RateLog, InputError> {
+    if !is_bag(path) {
+        if let Some(t) = topic {
+            return Err(InputError::file(
+                path,
+                format!("--topic {t}: not a ROS 2 bag (an MCAP file or a rosbag2 directory)"),
+            ));
+        }
+        let table = if keep_time {
+            read_table_keeping_time(path, wanted)?
+        } else {
+            read_table(path, wanted)?
+        };
+        let origin = LogOrigin {
+            path: path.to_path_buf(),
+            bag: None,
+        };
+        return Ok(RateLog { table, origin });
+    }
+    let bag = Bag::open(path)?;
+    let topic = bag.imu_topic(topic)?;
+    let mut picks = Vec::with_capacity(wanted.len().max(3));
+    for w in wanted {
+        match BAG_COLUMNS.iter().position(|c| c == w) {
+            Some(i) => picks.push(i),
+            None => {
+                return Err(InputError::file(
+                    path,
+                    format!(
+                        "topic {topic}: no column {w:?}: a bag's columns are x, y, z (its \
+                         angular_velocity, rad/s)"
+                    ),
+                ))
+            }
+        }
+    }
+    if picks.is_empty() {
+        picks.extend(0..3);
+    }
+    let shown = path.display();
+    let mut axes: [Vec<f64>; 3] = Default::default();
+    let mut stamps: Vec<i64> = Vec::new();
+    for m in bag.imu_messages(&topic)? {
+        let m = m?;
+        let at = || {
+            format!(
+                "{shown}: topic {topic}, message {} (log time {} ns)",
+                m.number, m.log_time_ns
+            )
+        };
+        let t = m.imu.stamp.ns();
+        if let Some(&prev) = stamps.last() {
+            if t <= prev {
+                return Err(BagError {
+                    kind: BagErrorKind::Stamp,
+                    message: format!(
+                        "{}: stamp {} ns is not after the previous message's {prev} ns: stamps \
+                         must rise",
+                        at(),
+                        t
+                    ),
+                }
+                .into());
+            }
+        }
+        let w = m.imu.angular_velocity;
+        if let Some(i) = w.iter().position(|v| !v.is_finite()) {
+            return Err(BagError {
+                kind: BagErrorKind::Value,
+                message: format!("{}: angular_velocity.{} is {}", at(), BAG_COLUMNS[i], w[i]),
+            }
+            .into());
+        }
+        stamps.push(t);
+        for (col, v) in axes.iter_mut().zip(w) {
+            col.push(v);
+        }
+    }
+    if stamps.is_empty() {
+        return Err(InputError::file(
+            path,
+            format!("topic {topic}: no messages"),
+        ));
+    }
+    let time = keep_time.then(|| TimeColumn {
+        name: "t_s".into(),
+        position: 0,
+        cells: stamps
+            .iter()
+            .map(|&ns| {
+                format!(
+                    "{}.{:09}",
+                    ns.div_euclid(1_000_000_000),
+                    ns.rem_euclid(1_000_000_000)
+                )
+            })
+            .collect(),
+    });
+    let table = Table {
+        path: path.to_path_buf(),
+        names: picks.iter().map(|&i| BAG_COLUMNS[i].to_string()).collect(),
+        columns: picks.iter().map(|&i| axes[i].clone()).collect(),
+        has_header: true,
+        time,
+    };
+    Ok(RateLog {
+        table,
+        origin: LogOrigin {
+            path: path.to_path_buf(),
+            bag: Some(BagLog {
+                topic,
+                stamps: Stamps::from_stamps(&stamps),
+            }),
+        },
+    })
+}
