@@ -257,7 +257,7 @@ fn bad_input_is_one_line_and_exit_2() {
         ),
         (
             vec![short.to_str().unwrap()],
-            "--rate is required with a log".into(),
+            "--rate is needed for a CSV log".into(),
         ),
         (
             vec![

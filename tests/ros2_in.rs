@@ -1,0 +1,447 @@
+//! ROS 2 bags in (issue 30, item 2): the offline commands read a bag's sensor_msgs/msg/Imu
+//! topic as they read the same doubles from CSV, take the rate from the stamps, report
+//! irregular stamps, and refuse bad bags with one line naming the file and the message (exit
+//! 2); `ingest.mcap` replays a bag through a real daemon, every message once, a message that
+//! does not decode and a stamp going backwards flagged, and the daemon keeps serving.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use common::{collect, driftless, finish, qos, start, text, Dir, Prefix};
+use driftless::io::ros2::{Imu, ImuBagWriter, Time, IMU_TYPE};
+use driftless::sim::{SimConfig, Simulator};
+use driftless::transport::{GyroSample, Transport, FLAG_INPUT_INVALID, FLAG_TIME_BACKWARDS};
+use serde_json::Value;
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/ros2")
+        .join(name)
+}
+
+fn imu(stamp_ns: i64, w: [f64; 3]) -> Imu {
+    Imu {
+        stamp: Time::from_ns(stamp_ns).unwrap(),
+        frame_id: "imu_link".into(),
+        angular_velocity: w,
+        ..Imu::default()
+    }
+}
+
+/// A bag of one Imu topic `/imu` written by our writer.
+fn write_bag(path: &Path, messages: &[Imu]) {
+    let mut w = ImuBagWriter::create(path, "/imu").unwrap();
+    for m in messages {
+        w.write(m).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// A bag written directly: `/imu` messages, `None` a message that does not decode.
+fn bag_with_bad(path: &Path, messages: &[Option<Imu>]) {
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .create(BufWriter::new(File::create(path).unwrap()))
+        .unwrap();
+    let schema = w.add_schema(IMU_TYPE, "ros2msg", b"").unwrap();
+    let channel = w
+        .add_channel(schema, "/imu", "cdr", &BTreeMap::new())
+        .unwrap();
+    for (i, m) in messages.iter().enumerate() {
+        let data = match m {
+            Some(m) => m.to_cdr().unwrap(),
+            None => vec![0, 1, 0, 0, 7],
+        };
+        let t = 1_000_000_000 + i as u64 * 10_000_000;
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: 0,
+                log_time: t,
+                publish_time: t,
+            },
+            &data,
+        )
+        .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// `n` samples of the simulated ADIS16405 at 100 Hz, static, rad/s, stamped from 1.7e9 s.
+fn simulated(n: usize) -> Vec<Imu> {
+    let mut cfg = SimConfig::profile("adis16405").unwrap();
+    cfg.rate_hz = 100.0;
+    cfg.axes = 3;
+    let mut sim = Simulator::new(&cfg).unwrap();
+    (0..n)
+        .map(|k| {
+            let s = sim.next_sample();
+            imu(
+                1_700_000_000_000_000_000 + k as i64 * 10_000_000,
+                s.measured.map(f64::to_radians),
+            )
+        })
+        .collect()
+}
+
+/// The same samples as CSV (shortest round-trip decimals: the same doubles), `f` applied.
+fn write_csv(path: &Path, messages: &[Imu], f: fn(f64) -> f64) {
+    let mut s = String::from("x,y,z\n");
+    for m in messages {
+        let [x, y, z] = m.angular_velocity.map(f);
+        s.push_str(&format!("{x},{y},{z}\n"));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let o = driftless(args);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{args:?}: {err}");
+    out
+}
+
+/// Exit 2 with one line on stderr; the line.
+fn run_bad(args: &[&str]) -> String {
+    let o = driftless(args);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    let line = err.trim_end();
+    assert!(!line.contains('\n'), "not one line: {err}");
+    line.to_string()
+}
+
+/// Every column's points without its name: what must not depend on the container.
+fn points(json: &str) -> Vec<Value> {
+    let v: Value = serde_json::from_str(json).unwrap();
+    v["columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            let mut c = c.clone();
+            c.as_object_mut().unwrap().remove("name");
+            c
+        })
+        .collect()
+}
+
+#[test]
+fn allan_on_a_bag_is_allan_on_the_same_doubles_in_csv_with_the_rate_from_the_stamps() {
+    let bag = fixture("imu.mcap");
+    let csv = fixture("imu.csv");
+    let from_bag = run_ok(&["allan", bag.to_str().unwrap(), "--json"]);
+    let from_csv = run_ok(&[
+        "allan",
+        csv.to_str().unwrap(),
+        "--rate",
+        "100",
+        "--units",
+        "rad/s",
+        "--column",
+        "wx",
+        "--column",
+        "wy",
+        "--column",
+        "wz",
+        "--json",
+    ]);
+    let (b, c) = (points(&from_bag), points(&from_csv));
+    assert_eq!(b.len(), 3);
+    assert_eq!(b, c, "the same deviations, bit for bit");
+    // A --rate that the stamps agree with is taken; one they do not is refused.
+    run_ok(&["allan", bag.to_str().unwrap(), "--rate", "100.2", "--json"]);
+    let line = run_bad(&["allan", bag.to_str().unwrap(), "--rate", "200"]);
+    assert!(
+        line.contains("topic /imu/data: --rate 200 Hz, but the stamps say 100.000000 Hz"),
+        "{line}"
+    );
+    let line = run_bad(&["allan", bag.to_str().unwrap(), "--units", "deg/s"]);
+    assert!(line.contains("rad/s (REP 103)"), "{line}");
+    let line = run_bad(&["allan", bag.to_str().unwrap(), "--topic", "/nope"]);
+    assert!(
+        line.contains(
+            "no topic /nope; its topics: /chatter (std_msgs/msg/String, 180 messages), /imu/data \
+             (sensor_msgs/msg/Imu, 1800 messages)"
+        ),
+        "{line}"
+    );
+    let line = run_bad(&["allan", csv.to_str().unwrap()]);
+    assert!(line.contains("--rate is needed for a CSV log"), "{line}");
+}
+
+#[test]
+fn bad_bags_are_one_line_naming_the_file_topic_message_and_log_time() {
+    let dir = Dir::new();
+    let good: Vec<Imu> = (0..50)
+        .map(|k| imu(2_000_000_000 + k * 10_000_000, [0.01, 0.02, 0.03]))
+        .collect();
+
+    let mut back = good.clone();
+    back[20].stamp = Time::from_ns(2_000_000_000 + 15 * 10_000_000).unwrap();
+    let back_path = dir.path("back.mcap");
+    write_bag(&back_path, &back);
+    let line = run_bad(&["allan", back_path.to_str().unwrap()]);
+    assert_eq!(
+        line,
+        format!(
+            "driftless: error: {}: topic /imu, message 21 (log time 2150000000 ns): stamp \
+             2150000000 ns is not after the previous message's 2190000000 ns: stamps must rise",
+            back_path.display()
+        )
+    );
+
+    let mut messages: Vec<Option<Imu>> = good.iter().cloned().map(Some).collect();
+    messages[7] = None;
+    let cdr_path = dir.path("cdr.mcap");
+    bag_with_bad(&cdr_path, &messages);
+    let model = dir.path("model.json");
+    let model = model.to_str().unwrap();
+    for (cmd, extra) in [
+        ("allan", &[][..]),
+        ("denoise", &[]),
+        ("nav-eval", &[]),
+        ("train", &["-o", model]),
+    ] {
+        let mut args = vec![cmd, cdr_path.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let line = run_bad(&args);
+        assert!(
+            line.contains(&format!(
+                "{}: topic /imu, message 8 (log time 1070000000 ns): not a CDR {IMU_TYPE}",
+                cdr_path.display()
+            )),
+            "{cmd}: {line}"
+        );
+    }
+
+    let mut nan = good.clone();
+    nan[3].angular_velocity[1] = f64::NAN;
+    let nan_path = dir.path("nan.mcap");
+    write_bag(&nan_path, &nan);
+    let line = run_bad(&["allan", nan_path.to_str().unwrap()]);
+    assert!(
+        line.ends_with("topic /imu, message 4 (log time 2030000000 ns): angular_velocity.y is NaN"),
+        "{line}"
+    );
+
+    let line = run_bad(&[
+        "allan",
+        fixture("written.json").to_str().unwrap(),
+        "--topic",
+        "/imu",
+    ]);
+    assert!(line.contains("not a ROS 2 bag"), "{line}");
+}
+
+#[test]
+fn irregular_stamps_are_reported_not_hidden() {
+    let dir = Dir::new();
+    let mut stamps: Vec<i64> = (0..400).map(|k| k * 10_000_000).collect();
+    // Samples 100..=104 missing (a gap of 6 periods), and one stamp 8 ms early (2 ms after
+    // the one before it, 18 ms before the next: a gap too).
+    stamps.drain(100..105);
+    stamps[300] -= 8_000_000;
+    let messages: Vec<Imu> = stamps
+        .iter()
+        .map(|&t| imu(5_000_000_000 + t, [0.001, 0.0, -0.001]))
+        .collect();
+    let p = dir.path("gaps.mcap");
+    write_bag(&p, &messages);
+    let o = driftless(&["allan", p.to_str().unwrap(), "--json"]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("topic /imu: irregular stamps: 2 gaps (intervals over 1.5x the median 0.010000 s; the longest 0.060000 s, 6.0 periods)"),
+        "{err}"
+    );
+    assert!(
+        err.contains("1 intervals under half the median (the shortest 0.002000 s)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn denoise_writes_the_stamps_as_t_s() {
+    let dir = Dir::new();
+    let out = dir.path("out.csv");
+    run_ok(&[
+        "denoise",
+        fixture("imu.mcap").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t_s,x,y,z"));
+    assert!(lines.next().unwrap().starts_with("1700000000.123456789,"));
+    assert_eq!(text.lines().count(), 1801);
+}
+
+#[test]
+fn train_eval_and_nav_eval_read_a_bag_as_its_csv() {
+    let dir = Dir::new();
+    // 25 minutes at 100 Hz.
+    let messages = simulated(150_000);
+    let bag = dir.path("static.mcap");
+    write_bag(&bag, &messages);
+    let rad = dir.path("static-rad.csv");
+    write_csv(&rad, &messages, |v| v);
+    let deg = dir.path("static-deg.csv");
+    write_csv(&deg, &messages, f64::to_degrees);
+
+    let train = |input: &Path, model: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            input.to_str().unwrap(),
+            "--train",
+            "60000",
+            "--test",
+            "30000",
+            "-o",
+            model.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        run_ok(&args)
+    };
+    let m_bag = dir.path("bag.json");
+    let m_csv = dir.path("csv.json");
+    let from_bag = train(&bag, &m_bag, &[]);
+    let from_csv = train(&rad, &m_csv, &["--rate", "100", "--units", "rad/s"]);
+    let body = |out: &str| out.split_once('\n').unwrap().1.to_string();
+    assert!(from_bag.starts_with(&format!("{}: column x, 100 Hz", bag.display())));
+    assert_eq!(
+        body(&from_bag),
+        body(&from_csv),
+        "the same scores from the same doubles"
+    );
+    let model: Value = serde_json::from_str(&std::fs::read_to_string(&m_bag).unwrap()).unwrap();
+    assert_eq!(model["units"], "rad/s");
+    assert_eq!(model["rate_hz"], 100.0);
+    run_ok(&[
+        "eval",
+        bag.to_str().unwrap(),
+        "--model",
+        m_bag.to_str().unwrap(),
+    ]);
+
+    let nav = |input: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "nav-eval",
+            input.to_str().unwrap(),
+            "--characterise",
+            "10min",
+            "--window",
+            "10min",
+            "--terms",
+            "adis16405",
+            "--motion",
+            "stop-and-go",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let mut v: Value = serde_json::from_str(&run_ok(&args)).unwrap();
+        v.as_object_mut().unwrap().remove("source");
+        v
+    };
+    let on_bag = nav(&bag, &[]);
+    let on_csv = nav(&deg, &["--rate", "100"]);
+    assert!(
+        on_bag["cases"].as_array().is_some_and(|c| !c.is_empty()),
+        "{on_bag}"
+    );
+    assert_eq!(on_bag, on_csv, "a bag's rad/s are the CSV's deg/s");
+}
+
+/// A pipeline replaying `file` at 100 Hz in rad/s, as fast as possible, straight to publish.
+fn bag_pipeline(dir: &Dir, prefix: &str, file: &Path) -> PathBuf {
+    dir.write(
+        "bag.toml",
+        &format!(
+            r#"name = "{prefix}"
+rate_hz = 100.0
+input_units = "rad/s"
+
+[iceoryx2]
+buffer_size = 4096
+
+[[stage]]
+name = "sensor"
+kind = "ingest.mcap"
+output = "{prefix}/raw"
+file = {file:?}
+pace = "asap"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "{prefix}/raw"
+output = "{prefix}/corrected"
+"#,
+            file = file.to_str().unwrap()
+        ),
+    )
+}
+
+#[test]
+fn ingest_mcap_replays_a_bag_once_in_order_flagging_what_it_cannot_use() {
+    const N: usize = 2000;
+    let dir = Dir::new();
+    let mut messages: Vec<Option<Imu>> = simulated(N).into_iter().map(Some).collect();
+    messages[499] = None;
+    let back = messages[798].as_ref().unwrap().stamp;
+    messages[799].as_mut().unwrap().stamp = Time::from_ns(back.ns() - 5_000_000).unwrap();
+    let file = dir.path("replay.mcap");
+    bag_with_bad(&file, &messages);
+
+    let prefix = Prefix::new("bagin");
+    let pipeline = bag_pipeline(&dir, "bagin", &file);
+    let o = driftless(&["validate", pipeline.to_str().unwrap()]);
+    assert!(
+        text(&o)
+            .0
+            .contains(&format!("replays {N} messages of /imu")),
+        "{}",
+        text(&o).0
+    );
+    let me = Transport::new(&prefix.0, "reader", qos(4096)).expect("node");
+    let sub = me
+        .input::<GyroSample>("bagin/corrected")
+        .expect("subscriber");
+    let daemon = start(&pipeline, &prefix, &[]);
+    let got = collect(&sub, N, Duration::from_secs(60));
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(got.len(), N, "every message once");
+    assert!(
+        err.contains("topic /imu, message 500 (log time 5990000000 ns): not a CDR")
+            && err.contains("(replayed as an invalid sample: flagged)"),
+        "{err}"
+    );
+    for (i, (s, m)) in got.iter().zip(&messages).enumerate() {
+        assert_eq!(s.seq, i as u64, "in order");
+        match (i, m) {
+            (499, None) => assert_ne!(s.flags & FLAG_INPUT_INVALID, 0, "seq 499 flagged"),
+            (_, Some(m)) => {
+                assert_eq!(
+                    s.t_ns,
+                    m.stamp.ns() as u64,
+                    "seq {i}: the stamp is the time"
+                );
+                assert_eq!(
+                    s.rate.map(f64::to_bits),
+                    m.angular_velocity.map(f64::to_bits),
+                    "seq {i}: rad/s bit for bit"
+                );
+                let flags = if i == 799 { FLAG_TIME_BACKWARDS } else { 0 };
+                assert_eq!(s.flags, flags, "seq {i}");
+            }
+            _ => unreachable!(),
+        }
+    }
+}
