@@ -618,3 +618,162 @@ fn values<T: serde::de::DeserializeOwned + serde::Serialize>(
         .map(|m| serde_json::to_value(m.expect("decodes")).unwrap())
         .collect()
 }
+
+/// The pipeline of the ROS 2 round trip: the rosbags-written fixture bag replayed through the
+/// product's chain, held 3 s so that the recorder subscribes before the first sample.
+fn ros2_pipeline(bag: &Path) -> String {
+    format!(
+        r#"name = "rt"
+rate_hz = 100.0
+axes = 3
+input_units = "rad/s"
+
+[iceoryx2]
+buffer_size = {BUFFER}
+
+[[stage]]
+name = "sensor"
+kind = "ingest.mcap"
+output = "rt/raw"
+file = {bag:?}
+topic = "/imu/data"
+pace = "asap"
+start_delay_s = 3.0
+
+[[stage]]
+name = "denoise"
+kind = "denoise.wavelet"
+input = "rt/raw"
+output = "rt/denoised"
+window = 256
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "rt/denoised"
+output = "rt/predicted"
+profile = "adis16405"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "rt/predicted"
+output = "rt/corrected"
+"#,
+        bag = bag.to_str().unwrap()
+    )
+}
+
+#[test]
+fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
+    use driftless::io::ros2::{Bag, Imu};
+    use driftless::pipeline::{config, offline::Offline};
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/imu.mcap");
+    let dir = Dir::new();
+    let pipeline = dir.write("rt.toml", &ros2_pipeline(&input));
+
+    // What the stages give offline on the bag's samples, as our reader reads them.
+    let bag = Bag::open(&input).expect("the fixture bag");
+    let sent: Vec<Imu> = bag
+        .imu_messages("/imu/data")
+        .expect("its Imu topic")
+        .map(|m| m.expect("a message").imu)
+        .collect();
+    let raws: Vec<RawSample> = sent
+        .iter()
+        .enumerate()
+        .map(|(i, m)| raw(i as u64, m.stamp.ns() as u64, m.angular_velocity))
+        .collect();
+    let mut offline = Offline::new(&config::load(&pipeline).expect("valid")).expect("offline");
+    let mut want = Vec::with_capacity(raws.len());
+    for r in &raws {
+        offline.push(r, &mut |s| want.push(s));
+    }
+    offline.finish(&mut |s| want.push(s));
+    assert_eq!(want.len(), sent.len());
+
+    let prefix = Prefix::new("rosrt");
+    let mut daemon = start(&pipeline, &prefix, &[]);
+    wait_ready(&prefix, "rt/stats", &mut daemon);
+    let out = dir.path("rt.mcap");
+    let (recorder, err) = start_recorder(
+        &prefix,
+        &[
+            "rt/raw",
+            "rt/corrected",
+            "--format",
+            "ros2",
+            "--raw-units",
+            "rad/s",
+            "--rate-noise",
+            "0.3",
+            "--frame-id",
+            "gyro",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
+    let (code, daemon_err) = finish(daemon, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{daemon_err}");
+    // The recorder drains every 20 ms at most.
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&recorder, libc::SIGINT);
+    let (code, rest) = finish_recorder(recorder, err);
+    assert_eq!(code, Some(0), "{rest}");
+    assert!(
+        rest.contains("rt/corrected: 1800 samples, 0 missing"),
+        "{rest}"
+    );
+
+    let got = Bag::open(&out).expect("a complete bag");
+    let topics: Vec<(String, u64)> = got
+        .imu_topics()
+        .into_iter()
+        .map(|t| (t.topic, t.messages))
+        .collect();
+    assert_eq!(
+        topics,
+        [
+            ("/rt/corrected".to_string(), 1800),
+            ("/rt/raw".to_string(), 1800)
+        ]
+    );
+    let noise = 0.3f64.to_radians().powi(2);
+    let read = |topic: &str| -> Vec<Imu> {
+        got.imu_messages(topic)
+            .expect("topic")
+            .map(|m| m.expect("a message").imu)
+            .collect()
+    };
+    for (m, s) in read("/rt/raw").iter().zip(&sent) {
+        assert_eq!(m.stamp, s.stamp, "the stamp through the daemon");
+        assert_eq!(
+            m.angular_velocity.map(f64::to_bits),
+            s.angular_velocity.map(f64::to_bits)
+        );
+        assert_eq!(m.frame_id, "gyro");
+        assert_eq!(m.orientation_covariance[0], -1.0, "not provided");
+        assert_eq!(m.linear_acceleration_covariance[0], -1.0, "not provided");
+        for (i, c) in m.angular_velocity_covariance.iter().enumerate() {
+            assert_eq!(
+                *c,
+                if i % 4 == 0 { noise } else { 0.0 },
+                "raw covariance {i}"
+            );
+        }
+    }
+    let corrected = read("/rt/corrected");
+    assert_eq!(corrected.len(), want.len(), "every sample once");
+    for (i, (m, w)) in corrected.iter().zip(&want).enumerate() {
+        assert_eq!(m.stamp.ns() as u64, w.t_ns, "sample {i}: stamp");
+        assert_eq!(
+            m.angular_velocity.map(f64::to_bits),
+            w.rate.map(f64::to_bits),
+            "sample {i}: the corrected rate, bit for bit as offline"
+        );
+        for a in 0..3 {
+            let v = m.angular_velocity_covariance[4 * a];
+            assert!(v.is_finite() && v >= noise, "sample {i}: variance {v}");
+        }
+    }
+}

@@ -1,5 +1,7 @@
 //! `driftless record SERVICE... -o run.mcap [--duration D]`: record any of our services into an
-//! MCAP file that Foxglove opens and plots without plugins (layout: [`crate::io::recording`]).
+//! MCAP file that Foxglove opens and plots without plugins (layout: [`crate::io::recording`]);
+//! with `--format ros2`, a ROS 2 bag of `sensor_msgs/msg/Imu` messages, one topic per service,
+//! that `ros2 bag play`, rosbags and Foxglove read ([`crate::io::ros2`]).
 //!
 //! The recorder is one more subscriber: the daemon's publishers never wait for it (a full
 //! buffer loses the new sample, which the daemon counts and the recorder sees as a `seq` gap).
@@ -25,9 +27,10 @@ use crate::io::recording::{
     self, GyroMessage, RawMessage, ServiceCounts, StatsMessage, MESSAGE_ENCODING, METADATA_NAME,
     SCHEMA_ENCODING,
 };
+use crate::io::ros2::{self, Imu, Time, IMU_TYPE};
 use crate::transport::{
-    self, GyroSample, Input, RawSample, StatsSnapshot, Transport, GYRO_TYPE_NAME, RAW_TYPE_NAME,
-    STATS_TYPE_NAME,
+    self, GyroSample, Input, RawSample, StatsSnapshot, Transport, FLAG_INPUT_INVALID,
+    FLAG_OUTPUT_REPAIRED, GYRO_TYPE_NAME, RAW_INVALID, RAW_TYPE_NAME, STATS_TYPE_NAME,
 };
 
 /// Arguments of `driftless record`.
@@ -49,9 +52,23 @@ pub struct Args {
     /// Where the pipeline's iceoryx2 files are.
     #[command(flatten)]
     pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
-    /// Units of raw services' rates (the pipeline's input_units), stored with their channels.
+    /// Units of raw services' rates (the pipeline's input_units), stored with their channels
+    /// (with --format ros2, needed to write a raw service in rad/s).
     #[arg(long, value_parser = ["deg/s", "rad/s"])]
     pub raw_units: Option<String>,
+    /// What to write: `mcap`, our samples as JSON that Foxglove plots; or `ros2`, a ROS 2 bag
+    /// (profile ros2, sensor_msgs/msg/Imu in CDR, topic /SERVICE) as `ros2 bag record` writes.
+    #[arg(long, default_value = "mcap", value_parser = ["mcap", "ros2"])]
+    pub format: String,
+    /// With --format ros2: the messages' header.frame_id.
+    #[arg(long, default_value = "imu_link")]
+    pub frame_id: String,
+    /// With --format ros2: the gyro's white rate noise, 1 sigma of one sample in deg/s (N x
+    /// sqrt(rate) from `driftless allan`'s N in deg/sqrt(s), or the data sheet's rate noise).
+    /// Its square plus the square of the drift's own uncertainty (`drift_std`) is each axis'
+    /// angular_velocity_covariance; without it the covariance is all zeros ("unknown").
+    #[arg(long, value_name = "DEG_PER_S")]
+    pub rate_noise: Option<f64>,
 }
 
 /// How often the open chunk is written out (the most a SIGKILL loses) and progress is shown.
@@ -76,6 +93,68 @@ struct Recorded {
     channel: u16,
     counts: ServiceCounts,
     reported_missing: u64,
+    /// With --format ros2: the message reused for every sample.
+    ros2: Option<Ros2Message>,
+}
+
+/// How a service's samples become `sensor_msgs/msg/Imu` messages.
+struct Ros2Message {
+    /// Filled field by field per sample (its frame_id set once).
+    imu: Imu,
+    /// Factor from the samples' units to rad/s (a raw service in deg/s: pi/180).
+    to_rad: f64,
+    /// The white rate noise's variance per sample, rad^2/s^2 (None: covariance unknown).
+    noise_var: Option<f64>,
+    /// Samples written whose value a stage held or replaced (flagged input_invalid or
+    /// output_repaired; a raw sample marked invalid): an Imu message cannot say it, stderr does.
+    held: u64,
+}
+
+impl Ros2Message {
+    fn new(frame_id: &str, to_rad: f64, rate_noise_deg: Option<f64>) -> Ros2Message {
+        let not_provided = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        Ros2Message {
+            imu: Imu {
+                frame_id: frame_id.to_string(),
+                // "Not provided" as the message definition asks: covariance element 0 = -1.
+                orientation_covariance: not_provided,
+                linear_acceleration_covariance: not_provided,
+                ..Imu::default()
+            },
+            to_rad,
+            noise_var: rate_noise_deg.map(|n| n.to_radians().powi(2)),
+            held: 0,
+        }
+    }
+
+    /// The message of a sample at `t_ns` with `rate` (in the samples' units) and, where a
+    /// stage estimated it, the drift's 1-sigma per axis (rad/s; negative: not provided);
+    /// `held` when its value is not a measurement.
+    fn fill(
+        &mut self,
+        t_ns: u64,
+        rate: [f64; 3],
+        drift_std: [f64; 3],
+        held: bool,
+    ) -> Result<(), String> {
+        let stamp = i64::try_from(t_ns)
+            .ok()
+            .and_then(Time::from_ns)
+            .ok_or_else(|| {
+                format!("sample time {t_ns} ns is past 2038: no ROS 2 stamp holds it")
+            })?;
+        self.imu.stamp = stamp;
+        self.imu.angular_velocity = rate.map(|v| v * self.to_rad);
+        let mut cov = [0.0; 9];
+        if let Some(var) = self.noise_var {
+            for a in 0..3 {
+                cov[4 * a] = var + drift_std[a].max(0.0).powi(2);
+            }
+        }
+        self.imu.angular_velocity_covariance = cov;
+        self.held += u64::from(held);
+        Ok(())
+    }
 }
 
 /// `OUT.part` while recording; removed on drop unless kept or renamed.
@@ -144,6 +223,22 @@ pub fn run(args: Args) -> Result<(), CliError> {
             return Err(CliError::input(format!("service {s:?} named twice")));
         }
     }
+    let ros2 = args.format == "ros2";
+    if let Some(n) = args.rate_noise {
+        if !ros2 {
+            return Err(CliError::input(
+                "--rate-noise is for --format ros2 (the covariance)",
+            ));
+        }
+        if !(n.is_finite() && n >= 0.0) {
+            return Err(CliError::input(format!(
+                "--rate-noise {n} must be a finite number of deg/s >= 0"
+            )));
+        }
+    }
+    if args.frame_id != "imu_link" && !ros2 {
+        return Err(CliError::input("--frame-id is for --format ros2"));
+    }
     let prefix = args.iceoryx2.resolve(None)?;
     // Before anything exists on disk: a signal from now on ends the recording cleanly.
     let sigint = Arc::new(AtomicBool::new(false));
@@ -179,6 +274,26 @@ fn record(
         .iter()
         .map(|s| subscribe(&node, s, prefix))
         .collect::<Result<Vec<_>, _>>()?;
+    let ros2 = args.format == "ros2";
+    if ros2 {
+        for (service, port) in args.services.iter().zip(&ports) {
+            match port {
+                Port::Stats(_) => {
+                    return Err(CliError::input(format!(
+                        "service {service:?} carries {STATS_TYPE_NAME}: no ROS 2 message holds \
+                         it; record it without --format ros2"
+                    )))
+                }
+                Port::Raw(_) if args.raw_units.is_none() => {
+                    return Err(CliError::input(format!(
+                        "service {service:?} carries raw rates in the pipeline's input_units: \
+                         give --raw-units so that they are written in rad/s"
+                    )))
+                }
+                _ => {}
+            }
+        }
+    }
     let size_probe = file
         .try_clone()
         .map_err(|e| CliError::internal(format!("{}: {e}", partial.part.display())))?;
@@ -186,26 +301,53 @@ fn record(
     let write_error =
         |e: &dyn std::fmt::Display| CliError::internal(format!("writing {part_name}: {e}"));
     let mcap_write_error = |e: mcap::McapError| write_error(&mcap_error(&e));
-    let mut writer = mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Lz4))
+    let options = if ros2 {
+        // As rosbag2_storage_mcap: profile ros2; zstd as its compressed presets.
+        mcap::WriteOptions::new()
+            .profile(ros2::PROFILE)
+            .compression(Some(mcap::Compression::Zstd))
+    } else {
+        mcap::WriteOptions::new().compression(Some(mcap::Compression::Lz4))
+    };
+    let mut writer = options
         .library(format!("driftless {}", env!("CARGO_PKG_VERSION")))
         .create(BufWriter::with_capacity(1 << 20, file))
         .map_err(mcap_write_error)?;
     let mut recorded = Vec::with_capacity(ports.len());
     for (service, port) in args.services.iter().zip(ports) {
-        let channel = add_channel(&mut writer, service, &port, args.raw_units.as_deref())
-            .map_err(mcap_write_error)?;
+        let (channel, ros2) = if ros2 {
+            let topic = ros2::topic_for_service(service);
+            let channel = add_ros2_channel(&mut writer, &topic).map_err(mcap_write_error)?;
+            let to_rad = match (&port, args.raw_units.as_deref()) {
+                (Port::Raw(_), Some("deg/s")) => std::f64::consts::PI / 180.0,
+                _ => 1.0,
+            };
+            let m = Ros2Message::new(&args.frame_id, to_rad, args.rate_noise);
+            (channel, Some(m))
+        } else {
+            let channel = add_channel(&mut writer, service, &port, args.raw_units.as_deref())
+                .map_err(mcap_write_error)?;
+            (channel, None)
+        };
         recorded.push(Recorded {
             service: service.clone(),
             port,
             channel,
             counts: ServiceCounts::default(),
             reported_missing: 0,
+            ros2,
         });
     }
     let listed: Vec<String> = recorded
         .iter()
-        .map(|r| format!("{} ({})", r.service, r.port.type_name()))
+        .map(|r| match r.ros2 {
+            Some(_) => format!(
+                "{} as {} ({IMU_TYPE})",
+                r.service,
+                ros2::topic_for_service(&r.service)
+            ),
+            None => format!("{} ({})", r.service, r.port.type_name()),
+        })
         .collect();
     eprintln!(
         "driftless: recording {} to {} (Ctrl-C to stop)",
@@ -234,6 +376,12 @@ fn record(
     );
     if let Some(bar) = &bar {
         bar.finish_and_clear();
+    }
+    if ros2 && args.rate_noise.is_none() {
+        eprintln!(
+            "driftless: note: no --rate-noise: angular_velocity_covariance written as all zeros \
+             (unknown to the reader)"
+        );
     }
     let stopped_by = match outcome {
         Ok(how) => how,
@@ -301,6 +449,14 @@ fn record(
                 "{}: {} samples, {} missing (sequence gaps), {} epoch(s)",
                 r.service, c.samples, c.missing, c.epochs
             );
+            if let Some(m) = r.ros2.as_ref().filter(|m| m.held > 0) {
+                eprintln!(
+                    "driftless: warning: {}: {} message(s) carry a value a stage held or \
+                     replaced (flagged input_invalid or output_repaired on the wire; an Imu \
+                     message cannot say it)",
+                    r.service, m.held
+                );
+            }
         }
     }
     let size = std::fs::metadata(&partial.out).map_or(0, |m| m.len());
@@ -396,6 +552,21 @@ fn add_channel(
     )
 }
 
+/// The channel of an Imu topic, as rosbag2 writes it.
+fn add_ros2_channel(writer: &mut McapWriter, topic: &str) -> mcap::McapResult<u16> {
+    let schema = writer.add_schema(
+        IMU_TYPE,
+        ros2::SCHEMA_ENCODING,
+        ros2::IMU_DEFINITION.as_bytes(),
+    )?;
+    writer.add_channel(
+        schema,
+        topic,
+        ros2::MESSAGE_ENCODING,
+        &ros2::imu_channel_metadata(),
+    )
+}
+
 /// An MCAP error as a person reads it: an I/O error's own message (the disk is full), not the
 /// wrapper's.
 fn mcap_error(e: &mcap::McapError) -> String {
@@ -409,6 +580,33 @@ fn realtime_ns() -> u64 {
     SystemTime::now()
         .duration_since(SystemTime::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// Write one message, logged at `now` (the receive time, as `ros2 bag record` logs it).
+fn write(
+    writer: &mut McapWriter,
+    channel: u16,
+    seq: u64,
+    now: u64,
+    data: &[u8],
+) -> Result<(), String> {
+    writer
+        .write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: channel,
+                // MCAP's per-channel sequence is 32 bits: the low bits of ours.
+                sequence: seq as u32,
+                log_time: now,
+                publish_time: now,
+            },
+            data,
+        )
+        .map_err(|e| format!("write failed: {}", mcap_error(&e)))
+}
+
+/// The drift's 1-sigma a gyro sample carries (negative: not provided).
+fn gyro_drift_std(_s: &GyroSample) -> [f64; 3] {
+    [-1.0; 3]
 }
 
 /// Take every sample of every service until a signal or the deadline, then once more; returns
@@ -484,6 +682,38 @@ impl Recorded {
         let mut n = 0;
         loop {
             json.clear();
+            if let Some(m) = &mut self.ros2 {
+                let received = match &self.port {
+                    Port::Raw(i) => i.receive().map(|s| {
+                        s.map(|s| {
+                            self.counts.count(s.epoch, s.seq);
+                            let held =
+                                s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
+                            m.fill(s.t_ns, s.rate, [-1.0; 3], held).map(|()| s.seq)
+                        })
+                    }),
+                    Port::Gyro(i) => i.receive().map(|s| {
+                        s.map(|s| {
+                            self.counts.count(s.epoch, s.seq);
+                            let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
+                            m.fill(s.t_ns, s.rate, gyro_drift_std(&s), held)
+                                .map(|()| s.seq)
+                        })
+                    }),
+                    Port::Stats(_) => unreachable!("refused at subscribe with --format ros2"),
+                }
+                .map_err(|e| format!("{}: {e}", self.service))?;
+                let Some(filled) = received else {
+                    return Ok(n);
+                };
+                let seq = filled.map_err(|e| format!("{}: {e}", self.service))?;
+                m.imu
+                    .write_cdr(json)
+                    .map_err(|e| format!("{}: {e}", self.service))?;
+                write(writer, self.channel, seq, now, json)?;
+                n += 1;
+                continue;
+            }
             let received = match &self.port {
                 Port::Raw(i) => i.receive().map(|s| {
                     s.map(|s| {
@@ -510,18 +740,7 @@ impl Recorded {
                 return Ok(n);
             };
             let seq = encoded.map_err(|e| format!("{}: {e}", self.service))?;
-            writer
-                .write_to_known_channel(
-                    &mcap::records::MessageHeader {
-                        channel_id: self.channel,
-                        // MCAP's per-channel sequence is 32 bits: the low bits of ours.
-                        sequence: seq as u32,
-                        log_time: now,
-                        publish_time: now,
-                    },
-                    json,
-                )
-                .map_err(|e| format!("write failed: {}", mcap_error(&e)))?;
+            write(writer, self.channel, seq, now, json)?;
             n += 1;
         }
     }

@@ -25,7 +25,7 @@ use toml::Spanned;
 
 use crate::io::{InputError, RowRead, RowReader};
 use crate::stages::contract::{Kind, Params, Role, Source};
-use crate::stages::replay::{BlockReplay, BlockSink, Pace, LOOP, PACE};
+use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::{RawSample, RAW_INVALID};
 
@@ -52,7 +52,7 @@ pub const KIND: Kind = Kind {
     name: "ingest.csv",
     role: Role::Ingest { has_input: false },
     summary: "a CSV log replayed at its rate or as fast as possible, optionally looping",
-    keys: &[FILE, COLUMNS, TIME_COLUMN, PACE, LOOP],
+    keys: &[FILE, COLUMNS, TIME_COLUMN, PACE, LOOP, START_DELAY_S],
     parse,
 };
 
@@ -66,10 +66,8 @@ pub struct CsvParams {
     pub columns: Vec<String>,
     /// The time column (seconds), if any; else `t = i / rate_hz`.
     pub time_column: Option<String>,
-    /// Pacing.
-    pub pace: Pace,
-    /// Replay again from the start at the end of the file.
-    pub looped: bool,
+    /// Pacing, looping, delay.
+    pub replay: Replay,
 }
 
 /// Data rows checked at validation, so that a wrong file fails there with its position; later
@@ -87,7 +85,7 @@ impl Params for CsvParams {
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
         let (params, rate_hz) = (self.clone(), cx.rate_hz);
-        let replay = BlockReplay::spawn("driftless-csv", self.pace, move |sink| {
+        let replay = BlockReplay::spawn("driftless-csv", self.replay, move |sink| {
             read_rows(&params, rate_hz, sink)
         })?;
         Ok(Box::new(replay))
@@ -98,8 +96,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let columns_key = t.get::<Vec<String>>(&COLUMNS)?;
     let time_key = t.get::<String>(&TIME_COLUMN)?;
-    let pace = t.choice(&PACE, "pace", true)?;
-    let looped = t.get::<bool>(&LOOP)?.is_some_and(Spanned::into_inner);
+    let replay = Replay::parse(t)?;
     let (src, axes) = (t.src, t.cx.axes);
     let file = src.resolve(file_key.get_ref());
     if !file.is_file() {
@@ -150,13 +147,11 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     if n == 0 {
         return Err(src.span(&file_key, format!("{} has no data rows", file.display())));
     }
-    let pace = Pace::from_key(pace.as_deref());
     Ok(Box::new(CsvParams {
         file,
         columns,
         time_column: time_key.map(Spanned::into_inner),
-        pace,
-        looped,
+        replay,
     }))
 }
 
@@ -244,7 +239,7 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
             }
         }
         let Some(first_t) = first_t else { break };
-        if !params.looped {
+        if !params.replay.looped {
             break;
         }
         loop_offset_ns += last_t.saturating_sub(first_t) + period_ns;

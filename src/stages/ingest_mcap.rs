@@ -36,7 +36,7 @@ use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Source};
-use crate::stages::replay::{BlockReplay, BlockSink, Pace, LOOP, PACE};
+use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::Units;
 use crate::stages::schema::{Context, Key, StageTable, Type};
 use crate::transport::{RawSample, RAW_INVALID};
@@ -59,7 +59,7 @@ pub const KIND: Kind = Kind {
     name: "ingest.mcap",
     role: Role::Ingest { has_input: false },
     summary: "the raw samples of a `driftless record` recording (MCAP) replayed as recorded, or a ROS 2 bag's sensor_msgs/msg/Imu topic (rad/s, stamps as times), at their rate or as fast as possible, optionally looping",
-    keys: &[FILE, TOPIC, PACE, LOOP],
+    keys: &[FILE, TOPIC, PACE, LOOP, START_DELAY_S],
     parse,
 };
 
@@ -77,10 +77,8 @@ pub struct McapParams {
     pub topic: String,
     /// Messages on the topic.
     pub messages: u64,
-    /// Pacing.
-    pub pace: Pace,
-    /// Replay again from the start at the end of the file.
-    pub looped: bool,
+    /// Pacing, looping, delay.
+    pub replay: Replay,
 }
 
 /// What an MCAP replay reads.
@@ -95,12 +93,11 @@ pub enum Format {
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let topic_key = t.get::<String>(&TOPIC)?;
-    let pace = Pace::from_key(t.choice(&PACE, "pace", true)?.as_deref());
-    let looped = t.get::<bool>(&LOOP)?.is_some_and(Spanned::into_inner);
+    let replay = Replay::parse(t)?;
     let src = t.src;
     let file = src.resolve(file_key.get_ref());
     if file.is_dir() {
-        return parse_bag(t, file, &file_key, topic_key.as_ref(), pace, looped);
+        return parse_bag(t, file, &file_key, topic_key.as_ref(), replay);
     }
     if !file.is_file() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
@@ -116,7 +113,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         None => !channels.iter().any(|c| c.schema == RAW_SCHEMA) && channels.iter().any(is_imu),
     };
     if bag {
-        return parse_bag(t, file, &file_key, topic_key.as_ref(), pace, looped);
+        return parse_bag(t, file, &file_key, topic_key.as_ref(), replay);
     }
     let topics = || {
         let list: Vec<String> = channels
@@ -232,8 +229,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         format: Format::Recording,
         topic: channel.topic.clone(),
         messages: channel.messages,
-        pace,
-        looped,
+        replay,
     }))
 }
 
@@ -245,7 +241,7 @@ impl Params for McapParams {
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
         let (params, period_ns) = (self.clone(), (1e9 / cx.rate_hz).round() as u64);
-        let replay = BlockReplay::spawn("driftless-mcap", self.pace, move |sink| {
+        let replay = BlockReplay::spawn("driftless-mcap", self.replay, move |sink| {
             match params.format {
                 Format::Recording => read_messages(&params, period_ns, sink),
                 Format::Ros2Bag => read_bag(&params, period_ns, sink),
@@ -271,8 +267,7 @@ fn parse_bag(
     file: PathBuf,
     file_key: &Spanned<String>,
     topic_key: Option<&Spanned<String>>,
-    pace: Pace,
-    looped: bool,
+    replay: Replay,
 ) -> Result<Box<dyn Params>, InputError> {
     let src = t.src;
     let bag = Bag::open(&file).map_err(|e| src.span(file_key, e))?;
@@ -338,8 +333,7 @@ fn parse_bag(
         format: Format::Ros2Bag,
         topic,
         messages,
-        pace,
-        looped,
+        replay,
     }))
 }
 
@@ -414,7 +408,7 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
             );
         }
         let Some(first_t) = first_t else { return };
-        if !params.looped {
+        if !params.replay.looped {
             return;
         }
         seq_offset = seq_offset.wrapping_add(seq);
@@ -459,7 +453,7 @@ fn read_messages(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
         let Some(((s0, t0), (s1, t1))) = span else {
             return;
         };
-        if !params.looped {
+        if !params.replay.looped {
             return;
         }
         seq_offset = seq_offset.wrapping_add(s1.wrapping_sub(s0).wrapping_add(1));

@@ -10,8 +10,9 @@ use std::time::Duration;
 use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
 
 use crate::clock::PaceClock;
+use crate::io::InputError;
 use crate::stages::contract::{Poll, Source};
-use crate::stages::schema::{Key, Type};
+use crate::stages::schema::{Key, StageTable, Type};
 use crate::transport::{monotonic_ns, RawSample};
 
 /// Samples per block the reader thread hands to the hot thread.
@@ -35,6 +36,14 @@ pub const LOOP: Key = Key {
     doc: "replay again from the start at the end of the file",
 };
 
+/// The `start_delay_s` key of a replay.
+pub const START_DELAY_S: Key = Key {
+    name: "start_delay_s",
+    ty: Type::Positive(3600.0),
+    default: "none: the first sample at once",
+    doc: "seconds to wait after the pipeline is up before the first sample: time for a recorder or a navigator to subscribe and miss nothing",
+};
+
 /// Pacing of a replay.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Pace {
@@ -44,13 +53,34 @@ pub enum Pace {
     Asap,
 }
 
-impl Pace {
-    /// The pace a validated `pace` value names (`realtime` when absent).
-    pub fn from_key(value: Option<&str>) -> Pace {
-        match value {
+/// How a file is replayed: the keys every replay stage takes ([`PACE`], [`LOOP`],
+/// [`START_DELAY_S`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Replay {
+    /// Pacing.
+    pub pace: Pace,
+    /// Replay again from the start at the end of the file.
+    pub looped: bool,
+    /// Held before the first sample.
+    pub start_delay: Duration,
+}
+
+impl Replay {
+    /// The replay keys of a stage table, checked.
+    pub fn parse(t: &mut StageTable<'_, '_>) -> Result<Replay, InputError> {
+        let pace = match t.choice(&PACE, "pace", true)?.as_deref() {
             Some("asap") => Pace::Asap,
             _ => Pace::Realtime,
-        }
+        };
+        let looped = t.get::<bool>(&LOOP)?.is_some_and(toml::Spanned::into_inner);
+        let start_delay = t
+            .positive(&START_DELAY_S, "start_delay_s")?
+            .map_or(Duration::ZERO, Duration::from_secs_f64);
+        Ok(Replay {
+            pace,
+            looped,
+            start_delay,
+        })
     }
 }
 
@@ -102,14 +132,18 @@ pub struct BlockReplay {
     start: Option<(PaceClock, u64)>,
     /// The clock to start from at the first sample (a shared hot thread's), or none: now.
     shared: Option<PaceClock>,
+    /// `start_delay_s`, and from the first poll, when it ends.
+    delay: Duration,
+    not_before: Option<std::time::Instant>,
 }
 
 impl BlockReplay {
     /// Start the reader thread `name` running `read` (it pushes samples into its sink and
-    /// returns at the end of the file or when a push returns false).
+    /// returns at the end of the file or when a push returns false), paced and delayed as
+    /// `replay` says.
     pub fn spawn(
         name: &str,
-        pace: Pace,
+        replay: Replay,
         read: impl FnOnce(&mut BlockSink) + Send + 'static,
     ) -> Result<Self, String> {
         let (tx, blocks) = bounded(BLOCKS_AHEAD);
@@ -131,15 +165,27 @@ impl BlockReplay {
             spent,
             block: Vec::new(),
             next: 0,
-            pace,
+            pace: replay.pace,
             start: None,
             shared: None,
+            delay: replay.start_delay,
+            not_before: None,
         })
     }
 }
 
 impl Source for BlockReplay {
     fn poll(&mut self, stop: &AtomicBool) -> Poll {
+        if !self.delay.is_zero() {
+            let now = std::time::Instant::now();
+            let end = *self.not_before.get_or_insert(now + self.delay);
+            if now < end {
+                // In short sleeps: a stop is seen within 20 ms.
+                std::thread::sleep((end - now).min(Duration::from_millis(20)));
+                return Poll::Idle;
+            }
+            self.delay = Duration::ZERO;
+        }
         if self.next == self.block.len() {
             let spent = std::mem::take(&mut self.block);
             if spent.capacity() > 0 {

@@ -71,6 +71,33 @@ sec: 9223372036\n    nsec: 854775807\n  avoid_ros_namespace_conventions: false";
 
 pub use crate::io::recording::MAX_CHUNK_BYTES;
 
+/// The channel metadata rosbag2 writes for an Imu topic: [`OFFERED_QOS_PROFILES`] and the
+/// type hash.
+pub fn imu_channel_metadata() -> BTreeMap<String, String> {
+    BTreeMap::from([
+        (
+            "offered_qos_profiles".to_string(),
+            OFFERED_QOS_PROFILES.to_string(),
+        ),
+        ("topic_type_hash".to_string(), IMU_TYPE_HASH.to_string()),
+    ])
+}
+
+/// A ROS 2 topic name for a service name: `/` and the name, each character a ROS 2 name
+/// cannot hold (anything but letters, digits, `_` and `/`) replaced by `_`.
+pub fn topic_for_service(service: &str) -> String {
+    let mut t = String::with_capacity(service.len() + 1);
+    t.push('/');
+    t.extend(service.chars().map(|c| {
+        if c.is_ascii_alphanumeric() || c == '_' || c == '/' {
+            c
+        } else {
+            '_'
+        }
+    }));
+    t
+}
+
 /// What went wrong with a bag, for a caller that acts on the kind (the message says it all).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BagErrorKind {
@@ -650,15 +677,8 @@ impl ImuBagWriter {
         let schema = writer
             .add_schema(IMU_TYPE, SCHEMA_ENCODING, IMU_DEFINITION.as_bytes())
             .map_err(mcap_err)?;
-        let metadata = BTreeMap::from([
-            (
-                "offered_qos_profiles".to_string(),
-                OFFERED_QOS_PROFILES.to_string(),
-            ),
-            ("topic_type_hash".to_string(), IMU_TYPE_HASH.to_string()),
-        ]);
         let channel = writer
-            .add_channel(schema, topic, MESSAGE_ENCODING, &metadata)
+            .add_channel(schema, topic, MESSAGE_ENCODING, &imu_channel_metadata())
             .map_err(mcap_err)?;
         Ok(ImuBagWriter {
             path: path.to_path_buf(),
