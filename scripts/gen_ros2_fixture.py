@@ -21,6 +21,17 @@ delay, as a recorder's receive time would be, so a reader that took the log time
 stamp fails. imu.csv holds what a reader must decode: stamp_ns and angular_velocity x, y, z
 as repr() (exact doubles); the other fields follow from the formulas in `imu_message`.
 
+`recorded PATH` reads tests/fixtures/ros2/recorded.mcap, what `driftless record --format ros2`
+recorded of a daemon replaying imu.mcap (tests/record.rs, the round trip, writes it under
+DRIFTLESS_BLESS=1), with rosbags' reader and deserializer: every message of every topic,
+asserting what the message definition asks (header.frame_id set, orientation and linear
+acceleration "not provided" (-1), a finite diagonal angular_velocity_covariance, stamps
+rising), and prints per topic the count, the stamps and a SHA-256 over every message's stamp,
+angular velocity and covariance bytes; the test computes the same from its own reading:
+
+    /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py recorded \
+        tests/fixtures/ros2/recorded.mcap > tests/fixtures/ros2/recorded.json
+
 `check PATH` reads an MCAP file that driftless's writer wrote (tests/ros2_bag.rs makes
 written.mcap: `written_messages` there is `written_message` here) with rosbags' reader and
 deserializer, asserts every field of every message against the same formulas, and prints
@@ -28,10 +39,12 @@ what it read as JSON; the test compares its own reading of the file with that JS
 """
 
 import csv
+import hashlib
 import importlib.metadata
 import json
 import os
 import shutil
+import struct
 import sys
 import tempfile
 
@@ -252,8 +265,55 @@ def check(path):
     sys.stdout.write("\n")
 
 
+def recorded(path):
+    topics = {}
+    digests = {}
+    last_stamp = {}
+    with Reader(path) as reader:
+        for c in reader.connections:
+            topics[c.topic] = {
+                "type": c.msgtype,
+                "message_encoding": c.ext.serialization_format,
+                "definition_format": c.msgdef.format.name,
+                "messages": c.msgcount,
+                "frame_ids": [],
+            }
+            digests[c.topic] = hashlib.sha256()
+        for c, _log_time, data in reader.messages():
+            assert c.msgtype == IMU, c.msgtype
+            m = as_dict(STORE.deserialize_cdr(data, IMU))
+            t = topics[c.topic]
+            if m["frame_id"] not in t["frame_ids"]:
+                t["frame_ids"].append(m["frame_id"])
+            assert m["orientation_covariance"][0] == -1.0, m
+            assert m["linear_acceleration_covariance"][0] == -1.0, m
+            cov = m["angular_velocity_covariance"]
+            assert all(np.isfinite(cov)), m
+            assert all(cov[i] == 0.0 for i in range(9) if i % 4 != 0), m
+            stamp = (m["sec"], m["nanosec"])
+            assert stamp > last_stamp.get(c.topic, (-(2**31), 0)), (c.topic, stamp)
+            last_stamp[c.topic] = stamp
+            t.setdefault("first", list(stamp))
+            t["last"] = list(stamp)
+            t["count"] = t.get("count", 0) + 1
+            digests[c.topic].update(struct.pack("<iI", *stamp))
+            digests[c.topic].update(struct.pack("<3d", *m["angular_velocity"]))
+            digests[c.topic].update(struct.pack("<9d", *cov))
+    for topic, d in digests.items():
+        topics[topic]["sha256"] = d.hexdigest()
+    json.dump(
+        {"reader": f"rosbags {VERSION}", "topics": topics, "every_message_checked": True},
+        sys.stdout,
+        indent=1,
+        sort_keys=True,
+    )
+    sys.stdout.write("\n")
+
+
 if __name__ == "__main__":
     if len(sys.argv) >= 2 and sys.argv[1] == "check":
         check(sys.argv[2])
+    elif len(sys.argv) >= 2 and sys.argv[1] == "recorded":
+        recorded(sys.argv[2])
     else:
         gen()
