@@ -401,12 +401,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .map_err(|e| CliError::input(format!("--kind: {e}")))?;
     let log = log_input::open(&args.input, &args.columns, &args.bag, false)?;
     let rate = log.origin.rate(given_rate).map_err(CliError::input)?;
-    let unit: RateUnit = log
-        .origin
-        .units(args.units.as_deref())
-        .map_err(CliError::input)?
-        .parse()
-        .map_err(|e| CliError::input(format!("--units: {e}")))?;
+    let unit = log_input::rate_unit(&log.origin, args.units.as_deref())?;
     let table = log.table;
     let shown = args.input.display().to_string();
     let mut results = Vec::new();

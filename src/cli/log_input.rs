@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use super::CliError;
-use crate::io::rate_log::{read_log, RateLog};
+use crate::allan::RateUnit;
+use crate::io::rate_log::{read_log, LogOrigin, RateLog};
 
 /// The options a command that reads a log takes for a ROS 2 bag.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -28,4 +29,14 @@ pub fn open(
         eprintln!("driftless: warning: {note}");
     }
     Ok(log)
+}
+
+/// The unit of a log's rates: a bag's rad/s (`given` must agree), else `given`, deg/s
+/// without it.
+pub fn rate_unit(origin: &LogOrigin, given: Option<&str>) -> Result<RateUnit, CliError> {
+    origin
+        .units(given)
+        .map_err(CliError::input)?
+        .parse()
+        .map_err(|e| CliError::input(format!("--units: {e}")))
 }
