@@ -208,7 +208,7 @@ impl Default for GyroSample {
 
 /// The refusal of a payload type that is another layout version of one of ours (a
 /// [`GyroSample`] of an older or newer driftless), met as `what` (e.g. `service
-/// "demo/corrected"` or `key driftless/demo/corrected`); `None` when `type_name` is ours or
+/// "demo/corrected"`, or a Zenoh sample with its encoding); `None` when `type_name` is ours or
 /// not a version of ours at all. The one place that knows the versions: `tap`, `record`,
 /// `bridge`, the transport's errors and the Zenoh receiver word their refusal with it.
 pub fn wire_version_mismatch(what: &str, type_name: &str) -> Option<String> {
