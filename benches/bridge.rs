@@ -94,7 +94,8 @@ fn run(pipeline: &Path, tag: &str, secs: f64, bridge: bool, dir: &Path) -> Run {
             .declare_subscriber("driftless/demo/corrected")
             .callback(move |sample| {
                 let now = monotonic_ns();
-                let s = GyroSample::decode(&sample.payload().to_bytes()).expect("104 bytes");
+                let s = GyroSample::decode(&sample.payload().to_bytes())
+                    .expect("a GyroSample v2 payload, 128 bytes");
                 sink.lock().unwrap().add(&s, now);
             })
             .wait()

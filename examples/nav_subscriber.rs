@@ -1,6 +1,8 @@
 //! A navigation consumer in its own process: subscribes to a pipeline's corrected rates,
-//! integrates heading from the z axis, and keeps its own histogram of the latency it sees
-//! (from the daemon's ingest of the sample to receipt here, both CLOCK_MONOTONIC).
+//! integrates heading from the z axis with the uncertainty the removed bias leaves in it
+//! (`drift_std`, where the pipeline's predict stage provides it), and keeps its own histogram of
+//! the latency it sees (from the daemon's ingest of the sample to receipt here, both
+//! CLOCK_MONOTONIC).
 //!
 //! ```text
 //! driftless run pipelines/demo.toml &
@@ -19,7 +21,9 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 use driftless::cli::duration::parse_duration;
-use driftless::transport::{self, monotonic_ns, GyroSample, Transport, FLAG_FLUSHED};
+use driftless::transport::{
+    self, monotonic_ns, GyroSample, Transport, TransportError, FLAG_FLUSHED,
+};
 use hdrhistogram::Histogram;
 
 /// A navigation consumer in its own process: integrates heading from a pipeline's corrected
@@ -81,6 +85,8 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     let input = loop {
         match node.open_input::<GyroSample>(&o.service) {
             Ok(i) => break i,
+            // A daemon of another release: waiting will not help.
+            Err(e @ TransportError::Version(_)) => return Err(e.to_string()),
             Err(_) if started.elapsed() < Duration::from_secs(10) => {
                 std::thread::sleep(Duration::from_millis(50))
             }
@@ -92,6 +98,11 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
         Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3).map_err(|e| e.to_string())?;
     let (mut received, mut lost) = (0u64, 0u64);
     let mut heading_deg = 0.0f64;
+    // The heading error the removed bias can leave: its 1-sigma integrated over time (a bias
+    // error is nearly constant between stops, so errors add up rather than average out: an
+    // upper bound). None once a sample did not provide it.
+    let mut heading_sd_deg = Some(0.0f64);
+    let mut bias_sd_z: Option<f64> = None; // newest z drift_std, deg/s; None: not provided
     let mut last: Option<(u32, u64, u64)> = None; // (epoch, seq, t_ns)
     let mut epochs = 0u64;
     let end = o.duration.map(|d| Instant::now() + d);
@@ -112,14 +123,22 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
                     }
                     let dt = s.t_ns.saturating_sub(t_ns) as f64 * 1e-9;
                     heading_deg += s.rate[2].to_degrees() * dt;
+                    heading_sd_deg = match (heading_sd_deg, bias_sd_z) {
+                        (Some(h), Some(b)) => Some(h + b * dt),
+                        _ => None,
+                    };
                 }
                 _ => epochs += 1,
             }
             last = Some((s.epoch, s.seq, s.t_ns));
+            // Negative: not provided (predict.none, predict.rbf); never NaN on the wire.
+            bias_sd_z = (s.drift_std[2] >= 0.0).then(|| s.drift_std[2].to_degrees());
         }
         if tick.elapsed() >= Duration::from_secs(1) {
             eprintln!(
-                "nav: {received} received, {lost} lost, heading {heading_deg:+.2} deg, latency p50 {:.1} us p99 {:.1} us max {:.1} us",
+                "nav: {received} received, {lost} lost, heading {heading_deg:+.2} deg {}, bias z {}, latency p50 {:.1} us p99 {:.1} us max {:.1} us",
+                sd_text(heading_sd_deg, "deg"),
+                sd_text(bias_sd_z, "deg/s"),
                 latency.value_at_quantile(0.5) as f64 / 1e3,
                 latency.value_at_quantile(0.99) as f64 / 1e3,
                 latency.max() as f64 / 1e3
@@ -129,7 +148,8 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     }
     let q = |p: f64| latency.value_at_quantile(p);
     println!(
-        "nav_subscriber: {received} received, {lost} lost, {epochs} epochs; heading {heading_deg:+.3} deg; latency (ingest to receipt) p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
+        "nav_subscriber: {received} received, {lost} lost, {epochs} epochs; heading {heading_deg:+.3} deg {} (from the removed bias); latency (ingest to receipt) p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
+        sd_text(heading_sd_deg, "deg"),
         q(0.5),
         q(0.99),
         q(0.999),
@@ -137,7 +157,8 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     );
     if let Some(path) = &o.report {
         let json = format!(
-            "{{\"received\":{received},\"lost\":{lost},\"epochs\":{epochs},\"heading_deg\":{heading_deg},\"latency_ns\":{{\"count\":{},\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}}}}\n",
+            "{{\"received\":{received},\"lost\":{lost},\"epochs\":{epochs},\"heading_deg\":{heading_deg},\"heading_sd_deg\":{},\"latency_ns\":{{\"count\":{},\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}}}}\n",
+            heading_sd_deg.map_or("null".to_string(), |v| v.to_string()),
             latency.len(),
             q(0.5),
             q(0.99),
@@ -147,4 +168,12 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
         std::fs::write(path, json).map_err(|e| format!("{path}: {e}"))?;
     }
     Ok(())
+}
+
+/// `+- 0.123 UNIT`, or `+- ? (not provided)` when the pipeline gives no bias uncertainty.
+fn sd_text(sd: Option<f64>, unit: &str) -> String {
+    match sd {
+        Some(v) => format!("+- {v:.3} {unit}"),
+        None => "+- ? (not provided)".to_string(),
+    }
 }

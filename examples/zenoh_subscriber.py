@@ -6,11 +6,14 @@
     driftless bridge demo/corrected --listen tcp/127.0.0.1:7447 --no-multicast-scouting &
     python3 examples/zenoh_subscriber.py --connect tcp/127.0.0.1:7447 --count 2000
 
-The payload is driftless::GyroSample's 104 little-endian bytes (docs/wire-types.md, "Layouts"):
+The payload is driftless::GyroSample.v2's 128 little-endian bytes (docs/wire-types.md, "Layouts"):
     0 u64 t_ns | 8 u64 seq | 16 u64 ingest_ns | 24 f64[3] rate | 48 f64[3] drift
-    72 f64[3] denoised | 96 u32 flags | 100 u32 epoch
+    72 f64[3] denoised | 96 u32 flags | 100 u32 epoch | 104 f64[3] drift_std (-1: not provided)
+with encoding application/octet-stream;driftless::GyroSample.v2. A payload of layout version 1
+(driftless::GyroSample, 104 bytes, from a bridge of an older driftless) is refused by name.
 Checks that seq rises by one within each epoch (a jump is a loss, a repeat or a step back is an
-error) and prints the rate once a second. Exit 0 when --count samples came in order, 1 otherwise.
+error) and prints the rate and the bias's 1-sigma once a second. Exit 0 when --count samples
+came in order, 1 otherwise.
 """
 
 import argparse
@@ -22,8 +25,10 @@ import time
 
 import zenoh
 
-GYRO = struct.Struct("<QQQ9dII")  # 104 bytes
-assert GYRO.size == 104
+GYRO = struct.Struct("<QQQ9dII3d")  # 128 bytes
+assert GYRO.size == 128
+GYRO_TYPE = "driftless::GyroSample.v2"
+GYRO_V1 = ("driftless::GyroSample", 104)  # layout version 1: before drift_std
 
 
 def main() -> int:
@@ -58,11 +63,17 @@ def main() -> int:
                 payload, encoding = samples.get(timeout=0.1)
             except queue.Empty:
                 continue
-            if len(payload) != GYRO.size or not encoding.endswith("driftless::GyroSample"):
-                print(f"not a GyroSample: {len(payload)} bytes, {encoding}", file=sys.stderr)
+            schema = encoding.split(";", 1)[1] if ";" in encoding else None
+            if schema == GYRO_V1[0] or (schema is None and len(payload) == GYRO_V1[1]):
+                print(f"{args.key} carries {GYRO_V1[0]} (layout v1, {GYRO_V1[1]} bytes, from an "
+                      f"older driftless); this subscriber reads {GYRO_TYPE} ({GYRO.size} bytes): "
+                      "run the bridge and this subscriber from one release", file=sys.stderr)
+                return 1
+            if len(payload) != GYRO.size or schema not in (None, GYRO_TYPE):
+                print(f"not a {GYRO_TYPE}: {len(payload)} bytes, {encoding}", file=sys.stderr)
                 return 1
             t_ns, seq, ingest_ns, *f = GYRO.unpack(payload)
-            rate, flags, epoch = f[0:3], f[9], f[10]
+            rate, flags, epoch, sd = f[0:3], f[9], f[10], f[11:14]
             if last is not None and last[0] == epoch:
                 if seq > last[1] + 1:
                     missing += seq - last[1] - 1
@@ -75,6 +86,8 @@ def main() -> int:
                 print(
                     f"{args.key}: {window / (time.monotonic() - tick):.1f} Hz, seq {seq}, "
                     f"rate [{rate[0] * deg:+.4f} {rate[1] * deg:+.4f} {rate[2] * deg:+.4f}] deg/s, "
+                    # -1: no bias filter in the pipeline gives one ("not provided").
+                    f"bias 1-sigma [{' '.join(f'{v * deg:.4f}' if v >= 0 else '-' for v in sd)}] deg/s, "
                     f"flags {flags:#x}, {received} received, {missing} missing",
                     file=sys.stderr,
                 )

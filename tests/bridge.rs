@@ -179,7 +179,7 @@ impl Bridge {
 
 /// Decoded at the offsets docs/wire-types.md documents (not with the crate's own decoder).
 fn decode_gyro(b: &[u8]) -> GyroSample {
-    assert_eq!(b.len(), 104, "a GyroSample is 104 bytes");
+    assert_eq!(b.len(), 128, "a GyroSample (layout v2) is 128 bytes");
     let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
     let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
     let f3 = |o: usize| [0, 1, 2].map(|i| f64::from_bits(u64_at(o + 8 * i)));
@@ -192,12 +192,13 @@ fn decode_gyro(b: &[u8]) -> GyroSample {
         denoised: f3(72),
         flags: u32_at(96),
         epoch: u32_at(100),
+        drift_std: f3(104),
     }
 }
 
 fn bits(s: &GyroSample) -> Vec<u64> {
     let mut v = vec![s.t_ns, s.seq, s.ingest_ns, s.flags as u64, s.epoch as u64];
-    for a in [s.rate, s.drift, s.denoised] {
+    for a in [s.rate, s.drift, s.denoised, s.drift_std] {
         v.extend(a.map(f64::to_bits));
     }
     v
@@ -303,7 +304,7 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
         ],
     );
     bridge.wait_for(
-        "bridge: ready: t/corrected (driftless::GyroSample) -> driftless/t/corrected",
+        "bridge: ready: t/corrected (driftless::GyroSample.v2) -> driftless/t/corrected",
         Duration::from_secs(20),
     );
     bridge.wait_for("a Zenoh subscriber matches", Duration::from_secs(20));
@@ -349,7 +350,10 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
     let epoch = near[0].epoch;
     for (i, ((payload, encoding, key), mine)) in got.iter().zip(&near).enumerate() {
         assert_eq!(key, "driftless/t/corrected");
-        assert_eq!(encoding, "application/octet-stream;driftless::GyroSample");
+        assert_eq!(
+            encoding,
+            "application/octet-stream;driftless::GyroSample.v2"
+        );
         let s = decode_gyro(payload);
         assert_eq!(
             (s.epoch, s.seq),
@@ -361,6 +365,12 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
             bits(&s),
             bits(mine),
             "sample {i}: the same bits as over iceoryx2"
+        );
+        // predict.bias's own uncertainty crosses the bridge (none is -1 or NaN).
+        assert!(
+            s.drift_std.iter().all(|v| v.is_finite() && *v > 0.0),
+            "sample {i}: drift_std {:?}",
+            s.drift_std
         );
     }
     assert!(

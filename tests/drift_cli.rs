@@ -416,10 +416,15 @@ fn predict_rbf_with_the_ar_predictor_is_the_models_ar_in_the_same_compensator() 
             .map(|(t, &x)| {
                 let mut s = GyroSample {
                     seq: t as u64,
+                    // As if a stage before had one: predict.rbf must not pass it on.
+                    drift_std: [0.5; 3],
                     ..GyroSample::default()
                 };
                 s.denoised[0] = x.to_radians();
-                stage.process(&s).unwrap().drift[0].to_degrees()
+                let out = stage.process(&s).unwrap();
+                // The RBF model has no uncertainty of its own: not provided.
+                assert_eq!(out.drift_std, [-1.0; 3]);
+                out.drift[0].to_degrees()
             })
             .collect()
     };

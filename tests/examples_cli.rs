@@ -182,6 +182,9 @@ fn raw_driver_feeds_the_daemon_and_nav_subscriber_reads_it() {
     );
     assert_eq!(v["lost"], 0, "{v}");
     assert_eq!(v["epochs"], 1, "one daemon run, one driver run: {v}");
+    // No predict stage: the bias uncertainty is "not provided" (-1), so no heading sigma.
+    assert_eq!(v["heading_sd_deg"], serde_json::Value::Null, "{v}");
+    assert!(summary.contains("+- ? (not provided)"), "{summary}");
     common::signal(&daemon, 2);
     let (code, err) = common::finish(daemon, std::time::Duration::from_secs(10));
     assert_eq!(code, Some(0), "{err}");

@@ -117,16 +117,16 @@ fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_port
     assert_eq!(p["user"], me.as_str());
     assert!(p["uptime_s"].as_f64().expect("uptime") >= 0.0);
 
-    for (name, wire, subscribers) in [
+    for (name, wire, type_name, subscribers) in [
         // The daemon takes each hop back from its own subscriber; the tap reads the last.
-        ("c/raw", "RawSample", 1),
-        ("c/denoised", "GyroSample", 1),
-        ("c/corrected", "GyroSample", 1),
-        ("c/stats", "StatsSnapshot", 0),
+        ("c/raw", "RawSample", "driftless::RawSample", 1),
+        ("c/denoised", "GyroSample", "driftless::GyroSample.v2", 1),
+        ("c/corrected", "GyroSample", "driftless::GyroSample.v2", 1),
+        ("c/stats", "StatsSnapshot", "driftless::StatsSnapshot", 0),
     ] {
         let s = service(&doc, name, "publish-subscribe");
         assert_eq!(s["wire_type"], wire, "{s}");
-        assert_eq!(s["type"], format!("driftless::{wire}"), "{s}");
+        assert_eq!(s["type"], type_name, "{s}");
         assert_eq!(s["publishers"], 1, "{s}");
         assert_eq!(s["subscribers"], subscribers, "{s}");
         assert_eq!(s["published_by"], serde_json::json!(["c"]), "{s}");

@@ -9,7 +9,9 @@ use driftless::nav::baselines::{BiasEstimator, Zaru};
 use driftless::pipeline::config;
 use driftless::pipeline::offline::Offline;
 use driftless::sim::{Motion, SimConfig, Simulator};
-use driftless::transport::{GyroSample, RawSample, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use driftless::transport::{
+    GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP,
+};
 
 const RATE: f64 = 100.0;
 
@@ -207,4 +209,96 @@ fn after_the_wavelet_denoiser_it_still_wins() {
         let t = g.seq as f64 / RATE;
         g.flags & FLAG_STILL == 0 || motion.is_still(t) || motion.is_still(t - ONSET_S)
     }));
+}
+
+/// Runs of at least `min` consecutive samples for which `is` holds: (first, last) indices.
+fn runs(out: &[GyroSample], min: usize, is: impl Fn(&GyroSample) -> bool) -> Vec<(usize, usize)> {
+    let mut found = Vec::new();
+    let mut start = None;
+    for (i, g) in out.iter().enumerate().chain([(out.len(), &out[0])]) {
+        let inside = i < out.len() && is(g);
+        match (inside, start) {
+            (true, None) => start = Some(i),
+            (false, Some(s)) => {
+                if i - s >= min {
+                    found.push((s, i - 1));
+                }
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    found
+}
+
+#[test]
+fn the_bias_uncertainty_is_published_and_shrinks_while_still_and_grows_while_moving() {
+    let dir = Dir::new();
+    let p = pipeline(&dir, "kind = \"denoise.none\"");
+    let (_, out) = run(&p, Motion::StopAndGo, 5, (10.0 * 60.0 * RATE) as usize);
+    for g in &out {
+        assert!(
+            g.drift_std.iter().all(|s| s.is_finite() && *s > 0.0),
+            "sample {}: drift_std {:?}",
+            g.seq,
+            g.drift_std
+        );
+    }
+    // The turn-on prior (1 deg/s) is where it starts; re-measured stops end far below it.
+    let prior = 1f64.to_radians();
+    assert!(
+        (out[0].drift_std[0] - prior).abs() < 0.05 * prior,
+        "{:?}",
+        out[0].drift_std
+    );
+    let two_s = (2.0 * RATE) as usize;
+    let still = runs(&out, two_s, |g| g.flags & FLAG_STILL != 0);
+    let moving = runs(&out, two_s, |g| {
+        g.flags & FLAG_MOVING != 0 && g.flags & FLAG_WARMING_UP == 0
+    });
+    assert!(
+        still.len() >= 3 && moving.len() >= 3,
+        "{still:?} {moving:?}"
+    );
+    for axis in 0..3 {
+        for &(a, b) in &still {
+            assert!(
+                out[b].drift_std[axis] < out[a].drift_std[axis],
+                "axis {axis}, still {a}..={b}: {} -> {}",
+                out[a].drift_std[axis],
+                out[b].drift_std[axis]
+            );
+        }
+        for &(a, b) in &moving {
+            assert!(
+                out[b].drift_std[axis] > out[a].drift_std[axis],
+                "axis {axis}, moving {a}..={b}: {} -> {}",
+                out[a].drift_std[axis],
+                out[b].drift_std[axis]
+            );
+        }
+        let last = out.last().unwrap().drift_std[axis];
+        assert!(
+            last < 0.05 * prior,
+            "axis {axis}: {last} rad/s after 10 min"
+        );
+    }
+}
+
+#[test]
+fn predict_none_does_not_provide_a_bias_uncertainty() {
+    let dir = Dir::new();
+    pipeline(&dir, "kind = \"denoise.none\"");
+    // The same chain (written to p.toml) with predict.none in predict.bias's place.
+    let text = std::fs::read_to_string(dir.path("p.toml")).unwrap();
+    let bias = "kind = \"predict.bias\"";
+    assert!(text.contains(bias));
+    let text = text
+        .replace(bias, "kind = \"predict.none\"")
+        .replace("profile = \"adis16405\"\n", "");
+    let p = config::load(&dir.write("none.toml", &text)).expect("valid pipeline");
+    let (_, out) = run(&p, Motion::StopAndGo, 6, (20.0 * RATE) as usize);
+    for g in &out {
+        assert_eq!(g.drift_std, [DRIFT_STD_NOT_PROVIDED; 3], "sample {}", g.seq);
+    }
 }

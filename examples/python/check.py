@@ -17,7 +17,7 @@
    0x10) before it exits 0 (docs/operations.md, "Restarts and crashes");
 5. asserts: driver, daemon and subscriber exit 0; the subscriber got seq 0..N-1 exactly once, in
    order, in one epoch (the daemon's), with the driver's values, `lag` of them flushed at
-   shutdown; the daemon's report says N in, N out, nothing lost, no source restart.
+   shutdown, each with drift_std "not provided" (-1: no bias filter in the pipeline); the daemon's report says N in, N out, nothing lost, no source restart.
 
 Creates nothing outside its temporary directory but iceoryx2's shared memory, /dev/shm/<prefix>*,
 removed at the end. Exit 0 when every assertion held, 1 otherwise (saying which, with the logs).
@@ -231,8 +231,12 @@ def run(args, facts: dict, tmp: str, start, procs: dict) -> bool:
 
     with open(sub_report) as f:
         s = json.load(f)
+    # The pipeline has no bias filter (predict.none at most): every sample's drift_std is
+    # "not provided", -1 on each axis, read at offset 104 of GyroSample v2.
     expect = {"received": n, "first_seq": 0, "last_seq": n - 1, "epochs": 1, "missing": 0,
-              "disorder": 0, "flagged": 0, "pattern_errors": 0, "flushed": lag, "ok": True}
+              "disorder": 0, "flagged": 0, "pattern_errors": 0, "flushed": lag,
+              "drift_std_not_provided": n, "drift_std_bad": 0,
+              "drift_std_last": [-1.0, -1.0, -1.0], "ok": True}
     wrong = {k: (s.get(k), v) for k, v in expect.items() if s.get(k) != v}
     if wrong:
         raise CheckFailed("subscriber report: " + ", ".join(

@@ -55,6 +55,10 @@ FLAG_OUTPUT_REPAIRED = 1 << 5
 # Flags that say a delivered sample is not what the driver sent.
 FLAGS_BAD = FLAG_INPUT_INVALID | FLAG_GAP_BEFORE | FLAG_TIME_BACKWARDS | FLAG_OUTPUT_REPAIRED
 
+# GyroSample.drift_std where no stage estimates the drift's uncertainty (predict.none,
+# predict.rbf, no predict stage): transport::DRIFT_STD_NOT_PROVIDED. Never NaN.
+DRIFT_STD_NOT_PROVIDED = -1.0
+
 
 class RawSample(ctypes.Structure):
     """`driftless::RawSample`, 48 bytes: what a driver publishes for `ingest.iceoryx2`."""
@@ -74,7 +78,11 @@ class RawSample(ctypes.Structure):
 
 
 class GyroSample(ctypes.Structure):
-    """`driftless::GyroSample`, 104 bytes: every hop after the ingest, and the public output."""
+    """`driftless::GyroSample.v2`, 128 bytes: every hop after the ingest, and the public output.
+
+    Layout version 2 (transport::GYRO_VERSION): version 1 (`driftless::GyroSample`, 104 bytes)
+    ended at `epoch`. A service of the other version is refused by iceoryx2 with
+    IncompatibleTypes: run the daemon and this subscriber from one release."""
 
     _fields_ = [
         ("t_ns", ctypes.c_uint64),  # 0: sensor timestamp of this sample
@@ -85,19 +93,20 @@ class GyroSample(ctypes.Structure):
         ("denoised", ctypes.c_double * 3),  # 72: denoised rate, rad/s
         ("flags", ctypes.c_uint32),  # 96: FLAG_*
         ("epoch", ctypes.c_uint32),  # 100: the stream's run id
+        ("drift_std", ctypes.c_double * 3),  # 104: 1-sigma of drift, rad/s; -1: not provided
     ]
 
     @staticmethod
     def type_name() -> str:
-        """iceoryx2's type name (Rust `#[type_name("driftless::GyroSample")]`)."""
-        return "driftless::GyroSample"
+        """iceoryx2's type name (Rust `#[type_name("driftless::GyroSample.v2")]`)."""
+        return "driftless::GyroSample.v2"
 
 
 # The documented layouts, checked once: a wrong field order or type fails here, not on the wire.
 for _t, _size, _offsets in (
     (RawSample, 48, {"t_ns": 0, "seq": 8, "rate": 16, "flags": 40, "epoch": 44}),
-    (GyroSample, 104, {"t_ns": 0, "seq": 8, "ingest_ns": 16, "rate": 24, "drift": 48,
-                       "denoised": 72, "flags": 96, "epoch": 100}),
+    (GyroSample, 128, {"t_ns": 0, "seq": 8, "ingest_ns": 16, "rate": 24, "drift": 48,
+                       "denoised": 72, "flags": 96, "epoch": 100, "drift_std": 104}),
 ):
     assert ctypes.sizeof(_t) == _size and ctypes.alignment(_t) == 8, _t
     assert {f: getattr(_t, f).offset for f in _offsets} == _offsets, _t

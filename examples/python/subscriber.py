@@ -22,8 +22,9 @@ once (the service lends a subscriber only 2 samples at a time).
 
 Checks, within each epoch (seq restarts when the epoch changes): seq rises by exactly one (a jump
 is a loss, a repeat or step back an error), t_ns rises, no sample is flagged invalid, gap, time
-backwards or repaired; with --expect-pattern also the values driver.py sends (t_ns, rates within
-a tolerance after the denoiser, rate = denoised - drift, heading). With --count N it stops after
+backwards or repaired, drift_std is -1 ("not provided") or a finite 1-sigma > 0 on each axis;
+with --expect-pattern also the values driver.py sends (t_ns, rates within a tolerance after the
+denoiser, rate = denoised - drift, heading). With --count N it stops after
 N samples and exits 0 only if N came, each once and in order, and every check held; 1 otherwise
 (one line per kind of problem), 2 bad usage. Prefix and root as the daemon's: --prefix, else
 DRIFTLESS_IOX2_PREFIX, else driftless_; --root-path, else DRIFTLESS_IOX2_ROOT, else /tmp/iceoryx2.
@@ -32,6 +33,7 @@ DRIFTLESS_IOX2_PREFIX, else driftless_; --root-path, else DRIFTLESS_IOX2_ROOT, e
 import argparse
 import ctypes
 import json
+import math
 import os
 import sys
 import time
@@ -57,6 +59,10 @@ class Checker:
         self.rate_hz = rate_hz
         self.received = self.missing = self.disorder = self.flagged = 0
         self.flushed = self.warming_up = self.pattern_errors = 0
+        # Samples whose drift_std is "not provided" (-1) on every axis, and samples with a
+        # value that is neither that nor a finite positive 1-sigma (NaN, 0, another negative).
+        self.drift_std_not_provided = self.drift_std_bad = 0
+        self.drift_std_last = None  # the newest sample's, rad/s
         self.epochs = 0
         self.first_seq = self.last_seq = None
         self.heading_deg = self.expected_heading_deg = 0.0
@@ -82,6 +88,13 @@ class Checker:
         if s.flags & dl.FLAGS_BAD:
             self.flagged += 1
             self.problem(f"seq {s.seq}: flags {s.flags:#x}")
+        sd = list(s.drift_std)
+        self.drift_std_last = sd
+        if all(v == dl.DRIFT_STD_NOT_PROVIDED for v in sd):
+            self.drift_std_not_provided += 1
+        elif not all(v == dl.DRIFT_STD_NOT_PROVIDED or (math.isfinite(v) and v > 0) for v in sd):
+            self.drift_std_bad += 1
+            self.problem(f"seq {s.seq}: drift_std {sd} (neither -1 nor a finite 1-sigma > 0)")
         last = self.last
         if last is not None and last[0] == s.epoch:
             _, seq, t_ns = last
@@ -131,6 +144,8 @@ class Checker:
             why.append(f"{self.flagged} samples flagged invalid/gap/time backwards/repaired")
         if self.pattern_errors:
             why.append(f"{self.pattern_errors} samples differ from driver.py's pattern")
+        if self.drift_std_bad:
+            why.append(f"{self.drift_std_bad} samples with a drift_std that is not a 1-sigma or -1")
         if self.expect_pattern and self.received > 1:
             err = self.heading_deg - self.expected_heading_deg
             if not abs(err) <= HEADING_TOL_DEG:
@@ -150,6 +165,8 @@ class Checker:
             "epochs": self.epochs, "epoch": self.last[0] if self.last else None,
             "first_seq": self.first_seq, "last_seq": self.last_seq,
             "flushed": self.flushed, "warming_up": self.warming_up,
+            "drift_std_not_provided": self.drift_std_not_provided,
+            "drift_std_bad": self.drift_std_bad, "drift_std_last": self.drift_std_last,
             "heading_deg": self.heading_deg, "expected_heading_deg": self.expected_heading_deg,
             "latency_ns": {"count": len(lat), "p50": q(0.5), "p99": q(0.99), "max": lat[-1] if lat else 0},
         }
@@ -165,6 +182,15 @@ def open_ports(node, service: str, wait_s: float, stop: list):
             event = node.service_builder(name).event().open()
             break
         except Exception as e:  # noqa: BLE001 (DoesNotExist while the daemon starts, ...)
+            if "IncompatibleTypes" in str(e):
+                # Waiting will not help: the service holds another type, or another layout
+                # version of ours (a driftless of another release).
+                raise RuntimeError(
+                    f"cannot open {service!r}: IncompatibleTypes: it does not carry "
+                    f"{dl.GyroSample.type_name()} ({ctypes.sizeof(dl.GyroSample)} bytes), which "
+                    "this subscriber reads; a driftless before GyroSample v2 publishes "
+                    "driftless::GyroSample (104 bytes): run the daemon and this subscriber from "
+                    "one release (docs/wire-types.md#versions)") from e
             if stop[0] or time.monotonic() >= give_up:
                 raise RuntimeError(f"cannot open {service!r}: {type(e).__name__}: {e} "
                                    "(is the pipeline running, with this prefix and root?)") from e

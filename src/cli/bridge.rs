@@ -378,6 +378,9 @@ mod imp {
                  (bridge the samples; `driftless stats` reads the snapshots)"
             ))));
             Ok(())
+        } else if let Some(m) = crate::cli::tap::version_mismatch(&node, service) {
+            let _ = ready.send(Err(CliError::input(m)));
+            Ok(())
         } else {
             // Nothing to read is a run-time failure (exit 1), as for `tap`.
             let _ = ready.send(Err(CliError::internal(format!(

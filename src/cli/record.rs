@@ -484,10 +484,15 @@ fn subscribe(node: &Transport, service: &str, prefix: &str) -> Result<Port, CliE
         GYRO_TYPE_NAME => node.open_input(service).map(Port::Gyro),
         STATS_TYPE_NAME => node.open_input(service).map(Port::Stats),
         other => {
+            if let Some(m) =
+                crate::transport::wire_version_mismatch(&format!("service {service:?}"), other)
+            {
+                return Err(CliError::input(m));
+            }
             return Err(CliError::input(format!(
                 "service {service:?} carries {other}, not a driftless type \
                  ({RAW_TYPE_NAME}, {GYRO_TYPE_NAME}, {STATS_TYPE_NAME})"
-            )))
+            )));
         }
     };
     opened.map_err(|e| {

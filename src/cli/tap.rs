@@ -158,6 +158,29 @@ struct Printer {
 }
 
 impl Printer {
+    /// `drift_std` in the display units; "not provided" (negative) stays -1 whatever the
+    /// units, so that it reads as the wire's sentinel and not as a rate.
+    fn std_values(&self, sd: [f64; 3]) -> [f64; 3] {
+        sd.map(|v| {
+            if v < 0.0 {
+                transport::DRIFT_STD_NOT_PROVIDED
+            } else {
+                v * self.units.scale()
+            }
+        })
+    }
+
+    /// `drift_std` for the text line: the value, or `-` where not provided.
+    fn std_text(&self, sd: [f64; 3]) -> [String; 3] {
+        self.std_values(sd).map(|v| {
+            if v < 0.0 {
+                "-".to_string()
+            } else {
+                format!("{v:.6}")
+            }
+        })
+    }
+
     fn header(&self, item: &Item) -> Option<String> {
         if self.format != Format::Csv {
             return None;
@@ -171,10 +194,11 @@ impl Printer {
             Item::Gyro(_) => {
                 let u = self.units.suffix();
                 format!(
-                    "epoch,seq,t_s,{},{},{},flags,flag_names",
+                    "epoch,seq,t_s,{},{},{},flags,flag_names,{}",
                     axes("rate", u),
                     axes("drift", u),
-                    axes("denoised", u)
+                    axes("denoised", u),
+                    axes("drift_std", u)
                 )
             }
             Item::Raw(_) => format!("epoch,seq,t_s,{},flags,flag_names", axes("rate", "input")),
@@ -188,13 +212,14 @@ impl Printer {
         Ok(match (self.format, item) {
             (Format::Text, Item::Gyro(s)) => {
                 let [r, d, n] = [s.rate, s.drift, s.denoised].map(scaled);
+                let sd = self.std_text(s.drift_std);
                 format!(
                     "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] drift [{:+.6} {:+.6} {:+.6}] \
-                     denoised [{:+.6} {:+.6} {:+.6}] {} flags {}",
+                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {} flags {}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
-                    r[0], r[1], r[2], d[0], d[1], d[2], n[0], n[1], n[2],
+                    r[0], r[1], r[2], d[0], d[1], d[2], sd[0], sd[1], sd[2], n[0], n[1], n[2],
                     self.units.name(),
                     joined(&transport::flag_names(s.flags), ",")
                 )
@@ -217,14 +242,17 @@ impl Printer {
                     .flatten()
                     .map(|v| v.to_string())
                     .collect();
+                // Not provided stays -1 in every unit (a sentinel, not a rate).
+                let sd = self.std_values(s.drift_std).map(|v| v.to_string());
                 format!(
-                    "{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
                     cells.join(","),
                     s.flags,
-                    joined(&transport::flag_names(s.flags), "|")
+                    joined(&transport::flag_names(s.flags), "|"),
+                    sd.join(",")
                 )
             }
             (Format::Csv, Item::Raw(s)) => format!(
@@ -248,6 +276,7 @@ impl Printer {
                 "rate": scaled(s.rate),
                 "drift": scaled(s.drift),
                 "denoised": scaled(s.denoised),
+                "drift_std": self.std_values(s.drift_std),
                 "flags": s.flags,
                 "flag_names": transport::flag_names(s.flags),
             })
@@ -311,6 +340,13 @@ impl Intervals {
     }
 }
 
+/// The refusal of `service` when it carries another layout version of one of our types (a
+/// driftless of another release publishes it).
+pub(crate) fn version_mismatch(node: &Transport, service: &str) -> Option<String> {
+    let found = node.payload_type_name(service).ok().flatten()?;
+    transport::wire_version_mismatch(&format!("service {service:?}"), &found)
+}
+
 /// Subscribe to SERVICE (whichever of our wire types it carries) and print what comes.
 pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
@@ -339,6 +375,8 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
             return Err(no_csv_for_stats(&args.service));
         }
         Tapped::Stats(i)
+    } else if let Some(m) = version_mismatch(&node, &args.service) {
+        return Err(CliError::input(m));
     } else {
         // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.
         return Err(CliError::internal(format!(
@@ -471,6 +509,7 @@ mod tests {
             denoised: [1.0, 0.0, 0.0],
             flags: crate::transport::FLAG_STILL,
             epoch: 3,
+            drift_std: [0.25, crate::transport::DRIFT_STD_NOT_PROVIDED, 0.0],
             ..GyroSample::default()
         };
         let item = Item::Gyro(s);
@@ -480,16 +519,22 @@ mod tests {
         assert_eq!(json["rate"][0], 180.0);
         assert_eq!(json["rate"][2], -180.0 / std::f64::consts::PI);
         assert_eq!(json["flag_names"], serde_json::json!(["still"]));
+        // The std scales with the units; "not provided" stays -1.
+        assert_eq!(
+            json["drift_std"],
+            serde_json::json!([0.25 * (180.0 / std::f64::consts::PI), -1.0, 0.0])
+        );
         let rad = printer(Format::Csv, RateUnits::RadS);
         assert_eq!(
             rad.header(&item).unwrap(),
             "epoch,seq,t_s,rate_x_rads,rate_y_rads,rate_z_rads,drift_x_rads,drift_y_rads,\
-             drift_z_rads,denoised_x_rads,denoised_y_rads,denoised_z_rads,flags,flag_names"
+             drift_z_rads,denoised_x_rads,denoised_y_rads,denoised_z_rads,flags,flag_names,\
+             drift_std_x_rads,drift_std_y_rads,drift_std_z_rads"
         );
         assert_eq!(
             rad.line(&item).unwrap(),
             format!(
-                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still",
+                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still,0.25,-1,0",
                 std::f64::consts::PI
             )
         );
@@ -500,6 +545,10 @@ mod tests {
         );
         assert!(
             text.contains("denoised [+57.295780 +0.000000 +0.000000] deg/s"),
+            "{text}"
+        );
+        assert!(
+            text.contains("drift [+28.647890 +0.000000 +0.000000] +- [14.323945 - 0.000000]"),
             "{text}"
         );
         assert!(text.ends_with("flags still"), "{text}");

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::transport::{GyroSample, Percentiles, RawSample, StatsSnapshot};
+use crate::transport::{GyroSample, Percentiles, RawSample, StatsSnapshot, DRIFT_STD_NOT_PROVIDED};
 
 /// Message encoding of every channel.
 pub const MESSAGE_ENCODING: &str = "json";
@@ -193,6 +193,10 @@ pub struct GyroMessage {
     pub denoised_rad_s: Xyz,
     /// Flags (`FLAG_*`).
     pub flags: u32,
+    /// 1-sigma of the drift estimate, rad/s (-1: not provided). Absent in recordings made
+    /// before `GyroSample` carried it (read as `None`, and as "not provided" on the wire).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift_std_rad_s: Option<Xyz>,
 }
 
 impl From<&GyroSample> for GyroMessage {
@@ -207,6 +211,7 @@ impl From<&GyroSample> for GyroMessage {
             drift_rad_s: s.drift.into(),
             denoised_rad_s: s.denoised.into(),
             flags: s.flags,
+            drift_std_rad_s: Some(s.drift_std.into()),
         }
     }
 }
@@ -222,6 +227,9 @@ impl From<&GyroMessage> for GyroSample {
             denoised: m.denoised_rad_s.into(),
             flags: m.flags,
             epoch: m.epoch,
+            drift_std: m
+                .drift_std_rad_s
+                .map_or([DRIFT_STD_NOT_PROVIDED; 3], Into::into),
         }
     }
 }
@@ -343,7 +351,7 @@ pub fn raw_schema() -> String {
 /// The JSON Schema of processed-sample channels.
 pub fn gyro_schema() -> String {
     format!(
-        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed gyro sample (denoised, drift, corrected), rates in rad/s","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted"}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
+        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed gyro sample (denoised, drift, corrected), rates in rad/s","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted"}},"drift_std_rad_s":{{"description":"1-sigma of the drift estimate per axis, rad/s; -1: not provided (absent in recordings of GyroSample v1)","allOf":[{XYZ_DEF}]}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
     )
 }
 
@@ -619,10 +627,28 @@ mod tests {
             denoised: [0.1, 0.2, 0.3],
             flags: 0x41,
             epoch: 9,
+            drift_std: [2.5e-5, DRIFT_STD_NOT_PROVIDED, 1.0 / 9.0],
         };
         let text = serde_json::to_string(&GyroMessage::from(&g)).unwrap();
         let back: GyroMessage = serde_json::from_str(&text).unwrap();
         assert_eq!(GyroSample::from(&back), g);
+        // A recording made before the field: read, the uncertainty not provided.
+        let old = text
+            .split(r#","drift_std_rad_s""#)
+            .next()
+            .unwrap()
+            .to_string()
+            + "}";
+        assert!(!old.contains("drift_std"), "{old}");
+        let back: GyroMessage = serde_json::from_str(&old).expect(&old);
+        assert_eq!(back.drift_std_rad_s, None);
+        assert_eq!(
+            GyroSample::from(&back),
+            GyroSample {
+                drift_std: [DRIFT_STD_NOT_PROVIDED; 3],
+                ..g
+            }
+        );
     }
 
     #[test]

@@ -8,7 +8,8 @@
 
 use crate::pipeline::config::Units;
 use crate::transport::{
-    GyroSample, RawSample, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID, FLAG_TIME_BACKWARDS, RAW_INVALID,
+    GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
+    FLAG_TIME_BACKWARDS, RAW_INVALID,
 };
 
 /// Counts of what the guard flagged.
@@ -136,6 +137,8 @@ impl Guard {
             denoised: rate,
             flags,
             epoch: raw.epoch,
+            // Nothing estimated the drift yet.
+            drift_std: [DRIFT_STD_NOT_PROVIDED; 3],
         }
     }
 }

@@ -18,7 +18,7 @@ use toml::Spanned;
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::{GyroSample, FLAG_FLUSHED, FLAG_WARMING_UP};
+use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP};
 use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
 
@@ -293,6 +293,8 @@ impl Wavelet {
         out.denoised = values;
         out.rate = values;
         out.drift = [0.0; 3];
+        // No drift removed here, so no uncertainty of one (after a predict stage too).
+        out.drift_std = [DRIFT_STD_NOT_PROVIDED; 3];
         out.ingest_ns = self.last_ingest_ns;
         if self.denoiser.warming_up() {
             out.flags |= FLAG_WARMING_UP;

@@ -24,7 +24,9 @@ use crate::drift::{ModelPredictor, PredictorKind};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::{GyroSample, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use crate::transport::{
+    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP,
+};
 
 const MODEL: Key = Key {
     name: "model",
@@ -273,13 +275,14 @@ fn parse_rbf(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> 
     }))
 }
 
-/// Drift estimate 0.
+/// Drift estimate 0; its uncertainty not provided (nothing estimated it).
 pub struct NoDrift;
 
 impl Stage for NoDrift {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
         out.drift = [0.0; 3];
+        out.drift_std = [DRIFT_STD_NOT_PROVIDED; 3];
         out.rate = out.denoised;
         Some(out)
     }
@@ -320,6 +323,9 @@ impl Stage for RbfDrift {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
         let (mut still, mut moving, mut warming) = (true, false, false);
+        // The RBF model gives no uncertainty of its prediction: not provided (an honest -1
+        // rather than a number no filter computed).
+        out.drift_std = [DRIFT_STD_NOT_PROVIDED; 3];
         for (axis, c) in self.comps.iter_mut().enumerate() {
             let step = c.push(input.denoised[axis] / self.scale);
             out.drift[axis] = step.drift * self.scale;

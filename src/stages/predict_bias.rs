@@ -428,6 +428,8 @@ impl Stage for BiasStage {
                 out.flags |= FLAG_STOP_CONTRADICTED;
             }
             out.drift[axis] = step.bias.to_radians();
+            // The filter's own 1-sigma of what it removed (the prior's before the first stop).
+            out.drift_std[axis] = step.std.to_radians();
             out.rate[axis] = input.denoised[axis] - out.drift[axis];
             match step.mode {
                 BiasMode::Still => {}

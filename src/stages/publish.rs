@@ -1,4 +1,5 @@
-//! `publish`: the last guard before the public service: no non-finite value ever leaves.
+//! `publish`: the last guard before the public service: no non-finite value ever leaves (a
+//! non-finite `drift_std` leaves as "not provided", -1).
 //!
 //! ```toml
 //! [[stage]]
@@ -14,7 +15,7 @@ use toml::Spanned;
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::{GyroSample, FLAG_OUTPUT_REPAIRED};
+use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_OUTPUT_REPAIRED};
 
 const NOTIFY: Key = Key {
     name: "notify",
@@ -73,7 +74,14 @@ fn repair(v: &mut [f64; 3]) -> bool {
 impl Stage for Publish {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
-        let bad = repair(&mut out.rate) | repair(&mut out.drift) | repair(&mut out.denoised);
+        let mut bad = repair(&mut out.rate) | repair(&mut out.drift) | repair(&mut out.denoised);
+        // An uncertainty that is not a number is not known: say so, never publish 0 (exact).
+        for s in out.drift_std.iter_mut() {
+            if !s.is_finite() {
+                *s = DRIFT_STD_NOT_PROVIDED;
+                bad = true;
+            }
+        }
         if bad {
             out.flags |= FLAG_OUTPUT_REPAIRED;
         }
@@ -94,5 +102,21 @@ mod tests {
         let o = Publish.process(&s).unwrap();
         assert_eq!(o.rate, [0.0, 1.0, 0.0]);
         assert!(o.flags & FLAG_OUTPUT_REPAIRED != 0);
+        let s = GyroSample {
+            drift_std: [f64::NAN, 1e-4, f64::INFINITY],
+            ..GyroSample::default()
+        };
+        let o = Publish.process(&s).unwrap();
+        assert_eq!(
+            o.drift_std,
+            [DRIFT_STD_NOT_PROVIDED, 1e-4, DRIFT_STD_NOT_PROVIDED]
+        );
+        assert!(o.flags & FLAG_OUTPUT_REPAIRED != 0);
+        let fine = GyroSample::default();
+        assert_eq!(
+            Publish.process(&fine).unwrap().flags,
+            0,
+            "-1 is not a repair"
+        );
     }
 }

@@ -54,6 +54,10 @@ pub enum TransportError {
         /// Which file or directory, its owner and mode, and the ways out.
         problem: String,
     },
+    /// The service carries another layout version of one of our types (a driftless of another
+    /// release publishes it): the whole sentence, from [`super::wire_version_mismatch`].
+    #[error("{0}")]
+    Version(String),
     /// Sending or receiving failed at run time.
     #[error("{what}: {reason}")]
     Io {

@@ -107,7 +107,7 @@ impl Transport {
             .max_subscribers(self.qos.max_subscribers)
             .max_publishers(1)
             .open_or_create()
-            .map_err(|e| setup("service", name, e))
+            .map_err(|e| self.open_error(name, e))
     }
 
     /// The publishing side of service `name`, with an event service of the same name that is
@@ -138,7 +138,7 @@ impl Transport {
             .service_builder(&service_name(name)?)
             .publish_subscribe::<T>()
             .open()
-            .map_err(|e| setup("service", name, e))?;
+            .map_err(|e| self.open_error(name, e))?;
         self.output_on(service, name, notify)
     }
 
@@ -210,7 +210,7 @@ impl Transport {
             .service_builder(&service_name(name)?)
             .publish_subscribe::<T>()
             .open()
-            .map_err(|e| setup("service", name, e))?;
+            .map_err(|e| self.open_error(name, e))?;
         let cfg = service.static_config();
         let (buffer, safe_overflow) = (cfg.subscriber_max_buffer_size(), cfg.has_safe_overflow());
         if buffer < self.qos.buffer_size || safe_overflow {
@@ -240,7 +240,7 @@ impl Transport {
             .service_builder(&service_name(name)?)
             .publish_subscribe::<T>()
             .open()
-            .map_err(|e| setup("service", name, e))?;
+            .map_err(|e| self.open_error(name, e))?;
         let max = service.static_config().subscriber_max_buffer_size();
         let subscriber = service
             .subscriber_builder()
@@ -277,6 +277,20 @@ impl Transport {
         } else {
             Ok(None)
         }
+    }
+
+    /// An error opening the publish-subscribe service `name`: iceoryx2 says only
+    /// `IncompatibleTypes`; when the service carries another layout version of one of our
+    /// types, say which and what to do ([`TransportError::Version`]).
+    fn open_error(&self, name: &str, e: impl Debug) -> TransportError {
+        if format!("{e:?}").contains("IncompatibleTypes") {
+            let found = self.payload_type_name(name).ok().flatten();
+            let what = format!("service {name:?}");
+            if let Some(m) = found.and_then(|t| super::wire_version_mismatch(&what, &t)) {
+                return TransportError::Version(m);
+            }
+        }
+        setup("service", name, e)
     }
 
     /// The payload type name of the publish-subscribe service `name` (e.g.

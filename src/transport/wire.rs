@@ -66,8 +66,18 @@ pub fn flag_names(flags: u32) -> Vec<String> {
 
 /// Type name of [`RawSample`] on the wire.
 pub const RAW_TYPE_NAME: &str = "driftless::RawSample";
-/// Type name of [`GyroSample`] on the wire.
-pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample";
+/// Type name of [`GyroSample`] on the wire. The `.v2` names the layout: a layout change takes
+/// a new name, so that a subscriber built for another one is refused by iceoryx2
+/// (`IncompatibleTypes`) and by the Zenoh receivers, never handed bytes it misreads
+/// ([`wire_version_mismatch`] words the refusal).
+pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample.v2";
+/// The layout version of [`GyroSample`] (the `.vN` of [`GYRO_TYPE_NAME`]).
+pub const GYRO_VERSION: u32 = 2;
+/// The type name of [`GyroSample`] version 1 (104 bytes, before `drift_std`), as a driftless
+/// before it publishes it.
+pub const GYRO_V1_TYPE_NAME: &str = "driftless::GyroSample";
+/// Size of [`GyroSample`] version 1, bytes.
+pub const GYRO_V1_SIZE: usize = 104;
 /// Type name of [`StatsSnapshot`] on the wire.
 pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
 /// Type name of [`StopSignal`] on the wire.
@@ -125,7 +135,13 @@ pub struct RawSample {
     pub epoch: u32,
 }
 
-/// A processed gyro sample: every hop after the ingest carries one (104 bytes, 8-byte aligned).
+/// `drift_std` on an axis where no stage estimated the drift's uncertainty (`predict.none`,
+/// `predict.rbf`, a chain without a predict stage): "not provided", as ROS marks an unknown
+/// covariance. Never NaN: a subscriber tests `< 0.0`.
+pub const DRIFT_STD_NOT_PROVIDED: f64 = -1.0;
+
+/// A processed gyro sample: every hop after the ingest carries one (128 bytes, 8-byte aligned;
+/// type name [`GYRO_TYPE_NAME`], layout version [`GYRO_VERSION`]).
 ///
 /// | offset | type | field |
 /// |---:|---|---|
@@ -137,9 +153,14 @@ pub struct RawSample {
 /// | 72 | `[f64; 3]` | `denoised` denoised rate, rad/s |
 /// | 96 | u32 | `flags` ([`FLAG_WARMING_UP`], [`FLAG_INPUT_INVALID`], ...) |
 /// | 100 | u32 | `epoch` the stream's run id: `seq` counts within one epoch |
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+/// | 104 | `[f64; 3]` | `drift_std` 1-sigma of `drift`, rad/s; -1: not provided |
+///
+/// `drift_std` comes last so that every field of version 1 keeps its offset (and the struct
+/// needs no padding); the layout change is told by the type name, not by the offsets.
+/// [`Default`] gives zeros with `drift_std` not provided.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("driftless::GyroSample")]
+#[type_name("driftless::GyroSample.v2")]
 pub struct GyroSample {
     /// Sensor timestamp of this sample in nanoseconds.
     pub t_ns: u64,
@@ -161,6 +182,64 @@ pub struct GyroSample {
     /// counts within one epoch: a subscriber that sees the epoch change starts counting again,
     /// instead of taking the new run's samples for duplicates or reordered ones.
     pub epoch: u32,
+    /// Standard deviation (1 sigma) of the drift estimate removed on each axis, rad/s: the
+    /// bias filter's own (`predict.bias`). [`DRIFT_STD_NOT_PROVIDED`] (-1) where no stage
+    /// estimates it (`predict.none`, `predict.rbf`, no predict stage); never NaN. Stages that
+    /// do not estimate drift pass it through; one that resets `drift` to 0 resets it too.
+    pub drift_std: [f64; 3],
+}
+
+impl Default for GyroSample {
+    /// Zeros, with `drift_std` not provided (a zero would claim a drift known exactly).
+    fn default() -> Self {
+        GyroSample {
+            t_ns: 0,
+            seq: 0,
+            ingest_ns: 0,
+            rate: [0.0; 3],
+            drift: [0.0; 3],
+            denoised: [0.0; 3],
+            flags: 0,
+            epoch: 0,
+            drift_std: [DRIFT_STD_NOT_PROVIDED; 3],
+        }
+    }
+}
+
+/// The refusal of a payload type that is another layout version of one of ours (a
+/// [`GyroSample`] of an older or newer driftless), met as `what` (e.g. `service
+/// "demo/corrected"`, or a Zenoh sample with its encoding); `None` when `type_name` is ours or
+/// not a version of ours at all. The one place that knows the versions: `tap`, `record`,
+/// `bridge`, the transport's errors and the Zenoh receiver word their refusal with it.
+pub fn wire_version_mismatch(what: &str, type_name: &str) -> Option<String> {
+    let version = if type_name == GYRO_V1_TYPE_NAME {
+        1
+    } else {
+        type_name
+            .strip_prefix(GYRO_V1_TYPE_NAME)?
+            .strip_prefix(".v")?
+            .parse::<u32>()
+            .ok()?
+    };
+    if version == GYRO_VERSION {
+        return None;
+    }
+    let whose = if version < GYRO_VERSION {
+        "an older"
+    } else {
+        "a newer"
+    };
+    let size = if version == 1 {
+        format!(", {GYRO_V1_SIZE} bytes")
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "{what} carries {type_name} (layout v{version}{size}, from {whose} driftless); this \
+         driftless reads {GYRO_TYPE_NAME} (layout v{GYRO_VERSION}, {} bytes, with drift_std): \
+         run the daemon and its subscribers from one release (docs/wire-types.md#versions)",
+        std::mem::size_of::<GyroSample>()
+    ))
 }
 
 /// A sample type that crosses a network as its documented little-endian bytes: the same layout
@@ -231,7 +310,7 @@ impl WireBytes for RawSample {
 }
 
 impl WireBytes for GyroSample {
-    const SIZE: usize = 104;
+    const SIZE: usize = 128;
     const TYPE_NAME: &'static str = GYRO_TYPE_NAME;
 
     fn encode(&self, out: &mut Vec<u8>) {
@@ -244,6 +323,7 @@ impl WireBytes for GyroSample {
         put_f64x3(out, &self.denoised);
         out.extend_from_slice(&self.flags.to_le_bytes());
         out.extend_from_slice(&self.epoch.to_le_bytes());
+        put_f64x3(out, &self.drift_std);
     }
 
     fn decode(bytes: &[u8]) -> Option<Self> {
@@ -260,6 +340,7 @@ impl WireBytes for GyroSample {
             denoised: r.f64x3(),
             flags: r.u32(),
             epoch: r.u32(),
+            drift_std: r.f64x3(),
         })
     }
 }
@@ -346,12 +427,49 @@ mod tests {
         assert_eq!(std::mem::align_of::<RawSample>(), 8);
         assert_eq!(std::mem::offset_of!(RawSample, rate), 16);
         assert_eq!(std::mem::offset_of!(RawSample, flags), 40);
-        assert_eq!(std::mem::size_of::<GyroSample>(), 104);
+        assert_eq!(std::mem::size_of::<GyroSample>(), 128);
+        assert_eq!(std::mem::align_of::<GyroSample>(), 8);
         assert_eq!(std::mem::offset_of!(GyroSample, ingest_ns), 16);
         assert_eq!(std::mem::offset_of!(GyroSample, rate), 24);
         assert_eq!(std::mem::offset_of!(GyroSample, drift), 48);
         assert_eq!(std::mem::offset_of!(GyroSample, denoised), 72);
         assert_eq!(std::mem::offset_of!(GyroSample, flags), 96);
+        assert_eq!(std::mem::offset_of!(GyroSample, epoch), 100);
+        assert_eq!(std::mem::offset_of!(GyroSample, drift_std), 104);
+        // Version 1 was this layout up to `epoch`.
+        assert_eq!(std::mem::offset_of!(GyroSample, drift_std), GYRO_V1_SIZE);
+        assert_eq!(GyroSample::default().drift_std, [DRIFT_STD_NOT_PROVIDED; 3]);
+    }
+
+    #[test]
+    fn another_layout_version_is_named_and_ours_is_not() {
+        let old = wire_version_mismatch("service \"d/corrected\"", GYRO_V1_TYPE_NAME).unwrap();
+        assert_eq!(
+            old,
+            "service \"d/corrected\" carries driftless::GyroSample (layout v1, 104 bytes, from \
+             an older driftless); this driftless reads driftless::GyroSample.v2 (layout v2, 128 \
+             bytes, with drift_std): run the daemon and its subscribers from one release \
+             (docs/wire-types.md#versions)"
+        );
+        let newer = wire_version_mismatch("key k", "driftless::GyroSample.v3").unwrap();
+        assert!(
+            newer.contains("(layout v3, from a newer driftless)"),
+            "{newer}"
+        );
+        for not_a_version in [
+            GYRO_TYPE_NAME,
+            RAW_TYPE_NAME,
+            STATS_TYPE_NAME,
+            "driftless::GyroSample.vx",
+            "driftless::GyroSampleX",
+            "other::GyroSample",
+        ] {
+            assert_eq!(
+                wire_version_mismatch("s", not_a_version),
+                None,
+                "{not_a_version}"
+            );
+        }
     }
 
     /// The bytes a bridge sends are the bytes in shared memory (on this little-endian host),
@@ -374,6 +492,7 @@ mod tests {
             denoised: [0.1, 0.2, 0.3],
             flags: FLAG_STILL | FLAG_GAP_BEFORE,
             epoch: 0xdead_beef,
+            drift_std: [1e-5, DRIFT_STD_NOT_PROVIDED, 3.5e-7],
         };
         let r = RawSample {
             t_ns: 9,
@@ -390,8 +509,11 @@ mod tests {
         }
         assert_eq!(&out[8..16], &g.seq.to_le_bytes());
         assert_eq!(&out[96..100], &g.flags.to_le_bytes());
+        assert_eq!(&out[104..112], &1e-5f64.to_le_bytes());
         assert_eq!(GyroSample::decode(&out), Some(g));
-        assert_eq!(GyroSample::decode(&out[..103]), None);
+        assert_eq!(GyroSample::decode(&out[..127]), None);
+        // A version 1 payload is refused, not read as a short version 2.
+        assert_eq!(GyroSample::decode(&out[..GYRO_V1_SIZE]), None);
         r.encode(&mut out);
         assert_eq!(out.len(), RawSample::SIZE);
         if cfg!(target_endian = "little") {

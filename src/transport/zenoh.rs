@@ -237,13 +237,26 @@ pub enum Rejected {
     Size(usize),
     /// The sample's encoding names another type.
     Encoding(String),
+    /// The sample's encoding names another layout version of the type (a bridge of another
+    /// driftless release): the sentence of [`super::wire_version_mismatch`].
+    Version(String),
 }
 
 impl std::fmt::Display for Rejected {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            // Without an encoding schema, the size is all there is to go on.
+            Rejected::Size(n) if *n == super::GYRO_V1_SIZE => write!(
+                f,
+                "payload of {n} bytes, the size of {} layout v1 (from an older driftless); \
+                 this driftless reads {} ({} bytes)",
+                super::GYRO_V1_TYPE_NAME,
+                super::GYRO_TYPE_NAME,
+                <super::GyroSample as WireBytes>::SIZE
+            ),
             Rejected::Size(n) => write!(f, "payload of {n} bytes"),
             Rejected::Encoding(e) => write!(f, "encoding {e}"),
+            Rejected::Version(m) => f.write_str(m),
         }
     }
 }
@@ -282,20 +295,52 @@ impl Receiver {
 }
 
 fn decode_sample<T: WireBytes>(sample: &Sample) -> Result<T, Rejected> {
+    decode_payload(&sample.encoding().to_string(), &sample.payload().to_bytes())
+}
+
+/// A `T` from a sample's encoding as text and its payload.
+fn decode_payload<T: WireBytes>(enc: &str, bytes: &[u8]) -> Result<T, Rejected> {
     // Shown as `application/octet-stream;driftless::RawSample`: the schema follows the `;`.
-    let enc = sample.encoding().to_string();
     if let Some((_, schema)) = enc.split_once(';') {
         if schema != T::TYPE_NAME {
-            return Err(Rejected::Encoding(enc));
+            return Err(
+                match super::wire_version_mismatch(&format!("the sample ({enc})"), schema) {
+                    Some(m) => Rejected::Version(m),
+                    None => Rejected::Encoding(enc.to_string()),
+                },
+            );
         }
     }
-    let bytes = sample.payload().to_bytes();
-    T::decode(&bytes).ok_or(Rejected::Size(bytes.len()))
+    T::decode(bytes).ok_or(Rejected::Size(bytes.len()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_old_gyro_payload_is_refused_by_its_version() {
+        use crate::transport::{GyroSample, GYRO_TYPE_NAME, GYRO_V1_TYPE_NAME};
+        let enc = |schema: &str| {
+            Encoding::APPLICATION_OCTET_STREAM
+                .with_schema(schema.to_string())
+                .to_string()
+        };
+        let why = decode_payload::<GyroSample>(&enc(GYRO_V1_TYPE_NAME), &[0; 104]).unwrap_err();
+        assert!(matches!(why, Rejected::Version(_)), "{why:?}");
+        assert!(
+            why.to_string().starts_with(
+                "the sample (application/octet-stream;driftless::GyroSample) carries \
+                 driftless::GyroSample (layout v1, 104 bytes, from an older driftless)"
+            ),
+            "{why}"
+        );
+        assert!(decode_payload::<GyroSample>(&enc(GYRO_TYPE_NAME), &[0; 128]).is_ok());
+        // No schema, the old size: the size says it.
+        let why = decode_payload::<GyroSample>("application/octet-stream", &[0; 104]).unwrap_err();
+        assert_eq!(why, Rejected::Size(104));
+        assert!(why.to_string().contains("layout v1"), "{why}");
+    }
 
     #[test]
     fn zenoh_messages_lose_their_source_file_and_keep_the_users_position() {

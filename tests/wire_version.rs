@@ -1,0 +1,121 @@
+//! `GyroSample`'s layout version between real processes: a service of the version 1 layout (as
+//! a driftless before `drift_std` publishes it) is refused by name by `tap`, `record` and the
+//! transport, and a subscriber built for version 1 cannot open our version 2 service (iceoryx2
+//! refuses it: it is never handed bytes it would misread).
+
+mod common;
+
+use common::{text, Prefix};
+use driftless::transport::{
+    GyroSample, Qos, Transport, TransportError, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME,
+};
+use iceoryx2::prelude::*;
+
+/// `GyroSample` as driftless published it before `drift_std` (layout version 1, 104 bytes).
+#[derive(Debug, Clone, Copy, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::GyroSample")]
+struct GyroSampleV1 {
+    t_ns: u64,
+    seq: u64,
+    ingest_ns: u64,
+    rate: [f64; 3],
+    drift: [f64; 3],
+    denoised: [f64; 3],
+    flags: u32,
+    epoch: u32,
+}
+
+fn node(prefix: &Prefix, name: &str) -> Node<ipc::Service> {
+    let mut cfg = iceoryx2::config::Config::default();
+    cfg.global.prefix = FileName::new(prefix.0.as_bytes()).expect("prefix");
+    NodeBuilder::new()
+        .name(&NodeName::new(name).expect("name"))
+        .config(&cfg)
+        .create::<ipc::Service>()
+        .expect("node")
+}
+
+/// The sentence every one of our tools gives for a version 1 service named `service`.
+fn refusal(service: &str) -> String {
+    format!(
+        "service {service:?} carries driftless::GyroSample (layout v1, 104 bytes, from an older \
+         driftless); this driftless reads driftless::GyroSample.v2 (layout v2, 128 bytes, with \
+         drift_std): run the daemon and its subscribers from one release \
+         (docs/wire-types.md#versions)"
+    )
+}
+
+#[test]
+fn an_old_layout_service_is_refused_by_name_and_an_old_subscriber_cannot_open_ours() {
+    assert_eq!(std::mem::size_of::<GyroSampleV1>(), GYRO_V1_SIZE);
+    // SAFETY: type_name only returns the static string of the derive attribute.
+    assert_eq!(unsafe { GyroSampleV1::type_name() }, GYRO_V1_TYPE_NAME);
+    let prefix = Prefix::new("wirever");
+    let dir = common::Dir::new();
+
+    // An older driftless's service, from this process with iceoryx2's own API.
+    let old = node(&prefix, "old-daemon");
+    let old_service = old
+        .service_builder(&"old/corrected".try_into().expect("name"))
+        .publish_subscribe::<GyroSampleV1>()
+        .open_or_create()
+        .expect("old service");
+    let old_publisher = old_service.publisher_builder().create().expect("publisher");
+    old_publisher
+        .send_copy(GyroSampleV1::default())
+        .expect("send");
+
+    let want = refusal("old/corrected");
+    let o = common::driftless(&[
+        "tap",
+        "old/corrected",
+        "--prefix",
+        &prefix.0,
+        "--count",
+        "1",
+    ]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "tap: {err}");
+    assert!(out.is_empty(), "nothing printed as samples: {out}");
+    assert_eq!(err.trim_end(), format!("driftless: error: {want}"), "tap");
+
+    let file = dir.path("r.mcap");
+    let o = common::driftless(&[
+        "record",
+        "old/corrected",
+        "-o",
+        file.to_str().unwrap(),
+        "--prefix",
+        &prefix.0,
+        "--duration",
+        "1s",
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "record: {err}");
+    assert!(err.contains(&want), "record: {err}");
+
+    // Our transport (the daemon's external stages, nav_subscriber) says the same.
+    let me = Transport::new(&prefix.0, "new-subscriber", Qos::default()).expect("node");
+    match me.open_input::<GyroSample>("old/corrected") {
+        Err(TransportError::Version(m)) => assert_eq!(m, want),
+        Err(e) => panic!("not a version refusal: {e}"),
+        Ok(_) => panic!("a version 1 service was opened as version 2"),
+    }
+
+    // The other way: our service, and a subscriber built for version 1.
+    let _ours = me
+        .output::<GyroSample>("new/corrected", false)
+        .expect("ours");
+    let opened = old
+        .service_builder(&"new/corrected".try_into().expect("name"))
+        .publish_subscribe::<GyroSampleV1>()
+        .open();
+    match opened {
+        Err(e) => assert_eq!(format!("{e:?}"), "IncompatibleTypes"),
+        Ok(_) => panic!("a version 1 subscriber opened a version 2 service"),
+    }
+
+    drop((old_publisher, old_service, old, me, _ours));
+    driftless::transport::remove_prefix_leftovers(&prefix.0);
+}
