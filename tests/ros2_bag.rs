@@ -5,7 +5,9 @@
 //! message; what our writer writes reads back bit for bit, and the committed written.mcap,
 //! which rosbags read and checked message by message (written.json), is what the writer still
 //! writes (`DRIFTLESS_BLESS=1` rewrites it after a deliberate change; then rerun the script's
-//! `check`).
+//! `check`); and recorded.mcap, what `driftless record --format ros2` recorded of a daemon
+//! replaying imu.mcap (tests/record.rs), reads here as rosbags read it (recorded.json: every
+//! message's stamp, angular velocity and covariance, by digest).
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -598,4 +600,64 @@ fn the_committed_written_bag_is_what_the_writer_writes_and_what_rosbags_read() {
         .map(|v| v.as_f64().unwrap())
         .collect();
     assert!(same_bits(&imu.angular_velocity, &w));
+}
+
+/// Per topic of a bag: (count, frame ids, first and last stamps, SHA-256 over every message's
+/// stamp, angular velocity and covariance bytes), as scripts/gen_ros2_fixture.py `recorded`
+/// computes it from rosbags' reading.
+fn recorded_digest(bag: &Bag, topic: &str) -> (u64, Vec<String>, [i64; 2], [i64; 2], String) {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    let (mut n, mut frames, mut first, mut last) = (0u64, Vec::<String>::new(), None, [0i64; 2]);
+    for r in read_all(bag, topic) {
+        let m = r.imu;
+        if !frames.contains(&m.frame_id) {
+            frames.push(m.frame_id.clone());
+        }
+        let stamp = [i64::from(m.stamp.sec), i64::from(m.stamp.nanosec)];
+        first.get_or_insert(stamp);
+        last = stamp;
+        n += 1;
+        h.update(m.stamp.sec.to_le_bytes());
+        h.update(m.stamp.nanosec.to_le_bytes());
+        for v in m
+            .angular_velocity
+            .iter()
+            .chain(&m.angular_velocity_covariance)
+        {
+            h.update(v.to_le_bytes());
+        }
+    }
+    let hex: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+    (n, frames, first.unwrap_or_default(), last, hex)
+}
+
+#[test]
+fn the_committed_ros2_recording_reads_as_rosbags_read_it() {
+    // recorded.mcap: `driftless record --format ros2` of a daemon replaying imu.mcap
+    // (tests/record.rs writes it under DRIFTLESS_BLESS=1); recorded.json: rosbags' reading.
+    let bag = Bag::open(&fixture("recorded.mcap")).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture("recorded.json")).unwrap()).unwrap();
+    assert_eq!(json["reader"], "rosbags 0.11.9");
+    assert_eq!(json["every_message_checked"], true);
+    let topics = json["topics"].as_object().unwrap();
+    let ours: Vec<String> = bag.imu_topics().into_iter().map(|t| t.topic).collect();
+    assert_eq!(ours, topics.keys().cloned().collect::<Vec<_>>());
+    assert_eq!(ours, ["/rt/corrected", "/rt/raw"]);
+    for (topic, t) in topics {
+        assert_eq!(t["type"], IMU_TYPE);
+        assert_eq!(t["message_encoding"], "cdr");
+        assert_eq!(t["definition_format"], "MSG");
+        let (n, frames, first, last, sha) = recorded_digest(&bag, topic);
+        assert_eq!(t["count"], n, "{topic}");
+        assert_eq!(t["messages"], n, "{topic}: the summary's count");
+        assert_eq!(t["frame_ids"], serde_json::json!(frames), "{topic}");
+        assert_eq!(t["first"], serde_json::json!(first), "{topic}");
+        assert_eq!(t["last"], serde_json::json!(last), "{topic}");
+        assert_eq!(
+            t["sha256"], sha,
+            "{topic}: every message as rosbags read it"
+        );
+    }
 }

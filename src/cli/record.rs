@@ -609,11 +609,6 @@ fn write(
         .map_err(|e| format!("write failed: {}", mcap_error(&e)))
 }
 
-/// The drift's 1-sigma a gyro sample carries (negative: not provided).
-fn gyro_drift_std(_s: &GyroSample) -> [f64; 3] {
-    [-1.0; 3]
-}
-
 /// Take every sample of every service until a signal or the deadline, then once more; returns
 /// what stopped it.
 fn drain(
@@ -701,8 +696,7 @@ impl Recorded {
                         s.map(|s| {
                             self.counts.count(s.epoch, s.seq);
                             let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-                            m.fill(s.t_ns, s.rate, gyro_drift_std(&s), held)
-                                .map(|()| s.seq)
+                            m.fill(s.t_ns, s.rate, s.drift_std, held).map(|()| s.seq)
                         })
                     }),
                     Port::Stats(_) => unreachable!("refused at subscribe with --format ros2"),
