@@ -95,6 +95,23 @@ fn an_old_layout_service_is_refused_by_name_and_an_old_subscriber_cannot_open_ou
     assert_eq!(o.status.code(), Some(2), "record: {err}");
     assert!(err.contains(&want), "record: {err}");
 
+    // `list` names it as ours in another version, not as a foreign type.
+    let o = common::driftless(&["list", "--prefix", &prefix.0, "--json"]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "list: {err}");
+    let doc: serde_json::Value = serde_json::from_str(&out).expect("list --json");
+    let listed = doc["services"]
+        .as_array()
+        .expect("services")
+        .iter()
+        .find(|s| s["name"] == "old/corrected" && s["pattern"] == "publish-subscribe")
+        .unwrap_or_else(|| panic!("old/corrected not listed: {doc:#}"));
+    assert_eq!(
+        listed["wire_type"], "GyroSample (other version)",
+        "{listed}"
+    );
+    assert_eq!(listed["type"], GYRO_V1_TYPE_NAME, "{listed}");
+
     // Our transport (the daemon's external stages, nav_subscriber) says the same.
     let me = Transport::new(&prefix.0, "new-subscriber", Qos::default()).expect("node");
     match me.open_input::<GyroSample>("old/corrected") {

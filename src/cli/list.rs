@@ -165,6 +165,13 @@ fn pid_text(n: &ListedNode) -> String {
 fn type_text(kind: &ServiceKind) -> &str {
     match kind {
         ServiceKind::PubSub { wire: Some(w), .. } => w.short_name(),
+        // Ours, in another layout version (an older or newer driftless's daemon).
+        ServiceKind::PubSub {
+            wire: None,
+            type_name,
+        } if crate::transport::wire_version_mismatch("", type_name).is_some() => {
+            "GyroSample (other version)"
+        }
         ServiceKind::PubSub { wire: None, .. } => "foreign",
         ServiceKind::Event => "event",
         ServiceKind::Other(pattern) => pattern,
