@@ -445,3 +445,37 @@ fn ingest_mcap_replays_a_bag_once_in_order_flagging_what_it_cannot_use() {
         }
     }
 }
+
+#[test]
+fn ingest_mcap_refuses_a_bag_at_another_rate_or_units_with_file_line_col() {
+    let dir = Dir::new();
+    let bag = fixture("imu.mcap");
+    let good = std::fs::read_to_string(bag_pipeline(&dir, "badbag", &bag)).unwrap();
+    for (from, to, want) in [
+        (
+            "rate_hz = 100.0",
+            "rate_hz = 200.0",
+            "its stamps step 10000000 ns at the median (100.000000 Hz), but the pipeline's \
+             rate is 200 Hz",
+        ),
+        (
+            "input_units = \"rad/s\"",
+            "input_units = \"deg/s\"",
+            "is a sensor_msgs/msg/Imu: its angular velocity is in rad/s (REP 103), but the \
+             pipeline's input_units is deg/s",
+        ),
+    ] {
+        let p = dir.write("bad.toml", &good.replace(from, to));
+        let o = driftless(&["validate", p.to_str().unwrap()]);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{to}: {err}");
+        // At the `file` key (line 12, column 8).
+        let at = format!(
+            "driftless: error: {}:12:8: topic /imu/data of ",
+            p.display()
+        );
+        assert!(err.starts_with(&at), "{err}");
+        assert!(err.contains(want), "{to}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    }
+}

@@ -61,8 +61,8 @@ impl Stamps {
         (self.median_interval_ns > 0).then(|| 1e9 / self.median_interval_ns as f64)
     }
 
-    /// From the stamps in order (each rising).
-    fn from_stamps(stamps: &[i64]) -> Stamps {
+    /// From stamps in file order, ns (a step back counts as a short interval).
+    pub fn from_stamps(stamps: &[i64]) -> Stamps {
         let mut intervals: Vec<i64> = stamps.windows(2).map(|w| w[1] - w[0]).collect();
         let mut s = Stamps {
             count: stamps.len() as u64,

@@ -32,6 +32,7 @@ use std::path::PathBuf;
 
 use toml::Spanned;
 
+use crate::io::rate_log::Stamps;
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
@@ -303,23 +304,23 @@ fn parse_bag(
             Err(e) => return Err(src.at(at, e)),
         }
     }
-    let mut intervals: Vec<i64> = stamps.windows(2).map(|w| w[1] - w[0]).collect();
-    if intervals.is_empty() {
-        return Err(src.at(
-            at,
-            format!("topic {topic} of {shown}: fewer than 2 messages with a stamp: no rate"),
-        ));
-    }
-    let mid = intervals.len() / 2;
-    let median = *intervals.select_nth_unstable(mid).1;
-    let stamps_hz = 1e9 / median as f64;
-    if !(median > 0 && (stamps_hz - t.cx.rate_hz).abs() <= 0.01 * t.cx.rate_hz) {
+    let steps = Stamps::from_stamps(&stamps);
+    let Some(stamps_hz) = steps.rate_hz() else {
         return Err(src.at(
             at,
             format!(
-                "topic {topic} of {shown}: its stamps step {median} ns at the median ({stamps_hz:.6} \
+                "topic {topic} of {shown}: its first {} stamps give no rate (median step {} ns)",
+                steps.count, steps.median_interval_ns
+            ),
+        ));
+    };
+    if (stamps_hz - t.cx.rate_hz).abs() > 0.01 * t.cx.rate_hz {
+        return Err(src.at(
+            at,
+            format!(
+                "topic {topic} of {shown}: its stamps step {} ns at the median ({stamps_hz:.6} \
                  Hz), but the pipeline's rate is {} Hz",
-                t.cx.rate_hz
+                steps.median_interval_ns, t.cx.rate_hz
             ),
         ));
     }
