@@ -479,3 +479,33 @@ fn ingest_mcap_refuses_a_bag_at_another_rate_or_units_with_file_line_col() {
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     }
 }
+
+#[test]
+fn a_looped_bag_whose_first_message_does_not_decode_keeps_its_time_base() {
+    let dir = Dir::new();
+    let file = dir.path("loop.mcap");
+    // bag_with_bad's log times are 1 s + 10 ms per message; the stamps here say the same.
+    let good = |k: i64| Some(imu(1_000_000_000 + k * 10_000_000, [0.01, 0.0, 0.0]));
+    bag_with_bad(&file, &[None, good(1), good(2)]);
+    let text_ = std::fs::read_to_string(bag_pipeline(&dir, "bagloop", &file))
+        .unwrap()
+        .replace("pace = \"asap\"", "loop = true");
+    let pipeline = dir.write("loop.toml", &text_);
+    let prefix = Prefix::new("bagloop");
+    let me = Transport::new(&prefix.0, "reader", qos(4096)).expect("node");
+    let sub = me
+        .input::<GyroSample>("bagloop/corrected")
+        .expect("subscriber");
+    let daemon = start(&pipeline, &prefix, &["--duration", "2s"]);
+    let got = collect(&sub, 6, Duration::from_secs(20));
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    let t: Vec<(u64, u64)> = got.iter().map(|s| (s.seq, s.t_ns)).collect();
+    // The second pass starts one period after the first pass's last real stamp, whatever
+    // the undecodable first message held.
+    assert_eq!(
+        t[3..],
+        [(3, 1_020_000_000), (4, 1_030_000_000), (5, 1_040_000_000)],
+        "{t:?}"
+    );
+}

@@ -352,6 +352,8 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
         }
     };
     let (mut seq_offset, mut t_offset, mut bad) = (0u64, 0u64, 0u64);
+    // The last time replayed: what an invalid sample holds.
+    let mut held = 0u64;
     loop {
         let messages = match bag.imu_messages(&params.topic) {
             Ok(m) => m,
@@ -363,8 +365,8 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
         let (mut seq, mut first_t, mut last_t) = (0u64, None::<u64>, 0u64);
         for m in messages {
             let mut s = RawSample {
-                t_ns: last_t,
-                seq,
+                t_ns: held,
+                seq: seq.wrapping_add(seq_offset),
                 rate: [f64::NAN; 3],
                 flags: RAW_INVALID,
                 epoch: 0,
@@ -372,11 +374,13 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
             match m {
                 Ok(m) => {
                     s.rate = m.imu.angular_velocity;
-                    s.flags = 0;
                     // Before 1970 a stamp has no place on the u64 clock: held, flagged invalid.
-                    match m.imu.stamp.ns_u64() {
-                        Some(t) => s.t_ns = t,
-                        None => s.flags = RAW_INVALID,
+                    if let Some(t) = m.imu.stamp.ns_u64() {
+                        s.flags = 0;
+                        s.t_ns = t.wrapping_add(t_offset);
+                        // The loop's span, from real stamps only.
+                        first_t.get_or_insert(t);
+                        last_t = t;
                     }
                 }
                 Err(e) if e.kind == BagErrorKind::Cdr => {
@@ -392,10 +396,7 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
                     return;
                 }
             }
-            first_t.get_or_insert(s.t_ns);
-            last_t = s.t_ns;
-            s.seq = seq.wrapping_add(seq_offset);
-            s.t_ns = s.t_ns.wrapping_add(t_offset);
+            held = s.t_ns;
             seq += 1;
             if !sink.push(s) {
                 return;
