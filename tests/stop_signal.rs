@@ -137,7 +137,7 @@ output = "v/corrected"
     let drift_deg = |s: &GyroSample| s.drift[0].to_degrees();
     // Fresh "stands": still from the first samples (no detector window to fill), the bias
     // measured from them.
-    assert!(got[50..3000].iter().all(|s| s.flags & FLAG_STILL != 0));
+    all_still(&got, 50..3000);
     assert!(
         (drift_deg(&got[2999]) - BIAS_DEG_S).abs() < 0.01,
         "{}",
@@ -159,7 +159,7 @@ output = "v/corrected"
         .iter()
         .all(|s| s.flags & FLAG_STOP_CONTRADICTED == 0));
     // Back to a true stop: still from its first samples again, nothing flagged.
-    assert!(got[4100..6000].iter().all(|s| s.flags & FLAG_STILL != 0));
+    all_still(&got, 4100..6000);
     // "Moves" is trusted: moving, not flagged.
     assert!(got[6000..6500]
         .iter()
@@ -195,4 +195,20 @@ output = "v/corrected"
             "{l}"
         );
     }
+}
+
+/// Every sample of `range` flagged still; else the first that is not and how many, with the
+/// report's flag names, so that a failure says where the stop was lost.
+fn all_still(got: &[GyroSample], range: std::ops::Range<usize>) {
+    let not: Vec<usize> = range
+        .clone()
+        .filter(|&i| got[i].flags & FLAG_STILL == 0)
+        .collect();
+    assert!(
+        not.is_empty(),
+        "{} of samples {range:?} not still, the first {} with flags {:?}",
+        not.len(),
+        not[0],
+        driftless::transport::flag_names(got[not[0]].flags)
+    );
 }
