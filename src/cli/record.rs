@@ -127,15 +127,28 @@ impl Ros2Message {
         }
     }
 
+    /// A raw sample's message, in CDR into `out`.
+    fn raw(&mut self, s: &RawSample, out: &mut Vec<u8>) -> Result<(), String> {
+        let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
+        self.encode(s.t_ns, s.rate, [-1.0; 3], held, out)
+    }
+
+    /// A gyro sample's message, in CDR into `out`.
+    fn gyro(&mut self, s: &GyroSample, out: &mut Vec<u8>) -> Result<(), String> {
+        let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
+        self.encode(s.t_ns, s.rate, s.drift_std, held, out)
+    }
+
     /// The message of a sample at `t_ns` with `rate` (in the samples' units) and, where a
     /// stage estimated it, the drift's 1-sigma per axis (rad/s; negative: not provided);
     /// `held` when its value is not a measurement.
-    fn fill(
+    fn encode(
         &mut self,
         t_ns: u64,
         rate: [f64; 3],
         drift_std: [f64; 3],
         held: bool,
+        out: &mut Vec<u8>,
     ) -> Result<(), String> {
         let stamp = i64::try_from(t_ns)
             .ok()
@@ -153,7 +166,7 @@ impl Ros2Message {
         }
         self.imu.angular_velocity_covariance = cov;
         self.held += u64::from(held);
-        Ok(())
+        self.imu.write_cdr(out).map_err(|e| e.to_string())
     }
 }
 
@@ -682,55 +695,37 @@ impl Recorded {
         let mut n = 0;
         loop {
             json.clear();
-            if let Some(m) = &mut self.ros2 {
-                let received = match &self.port {
-                    Port::Raw(i) => i.receive().map(|s| {
-                        s.map(|s| {
-                            self.counts.count(s.epoch, s.seq);
-                            let held =
-                                s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
-                            m.fill(s.t_ns, s.rate, [-1.0; 3], held).map(|()| s.seq)
-                        })
-                    }),
-                    Port::Gyro(i) => i.receive().map(|s| {
-                        s.map(|s| {
-                            self.counts.count(s.epoch, s.seq);
-                            let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-                            m.fill(s.t_ns, s.rate, s.drift_std, held).map(|()| s.seq)
-                        })
-                    }),
-                    Port::Stats(_) => unreachable!("refused at subscribe with --format ros2"),
-                }
-                .map_err(|e| format!("{}: {e}", self.service))?;
-                let Some(filled) = received else {
-                    return Ok(n);
-                };
-                let seq = filled.map_err(|e| format!("{}: {e}", self.service))?;
-                m.imu
-                    .write_cdr(json)
-                    .map_err(|e| format!("{}: {e}", self.service))?;
-                write(writer, self.channel, seq, now, json)?;
-                n += 1;
-                continue;
-            }
+            // With --format ros2, a sensor_msgs/msg/Imu in CDR; else our JSON.
             let received = match &self.port {
                 Port::Raw(i) => i.receive().map(|s| {
                     s.map(|s| {
                         self.counts.count(s.epoch, s.seq);
-                        serde_json::to_writer(&mut *json, &RawMessage::from(&s)).map(|()| s.seq)
+                        match &mut self.ros2 {
+                            Some(m) => m.raw(&s, json),
+                            None => serde_json::to_writer(&mut *json, &RawMessage::from(&s))
+                                .map_err(|e| e.to_string()),
+                        }
+                        .map(|()| s.seq)
                     })
                 }),
                 Port::Gyro(i) => i.receive().map(|s| {
                     s.map(|s| {
                         self.counts.count(s.epoch, s.seq);
-                        serde_json::to_writer(&mut *json, &GyroMessage::from(&s)).map(|()| s.seq)
+                        match &mut self.ros2 {
+                            Some(m) => m.gyro(&s, json),
+                            None => serde_json::to_writer(&mut *json, &GyroMessage::from(&s))
+                                .map_err(|e| e.to_string()),
+                        }
+                        .map(|()| s.seq)
                     })
                 }),
+                // Refused at start with --format ros2.
                 Port::Stats(i) => i.receive().map(|s| {
                     s.map(|s| {
                         self.counts.count_unsequenced();
                         serde_json::to_writer(&mut *json, &StatsMessage::from(&s))
                             .map(|()| self.counts.samples)
+                            .map_err(|e| e.to_string())
                     })
                 }),
             }
