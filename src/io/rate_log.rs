@@ -318,7 +318,18 @@ pub fn read_log(
     let table = Table {
         path: path.to_path_buf(),
         names: picks.iter().map(|&i| BAG_COLUMNS[i].to_string()).collect(),
-        columns: picks.iter().map(|&i| axes[i].clone()).collect(),
+        // Each axis moved out at its last pick, copied only for a column named twice.
+        columns: picks
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                if picks[k + 1..].contains(&i) {
+                    axes[i].clone()
+                } else {
+                    std::mem::take(&mut axes[i])
+                }
+            })
+            .collect(),
         has_header: true,
         time,
     };
