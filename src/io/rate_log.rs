@@ -18,6 +18,10 @@ use super::ros2::{Bag, BagError, BagErrorKind};
 /// The column names a bag's angular velocity is read into.
 pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
 
+/// How far a rate given for a bag (a command's `--rate`, a pipeline's `rate_hz`) may lie from
+/// its stamps' rate, as a fraction of the reference rate.
+pub const RATE_TOLERANCE: f64 = 0.01;
+
 /// An interval further than this fraction from the median interval is irregular.
 const IRREGULAR_FRACTION: f64 = 0.5;
 
@@ -170,7 +174,7 @@ impl LogOrigin {
             ));
         };
         match given {
-            Some(r) if (r - stamps).abs() > 0.01 * stamps => Err(format!(
+            Some(r) if (r - stamps).abs() > RATE_TOLERANCE * stamps => Err(format!(
                 "{shown}: topic {}: --rate {r} Hz, but the stamps say {stamps:.6} Hz (median \
                  interval {} ns)",
                 bag.topic, bag.stamps.median_interval_ns

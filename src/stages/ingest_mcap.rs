@@ -32,7 +32,7 @@ use std::path::PathBuf;
 
 use toml::Spanned;
 
-use crate::io::rate_log::Stamps;
+use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
@@ -314,7 +314,7 @@ fn parse_bag(
             ),
         ));
     };
-    if (stamps_hz - t.cx.rate_hz).abs() > 0.01 * t.cx.rate_hz {
+    if (stamps_hz - t.cx.rate_hz).abs() > RATE_TOLERANCE * t.cx.rate_hz {
         return Err(src.at(
             at,
             format!(
