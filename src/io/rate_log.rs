@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 
 use super::csv_table::{read_table, read_table_keeping_time, InputError, Table, TimeColumn};
-use super::ros2::{Bag, BagError, BagErrorKind};
+use super::ros2::{seconds_text, Bag, BagError, BagErrorKind};
 
 /// The column names a bag's angular velocity is read into.
 pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
@@ -308,16 +308,7 @@ pub fn read_log(
     let time = keep_time.then(|| TimeColumn {
         name: "t_s".into(),
         position: 0,
-        cells: stamps
-            .iter()
-            .map(|&ns| {
-                format!(
-                    "{}.{:09}",
-                    ns.div_euclid(1_000_000_000),
-                    ns.rem_euclid(1_000_000_000)
-                )
-            })
-            .collect(),
+        cells: stamps.iter().map(|&ns| seconds_text(ns)).collect(),
     });
     let table = Table {
         path: path.to_path_buf(),

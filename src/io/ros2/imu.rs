@@ -99,6 +99,12 @@ impl Time {
         u64::try_from(self.ns()).ok()
     }
 
+    /// The time as exact decimal seconds, `-0.500000000` for half a second before 1970
+    /// ([`seconds_text`] of [`Time::ns`]).
+    pub fn seconds_text(self) -> String {
+        seconds_text(self.ns())
+    }
+
     /// The time `ns` since the epoch; None when its seconds do not fit an i32 (after 2038).
     pub fn from_ns(ns: i64) -> Option<Time> {
         Some(Time {
@@ -107,6 +113,14 @@ impl Time {
             nanosec: ns.rem_euclid(1_000_000_000) as u32,
         })
     }
+}
+
+/// `ns` nanoseconds as exact decimal seconds with nine decimals, the sign in front
+/// (`-0.500000000`, `1700000000.123456789`).
+pub fn seconds_text(ns: i64) -> String {
+    let sign = if ns < 0 { "-" } else { "" };
+    let a = ns.unsigned_abs();
+    format!("{sign}{}.{:09}", a / 1_000_000_000, a % 1_000_000_000)
 }
 
 /// A `sensor_msgs/msg/Imu` message. Units as the definition says (REP 103): rad/s, m/s^2;
@@ -388,6 +402,20 @@ impl Imu {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn seconds_text_is_exact_and_signed() {
+        assert_eq!(
+            seconds_text(1_700_000_000_123_456_789),
+            "1700000000.123456789"
+        );
+        assert_eq!(seconds_text(0), "0.000000000");
+        assert_eq!(seconds_text(-500_000_000), "-0.500000000");
+        assert_eq!(seconds_text(-1_250_000_000), "-1.250000000");
+        let t = Time::from_ns(-500_000_000).unwrap();
+        assert_eq!((t.sec, t.nanosec), (-1, 500_000_000));
+        assert_eq!(t.seconds_text(), "-0.500000000");
+    }
     use proptest::prelude::*;
 
     const Z: [u8; 8] = [0; 8];

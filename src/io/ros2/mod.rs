@@ -45,7 +45,7 @@ use crate::io::recording::{limited_reader, map_mcap, McapOpenError};
 
 mod imu;
 
-pub use imu::{CdrError, Imu, Time, IMU_DEFINITION};
+pub use imu::{seconds_text, CdrError, Imu, Time, IMU_DEFINITION};
 
 /// The ROS 2 type name of the IMU message (the MCAP schema name).
 pub const IMU_TYPE: &str = "sensor_msgs/msg/Imu";
@@ -699,9 +699,9 @@ impl ImuBagWriter {
             err(
                 BagErrorKind::Write,
                 format!(
-                    "{shown}: message {n}: stamp {}.{:09} s is before 1970 and cannot be an \
-                     MCAP log time",
-                    imu.stamp.sec, imu.stamp.nanosec
+                    "{shown}: message {n}: stamp {} s is before 1970 and cannot be an MCAP log \
+                     time",
+                    imu.stamp.seconds_text()
                 ),
             )
         })?;
