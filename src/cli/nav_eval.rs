@@ -109,6 +109,12 @@ struct Source {
     floor: Option<SimConfig>,
 }
 
+/// Where the static noise comes from: a log read, or a simulated sensor.
+enum Input<'a> {
+    Log(Box<RateLog>),
+    Sim(&'a str),
+}
+
 /// A method that runs a pipeline's stages.
 struct Chain {
     label: String,
@@ -469,14 +475,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Some(r) => Some(parse_number("--rate", r)?),
         None => None,
     };
-    let log = match (&args.input, &args.sim) {
-        (Some(p), None) => Some(log_input::open(p, &args.columns, &args.bag, false)?),
-        _ => None,
+    let input = match (&args.input, &args.sim) {
+        (Some(p), None) => Input::Log(Box::new(log_input::open(
+            p,
+            &args.columns,
+            &args.bag,
+            false,
+        )?)),
+        (None, Some(s)) => Input::Sim(s),
+        (Some(_), Some(_)) => return Err(CliError::input("give a log or --sim, not both")),
+        (None, None) => return Err(CliError::input("give a static log, or --sim SENSOR")),
     };
-    let rate = match (&log, &args.sim) {
-        (Some(log), _) => log.origin.rate(given).map_err(CliError::input)?,
-        (None, Some(_)) => given.unwrap_or(100.0),
-        (None, None) => return Err(CliError::input("give a log or --sim SENSOR")),
+    let rate = match &input {
+        Input::Log(log) => log.origin.rate(given).map_err(CliError::input)?,
+        Input::Sim(_) => given.unwrap_or(100.0),
     };
     if !(rate.is_finite() && rate > 0.0 && rate <= 1e6) {
         return Err(CliError::input(format!(
@@ -512,16 +524,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    let src = match (&args.input, &args.sim) {
-        (Some(_), None) => log_source(log.expect("read above"), &args, rate, window)?,
-        (None, Some(s)) => {
+    let src = match input {
+        Input::Log(log) => log_source(*log, &args, rate, window)?,
+        Input::Sim(s) => {
             if !(1..=1000).contains(&args.windows) {
                 return Err(CliError::input("--windows must be 1..=1000"));
             }
             sim_source(s, &args, rate, window)?
         }
-        (Some(_), Some(_)) => return Err(CliError::input("give a log or --sim, not both")),
-        (None, None) => return Err(CliError::input("give a static log, or --sim SENSOR")),
     };
     let motions: Vec<Motion> = match &truth {
         Some(t) => vec![Motion::Truth {
