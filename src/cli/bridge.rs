@@ -378,7 +378,7 @@ mod imp {
                  (bridge the samples; `driftless stats` reads the snapshots)"
             ))));
             Ok(())
-        } else if let Some(m) = crate::cli::tap::version_mismatch(&node, service) {
+        } else if let Some(m) = node.version_mismatch(service) {
             let _ = ready.send(Err(CliError::input(m)));
             Ok(())
         } else {

@@ -340,13 +340,6 @@ impl Intervals {
     }
 }
 
-/// The refusal of `service` when it carries another layout version of one of our types (a
-/// driftless of another release publishes it).
-pub(crate) fn version_mismatch(node: &Transport, service: &str) -> Option<String> {
-    let found = node.payload_type_name(service).ok().flatten()?;
-    transport::wire_version_mismatch(&format!("service {service:?}"), &found)
-}
-
 /// Subscribe to SERVICE (whichever of our wire types it carries) and print what comes.
 pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
@@ -375,7 +368,7 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
             return Err(no_csv_for_stats(&args.service));
         }
         Tapped::Stats(i)
-    } else if let Some(m) = version_mismatch(&node, &args.service) {
+    } else if let Some(m) = node.version_mismatch(&args.service) {
         return Err(CliError::input(m));
     } else {
         // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.

@@ -284,13 +284,19 @@ impl Transport {
     /// types, say which and what to do ([`TransportError::Version`]).
     fn open_error(&self, name: &str, e: impl Debug) -> TransportError {
         if format!("{e:?}").contains("IncompatibleTypes") {
-            let found = self.payload_type_name(name).ok().flatten();
-            let what = format!("service {name:?}");
-            if let Some(m) = found.and_then(|t| super::wire_version_mismatch(&what, &t)) {
+            if let Some(m) = self.version_mismatch(name) {
                 return TransportError::Version(m);
             }
         }
         setup("service", name, e)
+    }
+
+    /// The refusal of service `name` when it carries another layout version of one of our
+    /// types (a driftless of another release publishes it), from
+    /// [`super::wire_version_mismatch`]; None otherwise.
+    pub fn version_mismatch(&self, name: &str) -> Option<String> {
+        let found = self.payload_type_name(name).ok().flatten()?;
+        super::wire_version_mismatch(&format!("service {name:?}"), &found)
     }
 
     /// The payload type name of the publish-subscribe service `name` (e.g.
