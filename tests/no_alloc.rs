@@ -84,6 +84,11 @@ fn the_hot_loop_does_not_allocate_per_sample() {
         per_send,
         allocations_for(1_000, "allocshort"),
         allocations_for(21_000, "alloclong"),
-        50,
+        // A quarter of an allocation per extra sample. The set-up's count is not the same from
+        // one run to the next: iceoryx2 scans what its shared state holds (some 35,000 one-byte
+        // allocations), and a run that finds less allocates ~1,300 fewer (a short run at
+        // 46,111 against 47,399, seen under load in CI). One allocation of ours per sample
+        // would be 20,000 more.
+        5_000,
     );
 }
