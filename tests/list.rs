@@ -118,9 +118,9 @@ fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_port
     assert!(p["uptime_s"].as_f64().expect("uptime") >= 0.0);
 
     for (name, wire, type_name, subscribers) in [
-        // The daemon takes each hop back from its own subscriber; the tap reads the last.
-        ("c/raw", "RawSample", "driftless::RawSample", 1),
-        ("c/denoised", "GyroSample", "driftless::GyroSample.v2", 1),
+        // The daemon reads none of its hops back; the tap reads the last.
+        ("c/raw", "RawSample", "driftless::RawSample", 0),
+        ("c/denoised", "GyroSample", "driftless::GyroSample.v2", 0),
         ("c/corrected", "GyroSample", "driftless::GyroSample.v2", 1),
         ("c/stats", "StatsSnapshot", "driftless::StatsSnapshot", 0),
     ] {

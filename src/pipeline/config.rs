@@ -255,7 +255,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         None => 256,
     };
     let max_subscribers = match &iox.max_subscribers {
-        Some(m) => src.int_in(m, "max_subscribers", 2, 64)?,
+        Some(m) => src.int_in(m, "max_subscribers", 1, 64)?,
         None => 8,
     };
     let stats_service = match &iox.stats_service {

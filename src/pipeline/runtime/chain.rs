@@ -65,7 +65,7 @@ pub(super) struct Local {
 /// an `external` stage.
 pub(super) struct Chain {
     /// The ingest hop (segment 1 only).
-    pub(super) head: Option<(Output<RawSample>, Input<RawSample>)>,
+    pub(super) head: Option<Output<RawSample>>,
     pub(super) guard: Guard,
     /// Chain position of `stages[0]`.
     pub(super) first: usize,
@@ -73,7 +73,6 @@ pub(super) struct Chain {
     /// Per stage, its side inputs' subscribers, by slot.
     pub(super) sides: Vec<Vec<SidePort>>,
     pub(super) outs: Vec<Output<GyroSample>>,
-    pub(super) ins: Vec<Input<GyroSample>>,
     pub(super) is_final: bool,
     /// Chain positions whose `stage_in` / `stage_out` counts this segment owns.
     pub(super) owns_in: std::ops::Range<usize>,
@@ -104,20 +103,17 @@ impl Chain {
         ingest_ns: u64,
         late_ns: Option<u64>,
     ) -> Result<(), TransportError> {
-        let Some((raw_out, raw_in)) = &self.head else {
+        let Some(raw_out) = &self.head else {
             return Ok(());
         };
         let mut rec = Record {
             late_ns: late_ns.map(|ns| ns.min(u64::from(u32::MAX)) as u32),
             ..Record::default()
         };
-        raw_out.send(&self.guard.stamp(raw))?;
-        let received = raw_in.receive()?;
+        let raw = self.guard.stamp(raw);
+        raw_out.send(&raw)?;
         self.local.stage_in[0] += 1;
         self.local.stage_out[0] += 1;
-        let Some(raw) = received else {
-            return Ok(());
-        };
         let s = self.guard.admit(&raw, ingest_ns);
         let t0 = monotonic_ns();
         rec.stage_ns[0] = (t0.saturating_sub(ingest_ns)).min(u64::from(u32::MAX)) as u32;
@@ -180,7 +176,7 @@ impl Chain {
         Ok(now)
     }
 
-    /// Publish stage `k`'s output; returns what the next stage receives (None after the
+    /// Publish stage `k`'s output; returns what the next stage takes (None after the
     /// segment's last stage).
     pub(super) fn publish(
         &mut self,
@@ -218,7 +214,9 @@ impl Chain {
             }
             return Ok(None);
         }
-        self.ins[k].receive()
+        // The next stage takes the value just published, not a copy back out of shared
+        // memory: the same bits, without a receive on the hot path.
+        Ok(Some(*out))
     }
 
     /// Add a record to the batch; send the batch when full or old.
@@ -275,7 +273,7 @@ impl Chain {
     /// sample (which comes only after the denoiser's lag, when all pipelines of a daemon pay it
     /// in the same round).
     pub(super) fn connect(&self) -> Result<(), TransportError> {
-        if let Some((raw_out, _)) = &self.head {
+        if let Some(raw_out) = &self.head {
             raw_out.connect()?;
         }
         self.outs.iter().try_for_each(Output::connect)
@@ -368,7 +366,6 @@ pub(super) fn build_segment(
     let mut stage_objs = Vec::new();
     let mut sides = Vec::new();
     let mut outs = Vec::new();
-    let mut ins = Vec::new();
     let mut lag = 0usize;
     for i in span.lo..span.hi {
         let spec = &p.stages[i];
@@ -396,9 +393,6 @@ pub(super) fn build_segment(
             let notify = spec.params.notifies();
             outs.push(transport.output::<GyroSample>(&spec.output, notify)?);
         }
-        if i + 1 != span.hi {
-            ins.push(transport.input::<GyroSample>(&spec.output)?);
-        }
     }
     let lost = outs.iter().map(Output::lost_counter).collect();
     let (first_in, first_out) = if span.lo == 1 {
@@ -419,7 +413,6 @@ pub(super) fn build_segment(
         stages: stage_objs,
         sides,
         outs,
-        ins,
         is_final: span.is_final,
         owns_in: first_in..end_in,
         owns_out: first_out..span.hi,

@@ -227,7 +227,6 @@ impl<'a> Running<'a> {
         let source = build_source(p, &transport)?;
         let raw_service = &p.stages[0].output;
         let raw_out = transport.output::<RawSample>(raw_service, false)?;
-        let raw_in = transport.input::<RawSample>(raw_service)?;
         let spans = segments(p);
         let counters = Arc::new(Counters::default());
         // A fresh epoch per start, so a subscriber that outlives a restart can tell the runs apart.
@@ -239,7 +238,7 @@ impl<'a> Running<'a> {
             build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;
         let mut lost: Vec<Arc<AtomicU64>> = vec![raw_out.lost_counter()];
         lost.extend(head_lost);
-        chain.head = Some((raw_out, raw_in));
+        chain.head = Some(raw_out);
         chain.connect()?;
         let mut r = Running {
             p,
