@@ -125,7 +125,7 @@ pub const MISSES_KEPT: usize = 100;
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Miss {
     /// When the reporter took the output's record, s since the reporter started (records reach
-    /// it in batches: up to about 50 ms after the output).
+    /// it in batches, drained every 50 ms: up to about 100 ms after the output).
     pub at_s: f64,
     /// Ingest of the completing sample to publish, ns.
     pub e2e_ns: u64,
