@@ -272,7 +272,7 @@ pub struct StageMessage {
     pub samples_out: u64,
     /// Samples subscribers of its output lost.
     pub lost: u64,
-    /// Compute time per sample, us.
+    /// Time per sample (compute and the publish of the output), us.
     pub compute_us: PercentilesUs,
 }
 

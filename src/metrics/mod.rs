@@ -25,7 +25,8 @@ pub const MAX_STAGES: usize = MAX_STATS_STAGES;
 /// Timing of one ingested sample through the chain.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Record {
-    /// Compute time of each stage that ran for this sample, ns (saturated at u32::MAX).
+    /// Time of each stage that ran for this sample, its compute and the publish of its output,
+    /// ns (saturated at u32::MAX).
     pub stage_ns: [u32; MAX_STAGES],
     /// Chain position of the first stage this record times (0, or the first stage after an
     /// `external` stage for records of a later segment).

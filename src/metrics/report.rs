@@ -65,7 +65,7 @@ pub struct StageReport {
     pub samples_out: u64,
     /// Samples subscribers of its output lost (full buffers).
     pub lost: u64,
-    /// Compute time per sample, ns.
+    /// Time per sample (compute and publish of the output), ns.
     pub compute_ns: Pct,
 }
 
@@ -129,8 +129,8 @@ pub struct Miss {
     pub at_s: f64,
     /// Ingest of the completing sample to publish, ns.
     pub e2e_ns: u64,
-    /// Compute time of each stage, chain order, ns; 0 for a stage that did not run for it (or
-    /// ran in another segment, after an `external` stage).
+    /// Time of each stage (its compute and the publish of its output), chain order, ns; 0 for a
+    /// stage that did not run for it (or ran in another segment, after an `external` stage).
     pub stage_ns: Vec<u64>,
 }
 
@@ -333,8 +333,8 @@ impl Report {
         s
     }
 
-    /// The first misses, one line each: when, how late, and each stage's compute time (the
-    /// rest of the end-to-end time went between stages: hops, publishing, waiting for the CPU).
+    /// The first misses, one line each: when, how late, and each stage's time (its compute and
+    /// publish; the rest of the end-to-end time went between stages: waiting for the CPU).
     fn misses_lines(&self) -> String {
         const SHOWN: usize = 5;
         let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
@@ -343,7 +343,7 @@ impl Report {
         for m in &self.misses[..shown] {
             let stages: Vec<String> = m.stage_ns.iter().map(|&ns| us(ns)).collect();
             s.push_str(&format!(
-                "missed at {:.3} s: {} us end to end; stage compute {} us\n",
+                "missed at {:.3} s: {} us end to end; stages {} us\n",
                 m.at_s,
                 us(m.e2e_ns),
                 stages.join(" / ")

@@ -378,7 +378,7 @@ pub struct StageStats {
     pub samples_out: u64,
     /// Samples a subscriber of the stage's output could not take (its buffer was full).
     pub lost: u64,
-    /// Compute time per sample.
+    /// Time per sample: compute and the publish of the output.
     pub compute: Percentiles,
 }
 

@@ -157,41 +157,41 @@ impl Chain {
                     self.stages[k].side(slot, &v);
                 }
             }
-            let out = self.stages[k].process(&input);
-            let t1 = monotonic_ns();
+            // A stage's time is its compute and the publish of its output (as the ingest's is):
+            // one clock read per stage, the one taken when its output has left.
+            let (next, t1) = match self.stages[k].process(&input) {
+                Some(out) => self.publish(k, &out, rec)?,
+                None => (None, monotonic_ns()),
+            };
             rec.stage_ns[pos] = (t1.saturating_sub(now)).min(u64::from(u32::MAX)) as u32;
             rec.stages_run = (pos + 1) as u8;
             now = t1;
-            let Some(out) = out else {
-                return Ok(now);
-            };
-            match self.publish(k, &out, rec)? {
+            match next {
                 Some(next) => input = next,
                 None => return Ok(now),
             }
-            // The hop is not stage compute time.
-            now = monotonic_ns();
             k += 1;
         }
         Ok(now)
     }
 
     /// Publish stage `k`'s output; returns what the next stage takes (None after the
-    /// segment's last stage).
+    /// segment's last stage) and the time it was sent.
     pub(super) fn publish(
         &mut self,
         k: usize,
         out: &GyroSample,
         rec: &mut Record,
-    ) -> Result<Option<GyroSample>, TransportError> {
+    ) -> Result<(Option<GyroSample>, u64), TransportError> {
         let pos = self.first + k;
         self.local.stage_out[pos] += 1;
         self.outs[k].send(out)?;
+        let sent = monotonic_ns();
         if k + 1 == self.stages.len() {
             if self.is_final {
                 // Published: the end-to-end clock stops before readers are woken.
                 if out.flags & FLAG_FLUSHED == 0 {
-                    let e2e = monotonic_ns().saturating_sub(out.ingest_ns).max(1);
+                    let e2e = sent.saturating_sub(out.ingest_ns).max(1);
                     rec.e2e_ns = e2e;
                     if e2e > self.deadline_ns {
                         self.local.misses += 1;
@@ -212,11 +212,11 @@ impl Chain {
             if let Some(h) = self.heading.as_mut().filter(|_| self.is_final) {
                 h.published(out);
             }
-            return Ok(None);
+            return Ok((None, sent));
         }
         // The next stage takes the value just published, not a copy back out of shared
         // memory: the same bits, without a receive on the hot path.
-        Ok(Some(*out))
+        Ok((Some(*out), sent))
     }
 
     /// Add a record to the batch; send the batch when full or old.
@@ -312,8 +312,8 @@ impl Chain {
         for k in 0..self.stages.len() {
             while let Some(out) = self.stages[k].flush() {
                 let mut rec = Record::default();
-                if let Some(next) = self.publish(k, &out, &mut rec)? {
-                    self.process_from(k + 1, next, &mut rec, monotonic_ns())?;
+                if let (Some(next), sent) = self.publish(k, &out, &mut rec)? {
+                    self.process_from(k + 1, next, &mut rec, sent)?;
                 }
             }
         }
