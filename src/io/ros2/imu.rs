@@ -402,6 +402,7 @@ impl Imu {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     #[test]
     fn seconds_text_is_exact_and_signed() {
@@ -416,7 +417,6 @@ mod tests {
         assert_eq!((t.sec, t.nanosec), (-1, 500_000_000));
         assert_eq!(t.seconds_text(), "-0.500000000");
     }
-    use proptest::prelude::*;
 
     const Z: [u8; 8] = [0; 8];
     const ONE: [u8; 8] = [0, 0, 0, 0, 0, 0, 0xf0, 0x3f];

@@ -8,8 +8,8 @@
 //! real iceoryx2 `ipc` service: the stage's output is published (zero-copy, never blocking), so
 //! any process can subscribe to any hop, and the next stage takes the same value directly (a
 //! receive of what this thread just published would only cost time: a third of the hot path
-//! in a profile of the flat-out replay). The publish stage also notifies an event service of the same name so
-//! that external readers can sleep until data arrives.
+//! in a profile of the flat-out replay). The publish stage also notifies an event service of
+//! the same name so that external readers can sleep until data arrives.
 //!
 //! # External stages
 //! An `external` stage runs in another process. The chain splits into segments there: segment 1
