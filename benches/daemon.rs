@@ -11,14 +11,17 @@
 //!
 //! Runs, in order (each alone on the machine):
 //! 1. bare chain, 1 kHz, one thread, 4 ipc hops, no computation (it sends and receives on each
-//!    hop; the daemon only sends, the next stage taking the value directly); a bare thread
+//!    hop; the daemon only sends, to hops someone reads, the next stage taking the value
+//!    directly); a bare thread
 //!    sleeping to each 1 ms; a bare 1 kHz publisher in another process (this binary again)
 //!    with this process as its subscriber;
 //! 2. `pipelines/demo.toml` at 1 kHz (simulator, db6/5 levels, predictor, publish, 3 axes) with
 //!    this process as a separate-process subscriber (its latency: ingest to receipt), and the
 //!    daemon's CPU use from /proc;
 //! 3. `pipelines/adxrs450.toml` at 50 Hz against its 20 ms deadline;
-//! 4. CSV replay as fast as possible through all stages, and the bare chain as fast as possible;
+//! 4. CSV replay as fast as possible through all stages, nobody reading its services (a hop
+//!    nobody reads costs no send), then again with this process reading its corrected service,
+//!    and the bare chain as fast as possible;
 //! 5. scale: N 1 kHz 3-axis pipelines of the demo at once (`DRIFTLESS_BENCH_PIPELINES`, default
 //!    "8,32"), for the same time as run 2, laid out three ways: N separate daemons, one daemon
 //!    running all N on its hot thread, and two daemons of N/2 (a hot thread per core);
@@ -364,34 +367,23 @@ fn main() {
     r.cpu = format!("{:.1}%", cpu50 * 100.0);
     rows.push(r);
 
-    // 4. As fast as possible: CSV replay through all stages, then the bare chain.
-    let csv = root().join("pipelines/data/replay.csv");
-    let text = std::fs::read_to_string(root().join("pipelines/replay.toml"))
-        .expect("replay.toml")
-        .replace(
-            "file = \"data/replay.csv\"",
-            &format!("file = {:?}", csv.display().to_string()),
-        )
-        .replace("pace = \"asap\"", "pace = \"asap\"\nloop = true");
-    let asap_file = dir.path().join("asap.toml");
-    std::fs::write(&asap_file, text).expect("write");
-    let p = prefix("asap");
-    clean(&p);
-    let report = dir.path().join("asap.json");
+    // 4. As fast as possible: CSV replay through all stages (nobody reading, then a reader on
+    // its corrected service), then the bare chain.
     let asap_secs = (secs / 20.0).clamp(1.0, 5.0);
-    let mut child = start_daemon(
-        &asap_file,
-        &p,
-        &report,
-        &["--duration", &format!("{asap_secs}s")],
-    );
-    wait_exit(&mut child);
-    clean(&p);
-    let asap = read_report(&report);
-    let ours_tp =
-        asap["samples_out"].as_f64().unwrap_or(0.0) / asap["duration_s"].as_f64().unwrap_or(1.0);
+    let (asap, ours_tp, _) = asap_run(dir.path(), asap_secs, false);
     let mut r = row_from_report("replay as fast as possible, all stages", &asap);
     r.throughput = format!("{:.0}/s", ours_tp);
+    rows.push(r);
+    let (asap_read, read_tp, reader_lost) = asap_run(dir.path(), asap_secs, true);
+    let mut r = row_from_report(
+        "replay as fast as possible, a reader on its corrected service",
+        &asap_read,
+    );
+    r.throughput = format!("{:.0}/s", read_tp);
+    r.lost = format!(
+        "{} (reader saw {reader_lost} missing)",
+        asap_read["lost"].as_u64().unwrap_or(0)
+    );
     rows.push(r);
     let p = prefix("bareasap");
     clean(&p);
@@ -426,11 +418,13 @@ fn main() {
     let demo_p50 = demo["end_to_end_ns"]["p50"].as_f64().unwrap_or(0.0);
     println!();
     println!(
-        "overhead vs the bare chain: 1 kHz p50 x{:.2}; as-fast-as-possible throughput x{:.2} ({:.0} vs {:.0} samples/s)",
+        "overhead vs the bare chain: 1 kHz p50 x{:.2}; as-fast-as-possible throughput x{:.2} ({:.0} vs {:.0} samples/s), x{:.2} with a reader on corrected ({:.0}/s)",
         demo_p50 / bare_1k.value_at_quantile(0.5).max(1) as f64,
         ours_tp / bare_tp.max(1.0),
         ours_tp,
-        bare_tp
+        bare_tp,
+        read_tp / bare_tp.max(1.0),
+        read_tp
     );
     let bare_p50 = bare_1k.value_at_quantile(0.5).max(1) as f64;
     for (name, r) in [("demo", &demo), ("demo, prewarm_us = 150", &warm)] {
@@ -509,6 +503,41 @@ fn main() {
         drivers(secs, dir.path());
     }
     println!("load average at the end: {}", loadavg());
+}
+
+/// CSV replay of `pipelines/replay.toml` as fast as possible, looping, for `secs`; with `reader`,
+/// a subscriber in this process on its corrected service, sleeping on its event service as a
+/// navigator does. Returns the report, the throughput and the samples the reader found missing.
+fn asap_run(dir: &Path, secs: f64, reader: bool) -> (Value, f64, u64) {
+    let csv = root().join("pipelines/data/replay.csv");
+    let text = std::fs::read_to_string(root().join("pipelines/replay.toml"))
+        .expect("replay.toml")
+        .replace(
+            "file = \"data/replay.csv\"",
+            &format!("file = {:?}", csv.display().to_string()),
+        )
+        .replace("pace = \"asap\"", "pace = \"asap\"\nloop = true");
+    let asap_file = dir.join("asap.toml");
+    std::fs::write(&asap_file, text).expect("write");
+    let p = prefix(if reader { "asapread" } else { "asap" });
+    clean(&p);
+    let report = dir.join("asap.json");
+    let mut child = start_daemon(
+        &asap_file,
+        &p,
+        &report,
+        &["--duration", &format!("{secs}s")],
+    );
+    let reader_lost = reader.then(|| {
+        let p = p.clone();
+        std::thread::spawn(move || subscribe(&p, "replay/corrected", secs + 1.0).1)
+    });
+    wait_exit(&mut child);
+    let reader_lost = reader_lost.map_or(0, |t| t.join().expect("reader"));
+    clean(&p);
+    let r = read_report(&report);
+    let tp = r["samples_out"].as_f64().unwrap_or(0.0) / r["duration_s"].as_f64().unwrap_or(1.0);
+    (r, tp, reader_lost)
 }
 
 /// Run the demo pipeline `file` paced for `secs` with a subscriber in this process; push its

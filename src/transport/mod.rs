@@ -22,9 +22,10 @@
 //! One definition ([`Qos`]) is used for every service the daemon creates: history 0, safe
 //! overflow off, a publisher never blocks (backpressure strategy `DiscardData`): a subscriber
 //! whose buffer is full loses the new sample (it keeps the older ones it has not read) and the
-//! publisher counts the loss ([`Output::lost`]: subscribers registered minus served). Readers of
-//! our services open them without requirements, so they never conflict with the creator's
-//! settings.
+//! publisher counts the loss ([`Output::lost`]: subscribers registered minus served). With no
+//! history, a sample sent while nobody subscribes reaches no one, so [`Output::send`] does not
+//! loan one then: a hop nobody reads costs a check, not a send. Readers of our services open
+//! them without requirements, so they never conflict with the creator's settings.
 
 mod cleanup;
 mod config;

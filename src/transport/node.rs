@@ -171,6 +171,7 @@ impl Transport {
             None
         };
         Ok(Output {
+            keeps_history: service.static_config().history_size() > 0,
             service,
             publisher,
             notifier,

@@ -20,6 +20,9 @@ pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
     pub(super) publisher: Publisher<Svc, T, ()>,
     pub(super) notifier: Option<Notifier<Svc>>,
     pub(super) lost: Arc<AtomicU64>,
+    /// The service keeps samples for subscribers that come later (only a service another
+    /// process created with a history): every sample is sent, read or not.
+    pub(super) keeps_history: bool,
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
@@ -37,7 +40,15 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
     /// Publish a copy of `value` (zero-copy into shared memory); returns the number of
     /// subscribers that received it. Does not notify: call [`Output::notify`] after it.
     /// Allocation-free on our side (iceoryx2 0.10 allocates one small `Arc` per loan).
+    ///
+    /// With no subscriber registered nothing is loaned: our services keep no history, so a
+    /// sample nobody subscribes to is seen by no one, now or later. A subscriber that
+    /// registers is served from the next send, the one on which iceoryx2 itself would have
+    /// connected it.
     pub fn send(&self, value: &T) -> Result<usize, TransportError> {
+        if !self.keeps_history && self.service.dynamic_config().number_of_subscribers() == 0 {
+            return Ok(0);
+        }
         let sample = self
             .publisher
             .loan_uninit()

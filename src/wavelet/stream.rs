@@ -216,8 +216,9 @@ struct Level<const N: usize> {
     input: History<[f64; N]>,
     /// Filter dilation `2^(j-1)`.
     stride: usize,
-    /// What thresholding removed from this level's details, the last `lag + 1` of them.
-    removed: History<[f64; N]>,
+    /// What thresholding removed from this level's details, the last `lag + 1` of them, one
+    /// history per lane: the synthesis is then a contiguous dot product per lane.
+    removed: [History<f64>; N],
     /// `2^-j G_j[0..K_j]`: the truncated synthesis filter of this level.
     synthesis: Vec<f64>,
 }
@@ -318,7 +319,7 @@ impl<const N: usize> LaneDenoiser<N> {
             levels.push(Level {
                 input: History::new((f - 1) * stride + 1, [0.0; N]),
                 stride,
-                removed: History::new(cfg.lag + 1, [0.0; N]),
+                removed: std::array::from_fn(|_| History::new(cfg.lag + 1, 0.0)),
                 synthesis: equivalent[..taps].iter().map(|g| g * scale).collect(),
             });
         }
@@ -359,9 +360,10 @@ impl<const N: usize> LaneDenoiser<N> {
                 + recent.ago(recent.cap - 1);
         }
         for level in &self.levels {
-            s += lines(&level.input.buf)
-                + lines(&level.removed.buf)
-                + level.synthesis.iter().step_by(8).sum::<f64>();
+            s += lines(&level.input.buf) + level.synthesis.iter().step_by(8).sum::<f64>();
+            for removed in &level.removed {
+                s += removed.buf.iter().step_by(8).sum::<f64>();
+            }
         }
         std::hint::black_box(s);
     }
@@ -456,10 +458,9 @@ impl<const N: usize> LaneDenoiser<N> {
             };
         }
         for (level, d) in self.levels.iter_mut().zip(&details) {
-            let (threshold, lambda) = (&self.threshold, &self.lambda);
-            level.removed.push(std::array::from_fn(|n| {
-                d[n] - threshold.apply(d[n], lambda[n])
-            }));
+            for (n, removed) in level.removed.iter_mut().enumerate() {
+                removed.push(d[n] - self.threshold.apply(d[n], self.lambda[n]));
+            }
         }
         (self.pushed > self.lag as u64).then(|| self.output(self.lag))
     }
@@ -485,7 +486,9 @@ impl<const N: usize> LaneDenoiser<N> {
         let mut a = x;
         for level in &mut self.levels {
             level.input.fill(a);
-            level.removed.fill([0.0; N]);
+            for removed in &mut level.removed {
+                removed.fill(0.0);
+            }
             a = a.map(|v| v * gain);
         }
     }
@@ -496,31 +499,32 @@ impl<const N: usize> LaneDenoiser<N> {
         let mut removed = [0.0; N];
         for level in &self.levels {
             let taps = level.synthesis.len().min(ago + 1);
-            let e = level.removed.run_from(ago, taps);
             let c = &level.synthesis[..taps];
-            // Four partial sums per lane: a chain of hundreds of dependent additions would
-            // wait on each one's latency.
-            let mut sum = [[0.0; N]; 4];
-            let whole = taps - taps % 4;
-            for (c4, e4) in c[..whole].chunks_exact(4).zip(e[..whole].chunks_exact(4)) {
-                for q in 0..4 {
-                    for n in 0..N {
-                        sum[q][n] += c4[q] * e4[q][n];
-                    }
-                }
-            }
-            for (c, v) in c[whole..].iter().zip(&e[whole..]) {
-                for n in 0..N {
-                    sum[0][n] += c * v[n];
-                }
-            }
-            for n in 0..N {
-                removed[n] += (sum[0][n] + sum[1][n]) + (sum[2][n] + sum[3][n]);
+            for (n, e) in level.removed.iter().enumerate() {
+                removed[n] += dot4(c, e.run_from(ago, taps));
             }
         }
         let x = self.input.ago(ago);
         std::array::from_fn(|n| x[n] - removed[n])
     }
+}
+
+/// `c . e` in four partial sums (tap k into sum k mod 4, in increasing k), added as
+/// `(s0 + s1) + (s2 + s3)`: one chain of hundreds of dependent additions would wait on each
+/// one's latency, and four side by side are one vector operation.
+#[inline]
+fn dot4(c: &[f64], e: &[f64]) -> f64 {
+    let mut sum = [0.0; 4];
+    let whole = c.len() - c.len() % 4;
+    for (c4, e4) in c[..whole].chunks_exact(4).zip(e[..whole].chunks_exact(4)) {
+        for q in 0..4 {
+            sum[q] += c4[q] * e4[q];
+        }
+    }
+    for (c, v) in c[whole..].iter().zip(&e[whole..]) {
+        sum[0] += c * v;
+    }
+    (sum[0] + sum[1]) + (sum[2] + sum[3])
 }
 
 impl StreamingDenoiser {
