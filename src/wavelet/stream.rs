@@ -435,7 +435,9 @@ impl<const N: usize> LaneDenoiser<N> {
         let mut details = [[0.0; N]; MAX_LEVEL];
         for (level, detail) in self.levels.iter_mut().zip(&mut details) {
             level.input.push(a);
-            let mut next = [0.0; N];
+            // Both sums in locals: accumulated in `details` itself, each addition waited on a
+            // store and a reload.
+            let (mut next, mut d) = ([0.0; N], [0.0; N]);
             // In tap order, one sum per lane: a detail that is zero in exact arithmetic comes
             // out as the same exact zero or not as before, and exact zeros are left out of the
             // noise median (a reassociated sum moved the median of quantised input).
@@ -443,9 +445,10 @@ impl<const N: usize> LaneDenoiser<N> {
                 let v = level.input.ago(k * level.stride);
                 for n in 0..N {
                     next[n] += h * v[n];
-                    detail[n] += g * v[n];
+                    d[n] += g * v[n];
                 }
             }
+            *detail = d;
             a = next;
         }
         for (n, noise) in self.noise.iter_mut().enumerate() {
