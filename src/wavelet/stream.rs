@@ -781,33 +781,57 @@ mod tests {
         }
     }
 
-    #[test]
-    fn median_tracker_equals_a_sorted_copy_of_the_window() {
-        let mut t = MedianTracker::new(64);
-        let mut window: Vec<f64> = Vec::new();
-        for i in 0..2000usize {
-            // Repeats, exact zeros and sign changes, as detail coefficients have.
-            let v = match i % 7 {
+    /// Values as detail coefficients have them (repeats, exact zeros, sign changes), and the
+    /// runs that stress a block structure: rising, falling, one value only.
+    fn median_inputs(n: usize) -> Vec<Vec<f64>> {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mixed: Vec<f64> = (0..n)
+            .map(|i| match i % 7 {
                 0 => 0.0,
                 3 => -(((i * 31) % 17) as f64),
                 _ => ((i * 7919) % 101) as f64 * 0.25,
-            };
-            t.push(v);
-            window.push(v.abs());
-            if window.len() > 64 {
-                window.remove(0);
+            })
+            .collect();
+        let random: Vec<f64> = (0..n).map(|_| (next() >> 11) as f64 - 2e15).collect();
+        let quantised: Vec<f64> = (0..n).map(|_| (next() % 5) as f64 * 0.5).collect();
+        let rising: Vec<f64> = (0..n).map(|i| (i % 997) as f64).collect();
+        let falling: Vec<f64> = (0..n).map(|i| (n - i) as f64).collect();
+        let constant = vec![3.0; n];
+        vec![mixed, random, quantised, rising, falling, constant]
+    }
+
+    #[test]
+    fn median_tracker_equals_a_sorted_copy_of_the_window() {
+        for window in [2, 3, 5, 16, 64, 100, 1024] {
+            for (case, input) in median_inputs(3000).iter().enumerate() {
+                let mut t = MedianTracker::new(window);
+                let mut held: Vec<f64> = Vec::new();
+                for (i, v) in input.iter().enumerate() {
+                    t.push(*v);
+                    held.push(v.abs());
+                    if held.len() > window {
+                        held.remove(0);
+                    }
+                    let mut nonzero: Vec<f64> =
+                        held.iter().copied().filter(|x| *x != 0.0).collect();
+                    nonzero.sort_by(f64::total_cmp);
+                    let n = nonzero.len();
+                    let want = match n {
+                        0 => 0.0,
+                        _ if n % 2 == 1 => nonzero[n / 2],
+                        _ => 0.5 * (nonzero[n / 2 - 1] + nonzero[n / 2]),
+                    };
+                    let sorted: Vec<f64> = t.sorted.iter().map(|b| f64::from_bits(*b)).collect();
+                    assert_eq!(sorted, nonzero, "window {window}, case {case}, sample {i}");
+                    assert_eq!(t.median(), want, "window {window}, case {case}, sample {i}");
+                }
             }
-            let mut nonzero: Vec<f64> = window.iter().copied().filter(|x| *x != 0.0).collect();
-            nonzero.sort_by(f64::total_cmp);
-            let n = nonzero.len();
-            let want = match n {
-                0 => 0.0,
-                _ if n % 2 == 1 => nonzero[n / 2],
-                _ => 0.5 * (nonzero[n / 2 - 1] + nonzero[n / 2]),
-            };
-            let sorted: Vec<f64> = t.sorted.iter().map(|b| f64::from_bits(*b)).collect();
-            assert_eq!(sorted, nonzero, "sample {i}");
-            assert_eq!(t.median(), want, "sample {i}");
         }
     }
 
