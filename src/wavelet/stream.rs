@@ -781,8 +781,8 @@ mod tests {
         }
     }
 
-    /// Values as detail coefficients have them (repeats, exact zeros, sign changes), and the
-    /// runs that stress a block structure: rising, falling, one value only.
+    /// Values as detail coefficients have them (repeats, exact zeros, sign changes), random and
+    /// quantised values, and runs: rising, falling, one value only.
     fn median_inputs(n: usize) -> Vec<Vec<f64>> {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let mut next = move || {

@@ -5,11 +5,12 @@
 //! millisecond tails); one thread running the chain costs a fraction of a microsecond per hop.
 //! So the hot thread waits once per input sample (the ingest's pacing clock, or the event
 //! service of an external raw service), then runs every stage in turn. Every hop is still a
-//! real iceoryx2 `ipc` service: the stage's output is published (zero-copy, never blocking), so
-//! any process can subscribe to any hop, and the next stage takes the same value directly (a
-//! receive of what this thread just published would only cost time: a third of the hot path
-//! in a profile of the flat-out replay). The publish stage also notifies an event service of
-//! the same name so that external readers can sleep until data arrives.
+//! real iceoryx2 `ipc` service: the stage's output is published (zero-copy, never blocking; not
+//! loaned at all while nobody subscribes), so any process can subscribe to any hop, and the
+//! next stage takes the same value directly (a receive of what this thread just published
+//! would only cost time: a third of the hot path in a profile of the flat-out replay). The
+//! publish stage also notifies an event service of the same name so that external readers can
+//! sleep until data arrives.
 //!
 //! # External stages
 //! An `external` stage runs in another process. The chain splits into segments there: segment 1
