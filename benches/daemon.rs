@@ -12,9 +12,8 @@
 //! Runs, in order (each alone on the machine):
 //! 1. bare chain, 1 kHz, one thread, 4 ipc hops, no computation (it sends and receives on each
 //!    hop; the daemon only sends, to hops someone reads, the next stage taking the value
-//!    directly); a bare thread
-//!    sleeping to each 1 ms; a bare 1 kHz publisher in another process (this binary again)
-//!    with this process as its subscriber;
+//!    directly); a bare thread sleeping to each 1 ms; a bare 1 kHz publisher in another process
+//!    (this binary again) with this process as its subscriber;
 //! 2. `pipelines/demo.toml` at 1 kHz (simulator, db6/5 levels, predictor, publish, 3 axes) with
 //!    this process as a separate-process subscriber (its latency: ingest to receipt), and the
 //!    daemon's CPU use from /proc;
