@@ -58,6 +58,7 @@ macro_rules! widest_vectors {
         }
     };
 }
+pub(crate) use widest_vectors;
 
 /// Signal extension at the edges, as PyWavelets names them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
