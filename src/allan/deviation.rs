@@ -431,33 +431,27 @@ unsafe fn chunks_avx2<const K: usize>(
     }
 }
 
-/// Adds the terms i in [from, to) of each m in `ms` (at most [`GROUP`]) to its partial, with
-/// the AVX2 and FMA build where the CPU has them (identical results either way). The bounds
-/// are those of [`chunks_portable`], checked here.
-fn chunks(x: &[f64], ms: &[usize], from: usize, to: usize, p: &mut [Partial]) {
+/// [`chunks_avx2`] where the CPU has AVX2 and FMA, else [`chunks_portable`] (identical results
+/// either way); the bounds of [`chunks_portable`], checked here.
+fn chunks_of<const K: usize>(x: &[f64], ms: [usize; K], from: usize, to: usize, p: &mut [Partial]) {
     let top = ms.iter().max().map_or(0, |&m| to + 2 * m);
-    assert!(from <= to && from % LANES == 0 && to % LANES == 0 && top <= x.len());
-    assert!(ms.len() <= GROUP && p.len() >= ms.len());
+    assert!(from <= to && from % LANES == 0 && to % LANES == 0 && top <= x.len() && p.len() >= K);
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
         // SAFETY: the CPU supports AVX2 and FMA (checked just above); the bounds are asserted.
-        unsafe {
-            match *ms {
-                [a] => chunks_avx2(x, [a], from, to, p),
-                [a, b] => chunks_avx2(x, [a, b], from, to, p),
-                [a, b, c] => chunks_avx2(x, [a, b, c], from, to, p),
-                [a, b, c, d] => chunks_avx2(x, [a, b, c, d], from, to, p),
-                _ => {}
-            }
-        }
-        return;
+        return unsafe { chunks_avx2(x, ms, from, to, p) };
     }
+    chunks_portable(x, ms, from, to, p)
+}
+
+/// Adds the terms i in [from, to) of each m in `ms` (one to [`GROUP`] of them) to its partial.
+fn chunks(x: &[f64], ms: &[usize], from: usize, to: usize, p: &mut [Partial]) {
     match *ms {
-        [a] => chunks_portable(x, [a], from, to, p),
-        [a, b] => chunks_portable(x, [a, b], from, to, p),
-        [a, b, c] => chunks_portable(x, [a, b, c], from, to, p),
-        [a, b, c, d] => chunks_portable(x, [a, b, c, d], from, to, p),
-        _ => {}
+        [a] => chunks_of(x, [a], from, to, p),
+        [a, b] => chunks_of(x, [a, b], from, to, p),
+        [a, b, c] => chunks_of(x, [a, b, c], from, to, p),
+        [a, b, c, d] => chunks_of(x, [a, b, c, d], from, to, p),
+        _ => unreachable!("1 to GROUP averaging factors at once, got {}", ms.len()),
     }
 }
 
