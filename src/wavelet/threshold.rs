@@ -91,7 +91,7 @@ fn exp_nonpositive(x: f64) -> f64 {
     const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
     // Adding 1.5 * 2^52 rounds to an integer (to nearest), which then sits in the low bits.
     const SHIFT: f64 = 6_755_399_441_055_744.0;
-    // 1/n! for n = 0..=13: the Taylor series of e^r, |r| <= ln(2)/2, to below 2^-60 relative.
+    // 1/n! for n = 0..=13: the Taylor series of e^r, |r| <= ln(2)/2, to 4e-18 relative.
     const C: [f64; 14] = [
         1.0,
         1.0,
