@@ -2,7 +2,8 @@
 //! lag 64 / window 1024, `LaneDenoiser<3>` as `denoise.wavelet` runs it) timed back to back
 //! (warm), after an 8 MB write that evicts the caches, after a 1 ms sleep, and after a 1 ms
 //! sleep followed by `prewarm` (at once, or with another 100 us sleep in between, as
-//! `prewarm_us` does). The ratios to warm, same run, are the figures docs/performance.md
+//! `prewarm_us` does; or at once and timed with the push, as a prewarm without a second
+//! wake-up would be). The ratios to warm, same run, are the figures docs/performance.md
 //! ("Prewarming") quotes. The thread asks for SCHED_FIFO 50 and says whether it got it; pin it
 //! with `taskset -c 1 cargo bench --bench cold` to keep the other core's work off it.
 //! `DRIFTLESS_COLD_SAMPLES` (default 5000) per sleeping mode.
@@ -21,6 +22,7 @@ enum Before {
     Sleep,
     SleepPrewarm,
     SleepPrewarmSleep,
+    SleepPrewarmTimed,
 }
 
 fn main() {
@@ -55,6 +57,11 @@ fn main() {
             Before::SleepPrewarmSleep,
             n,
         ),
+        (
+            "after a 1 ms sleep, prewarm + push timed",
+            Before::SleepPrewarmTimed,
+            n,
+        ),
     ];
     let mut warm_p50 = 0.0;
     println!("| push of 3 axes | samples | p50 us | p90 us | p50 / warm |");
@@ -81,6 +88,9 @@ fn main() {
                 }
                 let v = next();
                 let t0 = Instant::now();
+                if before == Before::SleepPrewarmTimed {
+                    d.prewarm();
+                }
                 black_box(d.push(v));
                 t.push(t0.elapsed().as_nanos() as f64 / 1e3);
             }
