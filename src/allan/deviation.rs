@@ -459,8 +459,8 @@ fn chunks(x: &[f64], ms: &[usize], from: usize, to: usize, p: &mut [Partial]) {
 /// cache-blocked pass over `x`, the m in groups of [`GROUP`] that share their loads of x[i].
 fn oadev_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
     let l = x.len();
-    let terms = |m: usize| l.saturating_sub(2 * m);
-    let whole = |m: usize| terms(m) - terms(m) % LANES;
+    let n = |m: usize| terms(Kind::Oadev, l, m);
+    let whole = |m: usize| n(m) - n(m) % LANES;
     let mut parts = vec![Partial::default(); ms.len()];
     let mut start = 0;
     while start < l {
@@ -481,7 +481,7 @@ fn oadev_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
         start = end;
     }
     for (p, &m) in parts.iter_mut().zip(ms) {
-        for i in whole(m)..terms(m) {
+        for i in whole(m)..n(m) {
             let v = x[i + 2 * m] - 2.0 * x[i + m] + x[i];
             p.tail += v * v;
         }
