@@ -289,7 +289,7 @@ fn a_second_daemon_for_the_same_pipeline_is_refused() {
     assert!(err.contains(&format!("user {me}, since ")), "stderr: {err}");
     assert!(err.contains(" ago)"), "stderr: {err}");
     // How to run a second one: the three ways to set another prefix.
-    let other = format!("{}{me}_", prefix.0);
+    let other = format!("{}-{me}_", prefix.0.trim_end_matches('_'));
     for way in [
         format!("--prefix {other}"),
         format!("DRIFTLESS_IOX2_PREFIX={other}"),

@@ -102,7 +102,7 @@ def main() -> int:
         ap.error(f"--count must exceed the pipeline's denoiser lag ({facts['lag']})")
 
     tmp = tempfile.mkdtemp(prefix="driftless-pycheck-")
-    prefix = f"dlpy{os.getpid()}_{os.urandom(3).hex()}_"
+    prefix = f"dlpy{os.getpid()}-{os.urandom(3).hex()}_"
     env = dict(os.environ, DRIFTLESS_IOX2_PREFIX=prefix,
                DRIFTLESS_IOX2_ROOT=os.path.join(tmp, "iceoryx2"),
                PYTHONDONTWRITEBYTECODE="1", PYTHONUNBUFFERED="1")

@@ -11,7 +11,9 @@ type id (name, size and alignment must all match, or opening fails with Incompat
 import ctypes
 import math
 import os
+import re
 import signal
+import stat
 import sys
 
 import iceoryx2 as iox2
@@ -132,8 +134,13 @@ def t_ns_of(seq: int, rate_hz: float) -> int:
 
 
 def resolve_prefix(option) -> str:
-    """The option, else DRIFTLESS_IOX2_PREFIX, else driftless_ (as the daemon resolves it)."""
-    return option or os.environ.get(PREFIX_ENV) or DEFAULT_PREFIX
+    """The option, else DRIFTLESS_IOX2_PREFIX, else driftless_ (as the daemon resolves it),
+    checked as the daemon checks it (transport::check_prefix)."""
+    prefix = option or os.environ.get(PREFIX_ENV) or DEFAULT_PREFIX
+    if not _PREFIX.fullmatch(prefix):
+        sys.exit(f"iceoryx2 prefix {prefix!r}: a prefix is letters, digits, '-' or '.', then "
+                 "one '_' at the end and no other (at most 64 bytes)")
+    return prefix
 
 
 def resolve_root(option) -> str:
@@ -170,7 +177,21 @@ def create_node(prefix: str, root: str, name: str):
     return node
 
 
+# transport::names: a prefix ends in its only "_", so no prefix's files are another's; after it,
+# the names iceoryx2 0.10 gives its segments in /dev/shm (H: a SHA-1 in hex, D: a u128).
+_PREFIX = re.compile(r"[A-Za-z0-9][A-Za-z0-9.-]{0,62}_")
+_SEGMENT = re.compile(
+    r"[0-9a-f]{40}_(?:"
+    r"\d{1,39}(?:__(?:\d{1,39}|mgmt))?\.data"
+    r"|\d{1,39}\.(?:dynamic|event_mgmt|blackboard_mgmt|blackboard_data)"
+    r"|\d{1,39}_\d{1,39}\.connection"
+    r"|node\.\d{1,39}_\d{1,39}_\d{1,39}\.global_mgmt)"
+)
+
+
 def _own_segments(prefix: str):
+    """This prefix's segments in /dev/shm: iceoryx2's names only, regular files of ours, never
+    followed through a link (as transport::cleanup)."""
     try:
         names = os.listdir("/dev/shm")
     except OSError:
@@ -178,42 +199,55 @@ def _own_segments(prefix: str):
     me = os.geteuid()
     out = []
     for n in names:
-        if n.startswith(prefix):
-            p = os.path.join("/dev/shm", n)
-            try:
-                st = os.stat(p)
-            except OSError:
-                continue
-            if st.st_uid == me:
-                out.append((p, st))
+        if not (n.startswith(prefix) and _SEGMENT.fullmatch(n[len(prefix):])):
+            continue
+        p = os.path.join("/dev/shm", n)
+        try:
+            st = os.stat(p, follow_symlinks=False)
+        except OSError:
+            continue
+        if stat.S_ISREG(st.st_mode) and st.st_uid == me:
+            out.append((p, st))
     return out
 
 
 def _restrict_global_segment(prefix: str) -> None:
     """iceoryx2 0.10 makes the prefix's node counter in /dev/shm 0666; take that back, as the
-    daemon does (docs/operations.md, "Users and permissions")."""
+    daemon does (docs/operations.md, "Users and permissions"), through the file itself."""
     for p, st in _own_segments(prefix):
         if p.endswith(".global_mgmt") and st.st_mode & 0o077:
             try:
-                os.chmod(p, 0o600)
+                fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+            except OSError:
+                continue
+            try:
+                if stat.S_ISREG(os.fstat(fd).st_mode):
+                    os.fchmod(fd, 0o600)
             except OSError:
                 pass
+            finally:
+                os.close(fd)
 
 
 def remove_prefix_leftovers(prefix: str, root: str) -> None:
     """Once no node of the prefix is left, remove the files iceoryx2 leaves behind even after a
-    clean exit (the prefix's `.global_mgmt` in /dev/shm), as transport::remove_prefix_leftovers.
-    Call it after every node of this process is gone."""
+    clean exit (the prefix's `.global_mgmt` in /dev/shm), as transport::remove_prefix_leftovers:
+    only its segments in /dev/shm, regular files of ours. Call it after every node of this
+    process is gone."""
     try:
         if iox2.Node.list(iox2.ServiceType.Ipc, config(prefix, root)):
             return
     except Exception:  # noqa: BLE001 (cannot tell: leave everything)
         return
-    for p, _ in _own_segments(prefix):
-        try:
-            os.remove(p)
-        except OSError:
-            pass
+    shm = os.open("/dev/shm", os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW)
+    try:
+        for p, _ in _own_segments(prefix):
+            try:
+                os.unlink(os.path.basename(p), dir_fd=shm)
+            except OSError:
+                pass
+    finally:
+        os.close(shm)
 
 
 def stop_flag() -> list:

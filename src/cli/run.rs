@@ -40,10 +40,11 @@ pub struct Args {
 fn another_prefix_hint(prefix: &str, pipeline: &Path) -> String {
     // SAFETY: getuid cannot fail.
     let me = transport::user_name(unsafe { libc::getuid() });
+    let stem = prefix.trim_end_matches('_');
     let example = me
-        .map(|u| format!("{prefix}{u}_"))
+        .map(|u| format!("{stem}-{u}_"))
         .filter(|p| p != prefix && transport::check_prefix(p).is_ok())
-        .unwrap_or_else(|| format!("{prefix}2_"));
+        .unwrap_or_else(|| format!("{stem}-2_"));
     format!(
         "--prefix {example}, or DRIFTLESS_IOX2_PREFIX={example}, or `prefix = \"{example}\"` \
          under [iceoryx2] in {} (tap, stats and subscribers then take the same prefix)",

@@ -1,11 +1,190 @@
 //! Clean-up of the files iceoryx2 leaves in `/dev/shm` and its root directory: a prefix's
-//! leftovers after the last node, segments a killed process never sized, and the permissions
-//! of the one segment iceoryx2 opens to every user.
+//! leftovers after the last node, a dead node's files, segments a killed process never sized,
+//! and the permissions of the one segment iceoryx2 opens to every user.
+//!
+//! Every path here deletes only what is provably ours, on a machine shared with other users and
+//! programs (some of them hostile):
+//! - a name that iceoryx2 0.10 makes for this prefix in that directory ([`super::names`]), never
+//!   a bare `starts_with`;
+//! - a regular file (in the root directory, iceoryx2's event socket), never a link or a
+//!   directory, owned by our effective uid;
+//! - reached only through directories opened without following a link (`O_NOFOLLOW`), and only
+//!   `/dev/shm`, the root, its `services` and `nodes`, and the node directories in `nodes`;
+//!   deleted relative to that directory (`unlinkat`), so a link swapped in meanwhile is never
+//!   followed;
+//! - no recursion, at most [`MAX_ENTRIES`] entries read per directory: no walk can loop or
+//!   hang.
 
+use std::ffi::OsStr;
+use std::os::fd::{AsFd, OwnedFd};
+use std::os::unix::ffi::OsStrExt;
 use std::time::Duration;
 
+use rustix::fs::{AtFlags, FileType, Mode, OFlags, Stat};
+
 use super::config::root;
+use super::names::{is_node_dir, is_ours, Place};
 use super::node::Transport;
+
+/// Entries read from one directory at most (a walk never reads more, whatever is planted).
+pub(super) const MAX_ENTRIES: usize = 100_000;
+
+/// Where POSIX shared memory lives on Linux.
+pub(super) const SHM_DIR: &str = "/dev/shm";
+
+/// A directory opened without following a link, to read and delete relative to.
+pub(super) struct SafeDir(OwnedFd);
+
+impl SafeDir {
+    /// Open `path`; `None` if it is missing, not a directory, or its last component a link.
+    pub(super) fn open(path: &std::path::Path) -> Option<Self> {
+        Self::open_at(rustix::fs::CWD, path.as_os_str().as_bytes())
+    }
+
+    /// Open the directory `name` inside this one, on the same terms.
+    fn sub(&self, name: &[u8]) -> Option<Self> {
+        Self::open_at(self.0.as_fd(), name)
+    }
+
+    fn open_at(dir: impl AsFd, name: &[u8]) -> Option<Self> {
+        let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+        rustix::fs::openat(dir, OsStr::from_bytes(name), flags, Mode::empty())
+            .ok()
+            .map(SafeDir)
+    }
+
+    /// The names in this directory (at most [`MAX_ENTRIES`]; `.` and `..` left out).
+    pub(super) fn names(&self) -> Vec<Vec<u8>> {
+        let Ok(dir) = rustix::fs::Dir::read_from(&self.0) else {
+            return Vec::new();
+        };
+        dir.take(MAX_ENTRIES)
+            .filter_map(Result::ok)
+            .map(|e| e.file_name().to_bytes().to_vec())
+            .filter(|n| n != b"." && n != b"..")
+            .collect()
+    }
+
+    /// What `name` is, without following it if it is a link.
+    pub(super) fn stat(&self, name: &[u8]) -> Option<Stat> {
+        rustix::fs::statat(&self.0, OsStr::from_bytes(name), AtFlags::SYMLINK_NOFOLLOW).ok()
+    }
+
+    /// Open the file `name` for `flags` if it is a regular file of ours (never through a link).
+    pub(super) fn open_own_file(&self, name: &[u8], flags: OFlags) -> Option<(OwnedFd, Stat)> {
+        let flags = flags | OFlags::NOFOLLOW | OFlags::NONBLOCK | OFlags::CLOEXEC;
+        let fd = rustix::fs::openat(&self.0, OsStr::from_bytes(name), flags, Mode::empty()).ok()?;
+        let st = rustix::fs::fstat(&fd).ok()?;
+        (is_own(&st) && FileType::from_raw_mode(st.st_mode) == FileType::RegularFile)
+            .then_some((fd, st))
+    }
+
+    /// Delete `name` if it is a regular file (or, with `socket`, a Unix socket) of ours.
+    pub(super) fn remove_own(&self, name: &[u8], socket: bool) -> bool {
+        let Some(st) = self.stat(name) else {
+            return false;
+        };
+        let kind = FileType::from_raw_mode(st.st_mode);
+        let removable = kind == FileType::RegularFile || (socket && kind == FileType::Socket);
+        removable
+            && is_own(&st)
+            && rustix::fs::unlinkat(&self.0, OsStr::from_bytes(name), AtFlags::empty()).is_ok()
+    }
+
+    /// Delete every file of `prefix` in this directory that is `place`'s and passes `also`.
+    fn remove_prefix_files(&self, place: Place, prefix: &str, also: impl Fn(&[u8]) -> bool) {
+        for name in self.names() {
+            if is_ours(place, prefix.as_bytes(), &name) && also(&name) {
+                self.remove_own(&name, place == Place::Root);
+            }
+        }
+    }
+}
+
+/// Is this file our effective user's?
+pub(super) fn is_own(st: &Stat) -> bool {
+    st.st_uid == rustix::process::geteuid().as_raw()
+}
+
+/// iceoryx2's `nodes` directory under the root in force.
+fn nodes_dir() -> Option<SafeDir> {
+    SafeDir::open(&root())?.sub(b"nodes")
+}
+
+/// Remove the files of `prefix` that iceoryx2 leaves once no node of it is left (the
+/// per-prefix management segment in `/dev/shm`, and whatever a killed process left). Does
+/// nothing while a node of the prefix is alive, or if the nodes cannot be listed.
+pub fn remove_prefix_leftovers(prefix: &str) {
+    if Transport::node_count(prefix).map_or(true, |n| n > 0) {
+        return;
+    }
+    if let Some(shm) = SafeDir::open(SHM_DIR.as_ref()) {
+        shm.remove_prefix_files(Place::Shm, prefix, |_| true);
+    }
+    let Some(root) = SafeDir::open(&root()) else {
+        return;
+    };
+    root.remove_prefix_files(Place::Root, prefix, |_| true);
+    if let Some(services) = root.sub(b"services") {
+        services.remove_prefix_files(Place::Services, prefix, |_| true);
+    }
+    if let Some(nodes) = root.sub(b"nodes") {
+        nodes.remove_prefix_files(Place::Nodes, prefix, |_| true);
+        for id in nodes.names().into_iter().filter(|n| is_node_dir(n)) {
+            remove_node_dir(&nodes, prefix, &id);
+        }
+    }
+}
+
+/// Remove what is left of the dead node `id` of `prefix`: its files in the directory iceoryx2
+/// names by the node id (and the directory once empty), then its monitor files.
+pub(super) fn remove_node_files(prefix: &str, id: u128) {
+    let Some(nodes) = nodes_dir() else {
+        return;
+    };
+    let id = id.to_string();
+    remove_node_dir(&nodes, prefix, id.as_bytes());
+    let monitor = format!("{prefix}{id}.");
+    nodes.remove_prefix_files(Place::Nodes, prefix, |n| n.starts_with(monitor.as_bytes()));
+}
+
+/// Delete `prefix`'s files in `nodes/<id>`, then the directory if it is ours and now empty
+/// (another prefix's node of the same id keeps it).
+fn remove_node_dir(nodes: &SafeDir, prefix: &str, id: &[u8]) {
+    let Some(st) = nodes.stat(id) else {
+        return;
+    };
+    if FileType::from_raw_mode(st.st_mode) != FileType::Directory || !is_own(&st) {
+        return;
+    }
+    if let Some(dir) = nodes.sub(id) {
+        dir.remove_prefix_files(Place::NodeDir, prefix, |_| true);
+    }
+    let _ = rustix::fs::unlinkat(&nodes.0, OsStr::from_bytes(id), AtFlags::REMOVEDIR);
+}
+
+/// A shared memory segment of ours in `/dev/shm`: its name and what it is.
+pub(super) struct Segment {
+    pub name: Vec<u8>,
+    pub stat: Stat,
+}
+
+/// This prefix's shared memory segments in `/dev/shm` that are regular files of ours, and the
+/// directory to act on them through.
+pub(super) fn own_segments(prefix: &str) -> Option<(SafeDir, Vec<Segment>)> {
+    let shm = SafeDir::open(SHM_DIR.as_ref())?;
+    let found = shm
+        .names()
+        .into_iter()
+        .filter(|n| is_ours(Place::Shm, prefix.as_bytes(), n))
+        .filter_map(|name| {
+            let stat = shm.stat(&name)?;
+            (FileType::from_raw_mode(stat.st_mode) == FileType::RegularFile && is_own(&stat))
+                .then_some(Segment { name, stat })
+        })
+        .collect();
+    Some((shm, found))
+}
 
 /// Remove this prefix's shared memory segments of size 0 older than a second: what a process
 /// killed between creating a segment and sizing it leaves (creator and size are microseconds
@@ -14,23 +193,38 @@ use super::node::Transport;
 /// listing, would hang forever (found by the `list --clean` test killing daemons mid-start).
 pub(super) fn remove_unsized_segments(prefix: &str) {
     const SETTLE: Duration = Duration::from_secs(1);
-    let unsized_segments = || -> Vec<(std::path::PathBuf, Duration)> {
-        own_segments(prefix)
-            .into_iter()
-            .filter(|(_, m)| m.is_file() && m.len() == 0)
-            .filter_map(|(path, m)| Some((path, m.modified().ok()?.elapsed().unwrap_or_default())))
-            .collect()
+    let age = |st: &Stat| {
+        let modified = std::time::UNIX_EPOCH
+            + Duration::new(st.st_mtime.max(0) as u64, st.st_mtime_nsec as u32);
+        std::time::SystemTime::now()
+            .duration_since(modified)
+            .unwrap_or_default()
     };
-    let found = unsized_segments();
+    let unsized_ages = || {
+        own_segments(prefix).map(|(shm, found)| {
+            let ages: Vec<(Vec<u8>, Duration)> = found
+                .into_iter()
+                .filter(|s| s.stat.st_size == 0)
+                .map(|s| (s.name, age(&s.stat)))
+                .collect();
+            (shm, ages)
+        })
+    };
+    let Some((_, found)) = unsized_ages() else {
+        return;
+    };
     // A segment younger than a second may be one a live process is sizing right now: wait
     // until it is a second old (rare: only after a kill at that instant), then look again.
     if let Some(youngest) = found.iter().map(|(_, age)| *age).min() {
         if youngest < SETTLE {
             std::thread::sleep(SETTLE - youngest);
         }
-        for (path, age) in unsized_segments() {
+        let Some((shm, found)) = unsized_ages() else {
+            return;
+        };
+        for (name, age) in found {
             if age >= SETTLE {
-                let _ = std::fs::remove_file(path);
+                shm.remove_own(&name, false);
             }
         }
     }
@@ -39,62 +233,16 @@ pub(super) fn remove_unsized_segments(prefix: &str) {
 /// iceoryx2 0.10 makes each prefix's global management segment (a node counter in `/dev/shm`)
 /// readable and writable by every user, the one resource it opens to all: make ours the
 /// owner's alone, as everything else it creates is (a process of another user is then refused,
-/// as by the rest).
+/// as by the rest). Changed through a descriptor of the file itself, never through a link.
 pub(super) fn restrict_global_segment(prefix: &str) {
-    use std::os::unix::fs::{MetadataExt, PermissionsExt};
-    for (path, m) in own_segments(prefix) {
-        let global = path.to_string_lossy().ends_with(".global_mgmt");
-        if global && m.mode() & 0o077 != 0 {
-            let _ = std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600));
-        }
-    }
-}
-
-/// This prefix's shared memory segments in `/dev/shm` that belong to this process's user, with
-/// their metadata.
-fn own_segments(prefix: &str) -> Vec<(std::path::PathBuf, std::fs::Metadata)> {
-    use std::os::unix::fs::MetadataExt;
-    // SAFETY: geteuid cannot fail.
-    let me = unsafe { libc::geteuid() };
-    let Ok(entries) = std::fs::read_dir("/dev/shm") else {
-        return Vec::new();
-    };
-    entries
-        .flatten()
-        .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
-        .filter_map(|e| Some((e.path(), e.metadata().ok()?)))
-        .filter(|(_, m)| m.uid() == me)
-        .collect()
-}
-
-/// Remove the files iceoryx2 leaves for `prefix` once no node of it is left (the per-prefix
-/// management file in `/dev/shm`). Does nothing while a node of the prefix is alive.
-pub fn remove_prefix_leftovers(prefix: &str) {
-    if Transport::node_count(prefix).map_or(true, |n| n > 0) {
-        return;
-    }
-    for dir in [std::path::PathBuf::from("/dev/shm"), root()] {
-        remove_files_with_prefix(&dir, prefix);
-    }
-}
-
-pub(super) fn remove_files_with_prefix(dir: &std::path::Path, prefix: &str) {
-    let Ok(entries) = std::fs::read_dir(dir) else {
+    let Some((shm, found)) = own_segments(prefix) else {
         return;
     };
-    for entry in entries.flatten() {
-        let path = entry.path();
-        let name = entry.file_name();
-        if !name.to_string_lossy().starts_with(prefix) {
-            if path.is_dir() {
-                remove_files_with_prefix(&path, prefix);
+    for s in found {
+        if s.name.ends_with(b".global_mgmt") && s.stat.st_mode & 0o077 != 0 {
+            if let Some((fd, _)) = shm.open_own_file(&s.name, OFlags::RDONLY) {
+                let _ = rustix::fs::fchmod(&fd, Mode::from_raw_mode(0o600));
             }
-            continue;
-        }
-        if path.is_dir() {
-            let _ = std::fs::remove_dir_all(&path);
-        } else {
-            let _ = std::fs::remove_file(&path);
         }
     }
 }

@@ -47,13 +47,6 @@ pub fn check_service_name(name: &str) -> Result<(), String> {
         .map_err(|e| format!("{e:?}"))
 }
 
-/// Check that `prefix` is a valid iceoryx2 prefix (a file name).
-pub fn check_prefix(prefix: &str) -> Result<(), String> {
-    FileName::new(prefix.as_bytes())
-        .map(|_| ())
-        .map_err(|e| format!("{e:?}"))
-}
-
 pub(super) fn service_name(name: &str) -> Result<ServiceName, TransportError> {
     ServiceName::new(name).map_err(|e| TransportError::Name {
         name: name.to_string(),

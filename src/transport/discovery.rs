@@ -7,7 +7,7 @@ use std::time::Duration;
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 
-use super::cleanup::{remove_files_with_prefix, remove_unsized_segments};
+use super::cleanup::{remove_node_files, remove_unsized_segments};
 use super::config::{config, service_name};
 use super::error::{setup, TransportError};
 use super::node::Transport;
@@ -427,15 +427,8 @@ impl Transport {
             CallbackProgression::Continue
         })
         .map_err(|e| setup("node list", prefix, e))?;
-        let node_dir = std::path::PathBuf::from(cfg.global.node_dir().to_string());
         for node in dead_nodes(&cfg)? {
-            // This prefix's files in the directory iceoryx2 names by the node id, then the
-            // node's monitor files (`PREFIXID.node_monitor...`), as iceoryx2 orders them.
-            let id = node.id.to_string();
-            let dir = node_dir.join(&id);
-            remove_files_with_prefix(&dir, prefix);
-            let _ = std::fs::remove_dir(&dir);
-            remove_files_with_prefix(&node_dir, &format!("{prefix}{id}."));
+            remove_node_files(prefix, node.id);
         }
         let left = dead_nodes(&cfg)?;
         if !left.is_empty() {

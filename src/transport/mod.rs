@@ -15,7 +15,8 @@
 //! | `ports.rs` | [`Output`] and [`Input`] |
 //! | `wake.rs` | [`Waker`] and [`WakeSet`]: sleeping until another process notifies |
 //! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline |
-//! | `cleanup.rs` | what iceoryx2 leaves behind, removed |
+//! | `names.rs` | iceoryx2's file names, and the prefixes we allow ([`check_prefix`]) |
+//! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
 //!
 //! # Quality of service
@@ -31,6 +32,7 @@ mod cleanup;
 mod config;
 mod discovery;
 mod error;
+mod names;
 mod node;
 mod permissions;
 mod ports;
@@ -46,13 +48,14 @@ pub use iceoryx2::prelude::ZeroCopySend;
 
 pub use cleanup::remove_prefix_leftovers;
 pub use config::{
-    check_prefix, check_root, check_service_name, quiet_logging, root, set_root, Qos,
-    DEFAULT_PREFIX, DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
+    check_root, check_service_name, quiet_logging, root, set_root, Qos, DEFAULT_PREFIX,
+    DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
 };
 pub use discovery::{
     display_name, ListedNode, ListedService, Listing, NodeHolder, NodeLife, ServiceKind, WireType,
 };
 pub use error::TransportError;
+pub use names::check_prefix;
 pub use node::Transport;
 pub use permissions::user_name;
 pub use ports::{Input, Output};
