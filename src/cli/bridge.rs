@@ -179,11 +179,7 @@ mod imp {
         };
         // Everything the user typed is checked before anything opens.
         let cfg = z::config(&opts)?;
-        let stop = Arc::new(AtomicBool::new(false));
-        for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-            signal_hook::flag::register(sig, Arc::clone(&stop))
-                .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
-        }
+        let stop = crate::cli::signals::stop_flag();
         let result = match (&args.from_zenoh, &args.to) {
             (Some(key), Some(service)) => {
                 transport::check_service_name(service)

@@ -31,6 +31,7 @@ pub mod record;
 pub mod reference;
 pub mod relay;
 pub mod run;
+pub mod signals;
 pub mod simulate;
 pub mod stats;
 pub mod table;
@@ -171,6 +172,7 @@ fn usage_error_line(rendered: &str, help: &str) -> String {
 
 /// Parse the command line, run the command, and turn its outcome into an exit code.
 pub fn main() -> ExitCode {
+    signals::install();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {

@@ -19,7 +19,6 @@ use std::fs::File;
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime};
 
 use crate::cli::CliError;
@@ -253,18 +252,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         return Err(CliError::input("--frame-id is for --format ros2"));
     }
     let prefix = args.iceoryx2.resolve(None)?;
-    // Before anything exists on disk: a signal from now on ends the recording cleanly.
-    let sigint = Arc::new(AtomicBool::new(false));
-    let sigterm = Arc::new(AtomicBool::new(false));
-    for (sig, flag) in [
-        (signal_hook::consts::SIGINT, &sigint),
-        (signal_hook::consts::SIGTERM, &sigterm),
-    ] {
-        signal_hook::flag::register(sig, Arc::clone(flag))
-            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
-    }
+    // Installed in main, before anything exists on disk: a signal ends the recording cleanly.
+    let stop = crate::cli::signals::stop_flag();
     let (partial, file) = Partial::create(&args.output)?;
-    let result = record(&args, &prefix, partial, file, [&sigint, &sigterm]);
+    let result = record(&args, &prefix, partial, file, &stop);
     transport::remove_prefix_leftovers(&prefix);
     result
 }
@@ -274,7 +265,7 @@ fn record(
     prefix: &str,
     mut partial: Partial,
     file: File,
-    signals: [&AtomicBool; 2],
+    stop: &AtomicBool,
 ) -> Result<(), CliError> {
     let node = Transport::new(
         prefix,
@@ -374,7 +365,7 @@ fn record(
         &mut writer,
         &mut recorded,
         args.duration.map(|d| t0 + d),
-        signals,
+        stop,
         |total| {
             if let Some(bar) = &bar {
                 let size = size_probe.metadata().map_or(0, |m| m.len());
@@ -628,7 +619,7 @@ fn drain(
     writer: &mut McapWriter,
     recorded: &mut [Recorded],
     deadline: Option<Instant>,
-    [sigint, sigterm]: [&AtomicBool; 2],
+    stop: &AtomicBool,
     mut progress: impl FnMut(u64),
 ) -> Result<&'static str, String> {
     let mut json = Vec::with_capacity(1024);
@@ -636,10 +627,8 @@ fn drain(
     let mut since_flush = vec![0u64; recorded.len()];
     let mut sleep = MIN_SLEEP;
     loop {
-        let stopped_by = if sigint.load(Ordering::Relaxed) {
-            Some("SIGINT")
-        } else if sigterm.load(Ordering::Relaxed) {
-            Some("SIGTERM")
+        let stopped_by = if stop.load(Ordering::Relaxed) {
+            Some(crate::cli::signals::stopped_by().unwrap_or("a signal"))
         } else if deadline.is_some_and(|d| Instant::now() >= d) {
             Some("--duration")
         } else {

@@ -1,8 +1,6 @@
 //! `driftless relay --input A --output B [--scale S] [--offset O]`: a reference `external` stage
 //! in its own process ([`crate::stages::external::relay`]).
 
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 use std::time::Duration;
 
 use crate::cli::CliError;
@@ -51,11 +49,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if !(1..=65_536).contains(&args.buffer_size) {
         return Err(CliError::input("--buffer-size must be in 1..=65536"));
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(&stop))
-            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
-    }
+    let stop = crate::cli::signals::stop_flag();
     let opts = RelayOptions {
         prefix,
         input: args.input,

@@ -3,8 +3,6 @@
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 use std::time::Duration;
 
 use crate::cli::duration::parse_duration;
@@ -107,11 +105,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(&stop))
-            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
-    }
+    let stop = crate::cli::signals::stop_flag();
     let opts = RunOptions {
         duration: args.duration,
         stop,
@@ -136,7 +130,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 another_prefix_hint(prefix, &file)
             ))
         }
-        RunError::Group(_) => CliError::input(e.to_string()),
+        RunError::Group(_)
+        | RunError::Transport(transport::TransportError::SharedMemoryFull { .. }) => {
+            CliError::input(e.to_string())
+        }
         other => CliError::internal(other.to_string()),
     })?;
     let several = results.len() > 1;

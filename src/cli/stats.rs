@@ -2,8 +2,7 @@
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
@@ -53,11 +52,7 @@ fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError
     let input = node
         .open_input::<StatsSnapshot>(&p.iceoryx2.stats_service)
         .map_err(|_| not_running())?;
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(&stop))
-            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
-    }
+    let stop = crate::cli::signals::stop_flag();
     // On a terminal the snapshot is redrawn in place (as `top`); piped, snapshots follow each
     // other.
     let redraw = !args.once && !args.json && std::io::stdout().is_terminal();

@@ -2,8 +2,7 @@
 //! (like `ros2 topic echo` and `ros2 topic hz`).
 
 use std::io::Write;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
@@ -377,11 +376,7 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
             args.service
         )));
     };
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(&stop))
-            .map_err(|e| CliError::internal(format!("cannot install signal handler: {e}")))?;
-    }
+    let stop = crate::cli::signals::stop_flag();
     let mut printer = Printer {
         format: args.format,
         units: args.units,

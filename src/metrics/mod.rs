@@ -502,6 +502,7 @@ impl Reporter {
             woken_late_over_deadline: self.late_over,
             due_to_published_ns: (!self.due.is_empty()).then(|| Pct::of(&self.due)),
             due_to_published_over_deadline: self.due_over,
+            shared_memory: crate::transport::shared_memory_trouble(),
             stages: self
                 .layout
                 .stages

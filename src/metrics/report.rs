@@ -185,6 +185,10 @@ pub struct Report {
     pub due_to_published_ns: Option<Pct>,
     /// Outputs published more than the deadline after their sample was due.
     pub due_to_published_over_deadline: u64,
+    /// Shared memory this process could not have: writes to segments that `/dev/shm` could not
+    /// back (they reached no other process) and bytes of segments created while running that
+    /// could not be reserved. Zero on a healthy machine.
+    pub shared_memory: crate::transport::ShmTrouble,
     /// Per stage.
     pub stages: Vec<StageReport>,
     /// Heading error of the raw, denoised and corrected rates against the truth (a simulated
@@ -389,6 +393,16 @@ impl Report {
             0 => String::new(),
             n => format!("; {n} outputs published over {deadline} after their sample was due"),
         };
-        format!("verdict: {timing}; {loss}{woken}{due}")
+        let shm = &self.shared_memory;
+        let shm = if *shm == Default::default() {
+            String::new()
+        } else {
+            format!(
+                "; shared memory FULL: {} writes reached no other process, {} bytes of new \
+                 segments unreserved (free /dev/shm)",
+                shm.unbacked_writes, shm.unreserved_bytes
+            )
+        };
+        format!("verdict: {timing}; {loss}{woken}{due}{shm}")
     }
 }

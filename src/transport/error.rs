@@ -58,6 +58,19 @@ pub enum TransportError {
     /// release publishes it): the whole sentence, from [`super::wire_version_mismatch`].
     #[error("{0}")]
     Version(String),
+    /// `/dev/shm` cannot hold the segments just created (a full or too small tmpfs).
+    #[error(
+        "not enough shared memory in {dir} ({needed} bytes needed, {free} free): free some, or \
+         enlarge it (e.g. `mount -o remount,size=64M {dir}`)"
+    )]
+    SharedMemoryFull {
+        /// Where the segments are.
+        dir: &'static str,
+        /// Bytes the segments of this process need.
+        needed: u64,
+        /// Bytes the file system had free before this process created them.
+        free: u64,
+    },
     /// Sending or receiving failed at run time.
     #[error("{what}: {reason}")]
     Io {

@@ -16,6 +16,7 @@
 //! | `wake.rs` | [`Waker`] and [`WakeSet`]: sleeping until another process notifies |
 //! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline |
 //! | `names.rs` | iceoryx2's file names, and the prefixes we allow ([`check_prefix`]) |
+//! | `shm_space.rs` | room in `/dev/shm`: segments reserved whole, the SIGBUS guard |
 //! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
 //!
@@ -36,6 +37,7 @@ mod names;
 mod node;
 mod permissions;
 mod ports;
+mod shm_space;
 mod wake;
 mod wire;
 
@@ -59,6 +61,7 @@ pub use names::check_prefix;
 pub use node::Transport;
 pub use permissions::user_name;
 pub use ports::{Input, Output};
+pub use shm_space::{install_sigbus_guard, shared_memory_trouble, ShmTrouble};
 pub use wake::{WakeSet, Waker};
 pub use wire::*;
 

@@ -67,6 +67,16 @@ pub(super) fn is_ours(place: Place, prefix: &[u8], name: &[u8]) -> bool {
     }
 }
 
+/// Is `name` (a file name in `/dev/shm`) a segment iceoryx2 0.10 made under a prefix of ours,
+/// whatever the prefix? Safe to call in a signal handler.
+pub(super) fn is_segment(name: &[u8]) -> bool {
+    let Some(end) = name.iter().position(|&b| b == b'_') else {
+        return false;
+    };
+    let (prefix, rest) = name.split_at(end + 1);
+    prefix_is_valid(prefix) && is_segment_body(rest)
+}
+
 /// Is a node directory's name (`<root>/nodes/<id>`) a node id?
 pub(super) fn is_node_dir(name: &[u8]) -> bool {
     decimal(name)
@@ -214,6 +224,8 @@ mod tests {
                 }
             }
         }
+        assert!(is_segment(seen(Place::Shm)[0].as_bytes()));
+        assert!(!is_segment(b"pulse-shm-12345"));
         assert!(is_node_dir(D.as_bytes()));
         assert!(!is_node_dir(b"probe_1"));
     }

@@ -12,6 +12,7 @@ use super::config::{config, service_name, Qos};
 use super::discovery::{holder, NodeHolder};
 use super::error::{setup, TransportError};
 use super::ports::{Input, Output};
+use super::shm_space::{install_sigbus_guard, note_existing, reserve_new, reserve_new_or_count};
 use super::wake::Waker;
 use super::{PubSubFactory, Svc, ZeroCopySend};
 
@@ -27,7 +28,9 @@ impl Transport {
     /// resources of dead nodes (a daemon killed with SIGKILL) of the same prefix.
     pub fn new(prefix: &str, node_name: &str, qos: Qos) -> Result<Self, TransportError> {
         let cfg = config(prefix)?;
+        install_sigbus_guard();
         remove_unsized_segments(prefix);
+        note_existing(prefix);
         let name = NodeName::new(node_name).map_err(|e| TransportError::Name {
             name: node_name.to_string(),
             reason: format!("{e:?}"),
@@ -50,6 +53,20 @@ impl Transport {
     /// The prefix this node lives under.
     pub fn prefix(&self) -> &str {
         &self.prefix
+    }
+
+    /// Reserve all of every shared memory segment this process created under the prefix since
+    /// its first node (`fallocate`), so that a full `/dev/shm` fails here, with
+    /// [`TransportError::SharedMemoryFull`], and never later with SIGBUS. Call it once the
+    /// ports are set up.
+    pub fn reserve_shared_memory(&self) -> Result<(), TransportError> {
+        reserve_new(&self.prefix)
+    }
+
+    /// Like [`Transport::reserve_shared_memory`] for a running process: what cannot be
+    /// reserved is counted in [`super::shared_memory_trouble`], and nothing fails.
+    pub fn reserve_shared_memory_or_count(&self) {
+        reserve_new_or_count(&self.prefix)
     }
 
     /// Remove the resources of dead nodes of this prefix; returns how many were cleaned.

@@ -200,6 +200,8 @@ pub(super) fn spawn_reporter(
                             let _ = out.send(snap);
                             // Subscribers that died keep their buffers until someone cleans up.
                             t.cleanup_dead_nodes();
+                            // New subscribers' connections, whole or counted.
+                            t.reserve_shared_memory_or_count();
                         }
                     });
                     (s.reporter, s.rx, publish)

@@ -206,6 +206,13 @@ pub fn run_group(
         Ok(n) => n,
         Err(e) => return abandon(group, e.into()),
     };
+    // Every segment whole now, or a clear error: never a SIGBUS later.
+    if let Some(e) = group
+        .iter()
+        .find_map(|r| r.transport.reserve_shared_memory().err())
+    {
+        return abandon(group, e.into());
+    }
     let stats = group.iter_mut().filter_map(|r| r.stats.take()).collect();
     let reporter = match spawn_reporter(stats) {
         Ok(h) => h,
