@@ -1,0 +1,481 @@
+//! The clean-up deletes only what is ours, on a machine shared with other users and programs
+//! (issue 38): another user's files, another prefix's live daemon, symlinks planted in
+//! `/dev/shm` (to a root-only directory, in a loop), a full `/dev/shm`, and a stop at any
+//! moment of the start.
+//!
+//! Each scenario runs in a private mount namespace with its own tmpfs on `/dev/shm` and on
+//! iceoryx2's root directory, never on the host's: the test re-runs itself (this test binary,
+//! `--exact` the same test) under `unshare -m`, and the child does the work. Making the
+//! namespace needs root (CI runs as root); without it a scenario says so in one line and skips.
+
+mod common;
+
+use std::os::unix::fs::{symlink, MetadataExt, PermissionsExt};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{bin, finish, text, Prefix};
+
+/// Set in the child that runs inside the namespace.
+const CHILD: &str = "DRIFTLESS_TEST_IN_NAMESPACE";
+
+/// iceoryx2's root directory in the namespace (its own tmpfs).
+const ROOT: &str = "/tmp/iceoryx2";
+
+/// A uid that is not ours (nobody).
+const OTHER_UID: u32 = 65_534;
+
+/// A SHA-1 as iceoryx2 writes them, and a node or port id.
+const H: &str = "0354a209029e7d094a819e2d4030ea331e6caaf0";
+const D: &str = "158456425824514663799274340511";
+
+/// Run `test` in a private mount namespace with a tmpfs of `shm_size` on /dev/shm (and one on
+/// iceoryx2's root). Returns true in the child (the caller then runs the scenario); in the
+/// parent, waits for the child, fails if it failed, and returns false.
+fn in_namespace(test: &str, shm_size: &str) -> bool {
+    if std::env::var_os(CHILD).is_some() {
+        return true;
+    }
+    // SAFETY: geteuid cannot fail.
+    if unsafe { libc::geteuid() } != 0 {
+        eprintln!("{test}: skipped: a private mount namespace needs root");
+        return false;
+    }
+    let script = format!(
+        "mount -t tmpfs -o size={shm_size},mode=1777 tmpfs /dev/shm && mkdir -p {ROOT} && \
+         mount -t tmpfs tmpfs {ROOT} && exec \"$0\" \"$@\""
+    );
+    let exe = std::env::current_exe().expect("this test binary");
+    let out = Command::new("unshare")
+        .args(["-m", "--propagation", "private", "sh", "-c", &script])
+        .arg(exe)
+        .args(["--exact", test, "--nocapture", "--test-threads=1"])
+        .env(CHILD, "1")
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .expect("unshare runs");
+    let (stdout, stderr) = text(&out);
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "{test} in its namespace failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    false
+}
+
+/// `driftless ARGS` to its end, or a failure after `limit` (a hang).
+fn run_within(args: &[&str], limit: Duration) -> (Option<i32>, String) {
+    let child = Command::new(bin())
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("driftless runs");
+    finish(child, limit)
+}
+
+/// The demo for a short while under `prefix`: its exit code and stderr.
+fn demo(prefix: &str, secs: &str) -> (Option<i32>, String) {
+    let demo = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml");
+    run_within(
+        &["run", demo, "--prefix", prefix, "--duration", secs, "-q"],
+        Duration::from_secs(60),
+    )
+}
+
+/// Every file (not directory) under `dir`, without following links.
+fn files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return out;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        match e.file_type() {
+            Ok(t) if t.is_dir() => out.extend(files(&p)),
+            _ => out.push(p),
+        }
+    }
+    out.sort();
+    out
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    files(dir)
+        .iter()
+        .map(|p| p.strip_prefix(dir).unwrap().display().to_string())
+        .collect()
+}
+
+/// Create `path` with `text`, owned by `uid`.
+fn plant(path: &Path, text: &str, uid: u32) {
+    std::fs::write(path, text).expect("plant");
+    std::os::unix::fs::lchown(path, Some(uid), Some(uid)).expect("chown");
+}
+
+#[test]
+fn another_users_files_and_other_programs_files_survive_our_clean_up() {
+    if !in_namespace(
+        "another_users_files_and_other_programs_files_survive_our_clean_up",
+        "64m",
+    ) {
+        return;
+    }
+    let shm = Path::new("/dev/shm");
+    // Another user's files under our prefix, one named exactly as iceoryx2 names a segment;
+    // a program's file that a bare starts_with("p") matched; one of ours that iceoryx2 never
+    // names.
+    let theirs = [
+        format!("driftless_{H}_{D}.data"),
+        format!("driftless_{H}_node.0_10_0.global_mgmt"),
+        "driftless_notes".to_string(),
+        "pulse-shm-12345".to_string(),
+    ];
+    for n in &theirs {
+        plant(&shm.join(n), "theirs", OTHER_UID);
+    }
+    plant(&shm.join("driftless_keep.conf"), "ours, not iceoryx2's", 0);
+    let mut root_theirs = vec![];
+    std::fs::create_dir_all(Path::new(ROOT).join("services")).unwrap();
+    let service = Path::new(ROOT).join(format!("services/driftless_{H}.service"));
+    plant(&service, "theirs", OTHER_UID);
+    root_theirs.push(service);
+
+    let (code, err) = demo("driftless_", "0.3s");
+    assert_eq!(code, Some(0), "{err}");
+    // A prefix that a bare starts_with would have taken for pulse-shm's is refused, with the fix.
+    let (code, err) = demo("p", "0.3s");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("try \"p_\""), "{err}");
+    let (code, err) = run_within(&["list", "--clean"], Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+
+    let mut want: Vec<String> = theirs.to_vec();
+    want.push("driftless_keep.conf".into());
+    want.sort();
+    assert_eq!(
+        names(shm),
+        want,
+        "only others' files and ours that iceoryx2 never names"
+    );
+    for p in &root_theirs {
+        assert!(p.exists(), "{} survives", p.display());
+    }
+    assert_eq!(
+        std::fs::read_to_string(shm.join("pulse-shm-12345")).unwrap(),
+        "theirs"
+    );
+}
+
+#[test]
+fn a_live_daemon_under_another_prefix_survives_a_shorter_prefixs_clean_up() {
+    if !in_namespace(
+        "a_live_daemon_under_another_prefix_survives_a_shorter_prefixs_clean_up",
+        "64m",
+    ) {
+        return;
+    }
+    // driftless_b, the prefix that lost its files before, is refused with the one that works.
+    let (code, err) = demo("driftless_b", "0.3s");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("try \"driftless-b_\""), "{err}");
+
+    let demo_file = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml");
+    let live = Command::new(bin())
+        .args([
+            "run",
+            demo_file,
+            "--prefix",
+            "driftless-b_",
+            "--duration",
+            "60s",
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let shm = Path::new("/dev/shm");
+    let end = Instant::now() + Duration::from_secs(20);
+    let tap_b = |count: &str| {
+        run_within(
+            &[
+                "tap",
+                "demo/corrected",
+                "--prefix",
+                "driftless-b_",
+                "--count",
+                count,
+            ],
+            Duration::from_secs(30),
+        )
+    };
+    while tap_b("1").0 != Some(0) {
+        assert!(
+            Instant::now() < end,
+            "the daemon under driftless-b_ never served"
+        );
+    }
+    let before = (names(shm), names(Path::new(ROOT)));
+    assert!(!before.0.is_empty());
+
+    // Everything of the shorter prefix that cleans up on exit: a tap, a daemon, list --clean.
+    let (code, _) = run_within(
+        &[
+            "tap",
+            "demo/corrected",
+            "--prefix",
+            "driftless_",
+            "--duration",
+            "0.5s",
+        ],
+        Duration::from_secs(30),
+    );
+    assert!(code.is_some());
+    let (code, err) = demo("driftless_", "0.3s");
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = run_within(
+        &["list", "--clean", "--prefix", "driftless_"],
+        Duration::from_secs(30),
+    );
+    assert_eq!(code, Some(0), "{err}");
+
+    // The live daemon's files are all there (its own may have come and gone: taps), and its
+    // next subscriber is served.
+    let after = names(shm);
+    for f in before.0.iter().filter(|f| f.contains("global_mgmt")) {
+        assert!(after.contains(f), "{f} survives");
+    }
+    assert!(
+        after.iter().all(|f| f.starts_with("driftless-b_")),
+        "{after:?}"
+    );
+    let (code, err) = tap_b("5");
+    assert_eq!(code, Some(0), "a new subscriber is served: {err}");
+    common::signal(&live, libc::SIGTERM);
+    let (code, err) = finish(live, Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(names(shm).is_empty(), "{:?}", names(shm));
+}
+
+#[test]
+fn a_symlink_to_a_root_only_directory_is_never_followed() {
+    if !in_namespace(
+        "a_symlink_to_a_root_only_directory_is_never_followed",
+        "64m",
+    ) {
+        return;
+    }
+    let secret = tempfile::tempdir().unwrap();
+    std::fs::set_permissions(secret.path(), std::fs::Permissions::from_mode(0o700)).unwrap();
+    let kept = [
+        "driftless_keep.conf".to_string(),
+        format!("driftless_{H}_{D}.data"),
+        format!("driftless_{H}.service"),
+        "driftless_node.details".to_string(),
+    ];
+    for n in &kept {
+        plant(&secret.path().join(n), "secret", 0);
+    }
+    // An unprivileged user's links: to the directory, under a name iceoryx2 would give a
+    // segment, and in iceoryx2's nodes directory as a node's directory and monitor.
+    let shm = Path::new("/dev/shm");
+    let nodes = Path::new(ROOT).join("nodes");
+    std::fs::create_dir_all(&nodes).unwrap();
+    std::fs::set_permissions(&nodes, std::fs::Permissions::from_mode(0o750)).unwrap();
+    let links = [
+        (shm.join("innocent"), secret.path().to_path_buf()),
+        (
+            shm.join(format!("driftless_{H}_1.data")),
+            secret.path().join(&kept[1]),
+        ),
+        (nodes.join(D), secret.path().to_path_buf()),
+        (
+            nodes.join(format!("driftless_{D}.node_monitor")),
+            secret.path().join(&kept[0]),
+        ),
+    ];
+    for (link, target) in &links {
+        symlink(target, link).unwrap();
+        std::os::unix::fs::lchown(link, Some(OTHER_UID), Some(OTHER_UID)).unwrap();
+    }
+    let (code, err) = demo("driftless_", "0.3s");
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = run_within(&["list", "--clean"], Duration::from_secs(30));
+    eprintln!("list --clean: {code:?} {err}");
+    let mut want = kept.to_vec();
+    want.sort();
+    assert_eq!(names(secret.path()), want, "the directory is untouched");
+    for n in &kept {
+        let m = std::fs::metadata(secret.path().join(n)).unwrap();
+        assert_eq!(m.mode() & 0o777, 0o644 & !umask(), "{n}: mode unchanged");
+    }
+    for (link, _) in &links {
+        assert!(
+            link.symlink_metadata().is_ok(),
+            "{}: left alone",
+            link.display()
+        );
+    }
+}
+
+fn umask() -> u32 {
+    // SAFETY: umask is always safe; set it back at once.
+    unsafe {
+        let m = libc::umask(0o022);
+        libc::umask(m);
+        m
+    }
+}
+
+#[test]
+fn a_symlink_loop_in_dev_shm_hangs_nothing() {
+    if !in_namespace("a_symlink_loop_in_dev_shm_hangs_nothing", "64m") {
+        return;
+    }
+    let shm = Path::new("/dev/shm");
+    for (name, target) in [
+        ("loop1", "/dev/shm"),
+        ("loop2", "/dev/shm"),
+        ("driftless_x", "."),
+    ] {
+        symlink(target, shm.join(name)).unwrap();
+        std::os::unix::fs::lchown(shm.join(name), Some(OTHER_UID), Some(OTHER_UID)).unwrap();
+    }
+    // Each ends in seconds; `finish` fails the test on a hang.
+    let (code, err) = demo("driftless_", "0.5s");
+    assert_eq!(code, Some(0), "{err}");
+    let (code, _) = run_within(
+        &["tap", "demo/corrected", "--duration", "0.5s"],
+        Duration::from_secs(20),
+    );
+    assert!(code.is_some());
+    let (code, err) = run_within(&["list", "--clean"], Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(names(shm), ["driftless_x", "loop1", "loop2"]);
+}
+
+/// A daemon on a `/dev/shm` of `size`: the clear error, exit 2, nothing left.
+fn tiny_dev_shm(test: &str, size: &str) {
+    if !in_namespace(test, size) {
+        return;
+    }
+    let (code, err) = demo("driftless_", "2s");
+    assert_eq!(code, Some(2), "exit 2: {err}");
+    assert!(
+        err.contains("not enough shared memory in /dev/shm (") && err.contains(" free)"),
+        "the clear error: {err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(names(Path::new("/dev/shm")), Vec::<String>::new());
+    assert_eq!(names(Path::new(ROOT)), Vec::<String>::new());
+}
+
+#[test]
+fn a_64_kib_dev_shm_is_a_clear_error_exit_2_and_nothing_left() {
+    tiny_dev_shm(
+        "a_64_kib_dev_shm_is_a_clear_error_exit_2_and_nothing_left",
+        "64k",
+    );
+}
+
+#[test]
+fn a_256_kib_dev_shm_is_a_clear_error_exit_2_and_nothing_left() {
+    tiny_dev_shm(
+        "a_256_kib_dev_shm_is_a_clear_error_exit_2_and_nothing_left",
+        "256k",
+    );
+}
+
+/// Whether `pid` has a handler for SIGTERM (its `SigCgt` mask in /proc).
+fn catches_sigterm(pid: u32) -> bool {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("SigCgt:"))
+        .and_then(|m| u64::from_str_radix(m.trim(), 16).ok())
+        .is_some_and(|m| m & (1 << (libc::SIGTERM - 1)) != 0)
+}
+
+/// SIGTERM at 0, 1 and 3 ms after start: a clean exit (0) with nothing left, every time. A
+/// signal can only be handled from the process's first instruction: one that lands while the
+/// kernel and the loader are still starting it (about a millisecond; longer on a loaded
+/// machine) ends it by the default action before it has created anything. So the test
+/// measures from the moment the daemon catches SIGTERM (its `SigCgt` in /proc), and checks
+/// the earlier case apart: killed by the signal only if it did not catch it yet, and nothing
+/// left either way. Needs no namespace: the daemon runs under a prefix of its own.
+#[test]
+fn sigterm_at_0_1_and_3_ms_after_start_exits_cleanly() {
+    let demo_file = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml");
+    for delay_ms in [0u64, 1, 3] {
+        for run in 0..5 {
+            let prefix = Prefix::new(&format!("sigterm{delay_ms}x{run}"));
+            let mut child = Command::new(bin())
+                .args([
+                    "run",
+                    demo_file,
+                    "--prefix",
+                    &prefix.0,
+                    "--duration",
+                    "30s",
+                    "-q",
+                ])
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            let pid = child.id();
+            let end = Instant::now() + Duration::from_secs(20);
+            while !catches_sigterm(pid) {
+                assert!(Instant::now() < end, "never caught SIGTERM");
+                assert!(child.try_wait().unwrap().is_none(), "exited early");
+            }
+            let t = Instant::now();
+            while t.elapsed() < Duration::from_millis(delay_ms) {}
+            common::signal(&child, libc::SIGTERM);
+            let (code, err) = finish(child, Duration::from_secs(30));
+            assert_eq!(code, Some(0), "SIGTERM {delay_ms} ms after start: {err}");
+            assert!(!err.contains("panicked"), "{err}");
+            assert_eq!(prefix.leftovers(), Vec::<PathBuf>::new(), "{delay_ms} ms");
+        }
+    }
+    // Before the first instruction: the default action, and nothing to leave.
+    for run in 0..5 {
+        let prefix = Prefix::new(&format!("sigtermexec{run}"));
+        let child = Command::new(bin())
+            .args([
+                "run",
+                demo_file,
+                "--prefix",
+                &prefix.0,
+                "--duration",
+                "30s",
+                "-q",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let caught = catches_sigterm(child.id());
+        common::signal(&child, libc::SIGTERM);
+        let status = {
+            let mut child = child;
+            let end = Instant::now() + Duration::from_secs(30);
+            loop {
+                if let Some(s) = child.try_wait().unwrap() {
+                    break s;
+                }
+                assert!(Instant::now() < end, "no exit");
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        };
+        use std::os::unix::process::ExitStatusExt;
+        match (status.code(), status.signal()) {
+            (Some(0), _) => {}
+            (None, Some(libc::SIGTERM)) => assert!(!caught, "caught SIGTERM, yet died of it"),
+            other => panic!("SIGTERM at once: {other:?}"),
+        }
+        assert_eq!(prefix.leftovers(), Vec::<PathBuf>::new());
+    }
+}
