@@ -440,6 +440,36 @@ fn sigterm_at_0_1_and_3_ms_after_start_exits_cleanly() {
             assert_eq!(prefix.leftovers(), Vec::<PathBuf>::new(), "{delay_ms} ms");
         }
     }
+    // While it reads its pipeline file (here a FIFO nobody has written yet): it has caught
+    // SIGTERM already, and once it has the file it says so and exits 0, having started nothing.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipeline.toml");
+    let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: mkfifo on a path we own.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let prefix = Prefix::new("sigtermload");
+    let child = Command::new(bin())
+        .args(["run"])
+        .arg(&fifo)
+        .args(["--prefix", &prefix.0, "--duration", "30s", "-q"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    while !catches_sigterm(child.id()) {
+        assert!(Instant::now() < end, "never caught SIGTERM");
+    }
+    common::signal(&child, libc::SIGTERM);
+    std::fs::write(&fifo, std::fs::read_to_string(demo_file).unwrap()).unwrap();
+    let (code, err) = finish(child, Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("stopped by SIGTERM before any pipeline started"),
+        "{err}"
+    );
+    assert_eq!(prefix.leftovers(), Vec::<PathBuf>::new());
+
     // Before the first instruction: the default action, and nothing to leave.
     for run in 0..5 {
         let prefix = Prefix::new(&format!("sigtermexec{run}"));

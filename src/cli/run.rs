@@ -106,6 +106,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     }
     let stop = crate::cli::signals::stop_flag();
+    if stop.load(std::sync::atomic::Ordering::SeqCst) {
+        let by = crate::cli::signals::stopped_by().unwrap_or("a signal");
+        let _ = writeln!(
+            std::io::stderr(),
+            "driftless: stopped by {by} before any pipeline started"
+        );
+        return Ok(());
+    }
     let opts = RunOptions {
         duration: args.duration,
         stop,
