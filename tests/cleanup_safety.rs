@@ -398,6 +398,18 @@ fn catches_sigterm(pid: u32) -> bool {
         .is_some_and(|m| m & (1 << (libc::SIGTERM - 1)) != 0)
 }
 
+/// `driftless run PIPELINE` for 30 s under `prefix`, quiet, its stderr captured.
+fn spawn_run(pipeline: &Path, prefix: &Prefix) -> std::process::Child {
+    Command::new(bin())
+        .arg("run")
+        .arg(pipeline)
+        .args(["--prefix", &prefix.0, "--duration", "30s", "-q"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("driftless runs")
+}
+
 /// SIGTERM at 0, 1 and 3 ms after start: a clean exit (0) with nothing left, every time. A
 /// signal can only be handled from the process's first instruction: one that lands while the
 /// kernel and the loader are still starting it (about a millisecond; longer on a loaded
@@ -407,24 +419,11 @@ fn catches_sigterm(pid: u32) -> bool {
 /// left either way. Needs no namespace: the daemon runs under a prefix of its own.
 #[test]
 fn sigterm_at_0_1_and_3_ms_after_start_exits_cleanly() {
-    let demo_file = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml");
+    let demo_file = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml"));
     for delay_ms in [0u64, 1, 3] {
         for run in 0..5 {
             let prefix = Prefix::new(&format!("sigterm{delay_ms}x{run}"));
-            let mut child = Command::new(bin())
-                .args([
-                    "run",
-                    demo_file,
-                    "--prefix",
-                    &prefix.0,
-                    "--duration",
-                    "30s",
-                    "-q",
-                ])
-                .stdout(Stdio::null())
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap();
+            let mut child = spawn_run(demo_file, &prefix);
             let pid = child.id();
             let end = Instant::now() + Duration::from_secs(20);
             while !catches_sigterm(pid) {
@@ -448,14 +447,7 @@ fn sigterm_at_0_1_and_3_ms_after_start_exits_cleanly() {
     // SAFETY: mkfifo on a path we own.
     assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
     let prefix = Prefix::new("sigtermload");
-    let child = Command::new(bin())
-        .args(["run"])
-        .arg(&fifo)
-        .args(["--prefix", &prefix.0, "--duration", "30s", "-q"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&fifo, &prefix);
     let end = Instant::now() + Duration::from_secs(20);
     while !catches_sigterm(child.id()) {
         assert!(Instant::now() < end, "never caught SIGTERM");
@@ -473,32 +465,16 @@ fn sigterm_at_0_1_and_3_ms_after_start_exits_cleanly() {
     // Before the first instruction: the default action, and nothing to leave.
     for run in 0..5 {
         let prefix = Prefix::new(&format!("sigtermexec{run}"));
-        let child = Command::new(bin())
-            .args([
-                "run",
-                demo_file,
-                "--prefix",
-                &prefix.0,
-                "--duration",
-                "30s",
-                "-q",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
+        let mut child = spawn_run(demo_file, &prefix);
         let caught = catches_sigterm(child.id());
         common::signal(&child, libc::SIGTERM);
-        let status = {
-            let mut child = child;
-            let end = Instant::now() + Duration::from_secs(30);
-            loop {
-                if let Some(s) = child.try_wait().unwrap() {
-                    break s;
-                }
-                assert!(Instant::now() < end, "no exit");
-                std::thread::sleep(Duration::from_millis(5));
+        let end = Instant::now() + Duration::from_secs(30);
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
             }
+            assert!(Instant::now() < end, "no exit");
+            std::thread::sleep(Duration::from_millis(5));
         };
         use std::os::unix::process::ExitStatusExt;
         match (status.code(), status.signal()) {

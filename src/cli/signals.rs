@@ -29,15 +29,14 @@ pub fn install() {
     let stop = stop_flag();
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         let stop = Arc::clone(&stop);
-        // SAFETY: the action only stores to atomics (async-signal-safe).
-        let registered = unsafe {
+        // SAFETY: the action only stores to atomics (async-signal-safe). Registering cannot
+        // fail for these two signals; if it ever did, the default action would stay.
+        let _ = unsafe {
             signal_hook::low_level::register(sig, move || {
                 let _ = FIRST.compare_exchange(0, sig, Ordering::Relaxed, Ordering::Relaxed);
                 stop.store(true, Ordering::SeqCst);
             })
         };
-        // Cannot fail for these two signals; if it ever did, the default action stays.
-        let _ = registered;
     }
 }
 
