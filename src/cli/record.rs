@@ -26,10 +26,10 @@ use crate::io::recording::{
     self, GyroMessage, RawMessage, ServiceCounts, StatsMessage, MESSAGE_ENCODING, METADATA_NAME,
     SCHEMA_ENCODING,
 };
-use crate::io::ros2::{self, Imu, Time, IMU_TYPE};
+use crate::io::ros2::{self, ImuMapping, IMU_TYPE};
 use crate::transport::{
-    self, GyroSample, Input, RawSample, StatsSnapshot, Transport, FLAG_INPUT_INVALID,
-    FLAG_OUTPUT_REPAIRED, GYRO_TYPE_NAME, RAW_INVALID, RAW_TYPE_NAME, STATS_TYPE_NAME,
+    self, GyroSample, Input, RawSample, StatsSnapshot, Transport, GYRO_TYPE_NAME, RAW_TYPE_NAME,
+    STATS_TYPE_NAME,
 };
 
 /// Arguments of `driftless record`.
@@ -93,80 +93,12 @@ struct Recorded {
     counts: ServiceCounts,
     reported_missing: u64,
     /// With --format ros2: the message reused for every sample.
-    ros2: Option<Ros2Message>,
+    ros2: Option<ImuMapping>,
 }
 
-/// How a service's samples become `sensor_msgs/msg/Imu` messages.
-struct Ros2Message {
-    /// Filled field by field per sample (its frame_id set once).
-    imu: Imu,
-    /// Factor from the samples' units to rad/s (a raw service in deg/s: pi/180).
-    to_rad: f64,
-    /// The white rate noise's variance per sample, rad^2/s^2 (None: covariance unknown).
-    noise_var: Option<f64>,
-    /// Samples written whose value a stage held or replaced (flagged input_invalid or
-    /// output_repaired; a raw sample marked invalid): an Imu message cannot say it, stderr does.
-    held: u64,
-}
-
-impl Ros2Message {
-    fn new(frame_id: &str, to_rad: f64, rate_noise_deg: Option<f64>) -> Ros2Message {
-        let not_provided = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        Ros2Message {
-            imu: Imu {
-                frame_id: frame_id.to_string(),
-                // "Not provided" as the message definition asks: covariance element 0 = -1.
-                orientation_covariance: not_provided,
-                linear_acceleration_covariance: not_provided,
-                ..Imu::default()
-            },
-            to_rad,
-            noise_var: rate_noise_deg.map(|n| n.to_radians().powi(2)),
-            held: 0,
-        }
-    }
-
-    /// A raw sample's message, in CDR into `out`.
-    fn raw(&mut self, s: &RawSample, out: &mut Vec<u8>) -> Result<(), String> {
-        let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
-        self.encode(s.t_ns, s.rate, [-1.0; 3], held, out)
-    }
-
-    /// A gyro sample's message, in CDR into `out`.
-    fn gyro(&mut self, s: &GyroSample, out: &mut Vec<u8>) -> Result<(), String> {
-        let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-        self.encode(s.t_ns, s.rate, s.drift_std, held, out)
-    }
-
-    /// The message of a sample at `t_ns` with `rate` (in the samples' units) and, where a
-    /// stage estimated it, the drift's 1-sigma per axis (rad/s; negative: not provided);
-    /// `held` when its value is not a measurement.
-    fn encode(
-        &mut self,
-        t_ns: u64,
-        rate: [f64; 3],
-        drift_std: [f64; 3],
-        held: bool,
-        out: &mut Vec<u8>,
-    ) -> Result<(), String> {
-        let stamp = i64::try_from(t_ns)
-            .ok()
-            .and_then(Time::from_ns)
-            .ok_or_else(|| {
-                format!("sample time {t_ns} ns is past 2038: no ROS 2 stamp holds it")
-            })?;
-        self.imu.stamp = stamp;
-        self.imu.angular_velocity = rate.map(|v| v * self.to_rad);
-        let mut cov = [0.0; 9];
-        if let Some(var) = self.noise_var {
-            for a in 0..3 {
-                cov[4 * a] = var + drift_std[a].max(0.0).powi(2);
-            }
-        }
-        self.imu.angular_velocity_covariance = cov;
-        self.held += u64::from(held);
-        self.imu.write_cdr(out).map_err(|e| e.to_string())
-    }
+/// A message in CDR into `out`.
+fn cdr(imu: &crate::io::ros2::Imu, out: &mut Vec<u8>) -> Result<(), String> {
+    imu.write_cdr(out).map_err(|e| e.to_string())
 }
 
 /// `OUT.part` while recording; removed on drop unless kept or renamed.
@@ -326,7 +258,7 @@ fn record(
                 (Port::Raw(_), Some("deg/s")) => std::f64::consts::PI / 180.0,
                 _ => 1.0,
             };
-            let m = Ros2Message::new(&args.frame_id, to_rad, args.rate_noise);
+            let m = ImuMapping::new(&args.frame_id, to_rad, args.rate_noise);
             (channel, Some(m))
         } else {
             let channel = add_channel(&mut writer, service, &port, args.raw_units.as_deref())
@@ -690,7 +622,7 @@ impl Recorded {
                     s.map(|s| {
                         self.counts.count(s.epoch, s.seq);
                         match &mut self.ros2 {
-                            Some(m) => m.raw(&s, json),
+                            Some(m) => m.raw(&s).and_then(|imu| cdr(imu, json)),
                             None => serde_json::to_writer(&mut *json, &RawMessage::from(&s))
                                 .map_err(|e| e.to_string()),
                         }
@@ -701,7 +633,7 @@ impl Recorded {
                     s.map(|s| {
                         self.counts.count(s.epoch, s.seq);
                         match &mut self.ros2 {
-                            Some(m) => m.gyro(&s, json),
+                            Some(m) => m.gyro(&s).and_then(|imu| cdr(imu, json)),
                             None => serde_json::to_writer(&mut *json, &GyroMessage::from(&s))
                                 .map_err(|e| e.to_string()),
                         }

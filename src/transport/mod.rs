@@ -17,6 +17,7 @@
 //! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline |
 //! | `names.rs` | iceoryx2's file names, and the prefixes we allow ([`check_prefix`]) |
 //! | `shm_space.rs` | room in `/dev/shm`: segments reserved whole, the SIGBUS guard |
+//! | `ros2/` | ROS 2 messages, and live topics over DDS (feature `ros2`) |
 //! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
 //!
@@ -37,6 +38,7 @@ mod names;
 mod node;
 mod permissions;
 mod ports;
+pub mod ros2;
 mod shm_space;
 mod wake;
 mod wire;

@@ -43,9 +43,7 @@ use std::path::{Path, PathBuf};
 use crate::io::atomic::AtomicFile;
 use crate::io::recording::{limited_reader, map_mcap, McapOpenError};
 
-mod imu;
-
-pub use imu::{seconds_text, CdrError, Imu, Time, IMU_DEFINITION};
+pub use crate::transport::ros2::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION};
 
 /// The ROS 2 type name of the IMU message (the MCAP schema name).
 pub const IMU_TYPE: &str = "sensor_msgs/msg/Imu";

@@ -1,5 +1,10 @@
 //! The `sensor_msgs/msg/Imu` message: its fields, its CDR encoding and decoding (by hand: see
-//! [`crate::io::ros2`] for why), and its `ros2msg` definition as rosbag2 records it.
+//! [`crate::io::ros2`] for why), its `ros2msg` definition as rosbag2 records it, and how our
+//! samples become one ([`ImuMapping`], for bags and live topics alike).
+
+use super::super::wire::{
+    GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID,
+};
 
 /// The complete `ros2msg` definition of sensor_msgs/msg/Imu as `ros2 bag record` writes it
 /// (rosbag2_cpp's LocalMessageDefinitionSource): the installed `.msg` file verbatim, then each
@@ -396,6 +401,85 @@ impl Imu {
             }
         }
         Ok(())
+    }
+}
+
+/// How our samples become `sensor_msgs/msg/Imu` messages: one mapping for the bags `record`
+/// writes and the topics the daemon publishes.
+/// - `angular_velocity`: the rate in rad/s; the stamp: the sample's time `t_ns`.
+/// - `angular_velocity_covariance`: diagonal, the white rate noise's variance per sample plus
+///   the drift estimate's variance where a stage gave one (`GyroSample::drift_std`); all zeros
+///   ("unknown") without a rate noise.
+/// - orientation and linear acceleration: "not provided" (covariance element 0 = -1).
+pub struct ImuMapping {
+    /// The message, filled field by field per sample (its frame_id set once).
+    pub imu: Imu,
+    /// Factor from the samples' units to rad/s (a raw service in deg/s: pi/180).
+    to_rad: f64,
+    /// The white rate noise's variance per sample, rad^2/s^2 (None: covariance unknown).
+    noise_var: Option<f64>,
+    /// Samples mapped whose value a stage held or replaced (flagged input_invalid or
+    /// output_repaired; a raw sample marked invalid): an Imu message cannot say it.
+    pub held: u64,
+}
+
+impl ImuMapping {
+    /// Messages in `frame_id` from samples whose rates times `to_rad` are rad/s, with a white
+    /// rate noise of `rate_noise_deg` deg/s per sample (1 sigma) when known.
+    pub fn new(frame_id: &str, to_rad: f64, rate_noise_deg: Option<f64>) -> ImuMapping {
+        let not_provided = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        ImuMapping {
+            imu: Imu {
+                frame_id: frame_id.to_string(),
+                orientation_covariance: not_provided,
+                linear_acceleration_covariance: not_provided,
+                ..Imu::default()
+            },
+            to_rad,
+            noise_var: rate_noise_deg.map(|n| n.to_radians().powi(2)),
+            held: 0,
+        }
+    }
+
+    /// A raw sample's message.
+    pub fn raw(&mut self, s: &RawSample) -> Result<&Imu, String> {
+        let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
+        self.fill(s.t_ns, s.rate, [-1.0; 3], held)
+    }
+
+    /// A gyro sample's message.
+    pub fn gyro(&mut self, s: &GyroSample) -> Result<&Imu, String> {
+        let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
+        self.fill(s.t_ns, s.rate, s.drift_std, held)
+    }
+
+    /// The message of a sample at `t_ns` with `rate` (in the samples' units) and, where a
+    /// stage estimated it, the drift's 1-sigma per axis (rad/s; negative: not provided);
+    /// `held` when its value is not a measurement.
+    fn fill(
+        &mut self,
+        t_ns: u64,
+        rate: [f64; 3],
+        drift_std: [f64; 3],
+        held: bool,
+    ) -> Result<&Imu, String> {
+        let stamp = i64::try_from(t_ns)
+            .ok()
+            .and_then(Time::from_ns)
+            .ok_or_else(|| {
+                format!("sample time {t_ns} ns is past 2038: no ROS 2 stamp holds it")
+            })?;
+        self.imu.stamp = stamp;
+        self.imu.angular_velocity = rate.map(|v| v * self.to_rad);
+        let mut cov = [0.0; 9];
+        if let Some(var) = self.noise_var {
+            for a in 0..3 {
+                cov[4 * a] = var + drift_std[a].max(0.0).powi(2);
+            }
+        }
+        self.imu.angular_velocity_covariance = cov;
+        self.held += u64::from(held);
+        Ok(&self.imu)
     }
 }
 
