@@ -4,12 +4,13 @@
 #
 #   scripts/repeat.sh 20 cleanup_safety            # tests/cleanup_safety.rs, 20 times
 #   HOG=1 scripts/repeat.sh 20 daemon              # the same with a busy loop on each core
+#   scripts/repeat.sh 10 ros2_live --features ros2 # cargo options after the target
 set -euo pipefail
 cd "$(dirname "$0")/.."
 n="${1:?usage: scripts/repeat.sh N TEST_TARGET [cargo test args...]}"
 target="${2:?usage: scripts/repeat.sh N TEST_TARGET [cargo test args...]}"
 shift 2
-cargo test --release --test "$target" --no-run --quiet
+cargo test --release --test "$target" --no-run --quiet "$@"
 hogs=()
 if [[ "${HOG:-0}" == 1 ]]; then
     for _ in $(seq "$(nproc)"); do

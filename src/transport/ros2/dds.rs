@@ -1,0 +1,455 @@
+//! Live ROS 2 topics over DDS (cargo feature `ros2`): a node in the ROS 2 graph that publishes
+//! and subscribes `sensor_msgs/msg/Imu`, and subscribes a vehicle's motion
+//! (`nav_msgs/msg/Odometry`, `geometry_msgs/msg/TwistStamped`,
+//! `geometry_msgs/msg/TwistWithCovarianceStamped`) as a [`StopSignal`].
+//!
+//! Built on `ros2-client` 0.12.1 (a pure-Rust DDS, RustDDS): it talks to ROS 2's own DDS
+//! (Fast DDS in Kilted) without a ROS install. `r2r` and `rclrs` bind ROS's C client library
+//! and need a sourced ROS install to build and run; `rmw_zenoh` would ride on the Zenoh we
+//! already ship, but no rmw_zenoh peer installs here to test against (docs/ros2.md).
+//!
+//! What ros2-client leaves to us, done here:
+//! - `ROS_DOMAIN_ID` is read ([`domain_id`]); ros2-client always uses domain 0.
+//! - QoS is set explicitly: publishers reliable (they serve both reliable and sensor-data
+//!   subscribers) and never blocking (`WhenFull::Fail`: a full send window drops the message
+//!   and counts it), subscriptions best effort (they accept both kinds of publisher).
+//! - Messages are serde mirrors of the ROS definitions in declaration order; fixed arrays are
+//!   CDR tuples (no length), the 36-element covariances `[[f64; 6]; 6]` (serde stops at 32).
+//! - No spinner runs: publishing, taking and the graph need none, and the matched counts come
+//!   from the discovery database ([`Ros2Node::subscribers`], [`Ros2Node::publishers`]).
+
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+    QosProfile, Subscription,
+};
+use serde::{Deserialize, Serialize};
+
+use super::imu::{Imu, Time};
+use crate::transport::{StopSignal, TransportError};
+
+/// The environment variable ROS 2 reads its DDS domain from.
+pub const DOMAIN_ENV: &str = "ROS_DOMAIN_ID";
+
+/// The DDS domain in force: `ROS_DOMAIN_ID`, else 0. ROS 2 allows 0 to 232 on Linux (the UDP
+/// ports of higher ones collide).
+pub fn domain_id() -> Result<u16, String> {
+    match std::env::var(DOMAIN_ENV) {
+        Err(_) => Ok(0),
+        Ok(v) if v.trim().is_empty() => Ok(0),
+        Ok(v) => match v.trim().parse::<u16>() {
+            Ok(d) if d <= 232 => Ok(d),
+            _ => Err(format!(
+                "{DOMAIN_ENV}={v:?}: a DDS domain is an integer from 0 to 232"
+            )),
+        },
+    }
+}
+
+/// A ROS 2 node: our place in the ROS 2 graph, with its topics.
+pub struct Ros2Node {
+    // Field order is drop order: the node before its context (ros2-client logs errors when the
+    // participant goes first).
+    node: Node,
+    _context: Context,
+    name: String,
+}
+
+fn setup(what: &'static str, name: &str, e: impl std::fmt::Debug) -> TransportError {
+    TransportError::Setup {
+        what,
+        name: name.to_string(),
+        reason: format!("{e:?}"),
+    }
+}
+
+impl Ros2Node {
+    /// A node named `name` in `namespace` (`/` for none) on the domain of [`domain_id`].
+    pub fn new(namespace: &str, name: &str) -> Result<Ros2Node, TransportError> {
+        let domain = domain_id().map_err(|reason| TransportError::Name {
+            name: DOMAIN_ENV.into(),
+            reason,
+        })?;
+        let context = Context::with_options(ContextOptions::new().domain_id(domain))
+            .map_err(|e| setup("ROS 2 context", DOMAIN_ENV, e))?;
+        let node_name = NodeName::new(namespace, name).map_err(|e| TransportError::Name {
+            name: name.into(),
+            reason: format!("not a ROS 2 node name: {e:?}"),
+        })?;
+        let options = NodeOptions::new()
+            .enable_rosout(false)
+            .start_parameter_services(false);
+        let node = context
+            .new_node(node_name, options)
+            .map_err(|e| setup("ROS 2 node", name, e))?;
+        Ok(Ros2Node {
+            node,
+            _context: context,
+            name: name.to_string(),
+        })
+    }
+
+    /// The node's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn topic(
+        &self,
+        topic: &str,
+        ty: (&str, &str),
+        qos: &QosProfile,
+    ) -> Result<ros2_client::dds::rustdds::Topic, TransportError> {
+        let name = Name::parse(topic).map_err(|e| TransportError::Name {
+            name: topic.into(),
+            reason: format!("not a ROS 2 topic name: {e:?}"),
+        })?;
+        self.node
+            .create_topic(&name, MessageTypeName::new(ty.0, ty.1), qos)
+            .map_err(|e| setup("ROS 2 topic", topic, e))
+    }
+
+    /// A publisher of `sensor_msgs/msg/Imu` on `topic`: reliable, keep last `depth`, never
+    /// blocking.
+    pub fn imu_publisher(
+        &mut self,
+        topic: &str,
+        depth: usize,
+    ) -> Result<ImuPublisher, TransportError> {
+        let qos = publish_qos(depth);
+        let t = self.topic(topic, ("sensor_msgs", "Imu"), &qos)?;
+        let publisher = self
+            .node
+            .create_publisher(&t, Some(qos))
+            .map_err(|e| setup("ROS 2 publisher", topic, e))?;
+        Ok(ImuPublisher { publisher })
+    }
+
+    /// A subscription of `sensor_msgs/msg/Imu` on `topic`: best effort, keep last `depth`.
+    pub fn imu_subscription(
+        &mut self,
+        topic: &str,
+        depth: usize,
+    ) -> Result<ImuSubscription, TransportError> {
+        let qos = subscribe_qos(depth);
+        let t = self.topic(topic, ("sensor_msgs", "Imu"), &qos)?;
+        let subscription = self
+            .node
+            .create_subscription(&t, Some(qos))
+            .map_err(|e| setup("ROS 2 subscription", topic, e))?;
+        Ok(ImuSubscription { subscription })
+    }
+
+    /// A subscription of the vehicle's motion on `topic`, as a message of `kind`: best effort,
+    /// keep last `depth`.
+    pub fn motion_subscription(
+        &mut self,
+        topic: &str,
+        kind: MotionKind,
+        depth: usize,
+    ) -> Result<MotionSubscription, TransportError> {
+        let qos = subscribe_qos(depth);
+        let t = self.topic(topic, kind.type_name(), &qos)?;
+        let sub = |node: &mut Node| -> Result<MotionPort, ros2_client::CreateError> {
+            Ok(match kind {
+                MotionKind::Odometry => {
+                    MotionPort::Odometry(node.create_subscription(&t, Some(qos.clone()))?)
+                }
+                MotionKind::TwistStamped => {
+                    MotionPort::Twist(node.create_subscription(&t, Some(qos.clone()))?)
+                }
+                MotionKind::TwistWithCovarianceStamped => {
+                    MotionPort::TwistCov(node.create_subscription(&t, Some(qos.clone()))?)
+                }
+            })
+        };
+        let port = sub(&mut self.node).map_err(|e| setup("ROS 2 subscription", topic, e))?;
+        Ok(MotionSubscription { port })
+    }
+
+    /// Subscriptions of other participants discovered on `topic` (an absolute name).
+    pub fn subscribers(&self, topic: &str) -> usize {
+        self.node.subscription_count(topic)
+    }
+
+    /// Publishers of other participants discovered on `topic` (an absolute name).
+    pub fn publishers(&self, topic: &str) -> usize {
+        self.node.publisher_count(topic)
+    }
+}
+
+fn publish_qos(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Fail)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+fn subscribe_qos(depth: usize) -> QosProfile {
+    QosProfile::subscription_default()
+        .reliability_best_effort()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// `builtin_interfaces/msg/Time`.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct TimeMsg {
+    sec: i32,
+    nanosec: u32,
+}
+
+/// `std_msgs/msg/Header`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct HeaderMsg {
+    stamp: TimeMsg,
+    frame_id: String,
+}
+
+/// `sensor_msgs/msg/Imu`; vectors and quaternions as CDR tuples (the same bytes as structs).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct ImuMsg {
+    header: HeaderMsg,
+    orientation: [f64; 4],
+    orientation_covariance: [f64; 9],
+    angular_velocity: [f64; 3],
+    angular_velocity_covariance: [f64; 9],
+    linear_acceleration: [f64; 3],
+    linear_acceleration_covariance: [f64; 9],
+}
+
+impl From<&Imu> for ImuMsg {
+    fn from(m: &Imu) -> ImuMsg {
+        ImuMsg {
+            header: HeaderMsg {
+                stamp: TimeMsg {
+                    sec: m.stamp.sec,
+                    nanosec: m.stamp.nanosec,
+                },
+                frame_id: m.frame_id.clone(),
+            },
+            orientation: m.orientation,
+            orientation_covariance: m.orientation_covariance,
+            angular_velocity: m.angular_velocity,
+            angular_velocity_covariance: m.angular_velocity_covariance,
+            linear_acceleration: m.linear_acceleration,
+            linear_acceleration_covariance: m.linear_acceleration_covariance,
+        }
+    }
+}
+
+impl From<ImuMsg> for Imu {
+    fn from(m: ImuMsg) -> Imu {
+        Imu {
+            stamp: Time {
+                sec: m.header.stamp.sec,
+                nanosec: m.header.stamp.nanosec,
+            },
+            frame_id: m.header.frame_id,
+            orientation: m.orientation,
+            orientation_covariance: m.orientation_covariance,
+            angular_velocity: m.angular_velocity,
+            angular_velocity_covariance: m.angular_velocity_covariance,
+            linear_acceleration: m.linear_acceleration,
+            linear_acceleration_covariance: m.linear_acceleration_covariance,
+        }
+    }
+}
+
+/// `geometry_msgs/msg/Twist`: linear and angular velocity.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct TwistMsg {
+    linear: [f64; 3],
+    angular: [f64; 3],
+}
+
+/// `geometry_msgs/msg/TwistWithCovariance`.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct TwistCovMsg {
+    twist: TwistMsg,
+    covariance: [[f64; 6]; 6],
+}
+
+/// `geometry_msgs/msg/TwistStamped`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct TwistStampedMsg {
+    header: HeaderMsg,
+    twist: TwistMsg,
+}
+
+/// `geometry_msgs/msg/TwistWithCovarianceStamped`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct TwistCovStampedMsg {
+    header: HeaderMsg,
+    twist: TwistCovMsg,
+}
+
+/// `geometry_msgs/msg/PoseWithCovariance`: position, orientation (x, y, z, w), covariance.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct PoseCovMsg {
+    position: [f64; 3],
+    orientation: [f64; 4],
+    covariance: [[f64; 6]; 6],
+}
+
+/// `nav_msgs/msg/Odometry`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct OdometryMsg {
+    header: HeaderMsg,
+    child_frame_id: String,
+    pose: PoseCovMsg,
+    twist: TwistCovMsg,
+}
+
+/// Publishes [`Imu`] messages.
+pub struct ImuPublisher {
+    publisher: Publisher<ImuMsg>,
+}
+
+impl ImuPublisher {
+    /// Publish `imu`; never waits. An error says why it was not sent (a full send window of a
+    /// reliable subscriber that does not keep up, among others).
+    pub fn publish(&self, imu: &Imu) -> Result<(), String> {
+        self.publisher
+            .publish(ImuMsg::from(imu))
+            .map_err(|e| format!("{:?}", e.forget_data()))
+    }
+}
+
+/// Receives [`Imu`] messages.
+pub struct ImuSubscription {
+    subscription: Subscription<ImuMsg>,
+}
+
+impl ImuSubscription {
+    /// The next message that arrived, if any; never waits. An error is a message that could
+    /// not be read (another type on the topic, a malformed one).
+    pub fn take(&self) -> Result<Option<Imu>, String> {
+        match self.subscription.take() {
+            Ok(m) => Ok(m.map(|(msg, _)| Imu::from(msg))),
+            Err(e) => Err(format!("{e:?}")),
+        }
+    }
+}
+
+/// The ROS 2 message a vehicle's motion comes in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionKind {
+    /// `nav_msgs/msg/Odometry` (`twist.twist.linear`).
+    Odometry,
+    /// `geometry_msgs/msg/TwistStamped` (`twist.linear`).
+    TwistStamped,
+    /// `geometry_msgs/msg/TwistWithCovarianceStamped` (`twist.twist.linear`).
+    TwistWithCovarianceStamped,
+}
+
+impl MotionKind {
+    /// Every kind, by its ROS 2 type name.
+    pub const ALL: [(&'static str, MotionKind); 3] = [
+        ("nav_msgs/msg/Odometry", MotionKind::Odometry),
+        ("geometry_msgs/msg/TwistStamped", MotionKind::TwistStamped),
+        (
+            "geometry_msgs/msg/TwistWithCovarianceStamped",
+            MotionKind::TwistWithCovarianceStamped,
+        ),
+    ];
+
+    fn type_name(self) -> (&'static str, &'static str) {
+        match self {
+            MotionKind::Odometry => ("nav_msgs", "Odometry"),
+            MotionKind::TwistStamped => ("geometry_msgs", "TwistStamped"),
+            MotionKind::TwistWithCovarianceStamped => {
+                ("geometry_msgs", "TwistWithCovarianceStamped")
+            }
+        }
+    }
+}
+
+enum MotionPort {
+    Odometry(Subscription<OdometryMsg>),
+    Twist(Subscription<TwistStampedMsg>),
+    TwistCov(Subscription<TwistCovStampedMsg>),
+}
+
+/// Receives a vehicle's motion as [`StopSignal`]s.
+pub struct MotionSubscription {
+    port: MotionPort,
+}
+
+impl MotionSubscription {
+    /// The next motion message that arrived, as a stop signal stamped `now_ns` (the receipt, on
+    /// the clock of `ingest_ns`: a stop signal's age is judged on it, and a ROS stamp is on
+    /// another clock): its speed the norm of the linear velocity, `stopped` unknown (the
+    /// pipeline's `stop_speed` decides). Never waits.
+    pub fn take(&self, now_ns: u64) -> Result<Option<StopSignal>, String> {
+        let linear = match &self.port {
+            MotionPort::Odometry(s) => s.take().map(|m| m.map(|(m, _)| m.twist.twist.linear)),
+            MotionPort::Twist(s) => s.take().map(|m| m.map(|(m, _)| m.twist.linear)),
+            MotionPort::TwistCov(s) => s.take().map(|m| m.map(|(m, _)| m.twist.twist.linear)),
+        }
+        .map_err(|e| format!("{e:?}"))?;
+        Ok(linear.map(|v| stop_signal(v, now_ns)))
+    }
+}
+
+/// The stop signal of a linear velocity `v` (m/s) received at `now_ns`.
+fn stop_signal(v: [f64; 3], now_ns: u64) -> StopSignal {
+    StopSignal {
+        t_ns: now_ns,
+        speed_m_s: v.iter().map(|c| c * c).sum::<f64>().sqrt(),
+        stopped: u32::MAX,
+        reserved: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_domain_comes_from_ros_domain_id_and_is_checked() {
+        // One test touches the variable: tests run in parallel threads of one process.
+        for (v, want) in [
+            (None, Ok(0)),
+            (Some(""), Ok(0)),
+            (Some("42"), Ok(42)),
+            (Some(" 7 "), Ok(7)),
+            (Some("232"), Ok(232)),
+        ] {
+            match v {
+                Some(v) => std::env::set_var(DOMAIN_ENV, v),
+                None => std::env::remove_var(DOMAIN_ENV),
+            }
+            assert_eq!(domain_id(), want, "{v:?}");
+        }
+        for bad in ["233", "-1", "x"] {
+            std::env::set_var(DOMAIN_ENV, bad);
+            assert!(domain_id().unwrap_err().contains("0 to 232"), "{bad}");
+        }
+        std::env::remove_var(DOMAIN_ENV);
+    }
+
+    #[test]
+    fn an_imu_round_trips_through_its_mirror() {
+        let imu = Imu {
+            stamp: Time {
+                sec: 1_700_000_000,
+                nanosec: 123_456_789,
+            },
+            frame_id: "imu_link".into(),
+            orientation: [0.0, 0.0, 0.0, 1.0],
+            orientation_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            angular_velocity: [0.1, -0.2, 0.3],
+            angular_velocity_covariance: [1e-6, 0.0, 0.0, 0.0, 2e-6, 0.0, 0.0, 0.0, 3e-6],
+            linear_acceleration: [0.0; 3],
+            linear_acceleration_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        };
+        assert_eq!(Imu::from(ImuMsg::from(&imu)), imu);
+    }
+
+    #[test]
+    fn a_stop_signal_carries_the_speed_and_leaves_the_verdict_to_stop_speed() {
+        let s = stop_signal([3.0, 4.0, 0.0], 99);
+        assert_eq!((s.t_ns, s.speed_m_s, s.stopped), (99, 5.0, u32::MAX));
+    }
+}

@@ -1,0 +1,83 @@
+"""A real ROS 2 (rclpy) peer for tests/ros2_live.rs: `listen` prints each sensor_msgs/msg/Imu it
+receives on TOPIC as a JSON line, then the graph it sees; `talk` waits for a subscriber on TOPIC
+and publishes COUNT messages whose fields follow from their index (as the test expects).
+
+Runs inside the test's private network namespace only (DDS never leaves it).
+Versions: requirements-ros2.txt beside this file.
+"""
+
+import json
+import sys
+import time
+
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from sensor_msgs.msg import Imu
+
+
+def message(i: int) -> Imu:
+    m = Imu()
+    m.header.stamp.sec = 1_700_000_000 + i // 1000
+    m.header.stamp.nanosec = (i % 1000) * 1_000_000
+    m.header.frame_id = "peer_imu"
+    m.orientation_covariance[0] = -1.0
+    m.angular_velocity.x = 0.001 * i
+    m.angular_velocity.y = -0.002 * i
+    m.angular_velocity.z = 0.5
+    m.angular_velocity_covariance = [1e-6 * (k + 1) for k in range(9)]
+    m.linear_acceleration_covariance[0] = -1.0
+    return m
+
+
+def as_dict(m: Imu) -> dict:
+    return {
+        "stamp": [m.header.stamp.sec, m.header.stamp.nanosec],
+        "frame_id": m.header.frame_id,
+        "orientation": [m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w],
+        "orientation_covariance": list(m.orientation_covariance),
+        "angular_velocity": [m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z],
+        "angular_velocity_covariance": list(m.angular_velocity_covariance),
+        "linear_acceleration_covariance": list(m.linear_acceleration_covariance),
+    }
+
+
+def main() -> int:
+    mode, topic, count, timeout = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
+    rclpy.init()
+    node = Node("driftless_test_peer")
+    end = time.monotonic() + timeout
+    if mode == "listen":
+        reliable = QoSProfile(depth=max(count, 10), reliability=ReliabilityPolicy.RELIABLE,
+                              history=HistoryPolicy.KEEP_LAST)
+        got = []
+        node.create_subscription(Imu, topic, lambda m: got.append(as_dict(m)), reliable)
+        print(json.dumps({"ready": True}), flush=True)
+        while len(got) < count and time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        for g in got:
+            print(json.dumps(g), flush=True)
+        graph = {
+            "topics": node.get_topic_names_and_types(),
+            "nodes": [n for n, _ in node.get_node_names_and_namespaces()],
+            "publishers": [(p.node_name, p.topic_type) for p in node.get_publishers_info_by_topic(topic)],
+        }
+        print(json.dumps({"graph": graph}), flush=True)
+    else:
+        pub = node.create_publisher(Imu, topic, 10)
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.01)
+        # Matched here is not yet matched there: give the other side's discovery time.
+        time.sleep(0.5)
+        for i in range(count):
+            pub.publish(message(i))
+            time.sleep(0.001)
+        time.sleep(0.5)
+        print(json.dumps({"sent": count}), flush=True)
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

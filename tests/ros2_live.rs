@@ -1,0 +1,215 @@
+//! Live ROS 2 against a real ROS 2 (rclpy on Fast DDS, from PyPI): our node's Imu messages
+//! reach an rclpy subscriber field for field, an rclpy publisher's reach us, and rclpy's graph
+//! lists our node, topic and type (cargo feature `ros2`).
+//!
+//! DDS speaks only inside a private network namespace with nothing but loopback: the test
+//! re-runs itself under `unshare -n` (root; CI runs as root), and never touches the host's
+//! network. Without root, or without the rclpy peer (`DRIFTLESS_ROS2_PYTHON`, a Python with
+//! tests/ros2/requirements-ros2.txt; `.ci/run` makes one), a test says so in one line and skips.
+#![cfg(feature = "ros2")]
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use driftless::transport::ros2::{Imu, ImuMapping, Ros2Node};
+use driftless::transport::GyroSample;
+
+/// Set in the child that runs inside the namespace.
+const CHILD: &str = "DRIFTLESS_TEST_IN_NETNS";
+
+/// The Python that has rclpy.
+const PYTHON: &str = "DRIFTLESS_ROS2_PYTHON";
+
+/// Whether this process may speak DDS: inside a network namespace whose only link is loopback.
+/// (`/proc/self/net/dev` is this process's namespace's; `/sys/class/net` is the mounter's.)
+fn only_loopback() -> bool {
+    std::fs::read_to_string("/proc/self/net/dev").is_ok_and(|dev| {
+        dev.lines()
+            .skip(2)
+            .filter_map(|l| l.split(':').next())
+            .all(|name| name.trim() == "lo")
+    })
+}
+
+/// Run `test` in a private network namespace with loopback up and a multicast route on it.
+/// True in the child (run the test there); in the parent, waits and fails if the child failed.
+fn in_netns(test: &str) -> bool {
+    if std::env::var_os(CHILD).is_some() {
+        assert!(
+            only_loopback(),
+            "a DDS test outside a loopback-only namespace"
+        );
+        return true;
+    }
+    if std::env::var_os(PYTHON).is_none() {
+        eprintln!("{test}: skipped: no rclpy peer ({PYTHON} unset; .ci/run sets it)");
+        return false;
+    }
+    // SAFETY: geteuid cannot fail.
+    if unsafe { libc::geteuid() } != 0 {
+        eprintln!("{test}: skipped: a private network namespace needs root");
+        return false;
+    }
+    let exe = std::env::current_exe().expect("this test binary");
+    let out = Command::new("unshare")
+        .args([
+            "-n",
+            "sh",
+            "-c",
+            "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
+        ])
+        .arg(exe)
+        .args(["--exact", test, "--nocapture", "--test-threads=1"])
+        .env(CHILD, "1")
+        .output()
+        .expect("unshare runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "{test} in its namespace failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    false
+}
+
+/// The rclpy peer: `mode` (`listen` or `talk`) on `topic` for `count` messages.
+fn peer(mode: &str, topic: &str, count: usize) -> Child {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/imu_peer.py");
+    Command::new(std::env::var_os(PYTHON).unwrap())
+        .args([script, mode, topic, &count.to_string(), "20"])
+        .env("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+        .env("ROS_DISTRO", "kilted")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("the rclpy peer runs")
+}
+
+fn lines(child: &mut Child) -> Vec<serde_json::Value> {
+    let out = child.stdout.take().unwrap();
+    BufReader::new(out)
+        .lines()
+        .map_while(Result::ok)
+        .map(|l| serde_json::from_str(&l).unwrap_or_else(|e| panic!("{l}: {e}")))
+        .collect()
+}
+
+const N: usize = 500;
+
+#[test]
+fn our_imu_messages_reach_an_rclpy_subscriber_field_for_field() {
+    if !in_netns("our_imu_messages_reach_an_rclpy_subscriber_field_for_field") {
+        return;
+    }
+    let topic = "/driftless_test/corrected";
+    let mut listener = peer("listen", topic, N);
+    let mut node = Ros2Node::new("/", "driftless_test").unwrap();
+    let publisher = node.imu_publisher(topic, 100).unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    while node.subscribers(topic) == 0 {
+        assert!(
+            Instant::now() < end,
+            "the rclpy subscriber was never discovered"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // Discovery of a reliable reader completes a little after it is listed.
+    std::thread::sleep(Duration::from_millis(500));
+    let mut mapping = ImuMapping::new("imu_link", 1.0, Some(0.01));
+    let mut sent: Vec<Imu> = Vec::new();
+    for i in 0..N {
+        let s = GyroSample {
+            t_ns: 1_700_000_000_000_000_000 + i as u64 * 1_000_000,
+            rate: [1e-3 * i as f64, -2e-3 * i as f64, 0.25],
+            drift_std: [1e-4, 2e-4, -1.0],
+            ..Default::default()
+        };
+        let imu = mapping.gyro(&s).unwrap().clone();
+        publisher.publish(&imu).unwrap();
+        sent.push(imu);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let got = lines(&mut listener);
+    assert!(listener.wait().unwrap().success());
+    assert_eq!(got[0]["ready"], true);
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), N, "every message arrived");
+    for (m, imu) in msgs.iter().zip(&sent) {
+        assert_eq!(m["stamp"][0], imu.stamp.sec);
+        assert_eq!(m["stamp"][1], imu.stamp.nanosec);
+        assert_eq!(m["frame_id"], "imu_link");
+        let f = |k: &str| -> Vec<f64> {
+            m[k].as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        };
+        assert_eq!(f("angular_velocity"), imu.angular_velocity);
+        assert_eq!(
+            f("angular_velocity_covariance"),
+            imu.angular_velocity_covariance
+        );
+        assert_eq!(f("orientation_covariance")[0], -1.0, "not provided");
+        assert_eq!(f("linear_acceleration_covariance")[0], -1.0, "not provided");
+    }
+    let graph = &got.last().unwrap()["graph"];
+    let topics = graph["topics"].as_array().unwrap();
+    assert!(
+        topics
+            .iter()
+            .any(|t| t[0] == topic && t[1][0] == "sensor_msgs/msg/Imu"),
+        "{graph}"
+    );
+    assert!(
+        graph["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n == "driftless_test"),
+        "{graph}"
+    );
+    assert!(
+        graph["publishers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|p| p[0] == "driftless_test" && p[1] == "sensor_msgs/msg/Imu"),
+        "{graph}"
+    );
+}
+
+#[test]
+fn an_rclpy_publishers_imu_messages_reach_us_field_for_field() {
+    if !in_netns("an_rclpy_publishers_imu_messages_reach_us_field_for_field") {
+        return;
+    }
+    let topic = "/driftless_test/imu";
+    let mut node = Ros2Node::new("/", "driftless_test").unwrap();
+    let sub = node.imu_subscription(topic, 1000).unwrap();
+    let mut talker = peer("talk", topic, N);
+    let mut got = Vec::new();
+    let end = Instant::now() + Duration::from_secs(30);
+    while got.len() < N && Instant::now() < end {
+        match sub.take().unwrap() {
+            Some(m) => got.push(m),
+            None => std::thread::sleep(Duration::from_micros(200)),
+        }
+    }
+    assert!(talker.wait().unwrap().success());
+    assert_eq!(got.len(), N, "every message arrived");
+    for (i, m) in got.iter().enumerate() {
+        assert_eq!(m.stamp.sec, 1_700_000_000 + (i / 1000) as i32, "in order");
+        assert_eq!(m.stamp.nanosec, (i % 1000) as u32 * 1_000_000);
+        assert_eq!(m.frame_id, "peer_imu");
+        assert_eq!(
+            m.angular_velocity,
+            [0.001 * i as f64, -0.002 * i as f64, 0.5]
+        );
+        let cov: Vec<f64> = (0..9).map(|k| 1e-6 * (k + 1) as f64).collect();
+        assert_eq!(m.angular_velocity_covariance.to_vec(), cov);
+        assert_eq!(m.orientation_covariance[0], -1.0);
+    }
+}
