@@ -213,3 +213,78 @@ fn an_rclpy_publishers_imu_messages_reach_us_field_for_field() {
         assert_eq!(m.orientation_covariance[0], -1.0);
     }
 }
+
+/// A unique iceoryx2 prefix for a daemon of this test process.
+fn prefix(tag: &str) -> String {
+    format!("dlros{}{tag}_", std::process::id())
+}
+
+#[test]
+fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate() {
+    if !in_netns("a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate") {
+        return;
+    }
+    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
+    let prefix = prefix("e2e");
+    let daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args([
+            "run",
+            pipeline,
+            "--prefix",
+            &prefix,
+            "--duration",
+            "60s",
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the daemon runs");
+    let mut navigator = peer("listen", "/imu/corrected", N);
+    let mut first = String::new();
+    BufReader::new(navigator.stdout.as_mut().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("ready"), "{first}");
+    // Let the daemon's publisher and the navigator's subscription find each other.
+    std::thread::sleep(Duration::from_secs(1));
+    let mut driver = peer("talk", "/imu/data_raw", N);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut navigator);
+    assert!(navigator.wait().unwrap().success());
+    // SAFETY: kill(2) on our own child.
+    unsafe { libc::kill(daemon.id() as i32, libc::SIGTERM) };
+    let out = daemon.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), N, "every message through: {err}");
+    let noise = 1.2151f64.to_radians().powi(2);
+    for (i, m) in msgs.iter().enumerate() {
+        // The driver's own stamps, in order, once each.
+        assert_eq!(m["stamp"][0], 1_700_000_000 + (i / 1000) as i64, "{i}");
+        assert_eq!(m["stamp"][1], (i % 1000) as i64 * 1_000_000, "{i}");
+        assert_eq!(m["frame_id"], "imu_link");
+        let cov: Vec<f64> = m["angular_velocity_covariance"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        // The rate noise plus the bias filter's drift variance (large while it learns).
+        for (k, c) in cov.iter().enumerate() {
+            match k {
+                0 | 4 | 8 => assert!(c.is_finite() && *c >= noise, "{cov:?}"),
+                _ => assert_eq!(*c, 0.0, "{cov:?}"),
+            }
+        }
+        assert_eq!(m["orientation_covariance"][0], -1.0);
+    }
+    assert!(
+        err.contains(&format!(
+            "ros2: {N} Imu in (0 invalid, 0 missing by their stamps), {N} Imu out"
+        )),
+        "{err}"
+    );
+}

@@ -89,9 +89,13 @@ pub struct Pipeline {
     pub prewarm: Duration,
     /// iceoryx2 settings.
     pub iceoryx2: Iceoryx2Settings,
+    /// Live ROS 2 topics in and out (`[ros2]`), if any.
+    pub ros2: Option<Ros2Settings>,
     /// The stages, in chain order.
     pub stages: Vec<StageSpec>,
 }
+
+pub use crate::transport::ros2::Ros2Settings;
 
 /// One stage of a pipeline.
 #[derive(Debug, Clone)]
@@ -136,6 +140,30 @@ struct RawTop {
     cpu: Option<Spanned<i64>>,
     prewarm_us: Option<Spanned<f64>>,
     iceoryx2: Option<RawIox>,
+    ros2: Option<Spanned<RawRos2>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRos2 {
+    node: Option<Spanned<String>>,
+    namespace: Option<Spanned<String>>,
+    depth: Option<Spanned<i64>>,
+    frame_id: Option<Spanned<String>>,
+    rate_noise: Option<Spanned<f64>>,
+    imu_in: Option<Spanned<RawTopic>>,
+    #[serde(default)]
+    imu_out: Vec<Spanned<RawTopic>>,
+    motion_in: Option<Spanned<RawTopic>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTopic {
+    topic: Spanned<String>,
+    service: Spanned<String>,
+    #[serde(rename = "type")]
+    ty: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -286,6 +314,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         entries.push(registry::stage(&src, value, cx)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
+    let ros2 = match raw.ros2 {
+        Some(r) => Some(ros2_settings(&src, &name, input_units, &stages, r)?),
+        None => None,
+    };
     Ok(Pipeline {
         path: path.to_path_buf(),
         name,
@@ -304,7 +336,158 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             max_subscribers,
             stats_service,
         },
+        ros2,
         stages,
+    })
+}
+
+/// The ROS 2 type names a vehicle's motion may come in.
+pub const MOTION_TYPES: [&str; 3] = [
+    "nav_msgs/msg/Odometry",
+    "geometry_msgs/msg/TwistStamped",
+    "geometry_msgs/msg/TwistWithCovarianceStamped",
+];
+
+/// Check the `[ros2]` table against the stages it feeds and reads.
+fn ros2_settings(
+    src: &Src<'_>,
+    pipeline: &str,
+    units: Units,
+    stages: &[StageSpec],
+    raw: Spanned<RawRos2>,
+) -> Result<Ros2Settings, InputError> {
+    if !cfg!(feature = "ros2") {
+        return Err(src.span(
+            &raw,
+            "[ros2] needs a driftless built with ROS 2: cargo build --release --features ros2",
+        ));
+    }
+    let raw = raw.into_inner();
+    let topic = |t: &Spanned<String>| -> Result<String, InputError> {
+        let name = t.get_ref();
+        let ok = name.starts_with('/')
+            && name.len() > 1
+            && !name.ends_with('/')
+            && !name.contains("//")
+            && !name.contains("__")
+            && name[1..].split('/').all(|part| {
+                part.chars()
+                    .next()
+                    .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                    && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            });
+        if !ok {
+            return Err(src.span(
+                t,
+                format!(
+                    "topic {name:?}: an absolute ROS 2 name (/a/b: letters, digits, '_', each part \
+                     not starting with a digit, no '__')"
+                ),
+            ));
+        }
+        Ok(name.clone())
+    };
+    let outputs = |service: &str| stages.iter().any(|s| s.output == service);
+    let imu_in = match &raw.imu_in {
+        Some(t) => {
+            let t = t.get_ref();
+            let service = src.service(&t.service)?;
+            let ingest = stages
+                .iter()
+                .find(|s| s.input.as_deref() == Some(service.as_str()));
+            if ingest.is_none_or(|s| s.kind.name != "ingest.iceoryx2") {
+                return Err(src.span(
+                    &t.service,
+                    format!("imu_in.service {service:?} is no ingest.iceoryx2 stage's input"),
+                ));
+            }
+            if units != Units::RadPerSec {
+                return Err(src.span(
+                    &t.service,
+                    "imu_in: ROS 2 rates are rad/s (REP 103): set input_units = \"rad/s\"",
+                ));
+            }
+            if let Some(ty) = &t.ty {
+                if ty.get_ref() != "sensor_msgs/msg/Imu" {
+                    return Err(src.span(ty, "imu_in.type is sensor_msgs/msg/Imu"));
+                }
+            }
+            Some((topic(&t.topic)?, service))
+        }
+        None => None,
+    };
+    let mut imu_out = Vec::new();
+    for t in &raw.imu_out {
+        let t = t.get_ref();
+        let service = src.service(&t.service)?;
+        if !outputs(&service) {
+            return Err(src.span(
+                &t.service,
+                format!("imu_out.service {service:?} is no stage's output"),
+            ));
+        }
+        if let Some(ty) = &t.ty {
+            if ty.get_ref() != "sensor_msgs/msg/Imu" {
+                return Err(src.span(ty, "imu_out.type is sensor_msgs/msg/Imu"));
+            }
+        }
+        imu_out.push((service, topic(&t.topic)?));
+    }
+    let motion_in = match &raw.motion_in {
+        Some(t) => {
+            let t = t.get_ref();
+            let service = src.service(&t.service)?;
+            let reads = stages.iter().any(|s| {
+                s.params
+                    .side_inputs()
+                    .iter()
+                    .any(|(side, _)| *side == service)
+            });
+            if !reads {
+                return Err(src.span(
+                    &t.service,
+                    format!("motion_in.service {service:?} is no stage's stop_input"),
+                ));
+            }
+            let ty = match &t.ty {
+                Some(ty) if MOTION_TYPES.contains(&ty.get_ref().as_str()) => ty.get_ref().clone(),
+                Some(ty) => {
+                    return Err(src.span(
+                        ty,
+                        format!("motion_in.type: one of {}", MOTION_TYPES.join(", ")),
+                    ))
+                }
+                None => MOTION_TYPES[0].to_string(),
+            };
+            Some((topic(&t.topic)?, ty, service))
+        }
+        None => None,
+    };
+    let node = match &raw.node {
+        Some(n) => n.get_ref().clone(),
+        None => format!("driftless_{}", pipeline.replace('-', "_")),
+    };
+    Ok(Ros2Settings {
+        node,
+        namespace: raw
+            .namespace
+            .as_ref()
+            .map_or_else(|| "/".to_string(), |n| n.get_ref().clone()),
+        depth: match &raw.depth {
+            Some(d) => src.int_in(d, "depth", 1, 100_000)?,
+            None => 100,
+        },
+        frame_id: raw
+            .frame_id
+            .as_ref()
+            .map_or_else(|| "imu_link".to_string(), |f| f.get_ref().clone()),
+        rate_noise: match &raw.rate_noise {
+            Some(r) => Some(src.positive(r, "rate_noise", 1e6)?),
+            None => None,
+        },
+        imu_in,
+        imu_out,
+        motion_in,
     })
 }
 

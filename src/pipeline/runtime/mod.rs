@@ -43,6 +43,8 @@
 
 mod chain;
 mod group;
+#[cfg(feature = "ros2")]
+mod ros2;
 
 pub use chain::EXTERNAL_GRACE;
 pub use group::check_group;
@@ -213,10 +215,18 @@ pub fn run_group(
     {
         return abandon(group, e.into());
     }
+    // The ROS 2 sides on threads of their own, once the services they feed and read exist.
+    #[cfg(feature = "ros2")]
+    let ros2 = match ros2::Ros2Sides::start(members) {
+        Ok(sides) => sides,
+        Err(e) => return abandon(group, e),
+    };
     let stats = group.iter_mut().filter_map(|r| r.stats.take()).collect();
     let reporter = match spawn_reporter(stats) {
         Ok(h) => h,
         Err(e) => {
+            #[cfg(feature = "ros2")]
+            ros2.finish(false);
             let e = RunError::Stage {
                 stage: "reporter".into(),
                 message: e.to_string(),
@@ -231,12 +241,9 @@ pub fn run_group(
             let _ = writeln!(std::io::stderr(), "{}", services_line(r.p, &r.prefix));
         }
     }
-    let prewarm = members
-        .iter()
-        .map(|(p, _)| p.prewarm)
-        .max()
-        .unwrap_or_default();
-    serve(&mut group, opts, prewarm, notified);
+    serve(&mut group, opts, prewarm_of(members), notified);
+    #[cfg(feature = "ros2")]
+    ros2.finish(true);
     let finished: Vec<Result<Vec<String>, RunError>> =
         group.into_iter().map(Running::finish).collect();
     // Every sender is gone now: the reporting thread ends with the final reports.
@@ -256,6 +263,15 @@ pub fn run_group(
             })
         })
         .collect())
+}
+
+/// The longest prewarm of the group's pipelines.
+fn prewarm_of(members: &[(&Pipeline, String)]) -> Duration {
+    members
+        .iter()
+        .map(|(p, _)| p.prewarm)
+        .max()
+        .unwrap_or_default()
 }
 
 /// Remove the leftover files of each prefix of the group (when no other node of it is alive).

@@ -3,15 +3,45 @@
 //! | file | concern |
 //! |---|---|
 //! | `imu.rs` | `sensor_msgs/msg/Imu`: fields, CDR by hand, and [`ImuMapping`] from our samples |
+//! | `bridge.rs` | the daemon's ROS 2 side: topics to services and back, on its own thread (feature `ros2`) |
 //! | `dds.rs` | live topics: a node in the ROS 2 graph, Imu in and out, motion as a stop signal (feature `ros2`) |
 
+#[cfg(feature = "ros2")]
+mod bridge;
 #[cfg(feature = "ros2")]
 mod dds;
 mod imu;
 
+#[cfg(feature = "ros2")]
+pub use bridge::{run_bridge, BridgeCounts};
 #[cfg(feature = "ros2")]
 pub use dds::{
     domain_id, ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, Ros2Node, DOMAIN_ENV,
 };
 
 pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION};
+
+/// The `[ros2]` table: the daemon as a ROS 2 node, its topics and the services they feed or
+/// come from (docs/ros2.md); the pipeline file's schema reads it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ros2Settings {
+    /// Node name (default: `driftless_<pipeline>`, `-` as `_`).
+    pub node: String,
+    /// Node namespace (default `/`).
+    pub namespace: String,
+    /// History depth of every topic (default 100).
+    pub depth: usize,
+    /// `header.frame_id` of the messages we publish (default `imu_link`).
+    pub frame_id: String,
+    /// White rate noise per sample, deg/s (1 sigma): the published covariance's first term.
+    /// None: the covariance is unknown (all zeros).
+    pub rate_noise: Option<f64>,
+    /// A driver node's `sensor_msgs/msg/Imu` topic and the service it feeds (an
+    /// `ingest.iceoryx2` stage's input).
+    pub imu_in: Option<(String, String)>,
+    /// Services published as `sensor_msgs/msg/Imu` topics: (service, topic).
+    pub imu_out: Vec<(String, String)>,
+    /// The vehicle's motion: its topic, its ROS 2 type and the StopSignal service it feeds (a
+    /// `predict.bias` stage's `stop_input`).
+    pub motion_in: Option<(String, String, String)>,
+}

@@ -1,0 +1,325 @@
+//! The daemon's ROS 2 side, on a thread of its own: a driver node's Imu topic into the service
+//! an `ingest.iceoryx2` stage reads, chosen services out as Imu topics, and the vehicle's motion
+//! into the stop signal `predict.bias` reads. Every hop to the hot thread is an iceoryx2
+//! service, as with any driver or subscriber process, so DDS never runs on the hot thread and
+//! can never delay it: a slow or absent ROS 2 peer costs this thread, not the pipeline.
+//!
+//! - **In:** each message becomes a [`RawSample`]: the header stamp as its time (ns since the
+//!   epoch), the angular velocity as its rate (rad/s), a non-finite rate flagged invalid, and
+//!   a sequence number in arrival order that jumps where the stamps show a gap (more than 1.5
+//!   periods at the pipeline's rate), so the guard flags and counts it; nothing is filled.
+//!   Stamps that go backwards reach the guard as they are, which flags them.
+//! - **Out:** [`ImuMapping`] (the bag writer's mapping). The stamp: the input's own ROS stamp
+//!   when `imu_in` feeds the pipeline; otherwise the sample's ingest time on the system clock.
+//! - **Motion:** each message becomes a [`StopSignal`] stamped at receipt (its speed the norm
+//!   of the linear velocity).
+//! - A topic nobody matches after [`MATCH_GRACE`] is said on stderr, and again when it matches.
+
+use std::io::Write as _;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use super::dds::{ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, Ros2Node};
+use super::imu::ImuMapping;
+use super::Ros2Settings;
+use crate::clock::monotonic_ns;
+use crate::transport::{
+    GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError, RAW_INVALID,
+};
+
+/// How long a topic may go unmatched before stderr says so.
+pub const MATCH_GRACE: Duration = Duration::from_secs(3);
+
+/// One line on stderr (a closed stderr is no reason to stop).
+fn say(line: std::fmt::Arguments<'_>) {
+    let _ = writeln!(std::io::stderr(), "driftless: ros2: {line}");
+}
+
+/// The sleep between rounds that found nothing.
+const IDLE: Duration = Duration::from_micros(100);
+
+/// What the bridge carried.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BridgeCounts {
+    /// Imu messages taken from the driver's topic.
+    pub imu_in: u64,
+    /// Of those, with a non-finite rate (flagged invalid).
+    pub imu_in_invalid: u64,
+    /// Samples missing from the driver's topic, by its stamps.
+    pub imu_in_missing: u64,
+    /// Messages on an input topic that could not be read (another type, malformed).
+    pub unreadable: u64,
+    /// Imu messages published.
+    pub imu_out: u64,
+    /// Imu messages not published (a full send window, a stamp no ROS time holds).
+    pub imu_out_failed: u64,
+    /// Motion messages taken.
+    pub motion_in: u64,
+}
+
+impl std::fmt::Display for BridgeCounts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} Imu in ({} invalid, {} missing by their stamps), {} Imu out ({} not sent), {} \
+             motion in, {} unreadable",
+            self.imu_in,
+            self.imu_in_invalid,
+            self.imu_in_missing,
+            self.imu_out,
+            self.imu_out_failed,
+            self.motion_in,
+            self.unreadable
+        )
+    }
+}
+
+/// A topic whose matching we watch.
+struct Watched {
+    topic: String,
+    /// Our publisher (else our subscription).
+    ours_publishes: bool,
+    matched: bool,
+    said: bool,
+}
+
+impl Watched {
+    fn new(topic: &str, ours_publishes: bool) -> Watched {
+        Watched {
+            topic: topic.to_string(),
+            ours_publishes,
+            matched: false,
+            said: false,
+        }
+    }
+
+    /// Say on stderr when the topic goes unmatched past the grace, and when it matches.
+    fn check(&mut self, node: &Ros2Node, since_start: Duration) {
+        let n = if self.ours_publishes {
+            node.subscribers(&self.topic)
+        } else {
+            node.publishers(&self.topic)
+        };
+        let (peer, side) = if self.ours_publishes {
+            ("subscriber", "publishes")
+        } else {
+            ("publisher", "subscribes")
+        };
+        if n > 0 && !self.matched {
+            if self.said {
+                say(format_args!("{} now has a {peer}", self.topic));
+            }
+            self.matched = true;
+        } else if n == 0 && !self.said && since_start >= MATCH_GRACE {
+            say(format_args!(
+                "no {peer} on {} after {} s (node {} {side} it; check the topic name, \
+                 ROS_DOMAIN_ID and, for a subscriber, that it accepts reliable)",
+                self.topic,
+                MATCH_GRACE.as_secs(),
+                node.name()
+            ));
+            self.said = true;
+        }
+    }
+}
+
+struct ImuIn {
+    sub: ImuSubscription,
+    out: Output<RawSample>,
+    period_ns: f64,
+    epoch: u32,
+    next_seq: u64,
+    last_stamp: Option<i64>,
+}
+
+impl ImuIn {
+    /// Take what arrived; how many messages.
+    fn pump(&mut self, counts: &mut BridgeCounts) -> usize {
+        let mut n = 0;
+        loop {
+            let imu = match self.sub.take() {
+                Ok(Some(imu)) => imu,
+                Ok(None) => break,
+                Err(e) => {
+                    counts.unreadable += 1;
+                    if counts.unreadable == 1 {
+                        say(format_args!("an unreadable message on the Imu input: {e}"));
+                    }
+                    continue;
+                }
+            };
+            let stamp = imu.stamp.ns();
+            if let Some(last) = self.last_stamp {
+                let periods = (stamp - last) as f64 / self.period_ns;
+                if periods > 1.5 {
+                    let missing = periods.round() as u64 - 1;
+                    self.next_seq += missing;
+                    counts.imu_in_missing += missing;
+                }
+            }
+            self.last_stamp = Some(stamp);
+            let finite = imu.angular_velocity.iter().all(|v| v.is_finite());
+            let raw = RawSample {
+                t_ns: u64::try_from(stamp).unwrap_or(0),
+                seq: self.next_seq,
+                rate: imu.angular_velocity,
+                flags: if finite { 0 } else { RAW_INVALID },
+                epoch: self.epoch,
+            };
+            self.next_seq += 1;
+            counts.imu_in += 1;
+            counts.imu_in_invalid += u64::from(!finite);
+            // A send error is a lost sample the daemon counts as a gap.
+            let _ = self.out.send(&raw);
+            self.out.notify();
+            n += 1;
+        }
+        n
+    }
+}
+
+struct ImuOut {
+    input: Input<GyroSample>,
+    publisher: ImuPublisher,
+    mapping: ImuMapping,
+}
+
+struct MotionIn {
+    sub: MotionSubscription,
+    out: Output<StopSignal>,
+}
+
+/// The system clock's ns since the epoch minus the monotonic clock's: maps an `ingest_ns` to
+/// the system clock.
+fn realtime_offset_ns() -> i128 {
+    let real = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i128);
+    real - i128::from(monotonic_ns())
+}
+
+/// Run the ROS 2 side of a pipeline until `stop`: `settings` under iceoryx2 `prefix` with the
+/// pipeline's `qos` and rate. `started` hears once whether it set up (so the daemon can refuse
+/// to run without it); then it runs, and returns what it carried.
+pub fn run_bridge(
+    settings: &Ros2Settings,
+    prefix: &str,
+    qos: Qos,
+    rate_hz: f64,
+    stop: &AtomicBool,
+    started: impl FnOnce(Result<(), String>),
+) -> Result<BridgeCounts, TransportError> {
+    let setup = || -> Result<_, TransportError> {
+        let transport = Transport::new(prefix, &format!("{}-ros2", settings.node), qos)?;
+        let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
+        let mut watched = Vec::new();
+        let imu_in = match &settings.imu_in {
+            Some((topic, service)) => {
+                watched.push(Watched::new(topic, false));
+                Some(ImuIn {
+                    sub: node.imu_subscription(topic, settings.depth)?,
+                    out: transport.external_output::<RawSample>(service, true)?,
+                    period_ns: 1e9 / rate_hz,
+                    epoch: rand::random::<u32>().max(1),
+                    next_seq: 0,
+                    last_stamp: None,
+                })
+            }
+            None => None,
+        };
+        let mut outs = Vec::new();
+        for (service, topic) in &settings.imu_out {
+            watched.push(Watched::new(topic, true));
+            outs.push(ImuOut {
+                input: transport.open_input::<GyroSample>(service)?,
+                publisher: node.imu_publisher(topic, settings.depth)?,
+                mapping: ImuMapping::new(&settings.frame_id, 1.0, settings.rate_noise),
+            });
+        }
+        let motion = match &settings.motion_in {
+            Some((topic, ty, service)) => {
+                watched.push(Watched::new(topic, false));
+                let kind = MotionKind::ALL
+                    .iter()
+                    .find(|(name, _)| name == ty)
+                    .map_or(MotionKind::Odometry, |(_, k)| *k);
+                Some(MotionIn {
+                    sub: node.motion_subscription(topic, kind, settings.depth)?,
+                    out: transport.external_output::<StopSignal>(service, false)?,
+                })
+            }
+            None => None,
+        };
+        transport.reserve_shared_memory()?;
+        Ok((transport, node, watched, imu_in, outs, motion))
+    };
+    let (transport, node, mut watched, mut imu_in, mut outs, motion) = match setup() {
+        Ok(parts) => {
+            started(Ok(()));
+            parts
+        }
+        Err(e) => {
+            started(Err(e.to_string()));
+            return Err(e);
+        }
+    };
+    let ros_stamps = imu_in.is_some();
+    let offset = realtime_offset_ns();
+    let mut counts = BridgeCounts::default();
+    let t0 = Instant::now();
+    let mut next_check = t0;
+    while !stop.load(Ordering::Relaxed) {
+        let mut busy = 0;
+        if let Some(i) = &mut imu_in {
+            busy += i.pump(&mut counts);
+        }
+        for o in &mut outs {
+            while let Ok(Some(mut s)) = o.input.receive() {
+                busy += 1;
+                if !ros_stamps {
+                    s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
+                }
+                let sent = o.mapping.gyro(&s).and_then(|imu| o.publisher.publish(imu));
+                match sent {
+                    Ok(()) => counts.imu_out += 1,
+                    Err(e) => {
+                        counts.imu_out_failed += 1;
+                        if counts.imu_out_failed == 1 {
+                            say(format_args!("an Imu message was not sent: {e}"));
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(m) = &motion {
+            loop {
+                match m.sub.take(monotonic_ns()) {
+                    Ok(Some(signal)) => {
+                        busy += 1;
+                        counts.motion_in += 1;
+                        let _ = m.out.send(&signal);
+                    }
+                    Ok(None) => break,
+                    Err(e) => {
+                        counts.unreadable += 1;
+                        if counts.unreadable == 1 {
+                            say(format_args!("an unreadable motion message: {e}"));
+                        }
+                    }
+                }
+            }
+        }
+        let now = Instant::now();
+        if now >= next_check {
+            for w in &mut watched {
+                w.check(&node, now - t0);
+            }
+            next_check = now + Duration::from_millis(500);
+        }
+        if busy == 0 {
+            std::thread::sleep(IDLE);
+        }
+    }
+    drop(transport);
+    Ok(counts)
+}
