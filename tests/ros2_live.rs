@@ -288,3 +288,54 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
         "{err}"
     );
 }
+
+#[test]
+fn an_odometry_nodes_stops_drive_the_bias_filter() {
+    if !in_netns("an_odometry_nodes_stops_drive_the_bias_filter") {
+        return;
+    }
+    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
+    let prefix = prefix("odom");
+    let daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args([
+            "run",
+            pipeline,
+            "--prefix",
+            &prefix,
+            "--duration",
+            "60s",
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the daemon runs");
+    let n = 4000;
+    let mut driver = peer("drive", "/imu/data_raw", n);
+    assert!(driver.wait().unwrap().success());
+    // SAFETY: kill(2) on our own child.
+    unsafe { libc::kill(daemon.id() as i32, libc::SIGTERM) };
+    let out = daemon.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains(&format!("{n} Imu in")), "{err}");
+    // The outputs follow the odometry: moving for the first half, still for the second (both
+    // within the stop signal's 10 ms steps and the filter's delay).
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("outputs:"))
+        .unwrap_or_else(|| panic!("{err}"));
+    let count = |what: &str| -> usize {
+        let at = line.find(what).unwrap_or_else(|| panic!("{line}"));
+        line[..at]
+            .split_whitespace()
+            .last()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (still, moving) = (count(" still"), count(" moving"));
+    assert!(moving > n * 4 / 10 && moving <= n / 2, "{line}");
+    assert!(still > n * 3 / 10 && still <= n / 2, "{line}");
+    assert!(err.contains("motion in"), "{err}");
+}

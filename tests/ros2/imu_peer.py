@@ -1,22 +1,27 @@
 """A real ROS 2 (rclpy) peer for tests/ros2_live.rs: `listen` prints each sensor_msgs/msg/Imu it
 receives on TOPIC as a JSON line, then the graph it sees; `talk` waits for a subscriber on TOPIC
-and publishes COUNT messages whose fields follow from their index (as the test expects).
+and publishes COUNT messages whose fields follow from their index (as the test expects); `drive`
+does the same with a gyro at rest and publishes nav_msgs/msg/Odometry on /odom every 10th
+message, the vehicle moving at 1 m/s for the first half and standing for the second.
 
 Runs inside the test's private network namespace only (DDS never leaves it).
 Versions: requirements-ros2.txt beside this file.
 """
 
 import json
+import math
 import sys
 import time
 
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
 
-def message(i: int) -> Imu:
+def message(i: int, still: bool = False) -> Imu:
+    """Message `i`; `still`: a gyro at rest (a bias of a few mrad/s and a little noise)."""
     m = Imu()
     m.header.stamp.sec = 1_700_000_000 + i // 1000
     m.header.stamp.nanosec = (i % 1000) * 1_000_000
@@ -25,6 +30,10 @@ def message(i: int) -> Imu:
     m.angular_velocity.x = 0.001 * i
     m.angular_velocity.y = -0.002 * i
     m.angular_velocity.z = 0.5
+    if still:
+        m.angular_velocity.x = 0.002 + 1e-4 * math.sin(0.7 * i)
+        m.angular_velocity.y = -0.001 + 1e-4 * math.sin(1.3 * i)
+        m.angular_velocity.z = 0.0005 + 1e-4 * math.sin(2.9 * i)
     m.angular_velocity_covariance = [1e-6 * (k + 1) for k in range(9)]
     m.linear_acceleration_covariance[0] = -1.0
     return m
@@ -65,12 +74,21 @@ def main() -> int:
         print(json.dumps({"graph": graph}), flush=True)
     else:
         pub = node.create_publisher(Imu, topic, 10)
-        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+        odom = node.create_publisher(Odometry, "/odom", 10) if mode == "drive" else None
+        while time.monotonic() < end and (
+            pub.get_subscription_count() == 0
+            or (odom is not None and odom.get_subscription_count() == 0)
+        ):
             time.sleep(0.01)
         # Matched here is not yet matched there: give the other side's discovery time.
         time.sleep(0.5)
         for i in range(count):
-            pub.publish(message(i))
+            if odom is not None and i % 10 == 0:
+                o = Odometry()
+                o.header.stamp = message(i).header.stamp
+                o.twist.twist.linear.x = 1.0 if i < count // 2 else 0.0
+                odom.publish(o)
+            pub.publish(message(i, still=odom is not None))
             time.sleep(0.001)
         time.sleep(0.5)
         print(json.dumps({"sent": count}), flush=True)

@@ -105,6 +105,8 @@ impl Watched {
         } else {
             ("publisher", "subscribes")
         };
+        // Our publishers are reliable and our subscriptions best effort: any peer's QoS
+        // matches, so a peer that is missing has another name or another domain.
         if n > 0 && !self.matched {
             if self.said {
                 say(format_args!("{} now has a {peer}", self.topic));
@@ -112,11 +114,12 @@ impl Watched {
             self.matched = true;
         } else if n == 0 && !self.said && since_start >= MATCH_GRACE {
             say(format_args!(
-                "no {peer} on {} after {} s (node {} {side} it; check the topic name, \
-                 ROS_DOMAIN_ID and, for a subscriber, that it accepts reliable)",
+                "no {peer} on {} after {} s (node {} {side} it on domain {}; check the topic \
+                 name and ROS_DOMAIN_ID)",
                 self.topic,
                 MATCH_GRACE.as_secs(),
-                node.name()
+                node.name(),
+                node.domain()
             ));
             self.said = true;
         }

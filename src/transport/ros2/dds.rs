@@ -94,6 +94,11 @@ impl Ros2Node {
         &self.name
     }
 
+    /// The DDS domain it is on.
+    pub fn domain(&self) -> u16 {
+        self.node.domain_id()
+    }
+
     fn topic(
         &self,
         topic: &str,
