@@ -74,11 +74,18 @@ fn in_netns(test: &str) -> bool {
     false
 }
 
-/// The rclpy peer: `mode` (`listen` or `talk`) on `topic` for `count` messages.
+/// The rclpy peer: `mode` (`listen`, `talk`, `drive`, `wrongtype`) on `topic` for `count`
+/// messages.
 fn peer(mode: &str, topic: &str, count: usize) -> Child {
+    peer_with(mode, topic, count, &[])
+}
+
+/// [`peer`] with environment variables.
+fn peer_with(mode: &str, topic: &str, count: usize, env: &[(&str, &str)]) -> Child {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/imu_peer.py");
     Command::new(std::env::var_os(PYTHON).unwrap())
         .args([script, mode, topic, &count.to_string(), "20"])
+        .envs(env.iter().copied())
         .env("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
         .env("ROS_DISTRO", "kilted")
         .stdout(Stdio::piped())
@@ -108,7 +115,7 @@ fn our_imu_messages_reach_an_rclpy_subscriber_field_for_field() {
     let mut node = Ros2Node::new("/", "driftless_test").unwrap();
     let publisher = node.imu_publisher(topic, 100).unwrap();
     let end = Instant::now() + Duration::from_secs(20);
-    while node.subscribers(topic) == 0 {
+    while node.peer_types(topic, false).is_empty() {
         assert!(
             Instant::now() < end,
             "the rclpy subscriber was never discovered"
@@ -194,7 +201,7 @@ fn an_rclpy_publishers_imu_messages_reach_us_field_for_field() {
     let end = Instant::now() + Duration::from_secs(30);
     while got.len() < N && Instant::now() < end {
         match sub.take().unwrap() {
-            Some(m) => got.push(m),
+            Some((m, _)) => got.push(m),
             None => std::thread::sleep(Duration::from_micros(200)),
         }
     }
@@ -283,7 +290,7 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
     }
     assert!(
         err.contains(&format!(
-            "ros2: {N} Imu in (0 invalid, 0 missing by their stamps), {N} Imu out"
+            "ros2: {N} Imu in (0 invalid, 0 missing by their stamps, 0 new publishers), {N} Imu out"
         )),
         "{err}"
     );
@@ -338,4 +345,109 @@ fn an_odometry_nodes_stops_drive_the_bias_filter() {
     assert!(moving > n * 4 / 10 && moving <= n / 2, "{line}");
     assert!(still > n * 3 / 10 && still <= n / 2, "{line}");
     assert!(err.contains("motion in"), "{err}");
+}
+
+/// `driftless run pipelines/ros2.toml` under a prefix of its own, quiet, stderr captured.
+fn daemon(tag: &str) -> Child {
+    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
+    Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args([
+            "run",
+            pipeline,
+            "--prefix",
+            &prefix(tag),
+            "--duration",
+            "60s",
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the daemon runs")
+}
+
+/// SIGTERM to the daemon; its stderr once it exited 0.
+fn stop(daemon: Child) -> String {
+    // SAFETY: kill(2) on our own child.
+    unsafe { libc::kill(daemon.id() as i32, libc::SIGTERM) };
+    let out = daemon.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    err
+}
+
+/// The navigator's messages once it printed `ready` and had a second to match.
+fn navigator(count: usize) -> Child {
+    let mut nav = peer("listen", "/imu/corrected", count);
+    let mut first = String::new();
+    BufReader::new(nav.stdout.as_mut().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("ready"), "{first}");
+    std::thread::sleep(Duration::from_secs(1));
+    nav
+}
+
+fn received(mut nav: Child) -> usize {
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    got.iter().filter(|v| v.get("stamp").is_some()).count()
+}
+
+#[test]
+fn nan_rates_and_a_topic_of_another_type_each_get_a_clear_line_and_the_daemon_serves_on() {
+    if !in_netns(
+        "nan_rates_and_a_topic_of_another_type_each_get_a_clear_line_and_the_daemon_serves_on",
+    ) {
+        return;
+    }
+    let d = daemon("faults");
+    let nav = navigator(N);
+    let mut other = peer("wrongtype", "/imu/data_raw", 300);
+    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_NAN_AT", "100,250")]);
+    assert!(driver.wait().unwrap().success());
+    assert!(other.wait().unwrap().success());
+    assert_eq!(received(nav), N, "every message through, the NaN ones held");
+    let err = stop(d);
+    assert!(
+        err.contains("/imu/data_raw: a message with a non-finite rate"),
+        "{err}"
+    );
+    assert!(
+        err.contains(
+            "a publisher on /imu/data_raw has type geometry_msgs/msg/Vector3Stamped, not \
+             sensor_msgs/msg/Imu"
+        ),
+        "{err}"
+    );
+    assert!(err.contains("flagged: 2 invalid"), "{err}");
+    assert!(err.contains(&format!("{N} Imu in (2 invalid")), "{err}");
+}
+
+#[test]
+fn a_restarted_driver_starts_a_new_epoch_and_a_restarted_navigator_gets_data_again() {
+    if !in_netns("a_restarted_driver_starts_a_new_epoch_and_a_restarted_navigator_gets_data_again")
+    {
+        return;
+    }
+    let d = daemon("restart");
+    for run in 0..2 {
+        let nav = navigator(N);
+        let mut driver = peer("talk", "/imu/data_raw", N);
+        assert!(driver.wait().unwrap().success());
+        assert_eq!(received(nav), N, "run {run}");
+    }
+    let err = stop(d);
+    assert!(err.contains("/imu/data_raw: a new publisher"), "{err}");
+    assert!(
+        err.contains(&format!(
+            "{} Imu in (0 invalid, 0 missing by their stamps, 1 new publishers)",
+            2 * N
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("pipeline ros2: {0} in, {0} out", 2 * N)),
+        "{err}"
+    );
 }

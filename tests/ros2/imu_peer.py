@@ -2,7 +2,9 @@
 receives on TOPIC as a JSON line, then the graph it sees; `talk` waits for a subscriber on TOPIC
 and publishes COUNT messages whose fields follow from their index (as the test expects); `drive`
 does the same with a gyro at rest and publishes nav_msgs/msg/Odometry on /odom every 10th
-message, the vehicle moving at 1 m/s for the first half and standing for the second.
+message, the vehicle moving at 1 m/s for the first half and standing for the second;
+`wrongtype` publishes COUNT geometry_msgs/msg/Vector3Stamped on TOPIC, one every 10 ms. With
+PEER_NAN_AT=i,j,... `talk` sends NaN rates in those messages.
 
 Runs inside the test's private network namespace only (DDS never leaves it).
 Versions: requirements-ros2.txt beside this file.
@@ -10,12 +12,14 @@ Versions: requirements-ros2.txt beside this file.
 
 import json
 import math
+import os
 import sys
 import time
 
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
@@ -72,7 +76,13 @@ def main() -> int:
             "publishers": [(p.node_name, p.topic_type) for p in node.get_publishers_info_by_topic(topic)],
         }
         print(json.dumps({"graph": graph}), flush=True)
+    elif mode == "wrongtype":
+        pub = node.create_publisher(Vector3Stamped, topic, 10)
+        for _ in range(count):
+            pub.publish(Vector3Stamped())
+            time.sleep(0.01)
     else:
+        nan_at = {int(k) for k in os.environ.get("PEER_NAN_AT", "").split(",") if k}
         pub = node.create_publisher(Imu, topic, 10)
         odom = node.create_publisher(Odometry, "/odom", 10) if mode == "drive" else None
         while time.monotonic() < end and (
@@ -88,7 +98,10 @@ def main() -> int:
                 o.header.stamp = message(i).header.stamp
                 o.twist.twist.linear.x = 1.0 if i < count // 2 else 0.0
                 odom.publish(o)
-            pub.publish(message(i, still=odom is not None))
+            m = message(i, still=odom is not None)
+            if i in nan_at:
+                m.angular_velocity.x = float("nan")
+            pub.publish(m)
             time.sleep(0.001)
         time.sleep(0.5)
         print(json.dumps({"sent": count}), flush=True)

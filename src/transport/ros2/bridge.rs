@@ -19,7 +19,9 @@ use std::io::Write as _;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use super::dds::{ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, Ros2Node};
+use super::dds::{
+    ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, PublisherId, Ros2Node,
+};
 use super::imu::ImuMapping;
 use super::Ros2Settings;
 use crate::clock::monotonic_ns;
@@ -35,6 +37,9 @@ fn say(line: std::fmt::Arguments<'_>) {
     let _ = writeln!(std::io::stderr(), "driftless: ros2: {line}");
 }
 
+/// The ROS 2 type of the Imu topics.
+const IMU: &str = "sensor_msgs/msg/Imu";
+
 /// The sleep between rounds that found nothing.
 const IDLE: Duration = Duration::from_micros(100);
 
@@ -47,8 +52,10 @@ pub struct BridgeCounts {
     pub imu_in_invalid: u64,
     /// Samples missing from the driver's topic, by its stamps.
     pub imu_in_missing: u64,
-    /// Messages on an input topic that could not be read (another type, malformed).
+    /// Messages on an input topic that could not be read (malformed).
     pub unreadable: u64,
+    /// Times the driver's topic changed publisher (a restart: each a new epoch).
+    pub imu_in_publishers: u64,
     /// Imu messages published.
     pub imu_out: u64,
     /// Imu messages not published (a full send window, a stamp no ROS time holds).
@@ -61,11 +68,12 @@ impl std::fmt::Display for BridgeCounts {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} Imu in ({} invalid, {} missing by their stamps), {} Imu out ({} not sent), {} \
-             motion in, {} unreadable",
+            "{} Imu in ({} invalid, {} missing by their stamps, {} new publishers), {} Imu out \
+             ({} not sent), {} motion in, {} unreadable",
             self.imu_in,
             self.imu_in_invalid,
             self.imu_in_missing,
+            self.imu_in_publishers,
             self.imu_out,
             self.imu_out_failed,
             self.motion_in,
@@ -77,60 +85,76 @@ impl std::fmt::Display for BridgeCounts {
 /// A topic whose matching we watch.
 struct Watched {
     topic: String,
+    /// Its ROS 2 type.
+    ty: &'static str,
     /// Our publisher (else our subscription).
     ours_publishes: bool,
     matched: bool,
-    said: bool,
+    said_unmatched: bool,
+    said_other_type: bool,
 }
 
 impl Watched {
-    fn new(topic: &str, ours_publishes: bool) -> Watched {
+    fn new(topic: &str, ty: &'static str, ours_publishes: bool) -> Watched {
         Watched {
             topic: topic.to_string(),
+            ty,
             ours_publishes,
             matched: false,
-            said: false,
+            said_unmatched: false,
+            said_other_type: false,
         }
     }
 
-    /// Say on stderr when the topic goes unmatched past the grace, and when it matches.
+    /// Say on stderr when the topic goes unmatched past the grace, when it matches, and when a
+    /// peer of another type is on it (it never matches).
     fn check(&mut self, node: &Ros2Node, since_start: Duration) {
-        let n = if self.ours_publishes {
-            node.subscribers(&self.topic)
-        } else {
-            node.publishers(&self.topic)
-        };
+        // Our publishers are reliable and our subscriptions best effort: any peer's QoS
+        // matches, so a peer that is missing has another name, domain or type.
+        let peers = node.peer_types(&self.topic, !self.ours_publishes);
         let (peer, side) = if self.ours_publishes {
             ("subscriber", "publishes")
         } else {
             ("publisher", "subscribes")
         };
-        // Our publishers are reliable and our subscriptions best effort: any peer's QoS
-        // matches, so a peer that is missing has another name or another domain.
-        if n > 0 && !self.matched {
-            if self.said {
+        if let Some(other) = peers.iter().find(|t| *t != self.ty) {
+            if !self.said_other_type {
+                say(format_args!(
+                    "a {peer} on {} has type {other}, not {}: they never match, and it gets \
+                     nothing from us nor we from it",
+                    self.topic, self.ty
+                ));
+                self.said_other_type = true;
+            }
+        }
+        let matched = peers.iter().any(|t| t == self.ty);
+        if matched && !self.matched {
+            if self.said_unmatched {
                 say(format_args!("{} now has a {peer}", self.topic));
             }
-            self.matched = true;
-        } else if n == 0 && !self.said && since_start >= MATCH_GRACE {
+        } else if !matched && !self.said_unmatched && since_start >= MATCH_GRACE {
             say(format_args!(
-                "no {peer} on {} after {} s (node {} {side} it on domain {}; check the topic \
-                 name and ROS_DOMAIN_ID)",
+                "no {peer} of {} on {} after {} s (node {} {side} it on domain {}; check the \
+                 topic name and ROS_DOMAIN_ID)",
+                self.ty,
                 self.topic,
                 MATCH_GRACE.as_secs(),
                 node.name(),
                 node.domain()
             ));
-            self.said = true;
+            self.said_unmatched = true;
         }
+        self.matched = matched;
     }
 }
 
 struct ImuIn {
+    topic: String,
     sub: ImuSubscription,
     out: Output<RawSample>,
     period_ns: f64,
     epoch: u32,
+    publisher: Option<PublisherId>,
     next_seq: u64,
     last_stamp: Option<i64>,
 }
@@ -140,8 +164,8 @@ impl ImuIn {
     fn pump(&mut self, counts: &mut BridgeCounts) -> usize {
         let mut n = 0;
         loop {
-            let imu = match self.sub.take() {
-                Ok(Some(imu)) => imu,
+            let (imu, from) = match self.sub.take() {
+                Ok(Some(m)) => m,
                 Ok(None) => break,
                 Err(e) => {
                     counts.unreadable += 1;
@@ -151,6 +175,21 @@ impl ImuIn {
                     continue;
                 }
             };
+            // Another publisher (a restarted driver): a new epoch, as a driver's restart on
+            // iceoryx2 is, not a gap.
+            if self.publisher.is_some_and(|p| p != from) {
+                self.epoch = self.epoch.wrapping_add(1).max(1);
+                self.next_seq = 0;
+                self.last_stamp = None;
+                counts.imu_in_publishers += 1;
+                if counts.imu_in_publishers <= 3 {
+                    say(format_args!(
+                        "{}: a new publisher (a driver restarted?): a new epoch",
+                        self.topic
+                    ));
+                }
+            }
+            self.publisher = Some(from);
             let stamp = imu.stamp.ns();
             if let Some(last) = self.last_stamp {
                 let periods = (stamp - last) as f64 / self.period_ns;
@@ -172,6 +211,13 @@ impl ImuIn {
             self.next_seq += 1;
             counts.imu_in += 1;
             counts.imu_in_invalid += u64::from(!finite);
+            if !finite && counts.imu_in_invalid == 1 {
+                say(format_args!(
+                    "{}: a message with a non-finite rate {:?} (flagged invalid; the daemon \
+                     holds the last good rate)",
+                    self.topic, imu.angular_velocity
+                ));
+            }
             // A send error is a lost sample the daemon counts as a gap.
             let _ = self.out.send(&raw);
             self.out.notify();
@@ -218,12 +264,14 @@ pub fn run_bridge(
         let mut watched = Vec::new();
         let imu_in = match &settings.imu_in {
             Some((topic, service)) => {
-                watched.push(Watched::new(topic, false));
+                watched.push(Watched::new(topic, IMU, false));
                 Some(ImuIn {
+                    topic: topic.clone(),
                     sub: node.imu_subscription(topic, settings.depth)?,
                     out: transport.external_output::<RawSample>(service, true)?,
                     period_ns: 1e9 / rate_hz,
                     epoch: rand::random::<u32>().max(1),
+                    publisher: None,
                     next_seq: 0,
                     last_stamp: None,
                 })
@@ -232,7 +280,7 @@ pub fn run_bridge(
         };
         let mut outs = Vec::new();
         for (service, topic) in &settings.imu_out {
-            watched.push(Watched::new(topic, true));
+            watched.push(Watched::new(topic, IMU, true));
             outs.push(ImuOut {
                 input: transport.open_input::<GyroSample>(service)?,
                 publisher: node.imu_publisher(topic, settings.depth)?,
@@ -241,11 +289,12 @@ pub fn run_bridge(
         }
         let motion = match &settings.motion_in {
             Some((topic, ty, service)) => {
-                watched.push(Watched::new(topic, false));
-                let kind = MotionKind::ALL
+                let (name, kind) = MotionKind::ALL
                     .iter()
                     .find(|(name, _)| name == ty)
-                    .map_or(MotionKind::Odometry, |(_, k)| *k);
+                    .copied()
+                    .unwrap_or(MotionKind::ALL[0]);
+                watched.push(Watched::new(topic, name, false));
                 Some(MotionIn {
                     sub: node.motion_subscription(topic, kind, settings.depth)?,
                     out: transport.external_output::<StopSignal>(service, false)?,

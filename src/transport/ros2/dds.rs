@@ -172,14 +172,34 @@ impl Ros2Node {
         Ok(MotionSubscription { port })
     }
 
-    /// Subscriptions of other participants discovered on `topic` (an absolute name).
-    pub fn subscribers(&self, topic: &str) -> usize {
-        self.node.subscription_count(topic)
+    /// The ROS 2 types (`pkg/msg/Type`) of the publishers (`writers`) or subscriptions of other
+    /// participants discovered on `topic` (an absolute name): one entry each.
+    pub fn peer_types(&self, topic: &str, writers: bool) -> Vec<String> {
+        let dds_topic = format!("rt/{}", topic.trim_start_matches('/'));
+        let dp = self._context.domain_participant();
+        let types: Vec<String> = if writers {
+            dp.discovered_writers()
+                .into_iter()
+                .filter(|w| w.publication_topic_data.topic_name == dds_topic)
+                .map(|w| w.publication_topic_data.type_name)
+                .collect()
+        } else {
+            dp.discovered_readers()
+                .into_iter()
+                .filter(|r| r.subscription_topic_data.topic_name == dds_topic)
+                .map(|r| r.subscription_topic_data.type_name().clone())
+                .collect()
+        };
+        types.iter().map(|t| ros_type_name(t)).collect()
     }
+}
 
-    /// Publishers of other participants discovered on `topic` (an absolute name).
-    pub fn publishers(&self, topic: &str) -> usize {
-        self.node.publisher_count(topic)
+/// A DDS type name as ROS 2 writes it (`sensor_msgs::msg::dds_::Imu_`) in ROS 2's own form
+/// (`sensor_msgs/msg/Imu`); another name as it is.
+pub fn ros_type_name(dds: &str) -> String {
+    match dds.split_once("::dds_::") {
+        Some((pkg, ty)) => format!("{}/{}", pkg.replace("::", "/"), ty.trim_end_matches('_')),
+        None => dds.to_string(),
     }
 }
 
@@ -321,17 +341,21 @@ impl ImuPublisher {
     }
 }
 
+/// Which publisher a message came from (a restarted driver is a new one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct PublisherId(ros2_client::Gid);
+
 /// Receives [`Imu`] messages.
 pub struct ImuSubscription {
     subscription: Subscription<ImuMsg>,
 }
 
 impl ImuSubscription {
-    /// The next message that arrived, if any; never waits. An error is a message that could
-    /// not be read (another type on the topic, a malformed one).
-    pub fn take(&self) -> Result<Option<Imu>, String> {
+    /// The next message that arrived, if any, with its publisher's id; never waits. An error
+    /// is a message that could not be read (a malformed one).
+    pub fn take(&self) -> Result<Option<(Imu, PublisherId)>, String> {
         match self.subscription.take() {
-            Ok(m) => Ok(m.map(|(msg, _)| Imu::from(msg))),
+            Ok(m) => Ok(m.map(|(msg, info)| (Imu::from(msg), PublisherId(info.publisher_gid())))),
             Err(e) => Err(format!("{e:?}")),
         }
     }
@@ -450,6 +474,19 @@ mod tests {
             linear_acceleration_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         };
         assert_eq!(Imu::from(ImuMsg::from(&imu)), imu);
+    }
+
+    #[test]
+    fn dds_type_names_read_as_ros_2_writes_them() {
+        assert_eq!(
+            ros_type_name("sensor_msgs::msg::dds_::Imu_"),
+            "sensor_msgs/msg/Imu"
+        );
+        assert_eq!(
+            ros_type_name("geometry_msgs::msg::dds_::TwistStamped_"),
+            "geometry_msgs/msg/TwistStamped"
+        );
+        assert_eq!(ros_type_name("Other"), "Other");
     }
 
     #[test]
