@@ -451,3 +451,62 @@ fn a_restarted_driver_starts_a_new_epoch_and_a_restarted_navigator_gets_data_aga
         "{err}"
     );
 }
+
+/// The Python example at `examples/ros2/NAME.py` with `args`, stdout piped.
+fn example(name: &str, args: &[&str]) -> Child {
+    let script = format!("{}/examples/ros2/{name}.py", env!("CARGO_MANIFEST_DIR"));
+    Command::new(std::env::var_os(PYTHON).unwrap())
+        .arg(script)
+        .args(args)
+        .env("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+        .env("ROS_DISTRO", "kilted")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("the example runs")
+}
+
+/// The last JSON line a child printed.
+fn last_json(child: &mut Child) -> serde_json::Value {
+    let out = child.stdout.take().unwrap();
+    let last = BufReader::new(out)
+        .lines()
+        .map_while(Result::ok)
+        .filter(|l| l.starts_with('{'))
+        .last()
+        .expect("a JSON line");
+    assert!(child.wait().unwrap().success());
+    serde_json::from_str(&last).unwrap()
+}
+
+#[test]
+fn the_ros2_examples_steer_closer_to_the_truth_through_the_daemon() {
+    if !in_netns("the_ros2_examples_steer_closer_to_the_truth_through_the_daemon") {
+        return;
+    }
+    let d = daemon("examples");
+    let n = 6000;
+    let mut nav = example("navigator", &["--count", &n.to_string(), "--timeout", "60"]);
+    let mut first = String::new();
+    BufReader::new(nav.stdout.as_mut().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("ready"), "{first}");
+    std::thread::sleep(Duration::from_secs(1));
+    let mut driver = example("driver", &["--duration", "6", "--rate", "1000"]);
+    let sent = last_json(&mut driver);
+    let got = last_json(&mut nav);
+    let err = stop(d);
+    assert_eq!(got["messages"], n, "{got} {err}");
+    assert_eq!(got["in_order"], true);
+    let truth = sent["truth_rad"].as_f64().unwrap();
+    let raw = (sent["raw_rad"].as_f64().unwrap() - truth).abs();
+    let corrected = (got["heading_rad"].as_f64().unwrap() - truth).abs();
+    // The raw gyro's bias turns it 0.024 rad off in 6 s; the daemon learns the bias while the
+    // odometry says the vehicle stands.
+    assert!(
+        corrected < raw / 3.0,
+        "corrected {corrected} rad, raw {raw} rad: {err}"
+    );
+    assert!(got["sigma_rad"].as_f64().unwrap() > 0.0);
+}
