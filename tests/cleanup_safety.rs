@@ -388,6 +388,49 @@ fn a_256_kib_dev_shm_is_a_clear_error_exit_2_and_nothing_left() {
     );
 }
 
+#[test]
+fn a_dev_shm_that_fills_while_running_is_said_in_the_verdict_and_the_daemon_serves_on() {
+    if !in_namespace(
+        "a_dev_shm_that_fills_while_running_is_said_in_the_verdict_and_the_daemon_serves_on",
+        "6m",
+    ) {
+        return;
+    }
+    let demo = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml");
+    let daemon = Command::new(bin())
+        .args(["run", demo, "--duration", "5s"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Once it runs (its stats service's segment exists), fill /dev/shm, then subscribe: the
+    // new subscriber's connection finds no page.
+    let end = Instant::now() + Duration::from_secs(20);
+    while !names(Path::new("/dev/shm"))
+        .iter()
+        .any(|n| n.ends_with(".data"))
+    {
+        assert!(Instant::now() < end, "the daemon never started");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let mut filler = std::fs::File::create("/dev/shm/filler").unwrap();
+    let block = vec![1u8; 64 * 1024];
+    while std::io::Write::write_all(&mut filler, &block).is_ok() {}
+    drop(filler);
+    let (code, _) = run_within(
+        &["tap", "demo/corrected", "--duration", "1s"],
+        Duration::from_secs(30),
+    );
+    assert!(code.is_some());
+    let (code, err) = finish(daemon, Duration::from_secs(60));
+    assert_eq!(code, Some(0), "the daemon serves on: {err}");
+    let verdict = err.lines().find(|l| l.starts_with("verdict:")).unwrap();
+    assert!(verdict.contains("; shared memory FULL: "), "{verdict}");
+    std::fs::remove_file("/dev/shm/filler").unwrap();
+    assert_eq!(names(Path::new("/dev/shm")), Vec::<String>::new());
+}
+
 /// Whether `pid` has a handler for SIGTERM (its `SigCgt` mask in /proc).
 fn catches_sigterm(pid: u32) -> bool {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();

@@ -422,7 +422,16 @@ impl Reporter {
             s.flagged,
             s.metric_drops
         );
-        line + &heading
+        let shm = crate::transport::shared_memory_trouble();
+        let shm = if shm == Default::default() {
+            String::new()
+        } else {
+            format!(
+                ", shared memory FULL ({} writes unbacked, {} bytes unreserved)",
+                shm.unbacked_writes, shm.unreserved_bytes
+            )
+        };
+        line + &heading + &shm
     }
 
     /// Losses in every service plus the samples missing from the source.

@@ -181,12 +181,16 @@ pub(super) fn spawn_reporter(
                 .map(|s| {
                     let port = Transport::new(&s.prefix, &s.node, s.qos)
                         .and_then(|t| t.output::<StatsSnapshot>(&s.service, true).map(|o| (t, o)));
-                    if let Err(e) = &port {
-                        let _ = writeln!(
-                            std::io::stderr(),
-                            "driftless: warning: no stats service {:?}: {e}",
-                            s.service
-                        );
+                    match &port {
+                        // Whole now, as the pipelines' were at start (or counted).
+                        Ok((t, _)) => t.reserve_shared_memory_or_count(),
+                        Err(e) => {
+                            let _ = writeln!(
+                                std::io::stderr(),
+                                "driftless: warning: no stats service {:?}: {e}",
+                                s.service
+                            );
+                        }
                     }
                     port.ok()
                 })
