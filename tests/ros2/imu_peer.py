@@ -4,7 +4,10 @@ and publishes COUNT messages whose fields follow from their index (as the test e
 does the same with a gyro at rest and publishes nav_msgs/msg/Odometry on /odom every 10th
 message, the vehicle moving at 1 m/s for the first half and standing for the second;
 `wrongtype` publishes COUNT geometry_msgs/msg/Vector3Stamped on TOPIC, one every 10 ms. With
-PEER_NAN_AT=i,j,... `talk` sends NaN rates in those messages.
+PEER_NAN_AT=i,j,... `talk` sends NaN rates in those messages. For benches/ros2.rs: `pace`
+publishes COUNT messages at PEER_RATE Hz (default 1000) stamped with the system clock just
+before each publish; `latency` receives COUNT and prints, as one JSON line, how many came, in
+order, and the percentiles of receipt minus stamp (us).
 
 Runs inside the test's private network namespace only (DDS never leaves it).
 Versions: requirements-ros2.txt beside this file.
@@ -76,6 +79,49 @@ def main() -> int:
             "publishers": [(p.node_name, p.topic_type) for p in node.get_publishers_info_by_topic(topic)],
         }
         print(json.dumps({"graph": graph}), flush=True)
+    elif mode == "latency":
+        reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                              history=HistoryPolicy.KEEP_LAST)
+        lat, stamps = [], []
+
+        def on_imu(m):
+            now = time.time_ns()
+            stamp = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+            lat.append((now - stamp) / 1e3)
+            stamps.append(stamp)
+
+        node.create_subscription(Imu, topic, on_imu, reliable)
+        print(json.dumps({"ready": True}), flush=True)
+        while len(lat) < count and time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        ordered = sorted(lat)
+
+        def pct(q):
+            return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else None
+
+        print(json.dumps({
+            "count": len(lat),
+            "in_order": all(b > a for a, b in zip(stamps, stamps[1:])),
+            "p50_us": pct(0.5), "p99_us": pct(0.99), "p999_us": pct(0.999),
+            "max_us": ordered[-1] if ordered else None,
+        }), flush=True)
+    elif mode == "pace":
+        rate = float(os.environ.get("PEER_RATE", "1000"))
+        pub = node.create_publisher(Imu, topic, 10)
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.01)
+        time.sleep(0.5)
+        start = time.monotonic()
+        m = message(0, still=True)
+        for i in range(count):
+            stamp = time.time_ns()
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            pub.publish(m)
+            ahead = start + (i + 1) / rate - time.monotonic()
+            if ahead > 0:
+                time.sleep(ahead)
+        time.sleep(0.5)
+        print(json.dumps({"sent": count}), flush=True)
     elif mode == "wrongtype":
         pub = node.create_publisher(Vector3Stamped, topic, 10)
         for _ in range(count):

@@ -1,0 +1,236 @@
+//! The ROS 2 path (feature `ros2`): a driver node's Imu through the daemon to a navigator node,
+//! against the bare floor, a ros2-client publisher straight to the same rclpy subscriber, in
+//! one run; and what the daemon's ROS 2 side costs in CPU.
+//!
+//! ```text
+//! DRIFTLESS_ROS2_PYTHON=target/ros2env/bin/python cargo bench --features ros2 --bench ros2
+//! DRIFTLESS_BENCH_SECONDS=10 ...                            # 10 s per path instead of 60
+//! ```
+//!
+//! Needs root: DDS runs only inside a private network namespace with nothing but loopback, which
+//! the bench makes (it re-runs itself under `unshare -n`). The peer is
+//! tests/ros2/imu_peer.py (rclpy on Fast DDS, tests/ros2/requirements-ros2.txt).
+//!
+//! 1. **Bare floor:** this process publishes Imu at 1 kHz (reliable), each stamped with the
+//!    system clock just before its publish; an rclpy subscriber records receipt minus stamp.
+//! 2. **Through the daemon** (`pipelines/ros2.toml`): an rclpy driver publishes at 1 kHz the same
+//!    way on `/imu/data_raw`, the same rclpy subscriber reads `/imu/corrected`. The daemon keeps
+//!    the driver's stamp, so receipt minus stamp is driver publish to navigator receipt.
+//!
+//! Printed: both paths' percentiles and their difference, messages lost, the daemon's own
+//! ingest-to-publish p99.9 and deadline misses, and the CPU of its threads other than the hot
+//! thread and the reporter (the ROS 2 side: our bridge thread and RustDDS's) as a share of one
+//! core. Goals (issue 39): 0 lost; p50 <= bare + 100 us; p99 <= bare + 300 us; CPU <= 10%.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use driftless::transport::ros2::{ImuMapping, Ros2Node};
+use driftless::transport::GyroSample;
+use serde_json::Value;
+
+mod support;
+
+use support::{bench_seconds, loadavg, prefix, read_report, sigterm_and_wait};
+
+const CHILD: &str = "DRIFTLESS_BENCH_IN_NETNS";
+const PYTHON: &str = "DRIFTLESS_ROS2_PYTHON";
+const RATE: f64 = 1000.0;
+
+fn main() {
+    if std::env::args().any(|a| a == "--list") {
+        return;
+    }
+    if std::env::var_os(CHILD).is_none() {
+        if std::env::var_os(PYTHON).is_none() {
+            println!("ros2 bench: skipped: no rclpy peer ({PYTHON} unset)");
+            return;
+        }
+        // SAFETY: geteuid cannot fail.
+        if unsafe { libc::geteuid() } != 0 {
+            println!("ros2 bench: skipped: a private network namespace needs root");
+            return;
+        }
+        let status = Command::new("unshare")
+            .args([
+                "-n",
+                "sh",
+                "-c",
+                "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\"",
+            ])
+            .arg(std::env::current_exe().unwrap())
+            .env(CHILD, "1")
+            .status()
+            .expect("unshare runs");
+        assert!(status.success());
+        return;
+    }
+    let secs = bench_seconds(60.0);
+    let n = (secs * RATE) as usize;
+    println!(
+        "ros2 bench: {n} messages at {RATE} Hz per path, load {}",
+        loadavg()
+    );
+    let bare = bare_floor(n);
+    let (through, daemon) = through_daemon(n);
+    let row = |name: &str, v: &Value| {
+        println!(
+            "{name:<16} {:>6} of {n}  in order {:<5}  p50 {:>7.1} us  p99 {:>7.1} us  p99.9 {:>7.1} us  max {:>8.1} us",
+            v["count"], v["in_order"], f(v, "p50_us"), f(v, "p99_us"), f(v, "p999_us"), f(v, "max_us")
+        );
+    };
+    row("bare floor", &bare);
+    row("through daemon", &through);
+    let d50 = f(&through, "p50_us") - f(&bare, "p50_us");
+    let d99 = f(&through, "p99_us") - f(&bare, "p99_us");
+    let lost = n as i64 - through["count"].as_i64().unwrap_or(0);
+    println!(
+        "daemon minus bare: p50 {d50:+.1} us (goal <= +100), p99 {d99:+.1} us (goal <= +300); lost {lost} (goal 0)"
+    );
+    println!(
+        "daemon: ingest to publish p99.9 {:.1} us, {} deadline misses of {}; ROS 2 side CPU {:.1}% of a core (goal <= 10%)",
+        daemon.p999_us, daemon.misses, daemon.outputs, daemon.ros2_cpu_pct
+    );
+}
+
+fn f(v: &Value, key: &str) -> f64 {
+    v[key].as_f64().unwrap_or(f64::NAN)
+}
+
+/// The rclpy peer in `mode` on `topic` for `count` messages.
+fn peer(mode: &str, topic: &str, count: usize) -> Child {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2/imu_peer.py");
+    let timeout = (count as f64 / RATE + 30.0).to_string();
+    Command::new(std::env::var_os(PYTHON).unwrap())
+        .args([script, mode, topic, &count.to_string(), &timeout])
+        .env("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+        .env("ROS_DISTRO", "kilted")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("the rclpy peer runs")
+}
+
+/// Start the latency listener and wait until it subscribed (and a second for discovery).
+fn listener(topic: &str, n: usize) -> (Child, BufReader<std::process::ChildStdout>) {
+    let mut child = peer("latency", topic, n);
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut first = String::new();
+    out.read_line(&mut first).unwrap();
+    assert!(first.contains("ready"), "{first}");
+    std::thread::sleep(Duration::from_secs(1));
+    (child, out)
+}
+
+fn result(mut child: Child, out: BufReader<std::process::ChildStdout>) -> Value {
+    let last = out
+        .lines()
+        .map_while(Result::ok)
+        .filter(|l| l.starts_with('{'))
+        .last()
+        .expect("the listener's result");
+    assert!(child.wait().unwrap().success());
+    serde_json::from_str(&last).unwrap()
+}
+
+fn realtime_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+fn bare_floor(n: usize) -> Value {
+    let topic = "/bench/bare";
+    let (child, out) = listener(topic, n);
+    let mut node = Ros2Node::new("/", "bench_bare").unwrap();
+    let publisher = node.imu_publisher(topic, 100).unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    while node.peer_types(topic, false).is_empty() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let mut mapping = ImuMapping::new("imu_link", 1.0, Some(1.2));
+    let start = Instant::now();
+    for i in 0..n {
+        let s = GyroSample {
+            t_ns: realtime_ns(),
+            rate: [0.002, -0.001, 0.0005],
+            drift_std: [1e-4; 3],
+            ..Default::default()
+        };
+        let imu = mapping.gyro(&s).unwrap();
+        publisher.publish(imu).unwrap();
+        let due = start + Duration::from_secs_f64((i + 1) as f64 / RATE);
+        if let Some(ahead) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(ahead);
+        }
+    }
+    result(child, out)
+}
+
+/// What the daemon said of itself.
+struct DaemonSide {
+    p999_us: f64,
+    misses: u64,
+    outputs: u64,
+    ros2_cpu_pct: f64,
+}
+
+/// CPU seconds of each thread of `pid` by name.
+fn thread_cpu(pid: u32) -> Vec<(String, f64)> {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return Vec::new();
+    };
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
+    tasks
+        .flatten()
+        .filter_map(|t| {
+            let stat = std::fs::read_to_string(t.path().join("stat")).ok()?;
+            let (open, close) = (stat.find('(')?, stat.rfind(')')?);
+            let name = stat[open + 1..close].to_string();
+            let fields: Vec<&str> = stat[close + 2..].split_whitespace().collect();
+            let ticks = fields[11].parse::<f64>().ok()? + fields[12].parse::<f64>().ok()?;
+            Some((name, ticks / hz))
+        })
+        .collect()
+}
+
+fn through_daemon(n: usize) -> (Value, DaemonSide) {
+    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
+    let prefix = prefix("ros2");
+    let report = std::env::temp_dir().join(format!("{prefix}report.json"));
+    let mut daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args(["run", pipeline, "--prefix", &prefix, "--quiet", "--report"])
+        .arg(&report)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("the daemon runs");
+    let pid = daemon.id();
+    let (child, out) = listener("/imu/corrected", n);
+    // The ROS 2 side's CPU while the stream runs: every thread but the hot one (the main
+    // thread, named after the binary) and the reporter.
+    let ros2_cpu = |cpu: &[(String, f64)]| -> f64 {
+        cpu.iter()
+            .filter(|(name, _)| name != "driftless" && name != "driftless-repor")
+            .map(|(_, s)| s)
+            .sum()
+    };
+    let (cpu0, t0) = (ros2_cpu(&thread_cpu(pid)), Instant::now());
+    let mut driver = peer("pace", "/imu/data_raw", n);
+    assert!(driver.wait().unwrap().success());
+    let (cpu1, t1) = (ros2_cpu(&thread_cpu(pid)), Instant::now());
+    let through = result(child, out);
+    sigterm_and_wait(&mut daemon);
+    let r = read_report(&report);
+    let _ = std::fs::remove_file(&report);
+    let side = DaemonSide {
+        p999_us: r["end_to_end_ns"]["p999"].as_f64().unwrap_or(f64::NAN) / 1e3,
+        misses: r["deadline_misses"].as_u64().unwrap_or(0),
+        outputs: r["samples_out"].as_u64().unwrap_or(0),
+        ros2_cpu_pct: 100.0 * (cpu1 - cpu0) / (t1 - t0).as_secs_f64(),
+    };
+    (through, side)
+}
