@@ -99,6 +99,17 @@ impl WakeSet {
         self.register(waker.fd(), tag as u64)
     }
 
+    /// Watch a descriptor of another kind (one that turns readable when there is work, as a
+    /// DDS readiness poll does); [`wait`](Self::wait) reports it by `tag`.
+    #[cfg(feature = "ros2")]
+    pub(super) fn add_fd(
+        &mut self,
+        fd: std::os::fd::RawFd,
+        tag: usize,
+    ) -> Result<(), TransportError> {
+        self.register(fd, tag as u64)
+    }
+
     fn register(&mut self, fd: std::os::fd::RawFd, tag: u64) -> Result<(), TransportError> {
         let mut event = libc::epoll_event {
             events: libc::EPOLLIN as u32,

@@ -20,13 +20,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::dds::{
-    ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, PublisherId, Ros2Node,
+    DdsReadiness, ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, PublisherId,
+    Ros2Node,
 };
 use super::imu::ImuMapping;
 use super::Ros2Settings;
 use crate::clock::monotonic_ns;
 use crate::transport::{
-    GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError, RAW_INVALID,
+    GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError, WakeSet,
+    Waker, RAW_INVALID,
 };
 
 /// How long a topic may go unmatched before stderr says so.
@@ -40,8 +42,14 @@ fn say(line: std::fmt::Arguments<'_>) {
 /// The ROS 2 type of the Imu topics.
 const IMU: &str = "sensor_msgs/msg/Imu";
 
-/// The sleep between rounds that found nothing.
-const IDLE: Duration = Duration::from_micros(100);
+/// The longest sleep: the matching checks' period, and a safety net for a missed wake-up.
+const IDLE: Duration = Duration::from_millis(100);
+
+/// How often a service its publisher does not notify is read (epoll's millisecond).
+const POLL: Duration = Duration::from_millis(1);
+
+/// The wake-set tag of the DDS readiness descriptor (the outputs' wakers are tagged by index).
+const DDS_TAG: usize = usize::MAX;
 
 /// What the bridge carried.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -160,9 +168,8 @@ struct ImuIn {
 }
 
 impl ImuIn {
-    /// Take what arrived; how many messages.
-    fn pump(&mut self, counts: &mut BridgeCounts) -> usize {
-        let mut n = 0;
+    /// Take what arrived.
+    fn pump(&mut self, counts: &mut BridgeCounts) {
         loop {
             let (imu, from) = match self.sub.take() {
                 Ok(Some(m)) => m,
@@ -221,14 +228,14 @@ impl ImuIn {
             // A send error is a lost sample the daemon counts as a gap.
             let _ = self.out.send(&raw);
             self.out.notify();
-            n += 1;
         }
-        n
     }
 }
 
 struct ImuOut {
     input: Input<GyroSample>,
+    /// Its event service, when the daemon notifies one (the public service).
+    waker: Option<Waker>,
     publisher: ImuPublisher,
     mapping: ImuMapping,
 }
@@ -262,7 +269,7 @@ pub fn run_bridge(
         let transport = Transport::new(prefix, &format!("{}-ros2", settings.node), qos)?;
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
         let mut watched = Vec::new();
-        let imu_in = match &settings.imu_in {
+        let mut imu_in = match &settings.imu_in {
             Some((topic, service)) => {
                 watched.push(Watched::new(topic, IMU, false));
                 Some(ImuIn {
@@ -283,11 +290,12 @@ pub fn run_bridge(
             watched.push(Watched::new(topic, IMU, true));
             outs.push(ImuOut {
                 input: transport.open_input::<GyroSample>(service)?,
+                waker: transport.existing_waker(service)?,
                 publisher: node.imu_publisher(topic, settings.depth)?,
                 mapping: ImuMapping::new(&settings.frame_id, 1.0, settings.rate_noise),
             });
         }
-        let motion = match &settings.motion_in {
+        let mut motion = match &settings.motion_in {
             Some((topic, ty, service)) => {
                 let (name, kind) = MotionKind::ALL
                     .iter()
@@ -302,32 +310,65 @@ pub fn run_bridge(
             }
             None => None,
         };
+        // Sleep until a subscription has messages or the daemon notifies an output.
+        let io = |e: std::io::Error| TransportError::Io {
+            what: "ROS 2 readiness",
+            reason: e.to_string(),
+        };
+        let readiness = DdsReadiness::new().map_err(io)?;
+        if let Some(i) = &mut imu_in {
+            readiness.watch_imu(&mut i.sub, 0).map_err(io)?;
+        }
+        if let Some(m) = &mut motion {
+            readiness.watch_motion(&mut m.sub, 1).map_err(io)?;
+        }
+        let mut wake = WakeSet::new()?;
+        wake.add_fd(readiness.fd(), DDS_TAG)?;
+        for (k, o) in outs.iter().enumerate() {
+            if let Some(w) = &o.waker {
+                wake.add(w, k)?;
+            }
+        }
         transport.reserve_shared_memory()?;
-        Ok((transport, node, watched, imu_in, outs, motion))
+        Ok((
+            transport, node, watched, imu_in, outs, motion, readiness, wake,
+        ))
     };
-    let (transport, node, mut watched, mut imu_in, mut outs, motion) = match setup() {
-        Ok(parts) => {
-            started(Ok(()));
-            parts
-        }
-        Err(e) => {
-            started(Err(e.to_string()));
-            return Err(e);
-        }
-    };
+    let (transport, node, mut watched, mut imu_in, mut outs, mut motion, mut readiness, mut wake) =
+        match setup() {
+            Ok(parts) => {
+                started(Ok(()));
+                parts
+            }
+            Err(e) => {
+                started(Err(e.to_string()));
+                return Err(e);
+            }
+        };
     let ros_stamps = imu_in.is_some();
     let offset = realtime_offset_ns();
     let mut counts = BridgeCounts::default();
     let t0 = Instant::now();
     let mut next_check = t0;
+    // Every output notified: sleep until woken; else read the others every millisecond.
+    let sleep = if outs.iter().all(|o| o.waker.is_some()) {
+        IDLE
+    } else {
+        POLL
+    };
     while !stop.load(Ordering::Relaxed) {
-        let mut busy = 0;
+        // Edge-triggered: take the wake-ups first, then everything there is, then sleep.
+        readiness.clear();
+        for o in &outs {
+            if let Some(w) = &o.waker {
+                let _ = w.drain();
+            }
+        }
         if let Some(i) = &mut imu_in {
-            busy += i.pump(&mut counts);
+            i.pump(&mut counts);
         }
         for o in &mut outs {
             while let Ok(Some(mut s)) = o.input.receive() {
-                busy += 1;
                 if !ros_stamps {
                     s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
                 }
@@ -343,11 +384,10 @@ pub fn run_bridge(
                 }
             }
         }
-        if let Some(m) = &motion {
+        if let Some(m) = &mut motion {
             loop {
                 match m.sub.take(monotonic_ns()) {
                     Ok(Some(signal)) => {
-                        busy += 1;
                         counts.motion_in += 1;
                         let _ = m.out.send(&signal);
                     }
@@ -368,9 +408,8 @@ pub fn run_bridge(
             }
             next_check = now + Duration::from_millis(500);
         }
-        if busy == 0 {
-            std::thread::sleep(IDLE);
-        }
+        // A signal or a failed wait only shortens the sleep.
+        let _ = wake.wait(None, sleep, |_| {});
     }
     drop(transport);
     Ok(counts)

@@ -18,6 +18,7 @@
 //! - No spinner runs: publishing, taking and the graph need none, and the matched counts come
 //!   from the discovery database ([`Ros2Node::subscribers`], [`Ros2Node::publishers`]).
 
+use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
@@ -27,6 +28,54 @@ use serde::{Deserialize, Serialize};
 
 use super::imu::{Imu, Time};
 use crate::transport::{StopSignal, TransportError};
+
+/// Wakes a thread when a watched subscription has messages: its descriptor turns readable
+/// (edge-triggered: [`DdsReadiness::clear`] before taking everything, then wait again).
+pub struct DdsReadiness {
+    poll: Poll,
+    events: Events,
+}
+
+impl DdsReadiness {
+    /// A readiness poll with nothing watched yet.
+    pub fn new() -> std::io::Result<DdsReadiness> {
+        Ok(DdsReadiness {
+            poll: Poll::new()?,
+            events: Events::with_capacity(16),
+        })
+    }
+
+    /// Watch an Imu subscription.
+    pub fn watch_imu(&self, sub: &mut ImuSubscription, token: usize) -> std::io::Result<()> {
+        self.poll
+            .registry()
+            .register(&mut sub.subscription, Token(token), Interest::READABLE)
+    }
+
+    /// Watch a motion subscription.
+    pub fn watch_motion(&self, sub: &mut MotionSubscription, token: usize) -> std::io::Result<()> {
+        let (registry, token) = (self.poll.registry(), Token(token));
+        match &mut sub.port {
+            MotionPort::Odometry(s) => registry.register(s, token, Interest::READABLE),
+            MotionPort::Twist(s) => registry.register(s, token, Interest::READABLE),
+            MotionPort::TwistCov(s) => registry.register(s, token, Interest::READABLE),
+        }
+    }
+
+    /// The descriptor that turns readable when a watched subscription has messages.
+    pub fn fd(&self) -> std::os::fd::RawFd {
+        use std::os::fd::AsRawFd;
+        self.poll.as_raw_fd()
+    }
+
+    /// Take the readiness events that woke us (without waiting), so the descriptor turns
+    /// readable again only for messages that come after.
+    pub fn clear(&mut self) {
+        let _ = self
+            .poll
+            .poll(&mut self.events, Some(std::time::Duration::ZERO));
+    }
+}
 
 /// The environment variable ROS 2 reads its DDS domain from.
 pub const DOMAIN_ENV: &str = "ROS_DOMAIN_ID";

@@ -16,8 +16,8 @@ mod imu;
 pub use bridge::{run_bridge, BridgeCounts};
 #[cfg(feature = "ros2")]
 pub use dds::{
-    domain_id, ros_type_name, ImuPublisher, ImuSubscription, MotionKind, MotionSubscription,
-    PublisherId, Ros2Node, DOMAIN_ENV,
+    domain_id, ros_type_name, DdsReadiness, ImuPublisher, ImuSubscription, MotionKind,
+    MotionSubscription, PublisherId, Ros2Node, DOMAIN_ENV,
 };
 
 pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION};
