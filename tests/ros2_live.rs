@@ -267,6 +267,46 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
 
     let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
     assert_eq!(msgs.len(), N, "every message through: {err}");
+    // Bit for bit what the same stages give offline on the driver's samples, and the
+    // covariance ImuMapping gives them.
+    let p = driftless::pipeline::config::load(std::path::Path::new(pipeline)).unwrap();
+    let mut offline = driftless::pipeline::offline::Offline::new(&p).unwrap();
+    let mut mapping = ImuMapping::new("imu_link", 1.0, Some(1.2151));
+    let mut want = Vec::new();
+    for i in 0..N {
+        let raw = driftless::transport::RawSample {
+            t_ns: 1_700_000_000_000_000_000 + i as u64 * 1_000_000,
+            seq: i as u64,
+            rate: [0.001 * i as f64, -0.002 * i as f64, 0.5],
+            flags: 0,
+            epoch: 1,
+        };
+        offline.push(&raw, &mut |s| want.push(mapping.gyro(&s).unwrap().clone()));
+    }
+    offline.finish(&mut |s| want.push(mapping.gyro(&s).unwrap().clone()));
+    assert_eq!(want.len(), N);
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    for (i, (m, w)) in msgs.iter().zip(&want).enumerate() {
+        let rate = floats(&m["angular_velocity"]);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&rate),
+            bits(&w.angular_velocity),
+            "sample {i}: the offline rate"
+        );
+        let cov = floats(&m["angular_velocity_covariance"]);
+        assert_eq!(
+            bits(&cov),
+            bits(&w.angular_velocity_covariance),
+            "sample {i}: covariance"
+        );
+    }
     let noise = 1.2151f64.to_radians().powi(2);
     for (i, m) in msgs.iter().enumerate() {
         // The driver's own stamps, in order, once each.
