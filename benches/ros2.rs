@@ -57,9 +57,10 @@ fn main() {
                 "-n",
                 "sh",
                 "-c",
-                "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\"",
+                "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
             ])
             .arg(std::env::current_exe().unwrap())
+            .args(std::env::args().skip(1))
             .env(CHILD, "1")
             .status()
             .expect("unshare runs");
