@@ -382,8 +382,11 @@ fn an_odometry_nodes_stops_drive_the_bias_filter() {
             .unwrap()
     };
     let (still, moving) = (count(" still"), count(" moving"));
-    assert!(moving > n * 4 / 10 && moving <= n / 2, "{line}");
-    assert!(still > n * 3 / 10 && still <= n / 2, "{line}");
+    // An odometry message every 10 samples, and each may come a moment after the Imu message
+    // of the same instant: the switch is exact to 10 samples, and the first few samples may
+    // come before any odometry (neither).
+    assert!(moving.abs_diff(n / 2) <= 10, "{line}");
+    assert!(still + moving >= n - 10, "{line}");
     assert!(err.contains("motion in"), "{err}");
 }
 
