@@ -553,3 +553,25 @@ fn the_ros2_examples_steer_closer_to_the_truth_through_the_daemon() {
     );
     assert!(got["sigma_rad"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn validate_describes_the_ros2_side() {
+    // No DDS: validate only reads the file.
+    let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .args([
+            "validate",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml"),
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    for line in [
+        "  ros2: node /driftless_ros2 on ROS_DOMAIN_ID's domain, depth 100, frame_id imu_link, rate noise 1.2151 deg/s",
+        "    in     /imu/data_raw (sensor_msgs/msg/Imu) -> sensor/raw",
+        "    out    ros2/corrected -> /imu/corrected (sensor_msgs/msg/Imu)",
+        "    motion /odom (nav_msgs/msg/Odometry) -> vehicle/stop",
+    ] {
+        assert!(text.lines().any(|l| l == line), "{line:?} in\n{text}");
+    }
+}

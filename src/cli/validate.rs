@@ -71,6 +71,27 @@ fn describe(p: &Pipeline) {
         }
     }
     println!("  stats on {}", p.iceoryx2.stats_service);
+    if let Some(r) = &p.ros2 {
+        let noise = r.rate_noise.map_or("covariance unknown".into(), |n| {
+            format!("rate noise {n} deg/s")
+        });
+        println!(
+            "  ros2: node {}{} on ROS_DOMAIN_ID's domain, depth {}, frame_id {}, {noise}",
+            r.namespace.trim_end_matches('/').to_string() + "/",
+            r.node,
+            r.depth,
+            r.frame_id
+        );
+        if let Some((topic, service)) = &r.imu_in {
+            println!("    in     {topic} (sensor_msgs/msg/Imu) -> {service}");
+        }
+        for (service, topic) in &r.imu_out {
+            println!("    out    {service} -> {topic} (sensor_msgs/msg/Imu)");
+        }
+        if let Some((topic, ty, service)) = &r.motion_in {
+            println!("    motion {topic} ({ty}) -> {service}");
+        }
+    }
 }
 
 fn role(kind: &Kind) -> &'static str {
