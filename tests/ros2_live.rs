@@ -231,44 +231,19 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
     if !in_netns("a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate") {
         return;
     }
-    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
-    let prefix = prefix("e2e");
-    let daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .args([
-            "run",
-            pipeline,
-            "--prefix",
-            &prefix,
-            "--duration",
-            "60s",
-            "-q",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the daemon runs");
-    let mut navigator = peer("listen", "/imu/corrected", N);
-    let mut first = String::new();
-    BufReader::new(navigator.stdout.as_mut().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    assert!(first.contains("ready"), "{first}");
-    // Let the daemon's publisher and the navigator's subscription find each other.
-    std::thread::sleep(Duration::from_secs(1));
+    let d = daemon("e2e");
+    let mut navigator = navigator(N);
     let mut driver = peer("talk", "/imu/data_raw", N);
     assert!(driver.wait().unwrap().success());
     let got = lines(&mut navigator);
     assert!(navigator.wait().unwrap().success());
-    // SAFETY: kill(2) on our own child.
-    unsafe { libc::kill(daemon.id() as i32, libc::SIGTERM) };
-    let out = daemon.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    let err = stop(d);
 
     let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
     assert_eq!(msgs.len(), N, "every message through: {err}");
     // Bit for bit what the same stages give offline on the driver's samples, and the
     // covariance ImuMapping gives them.
+    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
     let p = driftless::pipeline::config::load(std::path::Path::new(pipeline)).unwrap();
     let mut offline = driftless::pipeline::offline::Offline::new(&p).unwrap();
     let mut mapping = ImuMapping::new("imu_link", 1.0, Some(1.2151));
@@ -341,30 +316,11 @@ fn an_odometry_nodes_stops_drive_the_bias_filter() {
     if !in_netns("an_odometry_nodes_stops_drive_the_bias_filter") {
         return;
     }
-    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
-    let prefix = prefix("odom");
-    let daemon = Command::new(env!("CARGO_BIN_EXE_driftless"))
-        .args([
-            "run",
-            pipeline,
-            "--prefix",
-            &prefix,
-            "--duration",
-            "60s",
-            "-q",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the daemon runs");
+    let d = daemon("odom");
     let n = 4000;
     let mut driver = peer("drive", "/imu/data_raw", n);
     assert!(driver.wait().unwrap().success());
-    // SAFETY: kill(2) on our own child.
-    unsafe { libc::kill(daemon.id() as i32, libc::SIGTERM) };
-    let out = daemon.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    let err = stop(d);
     assert!(err.contains(&format!("{n} Imu in")), "{err}");
     // The outputs follow the odometry: moving for the first half, still for the second (both
     // within the stop signal's 10 ms steps and the filter's delay).
@@ -419,16 +375,20 @@ fn stop(daemon: Child) -> String {
     err
 }
 
-/// The navigator's messages once it printed `ready` and had a second to match.
+/// The rclpy navigator on `/imu/corrected`, once it is ready.
 fn navigator(count: usize) -> Child {
-    let mut nav = peer("listen", "/imu/corrected", count);
+    ready(peer("listen", "/imu/corrected", count))
+}
+
+/// `child` once it printed `ready` and had a second to match the daemon's publisher.
+fn ready(mut child: Child) -> Child {
     let mut first = String::new();
-    BufReader::new(nav.stdout.as_mut().unwrap())
+    BufReader::new(child.stdout.as_mut().unwrap())
         .read_line(&mut first)
         .unwrap();
     assert!(first.contains("ready"), "{first}");
     std::thread::sleep(Duration::from_secs(1));
-    nav
+    child
 }
 
 fn received(mut nav: Child) -> usize {
@@ -529,13 +489,10 @@ fn the_ros2_examples_steer_closer_to_the_truth_through_the_daemon() {
     }
     let d = daemon("examples");
     let n = 6000;
-    let mut nav = example("navigator", &["--count", &n.to_string(), "--timeout", "60"]);
-    let mut first = String::new();
-    BufReader::new(nav.stdout.as_mut().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    assert!(first.contains("ready"), "{first}");
-    std::thread::sleep(Duration::from_secs(1));
+    let mut nav = ready(example(
+        "navigator",
+        &["--count", &n.to_string(), "--timeout", "60"],
+    ));
     let mut driver = example("driver", &["--duration", "6", "--rate", "1000"]);
     let sent = last_json(&mut driver);
     let got = last_json(&mut nav);

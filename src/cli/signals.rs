@@ -3,9 +3,6 @@
 //! stop flag they all read, so a stop at any moment of their start is a clean exit that
 //! leaves nothing behind (before, the first millisecond of `run` died by the signal's default
 //! action). Every other command keeps the default action: an offline filter stops at once.
-//!
-//! The SIGBUS guard of shared memory is installed here too, before any node
-//! ([`crate::transport::install_sigbus_guard`]).
 
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -20,7 +17,6 @@ static FIRST: AtomicI32 = AtomicI32::new(0);
 
 /// Install the handlers for the command named by `argv[1]`. Call it first thing in `main`.
 pub fn install() {
-    crate::transport::install_sigbus_guard();
     let command = std::env::args_os().nth(1);
     let stoppable = command.is_some_and(|c| STOPPABLE.iter().any(|s| c == **s));
     if !stoppable {
