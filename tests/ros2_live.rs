@@ -246,7 +246,13 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
     let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
     let p = driftless::pipeline::config::load(std::path::Path::new(pipeline)).unwrap();
     let mut offline = driftless::pipeline::offline::Offline::new(&p).unwrap();
-    let mut mapping = ImuMapping::new("imu_link", 1.0, Some(1.2151));
+    // The rate noise per sample from predict.bias's N: 2.3054 deg/sqrt(h) at 1 kHz.
+    let n = driftless::drift::bias::BiasTerms::profile("adis16405")
+        .unwrap()
+        .n;
+    let rate_noise = n * 1000f64.sqrt();
+    assert!((rate_noise - 1.2151).abs() < 1e-4, "{rate_noise}");
+    let mut mapping = ImuMapping::new("imu_link", 1.0, Some(rate_noise));
     let mut want = Vec::new();
     for i in 0..N {
         let raw = driftless::transport::RawSample {
@@ -282,7 +288,7 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
             "sample {i}: covariance"
         );
     }
-    let noise = 1.2151f64.to_radians().powi(2);
+    let noise = rate_noise.to_radians().powi(2);
     for (i, m) in msgs.iter().enumerate() {
         // The driver's own stamps, in order, once each.
         assert_eq!(m["stamp"][0], 1_700_000_000 + (i / 1000) as i64, "{i}");
@@ -348,8 +354,13 @@ fn an_odometry_nodes_stops_drive_the_bias_filter() {
 
 /// `driftless run pipelines/ros2.toml` under a prefix of its own, quiet, stderr captured.
 fn daemon(tag: &str) -> Child {
+    daemon_command(tag).spawn().expect("the daemon runs")
+}
+
+fn daemon_command(tag: &str) -> Command {
     let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
-    Command::new(env!("CARGO_BIN_EXE_driftless"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_driftless"));
+    command
         .args([
             "run",
             pipeline,
@@ -360,9 +371,8 @@ fn daemon(tag: &str) -> Child {
             "-q",
         ])
         .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the daemon runs")
+        .stderr(Stdio::piped());
+    command
 }
 
 /// SIGTERM to the daemon; its stderr once it exited 0.
@@ -531,4 +541,97 @@ fn validate_describes_the_ros2_side() {
     ] {
         assert!(text.lines().any(|l| l == line), "{line:?} in\n{text}");
     }
+}
+
+#[test]
+fn list_shows_the_ros2_side_on_the_domain_in_force_and_a_bad_domain_is_refused() {
+    if !in_netns("list_shows_the_ros2_side_on_the_domain_in_force_and_a_bad_domain_is_refused") {
+        return;
+    }
+    let bad = daemon_command("baddomain")
+        .env("ROS_DOMAIN_ID", "233")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("ROS_DOMAIN_ID=\"233\": a DDS domain is an integer from 0 to 232"),
+        "{err}"
+    );
+
+    let d = daemon_command("list")
+        .env("ROS_DOMAIN_ID", "7")
+        .spawn()
+        .unwrap();
+    let list = |json: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_driftless"));
+        c.args(["list", "--prefix", &prefix("list"), "--stats-wait", "10ms"]);
+        if json {
+            c.arg("--json");
+        }
+        let out = c.output().unwrap();
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    // The ROS 2 side announces itself once set up: wait for it, not for a time.
+    let end = std::time::Instant::now() + Duration::from_secs(20);
+    let doc = loop {
+        let doc: serde_json::Value = serde_json::from_str(&list(true)).unwrap();
+        if !doc["pipelines"][0]["ros2"].is_null() || std::time::Instant::now() > end {
+            break doc;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let text = list(false);
+    stop(d);
+    let ros2 = &doc["pipelines"][0]["ros2"];
+    assert_eq!(ros2["node"], "/driftless_ros2", "{doc}");
+    assert_eq!(ros2["domain"], 7, "{doc}");
+    let topics: Vec<[&str; 4]> = ros2["topics"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            let f = |k: &str| t[k].as_str().unwrap();
+            [f("direction"), f("topic"), f("type"), f("service")]
+        })
+        .collect();
+    assert_eq!(
+        topics,
+        [
+            ["in", "/imu/data_raw", "sensor_msgs/msg/Imu", "sensor/raw"],
+            [
+                "out",
+                "/imu/corrected",
+                "sensor_msgs/msg/Imu",
+                "ros2/corrected"
+            ],
+            ["stop", "/odom", "nav_msgs/msg/Odometry", "vehicle/stop"],
+        ]
+    );
+    let nodes = doc["pipelines"][0]["nodes"].to_string();
+    assert!(nodes.contains("driftless-ros2-ros2"), "{nodes}");
+    let row = text
+        .lines()
+        .find(|l| l.contains("/imu/corrected"))
+        .unwrap_or_else(|| panic!("{text}"));
+    let cells: Vec<&str> = row.split_whitespace().collect();
+    assert_eq!(
+        cells,
+        [
+            "ros2",
+            "/driftless_ros2",
+            "7",
+            "out",
+            "/imu/corrected",
+            "sensor_msgs/msg/Imu",
+            "ros2/corrected"
+        ],
+        "{text}"
+    );
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("vehicle/stop") && l.contains("StopSignal")),
+        "{text}"
+    );
 }

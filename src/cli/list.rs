@@ -13,6 +13,7 @@ use serde_json::{json, Value};
 
 use crate::cli::CliError;
 use crate::pipeline::runtime::{node_name, stats_node_name};
+use crate::transport::ros2;
 use crate::transport::{
     self, display_name, ListedNode, ListedService, Listing, NodeLife, ServiceKind, StatsSnapshot,
     Transport, WireType,
@@ -48,6 +49,45 @@ struct Pipeline<'a> {
     nodes: Vec<&'a ListedNode>,
     stats_service: Option<String>,
     stats: Option<StatsSnapshot>,
+    ros2: Option<Ros2Side>,
+}
+
+/// A pipeline's ROS 2 side, as its bridge announced it (`transport::ros2`'s attributes).
+struct Ros2Side {
+    /// The node's full name.
+    node: String,
+    domain: String,
+    /// Each topic: direction (`in`, `out`, `stop`), topic, ROS 2 type, service; or a `+N more`
+    /// line as the topic with the rest empty.
+    topics: Vec<[String; 4]>,
+}
+
+impl Ros2Side {
+    /// The side a service announces, if it is one.
+    fn of(s: &ListedService) -> Option<Ros2Side> {
+        let value = |key: &'static str| {
+            s.attributes
+                .iter()
+                .filter(move |(k, _)| k == key)
+                .map(|(_, v)| v)
+        };
+        let node = value(ros2::NODE_KEY).next()?.clone();
+        let domain = value(ros2::DOMAIN_KEY).next().cloned().unwrap_or_default();
+        let topics = value(ros2::TOPIC_KEY)
+            .map(|t| {
+                let mut w = t.splitn(4, ' ').map(str::to_string);
+                match (w.next(), w.next(), w.next(), w.next()) {
+                    (Some(d), Some(topic), Some(ty), Some(service)) => [d, topic, ty, service],
+                    _ => [String::new(), t.clone(), String::new(), String::new()],
+                }
+            })
+            .collect();
+        Some(Ros2Side {
+            node,
+            domain,
+            topics,
+        })
+    }
 }
 
 fn pid(n: &ListedNode) -> Option<i32> {
@@ -91,12 +131,19 @@ fn pipelines<'a>(listing: &'a Listing) -> Vec<Pipeline<'a>> {
                 ) && s.senders.as_ref().is_some_and(|p| p.contains(&reporter.id))
             })
             .map(|s| s.name.clone());
+        // The ROS 2 side its bridge announced (a service one of its nodes holds).
+        let ros2 = listing
+            .services
+            .iter()
+            .filter(|s| s.nodes.iter().any(|id| nodes.iter().any(|n| n.id == *id)))
+            .find_map(Ros2Side::of);
         out.push(Pipeline {
             name: name.to_string(),
             daemon,
             nodes,
             stats_service,
             stats: None,
+            ros2,
         });
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
@@ -265,6 +312,27 @@ fn text(prefix: &str, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
             &rows,
         ));
     }
+    let ros2_rows: Vec<Vec<String>> = pipes
+        .iter()
+        .filter_map(|p| Some((p, p.ros2.as_ref()?)))
+        .flat_map(|(p, r)| {
+            r.topics.iter().map(move |t| {
+                let mut row = vec![p.name.clone(), r.node.clone(), r.domain.clone()];
+                row.extend(t.iter().cloned());
+                row
+            })
+        })
+        .collect();
+    if !ros2_rows.is_empty() {
+        out.push('\n');
+        out.push_str(&table(
+            &[
+                "ROS 2 OF", "NODE", "DOMAIN", "DIR", "TOPIC", "TYPE", "SERVICE",
+            ],
+            &[false, false, true, false, false, false, false],
+            &ros2_rows,
+        ));
+    }
     if !others.is_empty() {
         let rows: Vec<Vec<String>> = others
             .iter()
@@ -353,6 +421,13 @@ fn document(
             v["samples_in"] = json!(p.stats.map(|s| s.samples_in));
             v["samples_out"] = json!(p.stats.map(|s| s.samples_out));
             v["lost"] = json!(p.stats.map(|s| s.lost));
+            v["ros2"] = json!(p.ros2.as_ref().map(|r| json!({
+                "node": r.node,
+                "domain": r.domain.parse::<u16>().ok(),
+                "topics": r.topics.iter().map(|[direction, topic, ty, service]| json!({
+                    "direction": direction, "topic": topic, "type": ty, "service": service,
+                })).collect::<Vec<_>>(),
+            })));
             v.as_object_mut().expect("an object").remove("pipeline");
             v
         })
@@ -382,6 +457,7 @@ fn document(
                 },
                 "published_by": s.senders.as_ref().map(|_| published_by(s, listing, pipes)),
                 "nodes": s.nodes.iter().map(|&id| who(id, listing, pipes)).collect::<BTreeSet<_>>(),
+                "attributes": s.attributes.iter().map(|(k, v)| json!([k, v])).collect::<Vec<_>>(),
             });
             let (send, receive) = if matches!(s.kind, ServiceKind::Event) {
                 ("notifiers", "listeners")

@@ -105,6 +105,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
+    // A ROS 2 side needs a valid domain: bad configuration, refused before anything starts.
+    #[cfg(feature = "ros2")]
+    if loaded.iter().any(|(p, _)| p.ros2.is_some()) {
+        crate::transport::ros2::domain_id().map_err(CliError::input)?;
+    }
     let stop = crate::cli::signals::stop_flag();
     if stop.load(std::sync::atomic::Ordering::SeqCst) {
         let by = crate::cli::signals::stopped_by().unwrap_or("a signal");

@@ -73,7 +73,7 @@ fn describe(p: &Pipeline) {
     println!("  stats on {}", p.iceoryx2.stats_service);
     if let Some(r) = &p.ros2 {
         let noise = r.rate_noise.map_or("covariance unknown".into(), |n| {
-            format!("rate noise {n} deg/s")
+            format!("rate noise {n:.4} deg/s")
         });
         println!(
             "  ros2: node {}{} on ROS_DOMAIN_ID's domain, depth {}, frame_id {}, {noise}",

@@ -315,7 +315,14 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     }
     let stages = chain(&src, entries, stage_span.start)?;
     let ros2 = match raw.ros2 {
-        Some(r) => Some(ros2_settings(&src, &name, input_units, &stages, r)?),
+        Some(r) => Some(ros2_settings(
+            &src,
+            &name,
+            input_units,
+            rate_hz,
+            &stages,
+            r,
+        )?),
         None => None,
     };
     Ok(Pipeline {
@@ -353,6 +360,7 @@ fn ros2_settings(
     src: &Src<'_>,
     pipeline: &str,
     units: Units,
+    rate_hz: f64,
     stages: &[StageSpec],
     raw: Spanned<RawRos2>,
 ) -> Result<Ros2Settings, InputError> {
@@ -481,9 +489,13 @@ fn ros2_settings(
             .frame_id
             .as_ref()
             .map_or_else(|| "imu_link".to_string(), |f| f.get_ref().clone()),
+        // Not given: the white noise a stage assumes (predict.bias's N), per sample.
         rate_noise: match &raw.rate_noise {
             Some(r) => Some(src.positive(r, "rate_noise", 1e6)?),
-            None => None,
+            None => stages
+                .iter()
+                .find_map(|s| s.params.white_noise())
+                .map(|n| n * rate_hz.sqrt()),
         },
         imu_in,
         imu_out,

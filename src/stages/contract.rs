@@ -168,6 +168,12 @@ pub trait Params: std::fmt::Debug + Send + Sync {
         Vec::new()
     }
 
+    /// The gyro's white rate noise this stage assumes, N in deg/sqrt(s) (`predict.bias`: its
+    /// terms' N); a `[ros2]` table without `rate_noise` publishes the covariance from it.
+    fn white_noise(&self) -> Option<f64> {
+        None
+    }
+
     /// Extra lines for `driftless validate` (indented by the caller).
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
         Vec::new()

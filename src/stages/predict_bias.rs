@@ -321,6 +321,10 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
 }
 
 impl Params for BiasParams {
+    fn white_noise(&self) -> Option<f64> {
+        Some(self.terms.n)
+    }
+
     fn stage(&self, cx: &Context) -> Result<Box<dyn Stage>, String> {
         let mut trackers = Vec::with_capacity(cx.axes);
         for _ in 0..cx.axes {

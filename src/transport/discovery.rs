@@ -13,7 +13,8 @@ use super::error::{setup, TransportError};
 use super::node::Transport;
 use super::permissions::process_owner;
 use super::wire::{
-    GyroSample, RawSample, StatsSnapshot, GYRO_TYPE_NAME, RAW_TYPE_NAME, STATS_TYPE_NAME,
+    GyroSample, RawSample, StatsSnapshot, StopSignal, GYRO_TYPE_NAME, RAW_TYPE_NAME,
+    STATS_TYPE_NAME, STOP_TYPE_NAME,
 };
 use super::{Svc, ZeroCopySend};
 
@@ -122,15 +123,19 @@ pub enum WireType {
     Gyro,
     /// [`StatsSnapshot`].
     Stats,
+    /// [`StopSignal`].
+    Stop,
 }
 
 impl WireType {
-    /// The type's name without the crate: `RawSample`, `GyroSample`, `StatsSnapshot`.
+    /// The type's name without the crate: `RawSample`, `GyroSample`, `StatsSnapshot`,
+    /// `StopSignal`.
     pub fn short_name(self) -> &'static str {
         match self {
             WireType::Raw => "RawSample",
             WireType::Gyro => "GyroSample",
             WireType::Stats => "StatsSnapshot",
+            WireType::Stop => "StopSignal",
         }
     }
 
@@ -151,6 +156,11 @@ impl WireType {
                 WireType::Stats,
                 STATS_TYPE_NAME,
                 std::mem::size_of::<StatsSnapshot>(),
+            ),
+            (
+                WireType::Stop,
+                STOP_TYPE_NAME,
+                std::mem::size_of::<StopSignal>(),
             ),
         ]
         .into_iter()
@@ -190,6 +200,8 @@ pub struct ListedService {
     /// Node ids of every node attached to the service (whatever its type: for a foreign
     /// service, who uses it).
     pub nodes: Vec<u128>,
+    /// The attributes its creator gave it (key, value), in iceoryx2's order.
+    pub attributes: Vec<(String, String)>,
 }
 
 /// What runs under a prefix: its nodes and services, as iceoryx2 lists them.
@@ -329,6 +341,11 @@ impl Transport {
         for details in found {
             let st = &details.static_details;
             let name = *st.name();
+            let attributes = st
+                .attributes()
+                .iter()
+                .map(|a| (a.key().to_string(), a.value().to_string()))
+                .collect();
             let kind = match st.messaging_pattern() {
                 Static::PublishSubscribe(ps) => {
                     let payload = &ps.message_type_details().payload;
@@ -356,6 +373,10 @@ impl Transport {
                     wire: Some(WireType::Stats),
                     ..
                 } => pubsub_ports::<StatsSnapshot>(node, &name),
+                ServiceKind::PubSub {
+                    wire: Some(WireType::Stop),
+                    ..
+                } => pubsub_ports::<StopSignal>(node, &name),
                 ServiceKind::Event => event_ports(node, &name),
                 _ => None,
             });
@@ -380,6 +401,7 @@ impl Transport {
                 senders,
                 receivers,
                 nodes,
+                attributes,
             });
         }
         listing

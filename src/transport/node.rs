@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use iceoryx2::node::NodeView as _;
 use iceoryx2::prelude::*;
+use iceoryx2::service::attribute::{AttributeKey, AttributeValue};
 
 use super::cleanup::{remove_unsized_segments, restrict_global_segment};
 use super::config::{config, service_name, Qos};
@@ -15,6 +16,14 @@ use super::ports::{Input, Output};
 use super::shm_space::{install_sigbus_guard, note_existing, reserve_new, reserve_new_or_count};
 use super::wake::Waker;
 use super::{PubSubFactory, Svc, ZeroCopySend};
+
+/// How many attributes an [`Transport::announce`]d service holds (iceoryx2's limit).
+pub const MAX_ATTRIBUTES: usize = 8;
+
+/// A service that says what its node does ([`Transport::announce`]); it lasts while this does.
+pub struct Announcement {
+    _notifier: iceoryx2::port::notifier::Notifier<Svc>,
+}
 
 /// One iceoryx2 node and the ports it creates. Not `Send`: create it in the thread that uses it.
 pub struct Transport {
@@ -282,6 +291,37 @@ impl Transport {
             .create()
             .map_err(|e| setup("listener", name, e))?;
         Ok(Waker { listener })
+    }
+
+    /// Say what this node does on the event service `name`, as its attributes (key, value; a
+    /// key may repeat; at most [`MAX_ATTRIBUTES`], each value at most 256 bytes), for
+    /// `driftless list` to show. The service lasts while the returned port does. Any old
+    /// service of that name (a dead process's) is replaced.
+    pub fn announce(
+        &self,
+        name: &str,
+        attributes: &[(&str, String)],
+    ) -> Result<Announcement, TransportError> {
+        let mut spec = AttributeSpecifier::new();
+        for (key, value) in attributes {
+            let bad = |e: &dyn Debug| setup("service attribute", name, e);
+            let key = AttributeKey::try_from(*key).map_err(|e| bad(&e))?;
+            let value = AttributeValue::try_from(value.as_str()).map_err(|e| bad(&e))?;
+            spec = spec.define(&key, &value).map_err(|e| bad(&e))?;
+        }
+        let event = self
+            .node
+            .service_builder(&service_name(name)?)
+            .event()
+            .create_with_attributes(&spec)
+            .map_err(|e| setup("event service", name, e))?;
+        let notifier = event
+            .notifier_builder()
+            .create()
+            .map_err(|e| setup("notifier", name, e))?;
+        Ok(Announcement {
+            _notifier: notifier,
+        })
     }
 
     /// A listener on the event service `name` if its publisher created one (the services a

@@ -14,6 +14,12 @@ use crate::pipeline::config::Pipeline;
 use crate::transport::ros2::{run_bridge, BridgeCounts};
 use crate::transport::{Qos, TransportError};
 
+/// The event service on which pipeline `pipeline`'s ROS 2 side says what it does (its node,
+/// domain and topics, as attributes), for `driftless list`.
+pub fn announcement_service(pipeline: &str) -> String {
+    format!("driftless/{pipeline}/ros2")
+}
+
 /// The running ROS 2 sides of a group.
 pub(super) struct Ros2Sides {
     stop: Arc<AtomicBool>,
@@ -39,6 +45,8 @@ impl Ros2Sides {
             };
             let (tx, rx) = bounded::<Result<(), String>>(1);
             let (prefix, stop, rate_hz) = (prefix.clone(), Arc::clone(&sides.stop), p.rate_hz);
+            let node = format!("{}-ros2", super::node_name(&p.name));
+            let announce_as = announcement_service(&p.name);
             let qos = Qos {
                 buffer_size: p.iceoryx2.buffer_size,
                 max_subscribers: p.iceoryx2.max_subscribers,
@@ -46,9 +54,18 @@ impl Ros2Sides {
             let spawned = std::thread::Builder::new()
                 .name("driftless-ros2".into())
                 .spawn(move || {
-                    run_bridge(&settings, &prefix, qos, rate_hz, &stop, |r| {
-                        let _ = tx.send(r);
-                    })
+                    run_bridge(
+                        &settings,
+                        &prefix,
+                        &node,
+                        &announce_as,
+                        qos,
+                        rate_hz,
+                        &stop,
+                        |r| {
+                            let _ = tx.send(r);
+                        },
+                    )
                 });
             let failure = match spawned {
                 Ok(handle) => {

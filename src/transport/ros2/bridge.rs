@@ -24,7 +24,7 @@ use super::dds::{
     Ros2Node,
 };
 use super::imu::ImuMapping;
-use super::Ros2Settings;
+use super::{Ros2Settings, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::monotonic_ns;
 use crate::transport::{
     GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError, WakeSet,
@@ -254,20 +254,53 @@ fn realtime_offset_ns() -> i128 {
     real - i128::from(monotonic_ns())
 }
 
+/// What the ROS 2 side of a pipeline says of itself on its iceoryx2 node, for `driftless
+/// list`: the node, its domain and each topic with its direction, type and service.
+fn announcement(settings: &Ros2Settings, node: &Ros2Node) -> Vec<(&'static str, String)> {
+    let ns = settings.namespace.trim_end_matches('/');
+    let mut topics: Vec<String> = Vec::new();
+    if let Some((topic, service)) = &settings.imu_in {
+        topics.push(format!("in {topic} {IMU} {service}"));
+    }
+    for (service, topic) in &settings.imu_out {
+        topics.push(format!("out {topic} {IMU} {service}"));
+    }
+    if let Some((topic, ty, service)) = &settings.motion_in {
+        topics.push(format!("stop {topic} {ty} {service}"));
+    }
+    let room = crate::transport::MAX_ATTRIBUTES - 2;
+    if topics.len() > room {
+        let more = topics.len() - (room - 1);
+        topics.truncate(room - 1);
+        topics.push(format!("+{more} more"));
+    }
+    let mut out = vec![
+        (NODE_KEY, format!("{ns}/{}", node.name())),
+        (DOMAIN_KEY, node.domain().to_string()),
+    ];
+    out.extend(topics.into_iter().map(|t| (TOPIC_KEY, t)));
+    out
+}
+
 /// Run the ROS 2 side of a pipeline until `stop`: `settings` under iceoryx2 `prefix` with the
-/// pipeline's `qos` and rate. `started` hears once whether it set up (so the daemon can refuse
-/// to run without it); then it runs, and returns what it carried.
+/// pipeline's `qos` and rate, on the iceoryx2 node `node_name`, announced on the event service
+/// `announce_as` (what `driftless list` shows). `started` hears once whether it set up (so the
+/// daemon can refuse to run without it); then it runs, and returns what it carried.
+#[allow(clippy::too_many_arguments)]
 pub fn run_bridge(
     settings: &Ros2Settings,
     prefix: &str,
+    node_name: &str,
+    announce_as: &str,
     qos: Qos,
     rate_hz: f64,
     stop: &AtomicBool,
     started: impl FnOnce(Result<(), String>),
 ) -> Result<BridgeCounts, TransportError> {
     let setup = || -> Result<_, TransportError> {
-        let transport = Transport::new(prefix, &format!("{}-ros2", settings.node), qos)?;
+        let transport = Transport::new(prefix, node_name, qos)?;
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
+        let announced = transport.announce(announce_as, &announcement(settings, &node))?;
         let mut watched = Vec::new();
         let mut imu_in = match &settings.imu_in {
             Some((topic, service)) => {
@@ -331,20 +364,29 @@ pub fn run_bridge(
         }
         transport.reserve_shared_memory()?;
         Ok((
-            transport, node, watched, imu_in, outs, motion, readiness, wake,
+            transport, announced, node, watched, imu_in, outs, motion, readiness, wake,
         ))
     };
-    let (transport, node, mut watched, mut imu_in, mut outs, mut motion, mut readiness, mut wake) =
-        match setup() {
-            Ok(parts) => {
-                started(Ok(()));
-                parts
-            }
-            Err(e) => {
-                started(Err(e.to_string()));
-                return Err(e);
-            }
-        };
+    let (
+        transport,
+        announced,
+        node,
+        mut watched,
+        mut imu_in,
+        mut outs,
+        mut motion,
+        mut readiness,
+        mut wake,
+    ) = match setup() {
+        Ok(parts) => {
+            started(Ok(()));
+            parts
+        }
+        Err(e) => {
+            started(Err(e.to_string()));
+            return Err(e);
+        }
+    };
     let ros_stamps = imu_in.is_some();
     let offset = realtime_offset_ns();
     let mut counts = BridgeCounts::default();
@@ -411,6 +453,6 @@ pub fn run_bridge(
         // A signal or a failed wait only shortens the sleep.
         let _ = wake.wait(None, sleep, |_| {});
     }
-    drop(transport);
+    drop((announced, transport));
     Ok(counts)
 }

@@ -22,6 +22,15 @@ pub use dds::{
 
 pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION};
 
+/// The attribute that names the ROS 2 node on the event service where a pipeline's ROS 2 side
+/// says what it does (`driftless list` finds the ROS 2 sides by it).
+pub const NODE_KEY: &str = "ros2.node";
+/// The attribute of its DDS domain.
+pub const DOMAIN_KEY: &str = "ros2.domain";
+/// The attribute of each of its topics: `<in|out|stop> <topic> <ROS 2 type> <service>`, or
+/// `+N more` when they are more than the attributes hold.
+pub const TOPIC_KEY: &str = "ros2.topic";
+
 /// The `[ros2]` table: the daemon as a ROS 2 node, its topics and the services they feed or
 /// come from (docs/ros2.md); the pipeline file's schema reads it.
 #[derive(Debug, Clone, PartialEq)]
