@@ -41,6 +41,14 @@ impl PaceClock {
         }
     }
 
+    /// The same clock started `by` later (a source that waits before its first sample).
+    pub fn later(&self, by: Duration) -> PaceClock {
+        PaceClock {
+            start: self.start + by,
+            start_ns: self.start_ns.saturating_add(by.as_nanos() as u64),
+        }
+    }
+
     /// The instant `offset` after the start.
     pub fn at(&self, offset: Duration) -> Instant {
         self.start + offset

@@ -1310,3 +1310,85 @@ fn a_paced_source_reports_how_late_each_sample_was_taken() {
         "{err}"
     );
 }
+
+#[test]
+fn a_start_delay_shifts_the_whole_schedule_so_no_sample_is_late_for_it() {
+    // 400 samples at 1 kHz after 0.6 s: held back, the first is due when the delay ends and
+    // the rest follow at the file's rate (a schedule left where it was would let the 400 go out
+    // at once, each up to 0.4 s late).
+    const N: usize = 400;
+    let prefix = Prefix::new("startdelay");
+    let dir = Dir::with_csv(N);
+    let text = csv_pipeline("realtime", false, 1024)
+        .replace("loop = false", "loop = false\nstart_delay_s = 0.6");
+    let file = dir.write("p.toml", &text);
+    let report_path = dir.path("report.json");
+    let started = std::time::Instant::now();
+    let child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    let (code, err) = finish(child, Duration::from_secs(20));
+    let took = started.elapsed();
+    assert_eq!(code, Some(0), "stderr: {err}");
+    assert!(
+        took >= Duration::from_millis(600 + 400),
+        "the delay, then the file at its rate: {took:?}"
+    );
+    let r = report(&dir);
+    assert_eq!(r["samples_out"], N, "{r}");
+    // Lateness is the machine's alone: well under the 0.1 s the burst would give the 100th.
+    let p50 = r["woken_late_ns"]["p50"].as_u64().unwrap();
+    assert!(
+        p50 < 20_000_000,
+        "half the samples taken within 20 ms: {p50} ns"
+    );
+    let late = r["woken_late_ns"]["p99"].as_u64().unwrap();
+    assert!(late < 100_000_000, "{late} ns");
+}
+
+#[test]
+fn tap_count_ends_with_its_count_when_the_publisher_leaves_or_its_timeout_passes() {
+    let prefix = Prefix::new("tapends");
+    let dir = Dir::with_csv(1500);
+    let file = dir.write("p.toml", &csv_pipeline("realtime", false, 64));
+    let mut daemon = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "c/stats", &mut daemon);
+    let tap = |extra: &[&str]| {
+        std::process::Command::new(common::bin())
+            .args(["tap", "c/corrected", "--prefix", &prefix.0, "--hz"])
+            .args(extra)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("tap")
+    };
+    // More than the file holds, within a timeout shorter than the file.
+    let timed = finish(
+        tap(&["--count", "100000", "--timeout", "300ms"]),
+        Duration::from_secs(10),
+    );
+    assert_eq!(timed.0, Some(1), "{}", timed.1);
+    assert!(
+        timed
+            .1
+            .contains(" of 100000 samples: --timeout 300ms passed"),
+        "{}",
+        timed.1
+    );
+    // The daemon ends with its file: the tap then ends too, saying how many came.
+    let waiting = tap(&["--count", "100000"]);
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    let left = finish(waiting, Duration::from_secs(10));
+    assert_eq!(left.0, Some(1), "{}", left.1);
+    let said = left
+        .1
+        .lines()
+        .find(|l| l.contains("its publisher left"))
+        .unwrap_or_else(|| panic!("{}", left.1));
+    let n: u64 = said
+        .split("c/corrected: ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{said}"));
+    assert!(n > 0 && n <= 1500, "{said}");
+}

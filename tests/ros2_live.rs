@@ -408,14 +408,22 @@ fn received(mut nav: Child) -> usize {
 }
 
 #[test]
-fn nan_rates_and_a_topic_of_another_type_each_get_a_clear_line_and_the_daemon_serves_on() {
+fn nan_rates_a_topic_of_another_type_and_a_qos_mismatch_each_get_a_clear_line_and_the_daemon_serves_on(
+) {
     if !in_netns(
-        "nan_rates_and_a_topic_of_another_type_each_get_a_clear_line_and_the_daemon_serves_on",
+        "nan_rates_a_topic_of_another_type_and_a_qos_mismatch_each_get_a_clear_line_and_the_daemon_serves_on",
     ) {
         return;
     }
     let d = daemon("faults");
     let nav = navigator(N);
+    // A navigator asking for a history we do not keep: it can never match.
+    let mut late = ready(peer_with(
+        "listen",
+        "/imu/corrected",
+        N,
+        &[("PEER_DURABILITY", "transient_local")],
+    ));
     let mut other = peer("wrongtype", "/imu/data_raw", 300);
     let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_NAN_AT", "100,250")]);
     assert!(driver.wait().unwrap().success());
@@ -435,6 +443,16 @@ fn nan_rates_and_a_topic_of_another_type_each_get_a_clear_line_and_the_daemon_se
     );
     assert!(err.contains("flagged: 2 invalid"), "{err}");
     assert!(err.contains(&format!("{N} Imu in (2 invalid")), "{err}");
+    let _ = late.kill();
+    let _ = late.wait();
+    assert!(
+        err.contains(
+            "driftless: ros2: a subscriber of /imu/corrected requests a Durability we do not \
+             offer, so it gets nothing (it requests reliable, transient local or more; we offer \
+             reliable, volatile)"
+        ),
+        "{err}"
+    );
 }
 
 #[test]
@@ -583,8 +601,12 @@ fn list_shows_the_ros2_side_on_the_domain_in_force_and_a_bad_domain_is_refused()
         std::thread::sleep(Duration::from_millis(100));
     };
     let text = list(false);
-    stop(d);
+    let err = stop(d);
     let ros2 = &doc["pipelines"][0]["ros2"];
+    assert!(
+        !ros2.is_null(),
+        "no ROS 2 side listed: {doc}\n{text}\n{err}"
+    );
     assert_eq!(ros2["node"], "/driftless_ros2", "{doc}");
     assert_eq!(ros2["domain"], 7, "{doc}");
     let topics: Vec<[&str; 4]> = ros2["topics"]

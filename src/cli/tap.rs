@@ -73,9 +73,18 @@ pub struct Args {
     /// timestamps (min / max / standard deviation), as `ros2 topic hz`; no samples.
     #[arg(long)]
     pub hz: bool,
-    /// Exit after this many samples.
+    /// Exit after this many samples. Should the publisher leave first, or `--timeout` pass,
+    /// exit 1 saying how many came.
     #[arg(long)]
     pub count: Option<u64>,
+    /// With --count: give up (exit 1) if the samples have not all come within this long.
+    #[arg(
+        long,
+        requires = "count",
+        value_parser = crate::cli::duration::parse_duration,
+        allow_hyphen_values = true
+    )]
+    pub timeout: Option<Duration>,
     /// Exit after this long ("10s", "500ms", "1.5s", "90min", or seconds).
     #[arg(
         long,
@@ -100,6 +109,14 @@ enum Item {
 }
 
 impl Tapped {
+    fn publishers(&self) -> usize {
+        match self {
+            Tapped::Gyro(i) => i.publishers(),
+            Tapped::Raw(i) => i.publishers(),
+            Tapped::Stats(i) => i.publishers(),
+        }
+    }
+
     fn receive(&self) -> Option<Item> {
         match self {
             Tapped::Gyro(i) => i.receive().ok().flatten().map(Item::Gyro),
@@ -122,11 +139,20 @@ impl Item {
 
 fn raw_flag_names(flags: u32) -> Vec<String> {
     let mut names = Vec::new();
-    if flags & RAW_INVALID != 0 {
-        names.push("invalid".to_string());
+    let named = [
+        (RAW_INVALID, "invalid"),
+        (transport::RAW_VEHICLE_STOPPED, "vehicle_stopped"),
+        (transport::RAW_VEHICLE_MOVING, "vehicle_moving"),
+    ];
+    let mut rest = flags;
+    for (bit, name) in named {
+        if flags & bit != 0 {
+            names.push(name.to_string());
+            rest &= !bit;
+        }
     }
-    for i in 1..32 {
-        if flags & (1 << i) != 0 {
+    for i in 0..32 {
+        if rest & (1 << i) != 0 {
             names.push(format!("{:#x}", 1u32 << i));
         }
     }
@@ -386,6 +412,9 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let end = args.duration.map(|d| Instant::now() + d);
+    let give_up = args.timeout.map(|d| Instant::now() + d);
+    // With --count, a publisher seen and then gone ends the tap (once its samples are read).
+    let mut had_publisher = false;
     let (mut total, mut window, mut gaps) = (0u64, 0u64, 0u64);
     let mut intervals = Intervals::default();
     // (epoch, seq, timestamp ns) of the last sample; epoch and seq are None for stats.
@@ -432,7 +461,27 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
                     break;
                 }
             }
-            None => std::thread::sleep(Duration::from_micros(500)),
+            None => {
+                if let Some(count) = args.count {
+                    let publishers = tapped.publishers();
+                    had_publisher |= publishers > 0;
+                    let mut short = |why: String| {
+                        let _ = out.flush();
+                        Err(CliError::internal(format!(
+                            "{}: {total} of {count} samples: {why}",
+                            args.service
+                        )))
+                    };
+                    if had_publisher && publishers == 0 {
+                        return short("its publisher left".into());
+                    }
+                    if give_up.is_some_and(|g| Instant::now() >= g) {
+                        let t = args.timeout.unwrap_or_default();
+                        return short(format!("--timeout {t:?} passed"));
+                    }
+                }
+                std::thread::sleep(Duration::from_micros(500));
+            }
         }
         let dt = tick.elapsed();
         if dt >= Duration::from_secs(1) {
@@ -551,7 +600,10 @@ mod tests {
             flag_names(FLAG_STILL | FLAG_GAP_BEFORE | 1 << 20),
             ["gap_before", "still", "0x100000"]
         );
-        assert_eq!(raw_flag_names(RAW_INVALID | 4), ["invalid", "0x4"]);
+        assert_eq!(
+            raw_flag_names(RAW_INVALID | 4 | 1 << 9),
+            ["invalid", "vehicle_moving", "0x200"]
+        );
         assert_eq!(joined(&[], ","), "-");
     }
 }

@@ -311,7 +311,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     };
     let mut entries = Vec::new();
     for value in array {
-        entries.push(registry::stage(&src, value, cx)?);
+        entries.push(registry::stage(&src, value, cx, &name)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
     let ros2 = match raw.ros2 {

@@ -9,7 +9,8 @@
 use crate::pipeline::config::Units;
 use crate::transport::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
-    FLAG_TIME_BACKWARDS, RAW_INVALID,
+    FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
+    RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
 
 /// Counts of what the guard flagged.
@@ -128,6 +129,12 @@ impl Guard {
             }
         }
         self.last_t = Some(raw.t_ns);
+        // A stop signal logged with the sample travels with it.
+        if raw.flags & RAW_VEHICLE_STOPPED != 0 {
+            flags |= FLAG_VEHICLE_STOPPED;
+        } else if raw.flags & RAW_VEHICLE_MOVING != 0 {
+            flags |= FLAG_VEHICLE_MOVING;
+        }
         GyroSample {
             t_ns: raw.t_ns,
             seq: raw.seq,

@@ -91,6 +91,7 @@ pub(crate) fn stage(
     src: &Src<'_>,
     value: Spanned<DeValue<'_>>,
     cx: Context,
+    pipeline: &str,
 ) -> Result<Entry, InputError> {
     let start = value.span().start;
     let DeValue::Table(table) = value.into_inner() else {
@@ -153,6 +154,7 @@ pub(crate) fn stage(
         start,
         kind_at,
         input.as_ref().map(|i| i.get_ref().as_str()),
+        (pipeline, name.get_ref().as_str()),
         own,
     );
     let params: Arc<dyn Params> = Arc::from((kind.parse)(&mut t)?);

@@ -15,6 +15,7 @@
 //! file = "data/replay.csv"       # relative to the pipeline file; .gz works
 //! columns = ["x", "y", "z"]      # one per axis (default x, y, z)
 //! time_column = "t"              # seconds (default: i / rate_hz)
+//! stop_column = "stopped"        # 1 stands, 0 moves, nan unknown (default: none)
 //! pace = "asap"                  # or "realtime" (default)
 //! loop = false
 //! ```
@@ -23,11 +24,12 @@ use std::path::PathBuf;
 
 use toml::Spanned;
 
+use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::{InputError, RowRead, RowReader};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::{RawSample, RAW_INVALID};
+use crate::transport::{RawSample, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED};
 
 const FILE: Key = Key {
     name: "file",
@@ -47,12 +49,26 @@ const TIME_COLUMN: Key = Key {
     default: "none (i / rate_hz)",
     doc: "sensor timestamps",
 };
+const STOP_COLUMN: Key = Key {
+    name: "stop_column",
+    ty: Type::Str("a column name; 1 stands, 0 moves, nan unknown"),
+    default: "none",
+    doc: "the vehicle's stops logged beside the rates (wheel odometry): carried with each sample, so `predict.bias` takes them by sample time, in any replay speed",
+};
 /// `ingest.csv`.
 pub const KIND: Kind = Kind {
     name: "ingest.csv",
     role: Role::Ingest { has_input: false },
     summary: "a CSV log replayed at its rate or as fast as possible, optionally looping",
-    keys: &[FILE, COLUMNS, TIME_COLUMN, PACE, LOOP, START_DELAY_S],
+    keys: &[
+        FILE,
+        COLUMNS,
+        TIME_COLUMN,
+        STOP_COLUMN,
+        PACE,
+        LOOP,
+        START_DELAY_S,
+    ],
     parse,
 };
 
@@ -66,6 +82,8 @@ pub struct CsvParams {
     pub columns: Vec<String>,
     /// The time column (seconds), if any; else `t = i / rate_hz`.
     pub time_column: Option<String>,
+    /// The stop column (1 stands, 0 moves, NaN unknown), if any.
+    pub stop_column: Option<String>,
     /// Pacing, looping, delay.
     pub replay: Replay,
 }
@@ -96,8 +114,9 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let columns_key = t.get::<Vec<String>>(&COLUMNS)?;
     let time_key = t.get::<String>(&TIME_COLUMN)?;
+    let stop_key = t.get::<String>(&STOP_COLUMN)?;
     let replay = Replay::parse(t)?;
-    let (src, axes) = (t.src, t.cx.axes);
+    let (src, axes, rate_hz) = (t.src, t.cx.axes, t.cx.rate_hz);
     let file = src.resolve(file_key.get_ref());
     if !file.is_file() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
@@ -124,10 +143,14 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     if let Some(t) = &time_key {
         wanted.push(t.get_ref().clone());
     }
+    if let Some(s) = &stop_key {
+        wanted.push(s.get_ref().clone());
+    }
     // The header, and the first rows as the replay will read them: a wrong file fails here.
     let mut rows = RowReader::open(&file, &wanted)?;
     let mut values = vec![0.0; wanted.len()];
     let mut n = 0;
+    let mut times_ns: Vec<i64> = Vec::new();
     while n < CHECKED_ROWS {
         match rows.next_row(&mut values)? {
             RowRead::Row => {}
@@ -142,15 +165,40 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
                     format!("time column {:?} is negative at data row {n}", t.get_ref()),
                 ));
             }
+            times_ns.push((values[axes] * 1e9).round() as i64);
         }
     }
     if n == 0 {
         return Err(src.span(&file_key, format!("{} has no data rows", file.display())));
     }
+    // The file's own times must give the pipeline's rate, as a bag's stamps must.
+    if let Some(t) = &time_key {
+        let steps = Stamps::from_stamps(&times_ns);
+        let rate = rate_hz;
+        match steps.rate_hz() {
+            Some(hz) if (hz - rate).abs() <= RATE_TOLERANCE * rate => {}
+            found => {
+                let gives = found.map_or("no rate".to_string(), |hz| format!("{hz:.6} Hz"));
+                return Err(src.span(
+                    t,
+                    format!(
+                        "time column {:?} of {}: its first {} rows step {} s at the median \
+                         ({gives}), but the pipeline's rate_hz is {rate} Hz: set rate_hz to the \
+                         file's rate",
+                        t.get_ref(),
+                        file.display(),
+                        steps.count,
+                        steps.median_interval_ns as f64 * 1e-9,
+                    ),
+                ));
+            }
+        }
+    }
     Ok(Box::new(CsvParams {
         file,
         columns,
         time_column: time_key.map(Spanned::into_inner),
+        stop_column: stop_key.map(Spanned::into_inner),
         replay,
     }))
 }
@@ -165,6 +213,8 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let axes = params.columns.len().min(3);
     let mut wanted = params.columns.clone();
     wanted.extend(params.time_column.iter().cloned());
+    wanted.extend(params.stop_column.iter().cloned());
+    let stop_at = params.stop_column.as_ref().map(|_| wanted.len() - 1);
     let mut values = vec![0.0; wanted.len()];
     let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
     loop {
@@ -199,6 +249,12 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 RowRead::End => break,
                 RowRead::Row if time >= 0.0 => {
                     sample.rate[..axes].copy_from_slice(&values[..axes]);
+                    match stop_at.map(|k| values[k]) {
+                        Some(v) if v.is_nan() => {}
+                        Some(v) if v >= 0.5 => sample.flags |= RAW_VEHICLE_STOPPED,
+                        Some(_) => sample.flags |= RAW_VEHICLE_MOVING,
+                        None => {}
+                    }
                     sample.t_ns = if params.time_column.is_some() {
                         (time * 1e9).round() as u64
                     } else {

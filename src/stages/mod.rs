@@ -14,7 +14,8 @@
 //! | `publish` | [`publish`] | the final guard before the public service |
 //!
 //! [`replay`] is what the file replays (`ingest.csv`, `ingest.mcap`) share: the reader thread,
-//! its blocks of samples and the pacing.
+//! its blocks of samples and the pacing. [`bias_state`] is `predict.bias`'s saved state (its
+//! warm start): the file, its checks and its writer thread.
 //!
 //! # Adding a stage kind
 //! 1. Write `src/stages/<kind>.rs` with: its keys as [`Key`](crate::stages::schema::Key)
@@ -30,6 +31,7 @@
 //! the kind does not declare (naming the kind a stray key belongs to), and `driftless validate
 //! --kinds` and `docs/reference/stages.md` (generated from it) list the new keys.
 
+pub mod bias_state;
 pub mod contract;
 pub mod schema;
 

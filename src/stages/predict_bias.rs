@@ -29,12 +29,17 @@ use crate::drift::bias::{
     TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
+use crate::stages::bias_state::{self, Owner, Saved, StateWriter};
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::contract::{Side, SideKind};
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::{GyroSample, StopSignal, FLAG_STOP_CONTRADICTED};
+use crate::transport::{
+    GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
+};
 #[cfg(doc)]
 use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use std::path::PathBuf;
+use std::time::Duration;
 
 const PROFILE: Key = Key {
     name: "profile",
@@ -123,6 +128,22 @@ const STOP_SPEED: Key = Key {
     doc: "stands when the signal's speed_m_s is at most this, m/s (a NaN speed: unknown)",
 };
 
+const STATE_FILE: Key = Key {
+    name: "state_file",
+    ty: Type::Str("a file path, relative to the pipeline file"),
+    default: "none: every start is cold",
+    doc: "where the filter's state is saved (at shutdown and every state_every_s) and resumed from at the next start, grown by the time between: corrected from the first sample",
+};
+const STATE_EVERY_S: Key = Key {
+    name: "state_every_s",
+    ty: Type::Positive(86_400.0),
+    default: "120",
+    doc: "how often the state is saved while running (a daemon killed without its shutdown resumes from the last save)",
+};
+
+/// Default of [`STATE_EVERY_S`].
+const DEFAULT_STATE_EVERY_S: f64 = 120.0;
+
 /// A walk in (deg/s)^2/s as a rate random walk in deg/h/sqrt(h), the unit of `rrw`.
 pub fn walk_to_rrw(walk: f64) -> f64 {
     walk.max(0.0).sqrt() * 216_000.0
@@ -148,6 +169,8 @@ pub const KIND: Kind = Kind {
         STOP_INPUT,
         STOP_MAX_AGE_S,
         STOP_SPEED,
+        STATE_FILE,
+        STATE_EVERY_S,
     ],
     parse,
 };
@@ -161,6 +184,21 @@ pub struct BiasParams {
     pub tracker: TrackerConfig,
     /// The vehicle's stop signal, if any.
     pub stop: Option<StopConfig>,
+    /// Where the state is saved and resumed from, if anywhere.
+    pub state: Option<StateConfig>,
+}
+
+/// `state_file` and what it held when the pipeline was read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateConfig {
+    /// The file.
+    pub path: PathBuf,
+    /// Who the state belongs to.
+    pub owner: Owner,
+    /// Saved every this many samples.
+    pub every: u64,
+    /// The state read (None: no file yet).
+    pub saved: Option<Saved>,
 }
 
 /// How `predict.bias` reads a stop signal ([`StopSignal`]).
@@ -310,10 +348,39 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             None
         }
     };
+    let state = match t.get::<String>(&STATE_FILE)? {
+        Some(file) => {
+            let path = src.resolve(file.get_ref());
+            let every_s = t
+                .positive(&STATE_EVERY_S, "state_every_s")?
+                .unwrap_or(DEFAULT_STATE_EVERY_S);
+            let owner = Owner {
+                pipeline: t.owner.0.to_string(),
+                stage: t.owner.1.to_string(),
+                axes: t.cx.axes,
+                rate_hz: t.cx.rate_hz,
+                terms,
+            };
+            let saved = bias_state::load(&path, &owner).map_err(|e| src.span(&file, e))?;
+            Some(StateConfig {
+                path,
+                owner,
+                every: ((every_s * t.cx.rate_hz).round() as u64).max(1),
+                saved,
+            })
+        }
+        None => {
+            if t.get::<toml::Value>(&STATE_EVERY_S)?.is_some() {
+                return Err(t.error("predict.bias: state_every_s needs state_file"));
+            }
+            None
+        }
+    };
     let params = BiasParams {
         terms,
         tracker,
         stop,
+        state,
     };
     BiasTracker::new(&params.terms, t.cx.rate_hz, &params.tracker)
         .map_err(|e| t.error(format!("predict.bias: {e}")))?;
@@ -333,11 +400,25 @@ impl Params for BiasParams {
                     .map_err(|e| e.to_string())?,
             );
         }
+        let mut writer = None;
+        if let Some(st) = &self.state {
+            if let Some(saved) = &st.saved {
+                resume(&mut trackers, saved, st, cx.rate_hz);
+            }
+            writer = Some((
+                StateWriter::start(st.path.clone(), st.owner.clone())?,
+                st.every,
+            ));
+        }
         Ok(Box::new(BiasStage {
             trackers,
             learn: self.tracker.learn_walk,
             stop: self.stop.clone(),
             signal: None,
+            logged_stops: false,
+            writer,
+            since_save: 0,
+            samples: 0,
         }))
     }
 
@@ -375,6 +456,47 @@ impl Params for BiasParams {
     }
 }
 
+/// Resume each axis from `saved`, grown by the time since it was saved; or, if that time is
+/// unknown or the state is worth no more than the prior by now, start cold. Either way one
+/// line says which.
+fn resume(trackers: &mut [BiasTracker], saved: &Saved, st: &StateConfig, rate_hz: f64) {
+    let shown = st.path.display();
+    let Some(age) = saved.age() else {
+        eprintln!(
+            "driftless: warning: state_file {shown} was saved in the future (the clock was set \
+             back?): the time since is unknown, so the filter starts cold"
+        );
+        return;
+    };
+    let steps = (age.as_secs_f64() * rate_hz).round() as u64;
+    let mut fresh = trackers.to_vec();
+    for (t, snap) in fresh.iter_mut().zip(&saved.filters) {
+        if let Err(e) = t.resume(snap, steps) {
+            eprintln!("driftless: warning: state_file {shown}: {e}: the filter starts cold");
+            return;
+        }
+    }
+    let now: Vec<_> = fresh.iter().map(BiasTracker::snapshot).collect();
+    let worth = fresh
+        .iter()
+        .zip(trackers.iter())
+        .all(|(f, cold)| f.filter().variance() < cold.filter().variance());
+    if !worth {
+        eprintln!(
+            "driftless: state_file {shown} is {} old: no better than the prior by now, so the \
+             filter starts cold",
+            humantime::format_duration(Duration::from_secs(age.as_secs()))
+        );
+        return;
+    }
+    eprintln!(
+        "driftless: warm start from state_file {shown}, saved {} ago: {}",
+        humantime::format_duration(Duration::from_secs(age.as_secs())),
+        bias_state::describe(&now)
+    );
+    trackers.clone_from_slice(&fresh);
+}
+
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
 pub struct BiasStage {
     trackers: Vec<BiasTracker>,
@@ -382,12 +504,36 @@ pub struct BiasStage {
     stop: Option<StopConfig>,
     /// The newest stop signal.
     signal: Option<StopSignal>,
+    /// Whether samples carried logged stops ([`FLAG_VEHICLE_STOPPED`], [`FLAG_VEHICLE_MOVING`]).
+    logged_stops: bool,
+    /// The state's writer and how many samples apart it saves.
+    writer: Option<(StateWriter, u64)>,
+    since_save: u64,
+    /// Samples processed (nothing is saved by a stage that took none).
+    samples: u64,
+}
+
+impl BiasStage {
+    fn snapshot(&self) -> bias_state::Snapshot {
+        bias_state::Snapshot::new(|k| self.trackers.get(k).map(BiasTracker::snapshot))
+    }
+}
+
+impl Drop for BiasStage {
+    /// At shutdown: the last state, written before the stage is gone.
+    fn drop(&mut self) {
+        if let Some((writer, _)) = self.writer.take() {
+            if self.samples > 0 {
+                writer.finish(self.snapshot());
+            }
+        }
+    }
 }
 
 impl Stage for BiasStage {
     fn learnt(&self) -> Vec<String> {
         // Stops given from outside teach it: without a stop signal it cannot learn.
-        if self.learn == LearnWalk::GivenStops && self.stop.is_none() {
+        if self.learn == LearnWalk::GivenStops && self.stop.is_none() && !self.logged_stops {
             return Vec::new();
         }
         self.trackers
@@ -417,13 +563,24 @@ impl Stage for BiasStage {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
         let (mut still, mut moving, mut warming) = (true, false, false);
-        let stopped = match (&self.stop, &self.signal) {
+        // A stop logged with the sample (a replay's stop column) is the signal at its own
+        // time; else the stop service's newest, judged by its age.
+        let logged = if input.flags & FLAG_VEHICLE_STOPPED != 0 {
+            Some(true)
+        } else if input.flags & FLAG_VEHICLE_MOVING != 0 {
+            Some(false)
+        } else {
+            None
+        };
+        self.logged_stops |= logged.is_some();
+        let stopped = logged.or_else(|| match (&self.stop, &self.signal) {
             (Some(cfg), Some(s)) => cfg.judge(s, input.ingest_ns),
             _ => None,
-        };
+        });
+        let given = self.stop.is_some() || self.logged_stops;
         for (axis, tr) in self.trackers.iter_mut().enumerate() {
             let x = input.denoised[axis].to_degrees();
-            let step = if self.stop.is_some() {
+            let step = if given {
                 tr.push_signal(x, stopped)
             } else {
                 tr.push(x)
@@ -443,6 +600,18 @@ impl Stage for BiasStage {
             warming |= !step.informed;
         }
         out.flags |= motion_flags(still, moving, warming);
+        self.samples += 1;
+        if let Some((writer, every)) = &self.writer {
+            self.since_save += 1;
+            if self.since_save >= *every {
+                self.since_save = 0;
+                let trackers = &self.trackers;
+                writer.offer(|snap| {
+                    *snap =
+                        bias_state::Snapshot::new(|k| trackers.get(k).map(BiasTracker::snapshot))
+                });
+            }
+        }
         Some(out)
     }
 }

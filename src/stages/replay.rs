@@ -132,7 +132,9 @@ pub struct BlockReplay {
     start: Option<(PaceClock, u64)>,
     /// The clock to start from at the first sample (a shared hot thread's), or none: now.
     shared: Option<PaceClock>,
-    /// `start_delay_s`, and from the first poll, when it ends.
+    /// `start_delay_s`: the whole schedule starts this much later.
+    start_delay: Duration,
+    /// The delay still to wait, and from the first poll, when it ends.
     delay: Duration,
     not_before: Option<std::time::Instant>,
 }
@@ -168,6 +170,7 @@ impl BlockReplay {
             pace: replay.pace,
             start: None,
             shared: None,
+            start_delay: replay.start_delay,
             delay: replay.start_delay,
             not_before: None,
         })
@@ -210,9 +213,13 @@ impl Source for BlockReplay {
         }
         let sample = self.block[self.next];
         let due_ns = if self.pace == Pace::Realtime {
-            let (clock, first_t) = *self
-                .start
-                .get_or_insert_with(|| (self.shared.unwrap_or_else(PaceClock::now), sample.t_ns));
+            // A shared clock started with the daemon: the delay shifts the whole schedule, so
+            // the samples due while it lasted are not late.
+            let delay = self.start_delay;
+            let (clock, first_t) = *self.start.get_or_insert_with(|| {
+                let clock = self.shared.map_or_else(PaceClock::now, |c| c.later(delay));
+                (clock, sample.t_ns)
+            });
             let offset = Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
             match clock.wait(offset, stop) {
                 Some(due) => Some(due),

@@ -256,6 +256,8 @@ pub struct StageTable<'a, 'i> {
     pub kind_at: usize,
     /// The stage's input service, if it has one.
     pub input: Option<&'a str>,
+    /// The pipeline's name and the stage's (what a stage's saved state is tied to).
+    pub owner: (&'a str, &'a str),
     entries: Vec<(&'static str, Spanned<DeValue<'i>>)>,
 }
 
@@ -267,6 +269,7 @@ impl<'a, 'i> StageTable<'a, 'i> {
         start: usize,
         kind_at: usize,
         input: Option<&'a str>,
+        owner: (&'a str, &'a str),
         entries: Vec<(&'static str, Spanned<DeValue<'i>>)>,
     ) -> Self {
         StageTable {
@@ -275,6 +278,7 @@ impl<'a, 'i> StageTable<'a, 'i> {
             start,
             kind_at,
             input,
+            owner,
             entries,
         }
     }

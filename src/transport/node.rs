@@ -216,7 +216,10 @@ impl Transport {
             .buffer_size(self.qos.buffer_size)
             .create()
             .map_err(|e| setup("subscriber", name, e))?;
-        Ok(Input { subscriber })
+        Ok(Input {
+            subscriber,
+            service,
+        })
     }
 
     /// A subscriber to a service another process publishes (a sensor driver, an external
@@ -253,7 +256,10 @@ impl Transport {
             .buffer_size(self.qos.buffer_size)
             .create()
             .map_err(|e| setup("subscriber", name, e))?;
-        Ok(Input { subscriber })
+        Ok(Input {
+            subscriber,
+            service,
+        })
     }
 
     /// A subscriber to an existing service `name` whatever its creator's QoS (for `tap`,
@@ -274,7 +280,10 @@ impl Transport {
             .buffer_size(max)
             .create()
             .map_err(|e| setup("subscriber", name, e))?;
-        Ok(Input { subscriber })
+        Ok(Input {
+            subscriber,
+            service,
+        })
     }
 
     /// A listener on the event service `name` (opened or created), to sleep until a publisher

@@ -95,12 +95,18 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
 /// The receiving side of one service.
 pub struct Input<T: Debug + ZeroCopySend + Copy + 'static> {
     pub(super) subscriber: Subscriber<Svc, T, ()>,
+    pub(super) service: PubSubFactory<T>,
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Input<T> {
     /// Samples this subscriber holds unread before it loses new ones.
     pub fn buffer_size(&self) -> usize {
         self.subscriber.buffer_size()
+    }
+
+    /// How many publishers the service has now (a departed one no longer counts).
+    pub fn publishers(&self) -> usize {
+        self.service.dynamic_config().number_of_publishers()
     }
 
     /// The oldest sample not yet taken, copied out of shared memory. Allocation-free.

@@ -9,6 +9,12 @@ use iceoryx2::prelude::*;
 
 /// Raw-sample flag: the sensor driver marks the sample as invalid.
 pub const RAW_INVALID: u32 = 1;
+/// Raw-sample flag: the vehicle stands at this sample, by a signal logged with it (a replay's
+/// stop column): a stop signal judged by sample time, not by wall-clock age.
+pub const RAW_VEHICLE_STOPPED: u32 = 1 << 1;
+/// Raw-sample flag: the vehicle moves at this sample (as [`RAW_VEHICLE_STOPPED`]). Neither:
+/// unknown.
+pub const RAW_VEHICLE_MOVING: u32 = 1 << 2;
 
 /// Output flag: a stage is still filling (denoiser window, predictor warm-up).
 pub const FLAG_WARMING_UP: u32 = 1;
@@ -32,8 +38,14 @@ pub const FLAG_MOVING: u32 = 1 << 7;
 /// clearly turned; the signal was not trusted for this sample (it counts as moving).
 pub const FLAG_STOP_CONTRADICTED: u32 = 1 << 8;
 
+/// Output flag: the raw sample said the vehicle stood ([`RAW_VEHICLE_STOPPED`], carried on
+/// with the sample through every stage; `predict.bias` takes it as its stop signal).
+pub const FLAG_VEHICLE_STOPPED: u32 = 1 << 9;
+/// Output flag: the raw sample said the vehicle moved ([`RAW_VEHICLE_MOVING`]).
+pub const FLAG_VEHICLE_MOVING: u32 = 1 << 10;
+
 /// The output flags by name, in bit order (`tap`, `record` and reports decode them with it).
-pub const FLAG_NAMES: [(u32, &str); 9] = [
+pub const FLAG_NAMES: [(u32, &str); 11] = [
     (FLAG_WARMING_UP, "warming_up"),
     (FLAG_INPUT_INVALID, "input_invalid"),
     (FLAG_GAP_BEFORE, "gap_before"),
@@ -43,6 +55,8 @@ pub const FLAG_NAMES: [(u32, &str); 9] = [
     (FLAG_STILL, "still"),
     (FLAG_MOVING, "moving"),
     (FLAG_STOP_CONTRADICTED, "stop_contradicted"),
+    (FLAG_VEHICLE_STOPPED, "vehicle_stopped"),
+    (FLAG_VEHICLE_MOVING, "vehicle_moving"),
 ];
 
 /// Names of the flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as its hex

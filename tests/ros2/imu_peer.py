@@ -4,7 +4,8 @@ and publishes COUNT messages whose fields follow from their index (as the test e
 does the same with a gyro at rest and publishes nav_msgs/msg/Odometry on /odom every 10th
 message, the vehicle moving at 1 m/s for the first half and standing for the second;
 `wrongtype` publishes COUNT geometry_msgs/msg/Vector3Stamped on TOPIC, one every 10 ms. With
-PEER_NAN_AT=i,j,... `talk` sends NaN rates in those messages. For benches/ros2.rs: `pace`
+PEER_NAN_AT=i,j,... `talk` sends NaN rates in those messages; with
+PEER_DURABILITY=transient_local `listen` asks for that durability. For benches/ros2.rs: `pace`
 publishes COUNT messages at PEER_RATE Hz (default 1000) stamped with the system clock just
 before each publish; `latency` receives COUNT and prints, as one JSON line, how many came, in
 order, and the percentiles of receipt minus stamp (us).
@@ -21,7 +22,7 @@ import time
 
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
@@ -66,6 +67,8 @@ def main() -> int:
     if mode == "listen":
         reliable = QoSProfile(depth=max(count, 10), reliability=ReliabilityPolicy.RELIABLE,
                               history=HistoryPolicy.KEEP_LAST)
+        if os.environ.get("PEER_DURABILITY") == "transient_local":
+            reliable.durability = DurabilityPolicy.TRANSIENT_LOCAL
         got = []
         node.create_subscription(Imu, topic, lambda m: got.append(as_dict(m)), reliable)
         print(json.dumps({"ready": True}), flush=True)

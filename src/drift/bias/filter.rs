@@ -170,6 +170,37 @@ impl BiasModel {
     }
 }
 
+/// A [`BiasFilter`]'s state, to carry into a later run ([`BiasFilter::snapshot`],
+/// [`BiasFilter::resume`]). Fixed arrays: taking one never allocates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterSnapshot {
+    /// States in use (the model's).
+    pub states: usize,
+    /// The state estimates, deg/s (the first `states`).
+    pub x: [f64; MAX_STATES],
+    /// Their covariance, (deg/s)^2 (the first `states` rows and columns).
+    pub p: [[f64; MAX_STATES]; MAX_STATES],
+    /// The walk learner's, if the filter learns its walk.
+    pub learner: Option<LearnerSnapshot>,
+}
+
+impl FilterSnapshot {
+    /// The bias estimate (the sum of the states), deg/s.
+    pub fn estimate(&self) -> f64 {
+        self.x[..self.states].iter().sum()
+    }
+
+    /// Its variance, (deg/s)^2.
+    pub fn variance(&self) -> f64 {
+        let n = self.states;
+        self.p[..n]
+            .iter()
+            .map(|row| row[..n].iter().sum::<f64>())
+            .sum::<f64>()
+            .max(0.0)
+    }
+}
+
 /// The Kalman filter of a [`BiasModel`]: predict every sample, update with still samples.
 #[derive(Debug, Clone)]
 pub struct BiasFilter {
@@ -235,6 +266,65 @@ impl BiasFilter {
         if let Some(l) = &mut self.learner {
             self.model.q[0] = l.end_stop(v, r, teaches) * self.dt;
         }
+    }
+
+    /// Its state now, to carry into a later run.
+    pub fn snapshot(&self) -> FilterSnapshot {
+        FilterSnapshot {
+            states: self.model.states,
+            x: self.x,
+            p: *self.p,
+            learner: self.learner.as_ref().map(WalkLearner::snapshot),
+        }
+    }
+
+    /// Start from `snap`, taken `steps` samples ago (a restart: the time between runs), as if
+    /// the filter had predicted through them: each state decays and its variance grows by the
+    /// model's process noise over the gap, in closed form. Counts as informed (one update).
+    /// Refused if `snap` has another number of states or its values are not finite.
+    pub fn resume(&mut self, snap: &FilterSnapshot, steps: u64) -> Result<(), BiasError> {
+        let n = self.model.states;
+        if snap.states != n {
+            return Err(BiasError::Resume(format!(
+                "the state has {} filter states, this filter {n}",
+                snap.states
+            )));
+        }
+        let finite = snap.x[..n].iter().all(|v| v.is_finite())
+            && snap.p[..n]
+                .iter()
+                .all(|r| r[..n].iter().all(|v| v.is_finite()));
+        if !finite {
+            return Err(BiasError::Resume(
+                "the state holds values that are not finite".into(),
+            ));
+        }
+        let k = steps as f64;
+        self.x = snap.x;
+        *self.p = snap.p;
+        for i in 0..n {
+            let phi = self.model.phi[i];
+            self.x[i] *= phi.powf(k);
+            for j in 0..n {
+                self.p[i][j] *= (phi * self.model.phi[j]).powf(k);
+            }
+        }
+        if let (Some(l), Some(ls)) = (&mut self.learner, &snap.learner) {
+            l.resume(ls, steps);
+            self.model.q[0] = l.walk() * self.dt;
+        }
+        for i in 0..n {
+            let (phi, q) = (self.model.phi[i], self.model.q[i]);
+            // Sum of phi^(2m) for m < k: the process noise added over k steps.
+            let grown = if phi >= 1.0 {
+                k
+            } else {
+                (1.0 - phi.powf(2.0 * k)) / (1.0 - phi * phi)
+            };
+            self.p[i][i] += q * grown;
+        }
+        self.updates = self.updates.max(1);
+        Ok(())
     }
 
     /// Back to the prior.

@@ -60,12 +60,12 @@ mod filter;
 mod tracker;
 mod walk;
 
-pub use filter::{BiasFilter, BiasModel, DEFAULT_MATCH_S};
+pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
 pub use tracker::{
     default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,
     TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
 };
-pub use walk::{WalkConfig, WalkLearner, WalkReport};
+pub use walk::{LearnerSnapshot, WalkConfig, WalkLearner, WalkReport, GRID};
 
 use crate::allan::fit::NoiseFit;
 use crate::allan::Term;
@@ -120,6 +120,9 @@ pub enum BiasError {
     /// The walk to learn or its bounds are invalid.
     #[error("learning the walk: {0}")]
     Walk(String),
+    /// A saved state does not fit this filter.
+    #[error("resuming: {0}")]
+    Resume(String),
 }
 
 /// Noise terms of one gyro axis in base units (see [`crate::allan::units`]): what the bias

@@ -510,6 +510,19 @@ impl BiasTracker {
         self.mode == BiasMode::Still
     }
 
+    /// The filter's state, to carry into a later run ([`BiasTracker::resume`]). The samples
+    /// still waiting in the delay window are not in it: a stop cut short by a stop of the
+    /// daemon loses at most its last `delay_s`.
+    pub fn snapshot(&self) -> FilterSnapshot {
+        self.filter.snapshot()
+    }
+
+    /// Start from `snap`, taken `steps` samples ago ([`BiasFilter::resume`]): corrected from
+    /// the first sample, with the estimate's variance grown over the gap.
+    pub fn resume(&mut self, snap: &FilterSnapshot, steps: u64) -> Result<(), BiasError> {
+        self.filter.resume(snap, steps)
+    }
+
     /// Forget everything (back to warming at the prior).
     pub fn reset(&mut self) {
         self.filter.reset();

@@ -83,6 +83,20 @@ pub struct WalkReport {
     pub stops: u64,
 }
 
+/// What a [`WalkLearner`] carries from one run to the next ([`WalkLearner::snapshot`]): the
+/// evidence of the stops it saw, not a stop it is inside.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LearnerSnapshot {
+    /// The log-likelihood of each candidate walk.
+    pub ll: [f64; GRID],
+    /// The walk in use, (deg/s)^2/s.
+    pub walk: f64,
+    /// Stops weighed.
+    pub stops: u64,
+    /// The variance at the last stop's end; None before the first stop.
+    pub end_var: Option<f64>,
+}
+
 /// One stop as the filter saw it: the state carried to it and its samples.
 #[derive(Debug, Clone, Copy, Default)]
 struct Stop {
@@ -222,6 +236,27 @@ impl WalkLearner {
             hi: self.cfg.hi,
             stops: self.stops,
         }
+    }
+
+    /// What it has learnt, to carry into a later run ([`WalkLearner::resume`]).
+    pub fn snapshot(&self) -> LearnerSnapshot {
+        LearnerSnapshot {
+            ll: self.ll,
+            walk: self.walk,
+            stops: self.stops,
+            end_var: self.end_var,
+        }
+    }
+
+    /// Carry on from `snap`, `steps` samples after it was taken (the gap to the next stop
+    /// includes them). The walk is kept within this learner's bounds.
+    pub fn resume(&mut self, snap: &LearnerSnapshot, steps: u64) {
+        self.ll = snap.ll;
+        self.stops = snap.stops;
+        self.end_var = snap.end_var;
+        self.walk = snap.walk.clamp(self.cfg.lo, self.cfg.hi);
+        self.open = None;
+        self.since = steps;
     }
 
     /// Forget every stop (back to the configured walk).

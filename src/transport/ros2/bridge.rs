@@ -117,8 +117,9 @@ impl Watched {
     /// Say on stderr when the topic goes unmatched past the grace, when it matches, and when a
     /// peer of another type is on it (it never matches).
     fn check(&mut self, node: &Ros2Node, since_start: Duration) {
-        // Our publishers are reliable and our subscriptions best effort: any peer's QoS
-        // matches, so a peer that is missing has another name, domain or type.
+        // Our publishers are reliable and our subscriptions best effort: any peer's reliability
+        // matches, so a peer that is missing has another name, domain or type (a peer whose
+        // other policies cannot match is found and said by `Ros2Node::qos_mismatches`).
         let peers = node.peer_types(&self.topic, !self.ours_publishes);
         let (peer, side) = if self.ours_publishes {
             ("subscriber", "publishes")
@@ -392,6 +393,7 @@ pub fn run_bridge(
     let mut counts = BridgeCounts::default();
     let t0 = Instant::now();
     let mut next_check = t0;
+    let mut said_qos = std::collections::HashSet::new();
     // Every output notified: sleep until woken; else read the others every millisecond.
     let sleep = if outs.iter().all(|o| o.waker.is_some()) {
         IDLE
@@ -447,6 +449,11 @@ pub fn run_bridge(
         if now >= next_check {
             for w in &mut watched {
                 w.check(&node, now - t0);
+            }
+            for line in node.qos_mismatches() {
+                if said_qos.insert(line.clone()) {
+                    say(format_args!("{line}"));
+                }
             }
             next_check = now + Duration::from_millis(500);
         }

@@ -15,10 +15,15 @@
 //!   and counts it), subscriptions best effort (they accept both kinds of publisher).
 //! - Messages are serde mirrors of the ROS definitions in declaration order; fixed arrays are
 //!   CDR tuples (no length), the 36-element covariances `[[f64; 6]; 6]` (serde stops at 32).
-//! - No spinner runs: publishing, taking and the graph need none, and the matched counts come
-//!   from the discovery database ([`Ros2Node::subscribers`], [`Ros2Node::publishers`]).
+//! - No spinner runs: publishing, taking and the graph need none, and who is on a topic comes
+//!   from the discovery database ([`Ros2Node::peer_types`]).
+//! - A peer whose QoS cannot match ours is said ([`Ros2Node::qos_mismatches`]): ros2-client
+//!   drops RustDDS's incompatible-QoS events, so they are read from the participant here.
 
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
+use ros2_client::dds::rustdds::{
+    DomainParticipantStatusListener, QosPolicies, StatusEvented as _, GUID,
+};
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
@@ -99,9 +104,12 @@ pub fn domain_id() -> Result<u16, String> {
 pub struct Ros2Node {
     // Field order is drop order: the node before its context (ros2-client logs errors when the
     // participant goes first).
+    status: DomainParticipantStatusListener,
     node: Node,
     _context: Context,
     name: String,
+    /// Our publishers and subscriptions: GUID, topic, and whether it publishes.
+    endpoints: Vec<(GUID, String, bool)>,
 }
 
 fn setup(what: &'static str, name: &str, e: impl std::fmt::Debug) -> TransportError {
@@ -132,9 +140,11 @@ impl Ros2Node {
             .new_node(node_name, options)
             .map_err(|e| setup("ROS 2 node", name, e))?;
         Ok(Ros2Node {
+            status: context.domain_participant().status_listener(),
             node,
             _context: context,
             name: name.to_string(),
+            endpoints: Vec::new(),
         })
     }
 
@@ -176,6 +186,8 @@ impl Ros2Node {
             .node
             .create_publisher(&t, Some(qos))
             .map_err(|e| setup("ROS 2 publisher", topic, e))?;
+        self.endpoints
+            .push((publisher.guid(), topic.to_string(), true));
         Ok(ImuPublisher { publisher })
     }
 
@@ -191,6 +203,8 @@ impl Ros2Node {
             .node
             .create_subscription(&t, Some(qos))
             .map_err(|e| setup("ROS 2 subscription", topic, e))?;
+        self.endpoints
+            .push((subscription.guid(), topic.to_string(), false));
         Ok(ImuSubscription { subscription })
     }
 
@@ -218,7 +232,75 @@ impl Ros2Node {
             })
         };
         let port = sub(&mut self.node).map_err(|e| setup("ROS 2 subscription", topic, e))?;
+        let guid = match &port {
+            MotionPort::Odometry(s) => s.guid(),
+            MotionPort::Twist(s) => s.guid(),
+            MotionPort::TwistCov(s) => s.guid(),
+        };
+        self.endpoints.push((guid, topic.to_string(), false));
         Ok(MotionSubscription { port })
+    }
+
+    /// One line for each peer found since the last call whose QoS cannot match one of our
+    /// publishers or subscriptions (it gets nothing from us, or we nothing from it), naming the
+    /// topic and the first policy that differs.
+    pub fn qos_mismatches(&self) -> Vec<String> {
+        use ros2_client::dds::rustdds::DomainParticipantStatusEvent as E;
+        let mut lines = Vec::new();
+        while let Some(event) = self.status.try_recv_status() {
+            let (ours, requested, offered, peer) = match &event {
+                E::RemoteReaderQosIncompatible {
+                    local_writer,
+                    requested_qos,
+                    offered_qos,
+                    ..
+                } => (local_writer, requested_qos, offered_qos, "a subscriber"),
+                E::RemoteWriterQosIncompatible {
+                    local_reader,
+                    requested_qos,
+                    offered_qos,
+                    ..
+                } => (local_reader, requested_qos, offered_qos, "a publisher"),
+                _ => continue,
+            };
+            let Some((_, topic, we_publish)) = self.endpoints.iter().find(|e| e.0 == *ours) else {
+                continue;
+            };
+            let policy = offered
+                .compliance_failure_wrt(requested)
+                .map_or("QoS".to_string(), |p| format!("{p:?}"));
+            let describe = |q: &QosPolicies| {
+                format!(
+                    "{}, {}",
+                    if q.is_reliable() {
+                        "reliable"
+                    } else {
+                        "best effort"
+                    },
+                    if q.is_volatile() {
+                        "volatile"
+                    } else {
+                        "transient local or more"
+                    }
+                )
+            };
+            lines.push(if *we_publish {
+                format!(
+                    "{peer} of {topic} requests a {policy} we do not offer, so it gets nothing \
+                     (it requests {}; we offer {})",
+                    describe(requested),
+                    describe(offered)
+                )
+            } else {
+                format!(
+                    "{peer} of {topic} offers a {policy} we cannot accept, so we get nothing \
+                     from it (it offers {}; we request {})",
+                    describe(offered),
+                    describe(requested)
+                )
+            });
+        }
+        lines
     }
 
     /// The ROS 2 types (`pkg/msg/Type`) of the publishers (`writers`) or subscriptions of other
