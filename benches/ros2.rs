@@ -20,8 +20,9 @@
 //! 3. **Through the daemon** (`pipelines/ros2.toml`): the rclpy driver on `/imu/data_raw`, the
 //!    rclpy subscriber on `/imu/corrected`. The daemon keeps the driver's stamp, so receipt minus
 //!    stamp is driver publish to navigator receipt.
-//! 4. **ROS 2 output off:** the same daemon fed the same way with no `[[ros2.imu_out]]`: the
-//!    reference for the iceoryx2 path's p99.9 and misses.
+//! 4. **ROS 2 output off:** the same daemon fed the same way with no `[[ros2.imu_out]]`, and
+//!    beside it the same rclpy subscriber fed at 1 kHz by this process (so the machine carries
+//!    the same load): the reference for the iceoryx2 path's p99.9 and misses.
 //!
 //! Three runs (`DRIFTLESS_BENCH_RUNS`); each figure is judged by the median run. Printed per
 //! run and as medians: the paths' percentiles, messages lost, the daemon's own ingest-to-publish
@@ -210,7 +211,11 @@ fn realtime_ns() -> u64 {
 }
 
 fn bare_floor(n: usize) -> Value {
-    let topic = "/bench/bare";
+    bare_on("/bench/bare", n)
+}
+
+/// A ros2-client publisher at 1 kHz to the rclpy latency listener on `topic`.
+fn bare_on(topic: &str, n: usize) -> Value {
     let (child, out) = listener(topic, n);
     let mut node = Ros2Node::new("/", "bench_bare").unwrap();
     let publisher = node.imu_publisher(topic, 100).unwrap();
@@ -343,8 +348,14 @@ fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
             .sum()
     };
     let (cpu0, t0) = (ros2_cpu(&thread_cpu(pid)), Instant::now());
+    // Output off, the same load beside the daemon: the rclpy navigator still receives 1 kHz
+    // (from this process), so only the daemon's ROS 2 output differs between the two runs.
+    let load = (!output).then(|| std::thread::spawn(move || bare_on("/bench/load", n)));
     let mut driver = peer("pace", "/imu/data_raw", n);
     assert!(driver.wait().unwrap().success());
+    if let Some(load) = load {
+        let _ = load.join();
+    }
     let (cpu1, t1) = (ros2_cpu(&thread_cpu(pid)), Instant::now());
     let through = navigator.map_or(Value::Null, |(child, out)| result(child, out));
     sigterm_and_wait(&mut daemon);

@@ -140,3 +140,56 @@ fn kinds_lists_every_key_with_type_and_default() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn a_profile_whose_lsb_differs_from_the_datas_step_gets_one_warning_line() {
+    let dir = std::env::temp_dir().join(format!("dl-lsb-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let pipeline = |step: f64| {
+        // A still gyro quantised at `step` deg/s, and the ADIS16405's profile (lsb 0.05).
+        let mut csv = String::from("x,y,z\n");
+        for i in 0..500 {
+            let code = |k: usize| ((i * 7919 + k * 31) % 9) as f64 - 4.0;
+            csv.push_str(&format!(
+                "{},{},{}\n",
+                code(0) * step,
+                code(1) * step,
+                code(2) * step
+            ));
+        }
+        std::fs::write(dir.join(format!("{step}.csv")), csv).unwrap();
+        let file = dir.join(format!("{step}.toml"));
+        std::fs::write(
+            &file,
+            format!(
+                "name = \"q\"\nrate_hz = 100.0\n\n[[stage]]\nname = \"sensor\"\nkind = \"ingest.csv\"\n\
+                 output = \"q/raw\"\nfile = \"{step}.csv\"\n\n[[stage]]\nname = \"predict\"\n\
+                 kind = \"predict.bias\"\ninput = \"q/raw\"\noutput = \"q/predicted\"\n\
+                 profile = \"adis16405\"\n\n[[stage]]\nname = \"publish\"\nkind = \"publish\"\n\
+                 input = \"q/predicted\"\noutput = \"q/corrected\"\n"
+            ),
+        )
+        .unwrap();
+        Command::new(env!("CARGO_BIN_EXE_driftless"))
+            .arg("validate")
+            .arg(&file)
+            .output()
+            .unwrap()
+    };
+    let same = pipeline(0.05);
+    assert!(same.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&same.stderr),
+        "",
+        "the step matches"
+    );
+    let other = pipeline(0.0125);
+    assert!(other.status.success(), "a warning, not a refusal");
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("stage \"predict\" assumes the raw rate steps by 0.05 deg/s (its lsb), but the data's smallest step is 1.250e-2 deg/s"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

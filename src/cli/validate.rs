@@ -34,6 +34,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let mut all = Vec::new();
     for path in &args.pipelines {
         let p = config::load(path)?;
+        for w in &p.warnings {
+            eprintln!("driftless: warning: {}: {w}", path.display());
+        }
         describe(&p);
         all.push(p);
     }

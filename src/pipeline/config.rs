@@ -91,6 +91,8 @@ pub struct Pipeline {
     pub iceoryx2: Iceoryx2Settings,
     /// Live ROS 2 topics in and out (`[ros2]`), if any.
     pub ros2: Option<Ros2Settings>,
+    /// Lines worth a warning that do not stop the pipeline (`validate` and `run` print them).
+    pub warnings: Vec<String>,
     /// The stages, in chain order.
     pub stages: Vec<StageSpec>,
 }
@@ -314,6 +316,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         entries.push(registry::stage(&src, value, cx, &name)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
+    let warnings = step_warning(&stages, input_units).into_iter().collect();
     let ros2 = match raw.ros2 {
         Some(r) => Some(ros2_settings(
             &src,
@@ -344,6 +347,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             stats_service,
         },
         ros2,
+        warnings,
         stages,
     })
 }
@@ -501,6 +505,24 @@ fn ros2_settings(
         imu_out,
         motion_in,
     })
+}
+
+/// The step the data shows against the step a stage assumes (a profile's `lsb`): one line when
+/// they differ by more than a quarter (a profile of another sensor, or `lsb` in other units).
+fn step_warning(stages: &[StageSpec], units: Units) -> Option<String> {
+    let deg_per_unit = units.to_rad_per_sec().to_degrees();
+    let seen = stages.iter().find_map(|s| s.params.data_step())? * deg_per_unit;
+    let (stage, assumed) = stages
+        .iter()
+        .find_map(|s| Some((&s.name, s.params.assumed_step()?)))?;
+    if assumed > 0.0 && (seen < 0.75 * assumed || seen > 1.25 * assumed) {
+        return Some(format!(
+            "stage {stage:?} assumes the raw rate steps by {assumed} deg/s (its lsb), but the data's \
+             smallest step is {seen:.3e} deg/s: another sensor's profile? Set lsb to the data's \
+             step (0 if it is not quantised)"
+        ));
+    }
+    None
 }
 
 /// Order the stages into one chain ingest -> ... -> publish, or say where it breaks.

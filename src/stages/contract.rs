@@ -174,6 +174,18 @@ pub trait Params: std::fmt::Debug + Send + Sync {
         None
     }
 
+    /// The output step (LSB) this stage assumes of the raw rate, deg/s (`predict.bias`: its
+    /// terms' lsb, 0 for none); compared with the step an ingest sees in its data.
+    fn assumed_step(&self) -> Option<f64> {
+        None
+    }
+
+    /// The step of the raw rate an ingest sees in the data it checked (the smallest difference
+    /// between two values on one axis), in input units; None where it read none.
+    fn data_step(&self) -> Option<f64> {
+        None
+    }
+
     /// Extra lines for `driftless validate` (indented by the caller).
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
         Vec::new()

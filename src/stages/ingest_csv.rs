@@ -84,6 +84,8 @@ pub struct CsvParams {
     pub time_column: Option<String>,
     /// The stop column (1 stands, 0 moves, NaN unknown), if any.
     pub stop_column: Option<String>,
+    /// The rate's step in the checked rows, input units ([`step_of`]).
+    pub step: Option<f64>,
     /// Pacing, looping, delay.
     pub replay: Replay,
 }
@@ -95,7 +97,25 @@ pub const CHECKED_ROWS: usize = 1000;
 /// Bad rows reported one by one on stderr before only their count is.
 const REPORTED_BAD_ROWS: u64 = 10;
 
+/// The output step of a quantised rate: the smallest difference between two of its distinct
+/// finite values (a rate that is not quantised gives a tiny one). None with fewer than two.
+pub fn step_of(mut values: Vec<f64>) -> Option<f64> {
+    values.retain(|v| v.is_finite());
+    values.sort_by(f64::total_cmp);
+    // Below this a difference is the decimal text's rounding, not a step.
+    let floor = 1e-9 * values.iter().fold(1e-30f64, |m, v| m.max(v.abs()));
+    values
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > floor)
+        .reduce(f64::min)
+}
+
 impl Params for CsvParams {
+    fn data_step(&self) -> Option<f64> {
+        self.step
+    }
+
     fn source(
         &self,
         cx: &Context,
@@ -151,6 +171,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let mut values = vec![0.0; wanted.len()];
     let mut n = 0;
     let mut times_ns: Vec<i64> = Vec::new();
+    let mut rates: Vec<Vec<f64>> = vec![Vec::new(); axes];
     while n < CHECKED_ROWS {
         match rows.next_row(&mut values)? {
             RowRead::Row => {}
@@ -158,6 +179,9 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             RowRead::End => break,
         }
         n += 1;
+        for (r, v) in rates.iter_mut().zip(&values) {
+            r.push(*v);
+        }
         if let Some(t) = &time_key {
             if values[axes] < 0.0 {
                 return Err(src.span(
@@ -199,6 +223,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         columns,
         time_column: time_key.map(Spanned::into_inner),
         stop_column: stop_key.map(Spanned::into_inner),
+        step: rates.into_iter().filter_map(step_of).reduce(f64::min),
         replay,
     }))
 }

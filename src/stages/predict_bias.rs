@@ -392,6 +392,10 @@ impl Params for BiasParams {
         Some(self.terms.n)
     }
 
+    fn assumed_step(&self) -> Option<f64> {
+        Some(self.terms.lsb)
+    }
+
     fn stage(&self, cx: &Context) -> Result<Box<dyn Stage>, String> {
         let mut trackers = Vec::with_capacity(cx.axes);
         for _ in 0..cx.axes {
