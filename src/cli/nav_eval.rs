@@ -455,7 +455,7 @@ fn parse_profiles(s: &str) -> Result<Vec<Profile>, CliError> {
 }
 
 fn summary_json(s: &MethodSummary, label: &str) -> Value {
-    let sum = |x: &crate::nav::Summary| json!({"median": x.median, "worst": x.worst});
+    let sum = |x: &crate::nav::Summary| json!({"median": x.median, "p90": x.p90, "worst": x.worst});
     json!({
         "method": label,
         "rms_heading_deg": sum(&s.rms),
@@ -463,6 +463,7 @@ fn summary_json(s: &MethodSummary, label: &str) -> Value {
         "max_heading_deg": sum(&s.max),
         "rms_rate_degps": sum(&s.rms_rate),
         "rms_ratio_to_zaru_oracle": sum(&s.rms_ratio),
+        "rms_ratio_to_floored_zaru_oracle": sum(&s.rms_ratio_floored),
         "final_ratio_to_zaru_oracle": sum(&s.final_ratio),
     })
 }

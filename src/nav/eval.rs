@@ -266,10 +266,18 @@ pub struct MethodSummary {
     pub rms_rate: Summary,
     /// Per-window ratio of the RMS heading error to the reference method's.
     pub rms_ratio: Summary,
+    /// The same against the reference's RMS or [`RATIO_FLOOR_DEG`], whichever is larger: where
+    /// the reference's error is smaller, a window is noise, and its ratio says nothing (the
+    /// worst windows and the p90 are judged on this).
+    pub rms_ratio_floored: Summary,
     /// Per-window ratio of |final heading error| to the reference's (noisy where the
     /// reference's final error happens to cross zero; read with the medians).
     pub final_ratio: Summary,
 }
+
+/// The least reference RMS heading error a ratio is taken against, deg (issue 40: below it, a
+/// window's error is noise).
+pub const RATIO_FLOOR_DEG: f64 = 0.5;
 
 /// Summaries of each method over windows: `results[w][i]` is method `methods[i]` on window w.
 /// Ratios are per window against `reference` (NaN if it is not among `methods`).
@@ -286,12 +294,12 @@ pub fn summarize_methods(
         .iter()
         .enumerate()
         .map(|(i, &method)| {
-            let ratio = |f: fn(&HeadingMetrics) -> f64| -> Summary {
+            let ratio = |f: fn(&HeadingMetrics) -> f64, floor: f64| -> Summary {
                 let v: Vec<f64> = results
                     .iter()
                     .map(|w| match (r, w.get(i)) {
                         (Some(r), Some(m)) => {
-                            let d = w.get(r).map_or(f64::NAN, f);
+                            let d = w.get(r).map_or(f64::NAN, f).max(floor);
                             if d == 0.0 {
                                 f64::NAN
                             } else {
@@ -309,15 +317,17 @@ pub fn summarize_methods(
                 final_abs: summarize(&col(i, |m| m.final_deg.abs())),
                 max: summarize(&col(i, |m| m.max_deg)),
                 rms_rate: summarize(&col(i, |m| m.rms_rate)),
-                rms_ratio: ratio(|m| m.rms_deg),
-                final_ratio: ratio(|m| m.final_deg.abs()),
+                rms_ratio: ratio(|m| m.rms_deg, 0.0),
+                rms_ratio_floored: ratio(|m| m.rms_deg, RATIO_FLOOR_DEG),
+                final_ratio: ratio(|m| m.final_deg.abs(), 0.0),
             }
         })
         .collect()
 }
 
-/// A Markdown table of summaries: RMS and |final| heading error (median / worst, deg) and the
-/// per-window RMS ratio to the reference (median / worst).
+/// A Markdown table of summaries: RMS and |final| heading error (median / worst, deg), the
+/// per-window RMS ratio to the reference (median / worst) and to the floored reference
+/// ([`RATIO_FLOOR_DEG`]: p90 / worst).
 pub fn format_table(title: &str, rows: &[MethodSummary]) -> String {
     let labels: Vec<&str> = rows.iter().map(|r| r.method.label()).collect();
     format_table_labelled(title, rows, &labels)
@@ -329,13 +339,13 @@ pub fn format_table_labelled(title: &str, rows: &[MethodSummary], labels: &[&str
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| {title} | RMS heading med | RMS worst | final med | final worst | RMS/ref med | RMS/ref worst | final/ref med |"
+        "| {title} | RMS heading med | RMS worst | final med | final worst | RMS/ref med | RMS/ref worst | RMS/floored ref p90 | RMS/floored ref worst | final/ref med |"
     );
-    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (r, label) in rows.iter().zip(labels) {
         let _ = writeln!(
             s,
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} |",
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
             label,
             r.rms.median,
             r.rms.worst,
@@ -343,6 +353,8 @@ pub fn format_table_labelled(title: &str, rows: &[MethodSummary], labels: &[&str
             r.final_abs.worst,
             r.rms_ratio.median,
             r.rms_ratio.worst,
+            r.rms_ratio_floored.p90,
+            r.rms_ratio_floored.worst,
             r.final_ratio.median
         );
     }

@@ -90,6 +90,8 @@ pub fn heading_metrics(corrected: &[f64], truth: &[f64], dt: f64) -> HeadingMetr
 pub struct Summary {
     /// Median (mean of the middle two for an even count); NaN when empty.
     pub median: f64,
+    /// The 90th percentile (nearest rank); NaN when empty.
+    pub p90: f64,
     /// Largest value; NaN when empty.
     pub worst: f64,
     /// Number of values summarised.
@@ -104,6 +106,7 @@ pub fn summarize(values: &[f64]) -> Summary {
     if count == 0 {
         return Summary {
             median: f64::NAN,
+            p90: f64::NAN,
             worst: f64::NAN,
             count,
         };
@@ -113,8 +116,11 @@ pub fn summarize(values: &[f64]) -> Summary {
     } else {
         0.5 * (v[count / 2 - 1] + v[count / 2])
     };
+    // Nearest rank: the smallest value with at least 90% of them at or below it.
+    let p90 = v[((0.9 * count as f64).ceil() as usize).clamp(1, count) - 1];
     Summary {
         median,
+        p90,
         worst: v[count - 1],
         count,
     }
@@ -152,7 +158,10 @@ mod tests {
     #[test]
     fn summaries_and_ratios() {
         let s = summarize(&[3.0, 1.0, f64::NAN, 2.0, 10.0]);
-        assert_eq!((s.median, s.worst, s.count), (2.5, 10.0, 4));
+        assert_eq!((s.median, s.p90, s.worst, s.count), (2.5, 10.0, 10.0, 4));
+        // Nearest rank: of 1..=20, 90% lie at or below 18.
+        let s = summarize(&(1..=20).map(f64::from).collect::<Vec<_>>());
+        assert_eq!(s.p90, 18.0);
         let s = summarize(&[]);
         assert!(s.median.is_nan() && s.count == 0);
         let r = ratios(&[1.0, 2.0, 3.0], &[2.0, 0.0, 3.0]);
