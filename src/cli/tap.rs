@@ -6,7 +6,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
-use crate::transport::{self, GyroSample, Input, RawSample, StatsSnapshot, Transport, RAW_INVALID};
+use crate::transport::{self, GyroSample, Input, RawSample, StatsSnapshot, Transport};
 
 /// How samples are printed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -137,28 +137,6 @@ impl Item {
     }
 }
 
-fn raw_flag_names(flags: u32) -> Vec<String> {
-    let mut names = Vec::new();
-    let named = [
-        (RAW_INVALID, "invalid"),
-        (transport::RAW_VEHICLE_STOPPED, "vehicle_stopped"),
-        (transport::RAW_VEHICLE_MOVING, "vehicle_moving"),
-    ];
-    let mut rest = flags;
-    for (bit, name) in named {
-        if flags & bit != 0 {
-            names.push(name.to_string());
-            rest &= !bit;
-        }
-    }
-    for i in 0..32 {
-        if rest & (1 << i) != 0 {
-            names.push(format!("{:#x}", 1u32 << i));
-        }
-    }
-    names
-}
-
 /// The refusal of `--format csv` on a stats service (checked at start, and by the printer).
 fn no_csv_for_stats(service: &str) -> CliError {
     CliError::input(format!(
@@ -257,7 +235,7 @@ impl Printer {
                 s.rate[0],
                 s.rate[1],
                 s.rate[2],
-                joined(&raw_flag_names(s.flags), ",")
+                joined(&transport::raw_flag_names(s.flags), ",")
             ),
             (Format::Text, Item::Stats(s)) => crate::metrics::format_snapshot(&self.service, s),
             (Format::Csv, Item::Gyro(s)) => {
@@ -289,7 +267,7 @@ impl Printer {
                 s.rate[1],
                 s.rate[2],
                 s.flags,
-                joined(&raw_flag_names(s.flags), "|")
+                joined(&transport::raw_flag_names(s.flags), "|")
             ),
             (Format::Csv, Item::Stats(_)) => return Err(no_csv_for_stats(&self.service)),
             (Format::Json, Item::Gyro(s)) => serde_json::json!({
@@ -313,7 +291,7 @@ impl Printer {
                 "units": "input",
                 "rate": s.rate,
                 "flags": s.flags,
-                "flag_names": raw_flag_names(s.flags),
+                "flag_names": transport::raw_flag_names(s.flags),
             })
             .to_string(),
             (Format::Json, Item::Stats(s)) => crate::metrics::snapshot_json(s).to_string(),
@@ -601,7 +579,7 @@ mod tests {
             ["gap_before", "still", "0x100000"]
         );
         assert_eq!(
-            raw_flag_names(RAW_INVALID | 4 | 1 << 9),
+            transport::raw_flag_names(transport::RAW_INVALID | 4 | 1 << 9),
             ["invalid", "vehicle_moving", "0x200"]
         );
         assert_eq!(joined(&[], ","), "-");

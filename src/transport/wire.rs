@@ -59,12 +59,28 @@ pub const FLAG_NAMES: [(u32, &str); 11] = [
     (FLAG_VEHICLE_MOVING, "vehicle_moving"),
 ];
 
-/// Names of the flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as its hex
-/// value, so nothing is hidden.
+/// The raw-sample flags by name, in bit order.
+pub const RAW_FLAG_NAMES: [(u32, &str); 3] = [
+    (RAW_INVALID, "invalid"),
+    (RAW_VEHICLE_STOPPED, "vehicle_stopped"),
+    (RAW_VEHICLE_MOVING, "vehicle_moving"),
+];
+
+/// Names of the output flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as
+/// its hex value, so nothing is hidden.
 pub fn flag_names(flags: u32) -> Vec<String> {
+    names_of(flags, &FLAG_NAMES)
+}
+
+/// Names of the raw-sample flags set in `flags` ([`RAW_FLAG_NAMES`]), as [`flag_names`].
+pub fn raw_flag_names(flags: u32) -> Vec<String> {
+    names_of(flags, &RAW_FLAG_NAMES)
+}
+
+fn names_of(flags: u32, table: &[(u32, &str)]) -> Vec<String> {
     let mut names = Vec::new();
     let mut rest = flags;
-    for (bit, name) in FLAG_NAMES {
+    for &(bit, name) in table {
         if flags & bit != 0 {
             names.push(name.to_string());
             rest &= !bit;
