@@ -609,11 +609,7 @@ impl Stage for BiasStage {
             self.since_save += 1;
             if self.since_save >= *every {
                 self.since_save = 0;
-                let trackers = &self.trackers;
-                writer.offer(|snap| {
-                    *snap =
-                        bias_state::Snapshot::new(|k| trackers.get(k).map(BiasTracker::snapshot))
-                });
+                writer.offer(|snap| *snap = self.snapshot());
             }
         }
         Some(out)
