@@ -539,3 +539,47 @@ fn allan_stage_prints_a_table_the_pipeline_takes_with_every_term() {
     assert!(v.status.success(), "{}", stderr(&v));
     assert!(String::from_utf8_lossy(&v.stdout).contains("N 1.500 deg/sqrt(h), B 33.77 deg/h"));
 }
+
+#[test]
+fn allan_stage_refuses_a_record_too_short_for_n_with_the_length_needed() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = |duration: &str| {
+        let out = dir.path().join(format!("still-{duration}.csv"));
+        let out_s = out.to_str().unwrap().to_string();
+        let o = driftless(&[
+            "simulate",
+            "--N",
+            "1.5",
+            "--B",
+            "20",
+            "--Q",
+            "0.01",
+            "--rate",
+            "100",
+            "--duration",
+            duration,
+            "--seed",
+            "7",
+            "-o",
+            &out_s,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        out_s
+    };
+    let short = sim("6s");
+    let o = driftless(&["allan", &short, "--rate", "100", "--stage"]);
+    assert_input_error(&o, "6s of data cannot identify the angle random walk N");
+    let err = stderr(&o);
+    let needed = err
+        .split("record about ")
+        .nth(1)
+        .and_then(|r| r.split("s of still data").next())
+        .unwrap_or_else(|| panic!("the length needed: {err}"));
+    let secs: u64 = needed.parse().unwrap_or_else(|_| panic!("{err}"));
+    assert!(secs > 6, "{err}");
+    // A record that long gives N.
+    let long = sim(&format!("{secs}s"));
+    let o = driftless(&["allan", &long, "--rate", "100", "--stage"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("arw = "));
+}

@@ -70,6 +70,9 @@ pub struct TermFit {
     pub estimate: Option<Estimate>,
     /// Why there is no estimate.
     pub reason: Option<String>,
+    /// How many standard deviations above zero the fit put the term's square, where the fit
+    /// got that far (it grows about as the square root of the record's length).
+    pub sigmas: Option<f64>,
 }
 
 impl TermFit {
@@ -78,6 +81,7 @@ impl TermFit {
             term,
             estimate: None,
             reason: Some(reason),
+            sigmas: None,
         }
     }
 }
@@ -391,15 +395,19 @@ pub fn fit_terms(points: &[AllanPoint], ci: f64) -> Result<NoiseFit, FitError> {
             }
             let var = cov[k][k];
             let nu = 2.0 * theta[k] * theta[k] / var;
+            let sigmas = Some((nu / 2.0).sqrt());
             if nu < MIN_NU {
-                return TermFit::none(
-                    term,
-                    format!(
-                        "not significant: {}^2 is only {:.1} standard deviations above zero",
-                        term.name(),
-                        (nu / 2.0).sqrt()
-                    ),
-                );
+                return TermFit {
+                    sigmas,
+                    ..TermFit::none(
+                        term,
+                        format!(
+                            "not significant: {}^2 is only {:.1} standard deviations above zero",
+                            term.name(),
+                            (nu / 2.0).sqrt()
+                        ),
+                    )
+                };
             }
             let value = theta[k].sqrt();
             let (lo, hi) = chi2::confidence_interval(value, nu, ci);
@@ -407,6 +415,7 @@ pub fn fit_terms(points: &[AllanPoint], ci: f64) -> Result<NoiseFit, FitError> {
                 term,
                 estimate: Some(Estimate { value, lo, hi }),
                 reason: None,
+                sigmas,
             }
         })
         .collect();
@@ -448,6 +457,7 @@ pub fn read_offs(points: &[AllanPoint]) -> Vec<TermFit> {
                         hi: p.hi / b_factor,
                     }),
                     reason: None,
+                    sigmas: None,
                 };
             }
             let target = term.slope();
@@ -484,6 +494,7 @@ pub fn read_offs(points: &[AllanPoint]) -> Vec<TermFit> {
                     hi: value * hi_ratio,
                 }),
                 reason: None,
+                sigmas: None,
             }
         })
         .collect()

@@ -200,6 +200,7 @@ fn fit_terms_or_reason(fit: &Result<NoiseFit, FitError>) -> Vec<TermFit> {
                 term,
                 estimate: None,
                 reason: Some(e.to_string()),
+                sigmas: None,
             })
             .collect(),
     }
@@ -310,6 +311,32 @@ fn stage_table(
                 r.name
             ))
         })?;
+        // Without N the filter has no measurement noise: say how long a record would do.
+        let n = fit.get(Term::N);
+        if n.estimate.is_none() {
+            let secs = r.samples as f64 / rate;
+            let needed = match n.sigmas {
+                // Its significance grows about as the square root of the length.
+                Some(z) if z > 0.0 => {
+                    let z_min = (crate::allan::fit::MIN_NU / 2.0).sqrt();
+                    let s = (secs * (z_min / z).powi(2) * 1.25).ceil();
+                    format!(
+                        "about {} of still data",
+                        humantime::format_duration(std::time::Duration::from_secs(s as u64))
+                    )
+                }
+                _ => "a longer stretch of still data".to_string(),
+            };
+            return Err(CliError::input(format!(
+                "{shown}: column '{}': {} of data cannot identify the angle random walk N ({}): \
+                 record {needed}",
+                r.name,
+                humantime::format_duration(std::time::Duration::from_millis(
+                    (secs * 1000.0).round() as u64
+                )),
+                n.reason.as_deref().unwrap_or("no estimate")
+            )));
+        }
         let t = BiasTerms::from_fit(fit, lsb * unit.to_deg_per_s()).map_err(|e| {
             CliError::input(format!(
                 "{shown}: column '{}': {e}: the record cannot give predict.bias its terms",
