@@ -24,6 +24,7 @@ use crossbeam_channel::{bounded, Sender};
 use serde::{Deserialize, Serialize};
 
 use crate::drift::bias::{BiasTerms, FilterSnapshot, LearnerSnapshot, GRID, MAX_STATES};
+use crate::stages::schema::Src;
 
 /// The file format's version.
 const FORMAT: u32 = 1;
@@ -122,16 +123,12 @@ pub fn load(path: &Path, owner: &Owner) -> Result<Option<Saved>, String> {
     };
     let cold = "remove it to start cold, or point state_file elsewhere";
     let file: File = toml::from_str(&text).map_err(|e| {
-        let at = e.span().map_or(String::new(), |s| {
-            let before = &text[..s.start.min(text.len())];
-            let line = before.matches('\n').count() + 1;
-            let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-            format!(":{line}:{col}")
-        });
-        format!(
-            "state_file {shown}{at}: not a bias state driftless wrote ({}): {cold}",
-            e.message()
-        )
+        let src = Src { path, text: &text };
+        let why = format!(
+            "not a bias state driftless wrote ({}): {cold}",
+            e.message().trim_end()
+        );
+        src.at(e.span().map_or(0, |s| s.start), why).to_string()
     })?;
     if file.format != FORMAT {
         return Err(format!(
