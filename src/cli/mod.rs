@@ -230,6 +230,18 @@ pub fn main() -> ExitCode {
     }
 }
 
+/// The warnings a pipeline file gave when read (they do not stop it), one line each on
+/// stderr (a closed stderr loses them, nothing else).
+pub fn print_warnings(p: &crate::pipeline::config::Pipeline) {
+    for w in &p.warnings {
+        let _ = writeln!(
+            std::io::stderr(),
+            "driftless: warning: {}: {w}",
+            p.path.display()
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -69,13 +69,7 @@ fn load_all(args: &Args) -> Result<Vec<(Pipeline, String)>, CliError> {
     let mut first_root: Option<PathBuf> = None;
     for path in &args.pipelines {
         let pipeline: Pipeline = config::load(path)?;
-        for w in &pipeline.warnings {
-            let _ = writeln!(
-                std::io::stderr(),
-                "driftless: warning: {}: {w}",
-                path.display()
-            );
-        }
+        crate::cli::print_warnings(&pipeline);
         let prefix = args.iceoryx2.resolve(Some(&pipeline.iceoryx2))?;
         let here = transport::root();
         let first = first_root.get_or_insert_with(|| here.clone());

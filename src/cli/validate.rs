@@ -9,6 +9,7 @@ use crate::cli::CliError;
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::runtime;
 use crate::stages::contract::{Kind, Role};
+use crate::transport::ros2::Direction;
 
 /// Arguments of `driftless validate`.
 #[derive(Debug, clap::Args)]
@@ -34,9 +35,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let mut all = Vec::new();
     for path in &args.pipelines {
         let p = config::load(path)?;
-        for w in &p.warnings {
-            eprintln!("driftless: warning: {}: {w}", path.display());
-        }
+        crate::cli::print_warnings(&p);
         describe(&p);
         all.push(p);
     }
@@ -85,14 +84,13 @@ fn describe(p: &Pipeline) {
             r.depth,
             r.frame_id
         );
-        if let Some((topic, service)) = &r.imu_in {
-            println!("    in     {topic} (sensor_msgs/msg/Imu) -> {service}");
-        }
-        for (service, topic) in &r.imu_out {
-            println!("    out    {service} -> {topic} (sensor_msgs/msg/Imu)");
-        }
-        if let Some((topic, ty, service)) = &r.motion_in {
-            println!("    motion {topic} ({ty}) -> {service}");
+        for t in r.topics() {
+            let (topic, ty, service) = (t.topic, t.ty, t.service);
+            match t.direction {
+                Direction::In => println!("    in     {topic} ({ty}) -> {service}"),
+                Direction::Out => println!("    out    {service} -> {topic} ({ty})"),
+                Direction::Stop => println!("    motion {topic} ({ty}) -> {service}"),
+            }
         }
     }
 }

@@ -43,10 +43,9 @@ use std::path::{Path, PathBuf};
 use crate::io::atomic::AtomicFile;
 use crate::io::recording::{limited_reader, map_mcap, McapOpenError};
 
-pub use crate::transport::ros2::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION};
-
-/// The ROS 2 type name of the IMU message (the MCAP schema name).
-pub const IMU_TYPE: &str = "sensor_msgs/msg/Imu";
+pub use crate::transport::ros2::{
+    seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE,
+};
 /// Schema encoding of ROS 2 `.msg` definitions.
 pub const SCHEMA_ENCODING: &str = "ros2msg";
 /// Message encoding of ROS 2 messages.

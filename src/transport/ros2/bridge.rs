@@ -23,7 +23,7 @@ use super::dds::{
     DdsReadiness, ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, PublisherId,
     Ros2Node,
 };
-use super::imu::ImuMapping;
+use super::imu::{ImuMapping, IMU_TYPE};
 use super::{Ros2Settings, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::monotonic_ns;
 use crate::transport::{
@@ -38,9 +38,6 @@ pub const MATCH_GRACE: Duration = Duration::from_secs(3);
 fn say(line: std::fmt::Arguments<'_>) {
     let _ = writeln!(std::io::stderr(), "driftless: ros2: {line}");
 }
-
-/// The ROS 2 type of the Imu topics.
-const IMU: &str = "sensor_msgs/msg/Imu";
 
 /// The longest sleep: the matching checks' period, and a safety net for a missed wake-up.
 const IDLE: Duration = Duration::from_millis(100);
@@ -259,16 +256,11 @@ fn realtime_offset_ns() -> i128 {
 /// list`: the node, its domain and each topic with its direction, type and service.
 fn announcement(settings: &Ros2Settings, node: &Ros2Node) -> Vec<(&'static str, String)> {
     let ns = settings.namespace.trim_end_matches('/');
-    let mut topics: Vec<String> = Vec::new();
-    if let Some((topic, service)) = &settings.imu_in {
-        topics.push(format!("in {topic} {IMU} {service}"));
-    }
-    for (service, topic) in &settings.imu_out {
-        topics.push(format!("out {topic} {IMU} {service}"));
-    }
-    if let Some((topic, ty, service)) = &settings.motion_in {
-        topics.push(format!("stop {topic} {ty} {service}"));
-    }
+    let mut topics: Vec<String> = settings
+        .topics()
+        .iter()
+        .map(|t| format!("{} {} {} {}", t.direction.name(), t.topic, t.ty, t.service))
+        .collect();
     let room = crate::transport::MAX_ATTRIBUTES - 2;
     if topics.len() > room {
         let more = topics.len() - (room - 1);
@@ -305,7 +297,7 @@ pub fn run_bridge(
         let mut watched = Vec::new();
         let mut imu_in = match &settings.imu_in {
             Some((topic, service)) => {
-                watched.push(Watched::new(topic, IMU, false));
+                watched.push(Watched::new(topic, IMU_TYPE, false));
                 Some(ImuIn {
                     topic: topic.clone(),
                     sub: node.imu_subscription(topic, settings.depth)?,
@@ -321,7 +313,7 @@ pub fn run_bridge(
         };
         let mut outs = Vec::new();
         for (service, topic) in &settings.imu_out {
-            watched.push(Watched::new(topic, IMU, true));
+            watched.push(Watched::new(topic, IMU_TYPE, true));
             outs.push(ImuOut {
                 input: transport.open_input::<GyroSample>(service)?,
                 waker: transport.existing_waker(service)?,

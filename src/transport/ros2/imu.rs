@@ -6,6 +6,9 @@ use super::super::wire::{
     GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID,
 };
 
+/// The ROS 2 type name of the IMU message (also the MCAP schema name).
+pub const IMU_TYPE: &str = "sensor_msgs/msg/Imu";
+
 /// The complete `ros2msg` definition of sensor_msgs/msg/Imu as `ros2 bag record` writes it
 /// (rosbag2_cpp's LocalMessageDefinitionSource): the installed `.msg` file verbatim, then each
 /// dependency, depth first in sorted order, after a blank line, 80 `=` and `MSG: pkg/Type`.

@@ -20,7 +20,7 @@ pub use dds::{
     MotionSubscription, PublisherId, Ros2Node, DOMAIN_ENV,
 };
 
-pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION};
+pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE};
 
 /// The attribute that names the ROS 2 node on the event service where a pipeline's ROS 2 side
 /// says what it does (`driftless list` finds the ROS 2 sides by it).
@@ -54,4 +54,64 @@ pub struct Ros2Settings {
     /// The vehicle's motion: its topic, its ROS 2 type and the StopSignal service it feeds (a
     /// `predict.bias` stage's `stop_input`).
     pub motion_in: Option<(String, String, String)>,
+}
+
+/// Which way a topic of the ROS 2 side goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// A driver's Imu into a service.
+    In,
+    /// A service out as Imu.
+    Out,
+    /// The vehicle's motion into a stop-signal service.
+    Stop,
+}
+
+impl Direction {
+    /// Its name in `driftless list`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Direction::In => "in",
+            Direction::Out => "out",
+            Direction::Stop => "stop",
+        }
+    }
+}
+
+/// One topic of a ROS 2 side, with its service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ros2Topic<'a> {
+    /// Which way it goes.
+    pub direction: Direction,
+    /// The ROS 2 topic.
+    pub topic: &'a str,
+    /// Its ROS 2 type.
+    pub ty: &'a str,
+    /// The iceoryx2 service it feeds or comes from.
+    pub service: &'a str,
+}
+
+impl Ros2Settings {
+    /// Every topic: the Imu in, each Imu out, the motion in, in that order.
+    pub fn topics(&self) -> Vec<Ros2Topic<'_>> {
+        let imu_in = self.imu_in.iter().map(|(topic, service)| Ros2Topic {
+            direction: Direction::In,
+            topic,
+            ty: IMU_TYPE,
+            service,
+        });
+        let imu_out = self.imu_out.iter().map(|(service, topic)| Ros2Topic {
+            direction: Direction::Out,
+            topic,
+            ty: IMU_TYPE,
+            service,
+        });
+        let motion = self.motion_in.iter().map(|(topic, ty, service)| Ros2Topic {
+            direction: Direction::Stop,
+            topic,
+            ty,
+            service,
+        });
+        imu_in.chain(imu_out).chain(motion).collect()
+    }
 }
