@@ -260,6 +260,41 @@ fn a_live_daemon_under_another_prefix_survives_a_shorter_prefixs_clean_up() {
     assert!(names(shm).is_empty(), "{:?}", names(shm));
 }
 
+/// A node that is being created has its details written before the monitor that makes it
+/// listed: a command ending meanwhile (here `list`, its clean-up finding no node) must not
+/// take them (a listing then showed the daemon's node without its name). Planted as iceoryx2
+/// leaves them in that instant; a second later, with still no monitor, they are a dead
+/// start's and go.
+#[test]
+fn a_node_being_created_keeps_its_details_through_another_commands_clean_up() {
+    if !in_namespace(
+        "a_node_being_created_keeps_its_details_through_another_commands_clean_up",
+        "64m",
+    ) {
+        return;
+    }
+    let node_dir = Path::new(ROOT).join("nodes").join(D);
+    std::fs::create_dir_all(&node_dir).unwrap();
+    let details = node_dir.join("settle_node.details");
+    // SAFETY: geteuid cannot fail.
+    plant(&details, "name = \"starting\"", unsafe { libc::geteuid() });
+    let planted = Instant::now();
+    let list = || run_within(&["list", "--prefix", "settle_"], Duration::from_secs(30));
+    let (code, err) = list();
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        planted.elapsed() < Duration::from_millis(900),
+        "the machine was too slow to tell: {:?}",
+        planted.elapsed()
+    );
+    assert!(details.exists(), "a starting node's details were removed");
+    std::thread::sleep(Duration::from_millis(1100).saturating_sub(planted.elapsed()));
+    let (code, err) = list();
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!details.exists(), "a dead start's details were left");
+    assert!(!node_dir.exists(), "its node directory was left");
+}
+
 #[test]
 fn a_symlink_to_a_root_only_directory_is_never_followed() {
     if !in_namespace(

@@ -582,9 +582,8 @@ fn list_shows_the_ros2_side_on_the_domain_in_force_and_a_bad_domain_is_refused()
         .spawn()
         .unwrap();
     // Wait on the daemon's own progress: its ROS 2 side says, 3 s after it set up, that no
-    // peer came. Only then list: a `list` that ends while a daemon is still creating its node
-    // can take the prefix for empty and remove the starting node's files (a defect found
-    // here, not yet fixed).
+    // peer came. Only then list: a listing taken while the daemon still creates its nodes
+    // shows them half made.
     let (tx, rx) = std::sync::mpsc::channel::<String>();
     let stderr = d.stderr.take().unwrap();
     let reader = std::thread::spawn(move || {

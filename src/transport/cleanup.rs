@@ -114,24 +114,132 @@ fn nodes_dir() -> Option<SafeDir> {
 /// Remove the files of `prefix` that iceoryx2 leaves once no node of it is left (the
 /// per-prefix management segment in `/dev/shm`, and whatever a killed process left). Does
 /// nothing while a node of the prefix is alive, or if the nodes cannot be listed.
+///
+/// Another process may be creating a node meanwhile: iceoryx2 writes a node's details before
+/// the monitor that makes it listed. So the files are taken stock of before the nodes are
+/// counted, and only those are deleted, each only if it is still the same file (a file made
+/// after the stock is never touched). A node's details made less than [`NODE_SETTLE`] before
+/// the count are left as well: they may be a node that is not listed yet (a listing would
+/// show it without its name).
 pub fn remove_prefix_leftovers(prefix: &str) {
+    let Some(stock) = Leftovers::take(prefix) else {
+        return;
+    };
+    let counted = std::time::SystemTime::now();
     if Transport::node_count(prefix).map_or(true, |n| n > 0) {
         return;
     }
-    if let Some(shm) = SafeDir::open(SHM_DIR.as_ref()) {
-        shm.remove_prefix_files(Place::Shm, prefix, |_| true);
+    stock.remove(counted);
+}
+
+/// How long before the nodes are counted a node's details file may be one that is still
+/// being created (its monitor follows within microseconds; a second covers a loaded machine).
+const NODE_SETTLE: Duration = Duration::from_secs(1);
+
+/// One file to delete: where it is, its name, and which file it was (device and inode).
+struct Found {
+    place: Place,
+    /// Index into [`Leftovers::dirs`].
+    dir: usize,
+    name: Vec<u8>,
+    stat: Stat,
+}
+
+/// The files of a prefix that [`remove_prefix_leftovers`] deletes, taken stock of beforehand,
+/// with the directories (opened without following links) they are in.
+struct Leftovers {
+    dirs: Vec<SafeDir>,
+    found: Vec<Found>,
+    /// Node directories (index into `dirs` of `nodes`, name) to remove once empty.
+    node_dirs: Vec<Vec<u8>>,
+    nodes: Option<usize>,
+}
+
+impl Leftovers {
+    fn take(prefix: &str) -> Option<Self> {
+        let mut l = Leftovers {
+            dirs: Vec::new(),
+            found: Vec::new(),
+            node_dirs: Vec::new(),
+            nodes: None,
+        };
+        if let Some(shm) = SafeDir::open(SHM_DIR.as_ref()) {
+            l.add(shm, Place::Shm, prefix);
+        }
+        let root = SafeDir::open(&root())?;
+        let services = root.sub(b"services");
+        let nodes = root.sub(b"nodes");
+        l.add(root, Place::Root, prefix);
+        if let Some(services) = services {
+            l.add(services, Place::Services, prefix);
+        }
+        if let Some(nodes) = nodes {
+            let ids: Vec<Vec<u8>> = nodes
+                .names()
+                .into_iter()
+                .filter(|n| is_node_dir(n))
+                .collect();
+            let subs: Vec<(Vec<u8>, SafeDir)> = ids
+                .into_iter()
+                .filter(|id| {
+                    nodes.stat(id).is_some_and(|st| {
+                        FileType::from_raw_mode(st.st_mode) == FileType::Directory && is_own(&st)
+                    })
+                })
+                .filter_map(|id| nodes.sub(&id).map(|d| (id, d)))
+                .collect();
+            l.nodes = Some(l.add(nodes, Place::Nodes, prefix));
+            for (id, dir) in subs {
+                l.add(dir, Place::NodeDir, prefix);
+                l.node_dirs.push(id);
+            }
+        }
+        Some(l)
     }
-    let Some(root) = SafeDir::open(&root()) else {
-        return;
-    };
-    root.remove_prefix_files(Place::Root, prefix, |_| true);
-    if let Some(services) = root.sub(b"services") {
-        services.remove_prefix_files(Place::Services, prefix, |_| true);
+
+    /// Take stock of `dir`'s files of `prefix` in `place`; the index of `dir`.
+    fn add(&mut self, dir: SafeDir, place: Place, prefix: &str) -> usize {
+        let at = self.dirs.len();
+        for name in dir.names() {
+            if is_ours(place, prefix.as_bytes(), &name) {
+                if let Some(stat) = dir.stat(&name) {
+                    self.found.push(Found {
+                        place,
+                        dir: at,
+                        name,
+                        stat,
+                    });
+                }
+            }
+        }
+        self.dirs.push(dir);
+        at
     }
-    if let Some(nodes) = root.sub(b"nodes") {
-        nodes.remove_prefix_files(Place::Nodes, prefix, |_| true);
-        for id in nodes.names().into_iter().filter(|n| is_node_dir(n)) {
-            remove_node_dir(&nodes, prefix, &id);
+
+    /// Delete every file taken stock of that is still the same file (a node's details only if
+    /// made [`NODE_SETTLE`] before `counted`), then the node directories left empty.
+    fn remove(self, counted: std::time::SystemTime) {
+        for f in &self.found {
+            let dir = &self.dirs[f.dir];
+            let Some(now) = dir.stat(&f.name) else {
+                continue;
+            };
+            if (now.st_dev, now.st_ino) != (f.stat.st_dev, f.stat.st_ino) {
+                continue;
+            }
+            if f.place == Place::NodeDir {
+                let made = std::time::UNIX_EPOCH
+                    + Duration::new(now.st_ctime.max(0) as u64, now.st_ctime_nsec as u32);
+                if made + NODE_SETTLE > counted {
+                    continue;
+                }
+            }
+            dir.remove_own(&f.name, f.place == Place::Root);
+        }
+        if let Some(nodes) = self.nodes.map(|i| &self.dirs[i]) {
+            for id in &self.node_dirs {
+                let _ = rustix::fs::unlinkat(&nodes.0, OsStr::from_bytes(id), AtFlags::REMOVEDIR);
+            }
         }
     }
 }
