@@ -345,6 +345,50 @@ fn a_stalled_subscriber_never_blocks_the_pipeline_and_its_losses_are_counted() {
     drop(stalled);
 }
 
+/// A subscriber that takes what it wanted, stops reading and goes away (`tap --count`): the
+/// samples it missed meanwhile are "left unread", not lost, in the report and the verdict.
+#[test]
+fn a_subscriber_that_stops_reading_and_leaves_is_left_unread_not_lost() {
+    const N: usize = 3000;
+    let prefix = Prefix::new("leaver");
+    let dir = Dir::with_csv(N);
+    let file = dir.write("p.toml", &csv_pipeline("realtime", false, 16));
+    let report_path = dir.path("report.json");
+    let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
+    wait_ready(&prefix, "c/stats", &mut child);
+    let me = Transport::new(&prefix.0, "leaver", qos(16)).expect("node");
+    let input = me.open_input::<GyroSample>("c/corrected").expect("open");
+    let mut taken = 0;
+    let end = Instant::now() + Duration::from_secs(10);
+    while taken < 100 {
+        assert!(Instant::now() < end, "took {taken} of 100");
+        match input.receive().unwrap() {
+            Some(_) => taken += 1,
+            None => std::thread::sleep(Duration::from_millis(1)),
+        }
+    }
+    // It has its count: it stops reading (its 16 fill, the rest miss it), then leaves.
+    std::thread::sleep(Duration::from_millis(400));
+    drop(input);
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "stderr: {err}");
+    let r = report(&dir);
+    assert_eq!(r["samples_out"], N as u64);
+    assert_eq!(r["lost"], 0, "{r}");
+    let left = r["left_unread"].as_u64().unwrap();
+    assert!(
+        (200..=N as u64).contains(&left),
+        "about 400 ms at 1 kHz less its buffer: {left}"
+    );
+    assert_eq!(r["stages"][2]["lost"], 0, "{r}");
+    assert!(
+        err.contains(&format!(
+            "nothing lost ({left} left unread by subscribers that went away)"
+        )),
+        "{err}"
+    );
+}
+
 #[test]
 fn services_exist_only_while_the_daemon_runs_and_a_late_subscriber_gets_no_history() {
     let prefix = Prefix::new("life");

@@ -17,7 +17,7 @@ use crossbeam_channel::{Receiver, TryRecvError};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 
-use crate::transport::{Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES};
+use crate::transport::{Losses, Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES};
 
 /// Most stages of a pipeline.
 pub const MAX_STAGES: usize = MAX_STATS_STAGES;
@@ -281,7 +281,7 @@ pub fn run_all(mut reporters: Vec<(Reporter, Receiver<Batch>, Publish<'_>)>) -> 
 pub struct Reporter {
     layout: Layout,
     counters: Arc<Counters>,
-    lost: Vec<Arc<AtomicU64>>,
+    lost: Vec<Arc<Losses>>,
     stage_hist: Vec<Histogram<u64>>,
     e2e: Histogram<u64>,
     heading: Option<HeadingSummary>,
@@ -304,7 +304,7 @@ fn histogram() -> Histogram<u64> {
 
 impl Reporter {
     /// A reporter for `layout`, reading `counters` and the services' loss counters `lost`.
-    pub fn new(layout: Layout, counters: Arc<Counters>, lost: Vec<Arc<AtomicU64>>) -> Self {
+    pub fn new(layout: Layout, counters: Arc<Counters>, lost: Vec<Arc<Losses>>) -> Self {
         let n = layout.stages.len();
         let interval = layout.interval;
         Reporter {
@@ -436,7 +436,7 @@ impl Reporter {
 
     /// Losses in every service plus the samples missing from the source.
     fn lost_total(&self) -> u64 {
-        self.lost.iter().map(|l| get(l)).sum::<u64>() + get(&self.counters.missing)
+        self.lost.iter().map(|l| get(&l.lost)).sum::<u64>() + get(&self.counters.missing)
     }
 
     fn flagged(&self) -> Flagged {
@@ -462,7 +462,7 @@ impl Reporter {
             st.name[..n].copy_from_slice(&bytes[..n]);
             st.samples_in = get(&c.stage_in[i]);
             st.samples_out = get(&c.stage_out[i]);
-            st.lost = self.lost.get(i).map_or(0, |l| get(l));
+            st.lost = self.lost.get(i).map_or(0, |l| get(&l.lost));
             st.compute = Pct::of(h).wire();
         }
         let last = self.layout.stages.len().saturating_sub(1);
@@ -502,6 +502,7 @@ impl Reporter {
             misses: self.misses.clone(),
             metric_drops: get(&c.metric_drops),
             lost: self.lost_total(),
+            left_unread: self.lost.iter().map(|l| get(&l.left_unread)).sum(),
             epoch: get(&c.epoch) as u32,
             source_restarts: get(&c.restarts),
             flagged: self.flagged(),
@@ -522,7 +523,7 @@ impl Reporter {
                     kind: kind.clone(),
                     samples_in: get(&c.stage_in[i]),
                     samples_out: get(&c.stage_out[i]),
-                    lost: self.lost.get(i).map_or(0, |l| get(l)),
+                    lost: self.lost.get(i).map_or(0, |l| get(&l.lost)),
                     compute_ns: Pct::of(&self.stage_hist[i]),
                 })
                 .collect(),

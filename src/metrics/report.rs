@@ -161,6 +161,9 @@ pub struct Report {
     /// Samples lost anywhere: by subscribers of every service (full buffers) and before the
     /// ingest (sequence numbers missing from the source, `flagged.missing`).
     pub lost: u64,
+    /// Samples subscribers that went away had stopped taking before they left (a `tap
+    /// --count` that had its count): not lost, nobody wanted them ([`crate::transport::Losses`]).
+    pub left_unread: u64,
     /// The stream's epoch at start ([`crate::transport::GyroSample::epoch`]).
     pub epoch: u32,
     /// New epochs after the first: source restarts, and sequence numbers that repeated or
@@ -384,6 +387,10 @@ impl Report {
         let loss = match self.lost {
             0 => "nothing lost".to_string(),
             n => format!("{n} samples LOST"),
+        };
+        let loss = match self.left_unread {
+            0 => loss,
+            n => format!("{loss} ({n} left unread by subscribers that went away)"),
         };
         let woken = match self.woken_late_over_deadline {
             0 => String::new(),

@@ -62,7 +62,7 @@ pub use error::TransportError;
 pub use names::check_prefix;
 pub use node::{Announcement, Transport, MAX_ATTRIBUTES};
 pub use permissions::user_name;
-pub use ports::{Input, Output};
+pub use ports::{Input, Losses, Output};
 pub use shm_space::{install_sigbus_guard, shared_memory_trouble, ShmTrouble};
 pub use wake::{WakeSet, Waker};
 pub use wire::*;

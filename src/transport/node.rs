@@ -1,7 +1,7 @@
 //! [`Transport`]: one iceoryx2 node and the services and ports it sets up for a pipeline.
 
+use std::cell::Cell;
 use std::fmt::Debug;
-use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 
 use iceoryx2::node::NodeView as _;
@@ -174,7 +174,6 @@ impl Transport {
         name: &str,
         notify: bool,
     ) -> Result<Output<T>, TransportError> {
-        let lost = Arc::new(AtomicU64::new(0));
         let publisher = service
             .publisher_builder()
             .backpressure_strategy(BackpressureStrategy::DiscardData)
@@ -201,7 +200,10 @@ impl Transport {
             service,
             publisher,
             notifier,
-            lost,
+            losses: Arc::default(),
+            streak: Cell::new(0),
+            subscribers: Cell::new(0),
+            departed: Cell::new(false),
         })
     }
 

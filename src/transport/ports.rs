@@ -1,5 +1,6 @@
 //! The ports a stage sees: [`Output`] (publish, notify, count losses) and [`Input`] (receive).
 
+use std::cell::Cell;
 use std::fmt::Debug;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -13,13 +14,34 @@ use iceoryx2::prelude::*;
 use super::error::TransportError;
 use super::{PubSubFactory, Svc, ZeroCopySend};
 
+/// What subscribers of one output could not take, readable from another thread.
+#[derive(Debug, Default)]
+pub struct Losses {
+    /// Samples a subscriber could not take (its buffer was full) and that count as lost.
+    pub lost: AtomicU64,
+    /// Samples a subscriber did not take in its last moments, before it went away: it had
+    /// stopped reading (a `tap --count` that has its count). Not lost: nobody wanted them.
+    pub left_unread: AtomicU64,
+}
+
 /// The sending side of one service. Sending never blocks: a subscriber with a full buffer
 /// loses the sample, counted in [`Output::lost`].
+///
+/// A subscriber that stops reading and then leaves misses the samples between: they count as
+/// lost while it stays, and move to [`Losses::left_unread`] once it is gone and every
+/// subscriber left is served again (a subscriber still missing samples then was not the one
+/// that left, and they stay lost).
 pub struct Output<T: Debug + ZeroCopySend + Copy + 'static> {
     pub(super) service: PubSubFactory<T>,
     pub(super) publisher: Publisher<Svc, T, ()>,
     pub(super) notifier: Option<Notifier<Svc>>,
-    pub(super) lost: Arc<AtomicU64>,
+    pub(super) losses: Arc<Losses>,
+    /// Samples missed since every subscriber was last served.
+    pub(super) streak: Cell<u64>,
+    /// Subscribers at the last send.
+    pub(super) subscribers: Cell<usize>,
+    /// A subscriber went away during a streak: the next send tells whose it was.
+    pub(super) departed: Cell<bool>,
     /// The service keeps samples for subscribers that come later (only a service another
     /// process created with a history): every sample is sent, read or not.
     pub(super) keeps_history: bool,
@@ -46,7 +68,9 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
     /// registers is served from the next send, the one on which iceoryx2 itself would have
     /// connected it.
     pub fn send(&self, value: &T) -> Result<usize, TransportError> {
-        if !self.keeps_history && self.service.dynamic_config().number_of_subscribers() == 0 {
+        let before = self.service.dynamic_config().number_of_subscribers();
+        if !self.keeps_history && before == 0 {
+            self.account(0, 0, 0);
             return Ok(0);
         }
         let sample = self
@@ -63,13 +87,32 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
                 what: "send",
                 reason: format!("{e:?}"),
             })?;
-        // Subscribers registered on the service but not served: their buffers were full.
-        let subscribers = self.service.dynamic_config().number_of_subscribers();
-        if n < subscribers {
-            self.lost
-                .fetch_add((subscribers - n) as u64, Ordering::Relaxed);
-        }
+        let after = self.service.dynamic_config().number_of_subscribers();
+        self.account(before.min(after), after, n);
         Ok(n)
+    }
+
+    /// Count one send: `expected` subscribers were registered throughout (one that came or went
+    /// meanwhile is not owed this sample), `now` are registered after it, `served` took it.
+    fn account(&self, expected: usize, now: usize, served: usize) {
+        let missed = expected.saturating_sub(served) as u64;
+        let streak = self.streak.get();
+        if now < self.subscribers.get() && streak > 0 {
+            self.departed.set(true);
+        }
+        self.subscribers.set(now);
+        if missed > 0 {
+            self.losses.lost.fetch_add(missed, Ordering::Relaxed);
+            self.streak.set(streak + missed);
+            return;
+        }
+        if self.departed.get() {
+            // Everyone left is served: the streak was the departed subscriber's.
+            self.losses.lost.fetch_sub(streak, Ordering::Relaxed);
+            self.losses.left_unread.fetch_add(streak, Ordering::Relaxed);
+        }
+        self.streak.set(0);
+        self.departed.set(false);
     }
 
     /// Wake the readers sleeping on the event service of the same name (if this output was
@@ -83,12 +126,12 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Output<T> {
 
     /// Samples that subscribers could not take so far (their buffers were full).
     pub fn lost(&self) -> u64 {
-        self.lost.load(Ordering::Relaxed)
+        self.losses.lost.load(Ordering::Relaxed)
     }
 
-    /// A handle on the loss counter, readable from another thread.
-    pub fn lost_counter(&self) -> Arc<AtomicU64> {
-        Arc::clone(&self.lost)
+    /// A handle on the loss counters, readable from another thread.
+    pub fn losses(&self) -> Arc<Losses> {
+        Arc::clone(&self.losses)
     }
 }
 

@@ -2,7 +2,7 @@
 //! the reporter, and the segments a chain splits into at an external stage (each on its own
 //! thread, sleeping on the external stage's output).
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -14,8 +14,8 @@ use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, Side, SideKind, Stage};
 use crate::transport::{
-    monotonic_ns, GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError,
-    FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
+    monotonic_ns, GyroSample, Input, Losses, Output, Qos, RawSample, StopSignal, Transport,
+    TransportError, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
 };
 
 /// A side input's subscriber ([`crate::stages::Params::side_inputs`]).
@@ -362,7 +362,7 @@ pub(super) fn build_segment(
     span: SegmentSpan,
     counters: Arc<Counters>,
     tx: Sender<Batch>,
-) -> Result<(Chain, Vec<Arc<AtomicU64>>, usize), RunError> {
+) -> Result<(Chain, Vec<Arc<Losses>>, usize), RunError> {
     let mut stage_objs = Vec::new();
     let mut sides = Vec::new();
     let mut outs = Vec::new();
@@ -394,7 +394,7 @@ pub(super) fn build_segment(
             outs.push(transport.output::<GyroSample>(&spec.output, notify)?);
         }
     }
-    let lost = outs.iter().map(Output::lost_counter).collect();
+    let lost = outs.iter().map(Output::losses).collect();
     let (first_in, first_out) = if span.lo == 1 {
         (0, 0)
     } else {
@@ -440,7 +440,7 @@ impl Drop for SetOnDrop {
 }
 
 /// What a later segment's thread reports once its ports exist.
-pub(super) type Ready = Result<(Vec<Arc<AtomicU64>>, usize), RunError>;
+pub(super) type Ready = Result<(Vec<Arc<Losses>>, usize), RunError>;
 
 /// A later segment's thread: it wakes on the event service of the external stage's output,
 /// runs its stages on each sample, and after `upstream_done` keeps reading until its input has
@@ -454,7 +454,7 @@ pub(super) fn run_segment(
     span: SegmentSpan,
     counters: Arc<Counters>,
     tx: Sender<Batch>,
-    external_lost: Arc<AtomicU64>,
+    external_lost: Arc<Losses>,
     upstream_done: &AtomicBool,
     stop: &AtomicBool,
     ready: crossbeam_channel::Sender<Ready>,
@@ -499,7 +499,9 @@ pub(super) fn run_segment(
                     if let Some(expected) = next_seq {
                         // A sensor's own gap is flagged (and counted as lost) at the ingest.
                         if s.seq > expected && s.flags & FLAG_GAP_BEFORE == 0 {
-                            external_lost.fetch_add(s.seq - expected, Ordering::Relaxed);
+                            external_lost
+                                .lost
+                                .fetch_add(s.seq - expected, Ordering::Relaxed);
                         }
                     }
                     next_seq = Some(s.seq.wrapping_add(1));

@@ -3,7 +3,7 @@
 //! let a set of pipelines share it.
 
 use std::io::Write as _;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -15,7 +15,7 @@ use crate::metrics::{run_all, Batch, Counters, Layout, Publish, Report, Reporter
 use crate::pipeline::config::Pipeline;
 use crate::stages::contract::{Poll, Source};
 use crate::transport::{
-    monotonic_ns, Qos, RawSample, StatsSnapshot, Transport, TransportError, WakeSet, Waker,
+    monotonic_ns, Losses, Qos, RawSample, StatsSnapshot, Transport, TransportError, WakeSet, Waker,
 };
 
 /// under one prefix, or different settings for the one hot thread.
@@ -242,7 +242,7 @@ impl<'a> Running<'a> {
         let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
         let (mut chain, head_lost, mut lag_total) =
             build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;
-        let mut lost: Vec<Arc<AtomicU64>> = vec![raw_out.lost_counter()];
+        let mut lost: Vec<Arc<Losses>> = vec![raw_out.losses()];
         lost.extend(head_lost);
         chain.head = Some(raw_out);
         chain.connect()?;
@@ -265,7 +265,7 @@ impl<'a> Running<'a> {
         let shared = Arc::new(p.clone());
         for (j, span) in spans.iter().copied().enumerate().skip(1) {
             let (ready_tx, ready_rx) = bounded::<Ready>(1);
-            let external_lost = Arc::new(AtomicU64::new(0));
+            let external_lost = Arc::<Losses>::default();
             let args = (
                 Arc::clone(&shared),
                 prefix.to_string(),
