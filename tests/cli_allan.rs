@@ -501,11 +501,14 @@ fn allan_stage_prints_a_table_the_pipeline_takes_with_every_term() {
     ] {
         assert!(table.contains(key), "{key} missing in:\n{table}");
     }
-    // 300 s cannot identify K: the comments say so and which value stands in.
+    // 300 s cannot identify K: the comments say so and what is taken (never the fit's
+    // best value of a term it cannot identify).
     assert!(
-        table.contains("not identifiable") && table.contains("the fit's best value"),
+        table.contains("not identifiable") && table.contains("; 0 is taken"),
         "{table}"
     );
+    assert!(table.contains("rrw = 0e0"), "{table}");
+    assert!(!table.contains("best value"), "{table}");
     let arw: f64 = table
         .lines()
         .find_map(|l| l.strip_prefix("arw = "))

@@ -9,7 +9,7 @@
 //! built-in adis16405 profile terms.
 
 use driftless::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
-use driftless::drift::bias::BiasTerms;
+use driftless::drift::bias::{own_terms, BiasTerms, ColumnFit};
 use driftless::io::csv_table::read_table;
 use driftless::nav::{
     evaluate, format_table, generate, summarize_methods, HeadingMetrics, Method, Profile, Setup,
@@ -36,7 +36,12 @@ fn log() -> Option<PathBuf> {
 fn terms_of(y: &[f64]) -> BiasTerms {
     let points = allan(y, RATE, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA).unwrap();
     let fit = fit_terms(&points, ONE_SIGMA).unwrap();
-    BiasTerms::from_fit(&fit, 0.05).unwrap()
+    let column = ColumnFit {
+        name: "axis",
+        fit: &fit,
+        points: &points,
+    };
+    own_terms(&[column], 0.05).unwrap().terms
 }
 
 /// Every held-out window of every axis under `profile`, with per-axis terms from `terms`.

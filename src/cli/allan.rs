@@ -3,12 +3,12 @@
 use super::CliError;
 use crate::allan::deviation::{self, add_intervals, AllanPoint, NoiseId};
 use crate::allan::{
-    chi2, edf, fit_terms, read_offs, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit,
-    TermUnits,
+    chi2, edf, fit_terms, read_offs, Estimate, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term,
+    TermFit, TermUnits,
 };
 use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
-use crate::drift::bias::BiasTerms;
+use crate::drift::bias::{combined_as, own_terms, Choice, ColumnFit};
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::{progress, write_table};
 use serde_json::{json, Map, Value};
@@ -54,9 +54,9 @@ pub struct Args {
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: Option<PathBuf>,
     /// Print a ready `predict.bias` [[stage]] table with the fitted terms instead of the tables:
-    /// every key given (no sensor's defaults fill in), the largest of each term over the
-    /// columns (the stage takes one set for all axes), and what was done with a term the record
-    /// cannot identify said in its comments.
+    /// every key given (no sensor's defaults fill in), one set for all axes (N the largest, B
+    /// the median, K 0, Q the largest; a term the record cannot identify is never the fit's
+    /// guess), and per term and column what was taken and why in its comments.
     #[arg(long, conflicts_with = "json")]
     pub stage: bool,
     /// With --stage: the output step of the raw rate, in the log's units (0: not quantised).
@@ -291,8 +291,8 @@ fn format_term(t: &TermFit, units: TermUnits) -> String {
     }
 }
 
-/// The `predict.bias` table of `--stage`: the largest of each term over the columns, every
-/// key written out, and per term and column what the fit said (`lsb` in the log's units).
+/// The `predict.bias` table of `--stage`: the terms of [`own_terms`], every key written out,
+/// and per term and column what was taken and why (`lsb` in the log's units).
 fn stage_table(
     results: &[ColumnResult],
     args: &Args,
@@ -303,7 +303,6 @@ fn stage_table(
     let shown = args.input.display();
     // Each column's fit and terms, or the reason the record cannot give them.
     let mut fits = Vec::with_capacity(results.len());
-    let mut terms: Option<BiasTerms> = None;
     for r in results {
         let fit = r.fit.as_ref().map_err(|e| {
             CliError::input(format!(
@@ -337,47 +336,72 @@ fn stage_table(
                 n.reason.as_deref().unwrap_or("no estimate")
             )));
         }
-        let t = BiasTerms::from_fit(fit, lsb * unit.to_deg_per_s()).map_err(|e| {
-            CliError::input(format!(
-                "{shown}: column '{}': {e}: the record cannot give predict.bias its terms",
-                r.name
-            ))
-        })?;
-        terms = Some(match terms {
-            None => t,
-            Some(m) => BiasTerms {
-                n: m.n.max(t.n),
-                b: m.b.max(t.b),
-                k: m.k.max(t.k),
-                q: m.q.max(t.q),
-                ..m
-            },
+        fits.push(ColumnFit {
+            name: r.name.as_str(),
+            fit,
+            points: &r.octave,
         });
-        fits.push((r.name.as_str(), fit));
     }
-    let Some(mut terms) = terms else {
+    if fits.is_empty() {
         return Err(CliError::input(format!("{shown}: no column to analyse")));
-    };
+    }
+    let own = own_terms(&fits, lsb * unit.to_deg_per_s()).map_err(|e| {
+        CliError::input(format!(
+            "{shown}: {e}: the record cannot give predict.bias its terms"
+        ))
+    })?;
+    let mut terms = own.terms;
     let mut notes = Vec::new();
-    for (term, key) in [
-        (Term::N, "arw"),
-        (Term::B, "bias_instability"),
-        (Term::K, "rrw"),
-        (Term::Q, "quantization"),
-    ] {
-        notes.push(format!("#   {term} ({key}):"));
-        for (name, fit) in &fits {
-            let t = fit.get(term);
-            let what = match t.estimate {
-                Some(_) => format_term(t, TermUnits::Datasheet),
-                None => {
-                    let (u, f) = term.unit_in(TermUnits::Datasheet);
-                    format!(
-                        "{}; the fit's best value, {} {u}, is used",
-                        format_term(t, TermUnits::Datasheet),
-                        sig(fit.theta[term as usize].max(0.0).sqrt() * f, 5)
-                    )
-                }
+    for (term, columns) in &own.choices {
+        let key = match term {
+            Term::N => "arw",
+            Term::B => "bias_instability",
+            Term::K => "rrw",
+            _ => "quantization",
+        };
+        let (u, f) = term.unit_in(TermUnits::Datasheet);
+        let taken = match term {
+            Term::N => terms.n,
+            Term::B => terms.b,
+            Term::K => terms.k,
+            _ => terms.q,
+        };
+        notes.push(format!(
+            "#   {term} ({key}) = {} {u}: {}",
+            sig(taken * f, 5),
+            combined_as(*term)
+        ));
+        for (name, choice) in columns {
+            let (u, f) = term.unit_in(TermUnits::Datasheet);
+            let at = |e: &Estimate| {
+                format!(
+                    "{} {u}  [{}, {}]",
+                    sig(e.value * f, 5),
+                    sig(e.lo * f, 5),
+                    sig(e.hi * f, 5)
+                )
+            };
+            let what = match choice {
+                Choice::Identified(e) => at(e),
+                Choice::Floor {
+                    why,
+                    estimate,
+                    tau_s,
+                    reached,
+                } => format!(
+                    "not identifiable: {why}; read at the curve's lowest point (tau {tau_s} s{}), {}, is taken",
+                    if *reached {
+                        ""
+                    } else {
+                        ", its last: no floor yet, an upper bound"
+                    },
+                    at(estimate)
+                ),
+                Choice::Zero(why) => format!("not identifiable: {why}; 0 is taken"),
+                Choice::Unused(e) => format!(
+                    "{}; not taken: B gives the walk, learnt from the stops where a stop signal gives them",
+                    at(e)
+                ),
             };
             notes.push(format!("#     {name}: {what}"));
         }
@@ -388,8 +412,8 @@ fn stage_table(
     let samples = results.first().map_or(0, |r| r.samples);
     let mut out = format!(
         "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {unit}),\n\
-         # from `driftless allan ... --stage`. One set for every axis: the largest of each term\n\
-         # over the columns. Every key is given, so no sensor's defaults fill in. The pipeline's\n\
+         # from `driftless allan ... --stage`. One set for every axis; each term says how it was\n\
+         # taken. Every key is given, so no sensor's defaults fill in. The pipeline's\n\
          # input_units must be {unit} (lsb is in them). Set input and output to your chain's services.\n",
         columns.join(", ")
     );

@@ -16,7 +16,7 @@ use super::simulate::parse_number;
 use super::CliError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
 use crate::cli::log_input::{self, BagArgs};
-use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
+use crate::drift::bias::{own_terms, stillness_from_terms, BiasModel, BiasTerms, ColumnFit};
 use crate::drift::PredictorKind;
 use crate::io::plot::{self, Panel, PanelStyle, Series};
 use crate::io::rate_log::RateLog;
@@ -73,8 +73,9 @@ pub struct Args {
     /// after it, so they are held out.
     #[arg(long, default_value = "33min")]
     pub characterise: String,
-    /// Noise terms of the estimators: `fit` (IEEE 952 fit of each axis' characterisation part)
-    /// or a sensor profile (adis16405, adxrs450). With `--sim`: the simulated sensor's.
+    /// Noise terms of the estimators: `fit` (what `driftless allan --stage` takes from the
+    /// characterisation part: one set for every axis) or a sensor profile (adis16405,
+    /// adxrs450). With `--sim`: the simulated sensor's.
     #[arg(long, default_value = "fit")]
     pub terms: String,
     /// Output step of the log, deg/s (0: not quantised; the ADIS16405's is 0.05).
@@ -151,23 +152,36 @@ fn log_source(log: RateLog, args: &Args, rate: f64, window: usize) -> Result<Sou
         )));
     }
     let axes: Vec<(String, Vec<f64>)> = table.names.into_iter().zip(table.columns).collect();
-    let mut terms = Vec::with_capacity(axes.len());
-    for (name, y) in &axes {
-        terms.push(if args.terms == "fit" {
-            let points = allan(&y[..characterise], rate, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA)
-                .map_err(|e| CliError::input(format!("{}: {name}: {e}", path.display())))?;
+    let terms = if args.terms == "fit" {
+        // What `driftless allan --stage` writes for this record: the user's path itself.
+        let mut fitted = Vec::with_capacity(axes.len());
+        for (name, y) in &axes {
+            let points = allan(
+                &y[..characterise],
+                rate,
+                Kind::Oadev,
+                &TauGrid::Octave,
+                ONE_SIGMA,
+            )
+            .map_err(|e| CliError::input(format!("{}: {name}: {e}", path.display())))?;
             let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
                 CliError::input(format!(
                     "{}: {name}: no noise terms from the first {characterise} rows ({e}); give --terms adis16405 or a longer --characterise",
                     path.display()
                 ))
             })?;
-            BiasTerms::from_fit(&fit, lsb)
-                .map_err(|e| CliError::input(format!("{}: {name}: {e}", path.display())))?
-        } else {
-            profile_terms(&args.terms)?
-        });
-    }
+            fitted.push((name.as_str(), fit, points));
+        }
+        let columns: Vec<ColumnFit> = fitted
+            .iter()
+            .map(|(name, fit, points)| ColumnFit { name, fit, points })
+            .collect();
+        let own = own_terms(&columns, lsb)
+            .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
+        vec![own.terms; axes.len()]
+    } else {
+        vec![profile_terms(&args.terms)?; axes.len()]
+    };
     Ok(Source {
         name: path.display().to_string(),
         rate,

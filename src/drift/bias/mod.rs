@@ -54,21 +54,22 @@
 //! Files: this one holds the terms and the errors; `filter.rs` the Kalman filter itself
 //! ([`BiasModel`], [`BiasFilter`]); `tracker.rs` what feeds it ([`BiasTracker`]: stillness, the
 //! delay window, the ends of a stop); `walk.rs` how the filter learns its random walk from the
-//! stops ([`WalkLearner`], [`LearnWalk`]).
+//! stops ([`WalkLearner`], [`LearnWalk`]); `own_terms.rs` one unit's terms from its still
+//! record ([`own_terms`]).
 
 mod filter;
+mod own_terms;
 mod tracker;
 mod walk;
 
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
+pub use own_terms::{combined_as, own_terms, Choice, ColumnFit, OwnTerms};
 pub use tracker::{
     default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,
     TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
 };
 pub use walk::{LearnerSnapshot, WalkConfig, WalkLearner, WalkReport, GRID};
 
-use crate::allan::fit::NoiseFit;
-use crate::allan::Term;
 use crate::sim::SimConfig;
 use std::f64::consts::{LN_2, PI};
 
@@ -114,6 +115,9 @@ pub enum BiasError {
     /// The Allan fit could not identify N.
     #[error("the Allan fit has no angle random walk N ({0}): cannot size the measurement noise")]
     NoN(String),
+    /// A column's B is not identified and its curve has no point to read it from.
+    #[error("column '{0}': B is not identified ({1}) and the curve has no point to read it from")]
+    NoFloor(String, String),
     /// The derived stillness thresholds are invalid.
     #[error("stillness: {0}")]
     Stillness(String),
@@ -198,31 +202,6 @@ impl BiasTerms {
             self.q,
             self.lsb
         )
-    }
-
-    /// Terms from an Allan fit ([`crate::allan::fit_terms`], base units). N must be identified.
-    /// B, K and Q are the fit's best values (its theta) even where the record cannot identify
-    /// them as significant: a Kalman filter needs the best guess of each noise, and zero is a
-    /// confident claim ("this bias never moves") that a short record does not support. R (rate
-    /// ramp) is not modelled. `lsb` is the rate's output step (0: none).
-    pub fn from_fit(fit: &NoiseFit, lsb: f64) -> Result<Self, BiasError> {
-        let nfit = fit.get(Term::N);
-        let Some(n) = nfit.estimate else {
-            return Err(BiasError::NoN(
-                nfit.reason.clone().unwrap_or_else(|| "no estimate".into()),
-            ));
-        };
-        let value = |t: Term| fit.theta[t as usize].max(0.0).sqrt();
-        let terms = BiasTerms {
-            n: n.value,
-            b: value(Term::B),
-            k: value(Term::K),
-            q: value(Term::Q),
-            lsb,
-            initial_sd: DEFAULT_INITIAL_SD,
-        };
-        terms.check()?;
-        Ok(terms)
     }
 
     /// Variance of one sample of a still sensor at `rate_hz` ((deg/s)^2): white N^2 rate,
