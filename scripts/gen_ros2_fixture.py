@@ -32,6 +32,15 @@ angular velocity and covariance bytes; the test computes the same from its own r
     /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py recorded \
         tests/fixtures/ros2/recorded.mcap > tests/fixtures/ros2/recorded.json
 
+`odom` writes tests/fixtures/ros2/odom.mcap for tests/logged_stops.rs: `/imu/data` (Imu,
+1,500 messages at 100 Hz: a gyro at rest with a bias of 0.4, -0.2, 0.1 deg/s and a small
+splitmix wobble, in rad/s) and `/odom` (nav_msgs/msg/Odometry at 20 Hz, stamped 3 ms after
+an Imu stamp): moving at 1.5 m/s (twist.twist.linear.x) for the first 5 s, standing (0, with
+a 0.004 m/s jitter on y) for the next 5 s, then silent. odom.csv holds each Odometry
+message's stamp_ns and speed, as a reader must decode them.
+
+    /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py odom
+
 `check PATH` reads an MCAP file that driftless's writer wrote (tests/ros2_bag.rs makes
 written.mcap: `written_messages` there is `written_message` here) with rosbags' reader and
 deserializer, asserts every field of every message against the same formulas, and prints
@@ -310,8 +319,98 @@ def recorded(path):
     sys.stdout.write("\n")
 
 
+# --- odom: a bag whose odometry gives the vehicle's stops ------------------------------
+
+ODOM = "nav_msgs/msg/Odometry"
+ODOM_COUNT = 1500  # Imu messages: 15 s at 100 Hz
+ODOM_EVERY = 5  # an Odometry message every 5th Imu stamp (20 Hz)
+ODOM_LAG_NS = 3_000_000
+
+
+def odom_message(stamp, moving, jitter):
+    types = STORE.types
+    vec = types["geometry_msgs/msg/Vector3"]
+    linear = vec(x=1.5, y=0.0, z=0.0) if moving else vec(x=0.0, y=jitter, z=0.0)
+    cov = np.arange(36, dtype=np.float64) * 1e-3
+    return types[ODOM](
+        header=types["std_msgs/msg/Header"](
+            stamp=types["builtin_interfaces/msg/Time"](
+                sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000
+            ),
+            frame_id="odom",
+        ),
+        child_frame_id="base_link",
+        pose=types["geometry_msgs/msg/PoseWithCovariance"](
+            pose=types["geometry_msgs/msg/Pose"](
+                position=types["geometry_msgs/msg/Point"](x=12.5, y=-3.25, z=0.0),
+                orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.6, w=0.8),
+            ),
+            covariance=cov,
+        ),
+        twist=types["geometry_msgs/msg/TwistWithCovariance"](
+            twist=types["geometry_msgs/msg/Twist"](linear=linear, angular=vec(x=0.0, y=0.0, z=0.25)),
+            covariance=cov,
+        ),
+    )
+
+
+def gen_odom():
+    tmp = tempfile.mkdtemp()
+    bias = np.radians([0.4, -0.2, 0.1])
+    rows = []
+    try:
+        bag = os.path.join(tmp, "odom")
+        writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        with writer:
+            imu = writer.add_connection(
+                "/imu/data", IMU, typestore=STORE, offered_qos_profiles=[RELIABLE_KEEP_LAST_10]
+            )
+            odom = writer.add_connection(
+                "/odom", ODOM, typestore=STORE, offered_qos_profiles=[RELIABLE_KEEP_LAST_10]
+            )
+            u = splitmix64(SEED + 10)
+            types = STORE.types
+            for k in range(ODOM_COUNT):
+                stamp = T0_NS + k * STEP_NS
+                w = [b + np.radians(0.02) * (next(u) - 0.5) for b in bias]
+                msg = types[IMU](
+                    header=types["std_msgs/msg/Header"](
+                        stamp=types["builtin_interfaces/msg/Time"](
+                            sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000
+                        ),
+                        frame_id="imu_link",
+                    ),
+                    orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                    orientation_covariance=diag(-1.0, 0.0, 0.0),
+                    angular_velocity=types["geometry_msgs/msg/Vector3"](x=w[0], y=w[1], z=w[2]),
+                    angular_velocity_covariance=diag(1e-6, 1e-6, 1e-6),
+                    linear_acceleration=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=9.8),
+                    linear_acceleration_covariance=diag(1e-4, 1e-4, 1e-4),
+                )
+                writer.write(imu, stamp + 1_000_000, bytes(STORE.serialize_cdr(msg, IMU)))
+                third = k * 3 // ODOM_COUNT
+                if k % ODOM_EVERY == 0 and third < 2:
+                    o_stamp = stamp + ODOM_LAG_NS
+                    jitter = 0.004 * (next(u) - 0.5)
+                    o = odom_message(o_stamp, third == 0, jitter)
+                    writer.write(odom, o_stamp + 500_000, bytes(STORE.serialize_cdr(o, ODOM)))
+                    t = o.twist.twist.linear
+                    rows.append([o_stamp, repr(float(np.sqrt(t.x * t.x + t.y * t.y + t.z * t.z)))])
+        shutil.copyfile(os.path.join(bag, "odom.mcap"), os.path.join(HERE, "odom.mcap"))
+    finally:
+        shutil.rmtree(tmp)
+    with open(os.path.join(HERE, "odom.csv"), "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["stamp_ns", "speed"])
+        w.writerows(rows)
+    print("wrote odom.mcap, odom.csv in", os.path.normpath(HERE), len(rows), "odometry messages")
+
+
 if __name__ == "__main__":
-    if len(sys.argv) >= 2 and sys.argv[1] == "check":
+    if len(sys.argv) >= 2 and sys.argv[1] == "odom":
+        gen_odom()
+    elif len(sys.argv) >= 2 and sys.argv[1] == "check":
         check(sys.argv[2])
     elif len(sys.argv) >= 2 and sys.argv[1] == "recorded":
         recorded(sys.argv[2])

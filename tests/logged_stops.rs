@@ -1,8 +1,10 @@
-//! A stop column in a CSV replay drives `predict.bias` by sample time: replayed as fast as
-//! possible through a real daemon, every output's flags follow the column, sample for sample.
+//! A stop column in a CSV replay, and a ROS 2 bag's odometry, drive `predict.bias` by sample
+//! time: replayed as fast as possible through a real daemon, every output's flags follow the
+//! logged stops, sample for sample.
 
 mod common;
 
+use std::path::Path;
 use std::time::Duration;
 
 use common::{finish, start, wait_ready, Dir, Prefix};
@@ -100,6 +102,97 @@ buffer_size = 4096
     // Moving, nothing was learnt: no drift removed. Standing, the bias was.
     assert_eq!(got[N / 3 - 1].drift, [0.0; 3]);
     let learnt = got[2 * N / 3 - 1].drift.map(f64::to_degrees);
+    for (d, b) in learnt.iter().zip([0.4, -0.2, 0.1]) {
+        assert!((d - b).abs() < 0.01, "{learnt:?}");
+    }
+}
+
+/// The bag of scripts/gen_ros2_fixture.py odom: a gyro at rest with a bias, 1,500 Imu
+/// messages at 100 Hz; odometry at 20 Hz, 3 ms after an Imu stamp, moving for 5 s, standing
+/// for 5 s, then silent. Each sample takes the last odometry at or before its stamp, up to
+/// 0.5 s old.
+#[test]
+fn a_bags_odometry_drives_the_bias_filter_by_stamp() {
+    const M: usize = 1500;
+    let bag = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/odom.mcap");
+    let dir = Dir::new();
+    let pipeline = |stop_topic: &str| {
+        format!(
+            r#"
+name = "o"
+rate_hz = 100.0
+input_units = "rad/s"
+
+[[stage]]
+name = "sensor"
+kind = "ingest.mcap"
+output = "o/raw"
+file = "{}"
+stop_topic = "{stop_topic}"
+pace = "asap"
+start_delay_s = 1.0
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "o/raw"
+output = "o/predicted"
+profile = "adis16405"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "o/predicted"
+output = "o/corrected"
+
+[iceoryx2]
+buffer_size = 4096
+"#,
+            bag.display()
+        )
+    };
+    // The Imu topic is no vehicle's motion: refused at validation, with its position.
+    let wrong = dir.write("wrong.toml", &pipeline("/imu/data"));
+    let out = std::process::Command::new(common::bin())
+        .args(["validate", wrong.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("wrong.toml:") && err.contains("not a vehicle's motion"),
+        "{err}"
+    );
+
+    let file = dir.write("p.toml", &pipeline("/odom"));
+    let prefix = Prefix::new("bagstops");
+    let mut daemon = start(&file, &prefix, &[]);
+    wait_ready(&prefix, "o/stats", &mut daemon);
+    let node = Transport::new(&prefix.0, "bag-stops-probe", Default::default()).unwrap();
+    let input = node.open_input::<GyroSample>("o/corrected").unwrap();
+    let got = common::collect(&input, M, Duration::from_secs(30));
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(got.len(), M, "{err}");
+    for (k, s) in got.iter().enumerate() {
+        let has = |f: u32| s.flags & f != 0;
+        let (stopped, moving) = (has(FLAG_VEHICLE_STOPPED), has(FLAG_VEHICLE_MOVING));
+        match k {
+            // Before the first odometry (3 ms after the first stamp): unknown.
+            0 => assert!(!stopped && !moving, "{k}: {:#x}", s.flags),
+            // Odometry says 1.5 m/s up to its message at 4.953 s.
+            1..=500 => assert!(
+                moving && !stopped && has(FLAG_MOVING),
+                "{k}: {:#x}",
+                s.flags
+            ),
+            // Standing from 5.003 s; the last message (9.953 s) holds for 0.5 s.
+            501..=1045 => assert!(stopped && !moving && has(FLAG_STILL), "{k}: {:#x}", s.flags),
+            _ => assert!(!stopped && !moving, "{k}: {:#x}", s.flags),
+        }
+    }
+    assert_eq!(got[500].drift, [0.0; 3], "nothing learnt while moving");
+    let learnt = got[1045].drift.map(f64::to_degrees);
     for (d, b) in learnt.iter().zip([0.4, -0.2, 0.1]) {
         assert!((d - b).abs() < 0.01, "{learnt:?}");
     }

@@ -677,7 +677,7 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     let sent: Vec<Imu> = bag
         .imu_messages("/imu/data")
         .expect("its Imu topic")
-        .map(|m| m.expect("a message").imu)
+        .map(|m| m.expect("a message").msg)
         .collect();
     let raws: Vec<RawSample> = sent
         .iter()
@@ -742,7 +742,7 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     let read = |topic: &str| -> Vec<Imu> {
         got.imu_messages(topic)
             .expect("topic")
-            .map(|m| m.expect("a message").imu)
+            .map(|m| m.expect("a message").msg)
             .collect()
     };
     for (m, s) in read("/rt/raw").iter().zip(&sent) {

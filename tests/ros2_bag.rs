@@ -42,6 +42,41 @@ fn same_bits(a: &[f64], b: &[f64]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
+/// rosbags' nav_msgs/msg/Odometry (scripts/gen_ros2_fixture.py odom): every message's stamp
+/// and speed as the script computed them, bit for bit; the Imu topic is refused as motion.
+#[test]
+fn the_rosbags_odometry_reads_its_stamps_and_speeds_bit_for_bit() {
+    let bag = Bag::open(&fixture("odom.mcap")).unwrap();
+    let got: Vec<_> = bag
+        .motion_messages("/odom")
+        .unwrap()
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap();
+    let csv = std::fs::read_to_string(fixture("odom.csv")).unwrap();
+    let rows: Vec<(i64, f64)> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let (t, v) = l.split_once(',').unwrap();
+            (t.parse().unwrap(), v.parse().unwrap())
+        })
+        .collect();
+    assert_eq!(got.len(), 200);
+    assert_eq!(rows.len(), got.len());
+    for (r, (stamp, speed)) in got.iter().zip(&rows) {
+        assert_eq!(r.msg.stamp.ns(), *stamp, "message {}", r.number);
+        assert_eq!(
+            r.msg.speed().to_bits(),
+            speed.to_bits(),
+            "message {}",
+            r.number
+        );
+    }
+    let e = bag.motion_messages("/imu/data").err().unwrap();
+    assert_eq!(e.kind, BagErrorKind::NotImu);
+    assert!(e.to_string().contains("not a vehicle's motion"), "{e}");
+}
+
 #[test]
 fn the_rosbags_bag_reads_bit_for_bit_every_message_once_in_order() {
     let bag = Bag::open(&fixture("imu.mcap")).unwrap();
@@ -58,14 +93,14 @@ fn the_rosbags_bag_reads_bit_for_bit_every_message_once_in_order() {
         let stamp: i64 = row[0].parse().unwrap();
         let w: Vec<f64> = row[1..].iter().map(|v| v.parse().unwrap()).collect();
         assert_eq!(r.number, k as u64 + 1);
-        assert_eq!(r.imu.stamp.ns(), stamp, "message {k}");
-        assert!(same_bits(&r.imu.angular_velocity, &w), "message {k}");
+        assert_eq!(r.msg.stamp.ns(), stamp, "message {k}");
+        assert!(same_bits(&r.msg.angular_velocity, &w), "message {k}");
         // The log time is the script's receive time, not the stamp.
         assert_eq!(
             r.log_time_ns,
             stamp as u64 + 1_000_000 + (k as u64 % 7) * 100_000
         );
-        let imu = &r.imu;
+        let imu = &r.msg;
         assert_eq!(imu.frame_id, "imu_link");
         assert!(same_bits(&imu.orientation, &[0.48, 0.6, 0.0, 0.64]));
         assert!(same_bits(
@@ -88,7 +123,7 @@ fn the_rosbags_bag_reads_bit_for_bit_every_message_once_in_order() {
     // Stamps strictly rising, 10 ms apart.
     assert!(got
         .windows(2)
-        .all(|w| w[1].imu.stamp.ns() - w[0].imu.stamp.ns() == 10_000_000));
+        .all(|w| w[1].msg.stamp.ns() - w[0].msg.stamp.ns() == 10_000_000));
 }
 
 #[test]
@@ -152,7 +187,7 @@ fn a_bag_directory_reads_its_metadata_yaml_or_its_mcap_files() {
     let all = read_all(&bag, "/imu/data");
     assert_eq!(all.len(), 3600);
     assert_eq!(all[3599].number, 3600);
-    assert_eq!(all[1800].imu, all[0].imu);
+    assert_eq!(all[1800].msg, all[0].msg);
     // A bag in sqlite3 storage is refused, saying what to do.
     std::fs::write(
         dir.path().join("metadata.yaml"),
@@ -402,7 +437,7 @@ fn written_bags_read_back_bit_for_bit_and_look_like_ros2_bag_record() {
     let back = read_all(&bag, &bag.imu_topic(None).unwrap());
     assert_eq!(back.len(), written.len());
     for (r, imu) in back.iter().zip(&written) {
-        assert_eq!(r.imu.to_cdr().unwrap(), imu.to_cdr().unwrap());
+        assert_eq!(r.msg.to_cdr().unwrap(), imu.to_cdr().unwrap());
         assert_eq!(r.log_time_ns, imu.stamp.ns_u64().unwrap());
     }
     // The records ros2 bag play and Foxglove read.
@@ -480,7 +515,7 @@ fn stamps_going_backwards_are_seen_by_the_caller() {
     let bag = Bag::open(&p).unwrap();
     let stamps: Vec<i64> = read_all(&bag, "/imu")
         .iter()
-        .map(|r| r.imu.stamp.ns())
+        .map(|r| r.msg.stamp.ns())
         .collect();
     let back: Vec<usize> = (1..stamps.len())
         .filter(|&i| stamps[i] < stamps[i - 1])
@@ -577,7 +612,7 @@ fn the_committed_written_bag_is_what_the_writer_writes_and_what_rosbags_read() {
     assert_eq!(json["count"], ours.len());
     let mut sums = [0.0f64; 3];
     for r in &ours {
-        for (s, w) in sums.iter_mut().zip(r.imu.angular_velocity) {
+        for (s, w) in sums.iter_mut().zip(r.msg.angular_velocity) {
             *s += w;
         }
     }
@@ -589,7 +624,7 @@ fn the_committed_written_bag_is_what_the_writer_writes_and_what_rosbags_read() {
         .collect();
     assert!(same_bits(&sums, &theirs));
     let last = &json["last"];
-    let imu = &ours[199].imu;
+    let imu = &ours[199].msg;
     assert_eq!(last["sec"], imu.stamp.sec);
     assert_eq!(last["nanosec"], imu.stamp.nanosec);
     assert_eq!(last["frame_id"], "imu_link");
@@ -610,7 +645,7 @@ fn recorded_digest(bag: &Bag, topic: &str) -> (u64, Vec<String>, [i64; 2], [i64;
     let mut h = Sha256::new();
     let (mut n, mut frames, mut first, mut last) = (0u64, Vec::<String>::new(), None, [0i64; 2]);
     for r in read_all(bag, topic) {
-        let m = r.imu;
+        let m = r.msg;
         if !frames.contains(&m.frame_id) {
             frames.push(m.frame_id.clone());
         }

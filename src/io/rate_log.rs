@@ -271,7 +271,7 @@ pub fn read_log(
                 m.number, m.log_time_ns
             )
         };
-        let t = m.imu.stamp.ns();
+        let t = m.msg.stamp.ns();
         if let Some(&prev) = stamps.last() {
             if t <= prev {
                 return Err(BagError {
@@ -286,7 +286,7 @@ pub fn read_log(
                 .into());
             }
         }
-        let w = m.imu.angular_velocity;
+        let w = m.msg.angular_velocity;
         if let Some(i) = w.iter().position(|v| !v.is_finite()) {
             return Err(BagError {
                 kind: BagErrorKind::Value,

@@ -46,6 +46,7 @@ use crate::pipeline::registry::{self, Entry};
 use crate::stages::contract::{Kind, Params, Role};
 use crate::stages::schema::Src;
 pub use crate::stages::schema::{Context, Units};
+use crate::transport::ros2::MotionKind;
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]
@@ -352,13 +353,6 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     })
 }
 
-/// The ROS 2 type names a vehicle's motion may come in.
-pub const MOTION_TYPES: [&str; 3] = [
-    "nav_msgs/msg/Odometry",
-    "geometry_msgs/msg/TwistStamped",
-    "geometry_msgs/msg/TwistWithCovarianceStamped",
-];
-
 /// Check the `[ros2]` table against the stages it feeds and reads.
 fn ros2_settings(
     src: &Src<'_>,
@@ -462,14 +456,14 @@ fn ros2_settings(
                 ));
             }
             let ty = match &t.ty {
-                Some(ty) if MOTION_TYPES.contains(&ty.get_ref().as_str()) => ty.get_ref().clone(),
+                Some(ty) if MotionKind::of_type(ty.get_ref()).is_some() => ty.get_ref().clone(),
                 Some(ty) => {
-                    return Err(src.span(
-                        ty,
-                        format!("motion_in.type: one of {}", MOTION_TYPES.join(", ")),
-                    ))
+                    let names: Vec<&str> = MotionKind::ALL.iter().map(|(n, _)| *n).collect();
+                    return Err(
+                        src.span(ty, format!("motion_in.type: one of {}", names.join(", ")))
+                    );
                 }
-                None => MOTION_TYPES[0].to_string(),
+                None => MotionKind::Odometry.type_name().to_string(),
             };
             Some((topic(&t.topic)?, ty, service))
         }

@@ -44,7 +44,7 @@ use crate::io::atomic::AtomicFile;
 use crate::io::recording::{limited_reader, map_mcap, McapOpenError};
 
 pub use crate::transport::ros2::{
-    seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE,
+    seconds_text, CdrError, Imu, ImuMapping, Motion, MotionKind, Time, IMU_DEFINITION, IMU_TYPE,
 };
 /// Schema encoding of ROS 2 `.msg` definitions.
 pub const SCHEMA_ENCODING: &str = "ros2msg";
@@ -110,7 +110,7 @@ pub enum BagErrorKind {
     SeveralImuTopics,
     /// The chosen topic is not in the bag.
     NoSuchTopic,
-    /// The chosen topic is of another type.
+    /// The chosen topic is of another type (not Imu; for a motion topic, not a motion type).
     NotImu,
     /// A corrupt record or chunk.
     Corrupt,
@@ -165,6 +165,11 @@ impl TopicInfo {
     /// or the `ros2idl` rosbag2 falls back to, does not change the CDR layout).
     pub fn is_imu(&self) -> bool {
         self.msg_type == IMU_TYPE && self.message_encoding == MESSAGE_ENCODING
+    }
+
+    /// Its motion type, where it is one in CDR ([`MotionKind`]).
+    pub fn motion_kind(&self) -> Option<MotionKind> {
+        MotionKind::of_type(&self.msg_type).filter(|_| self.message_encoding == MESSAGE_ENCODING)
     }
 
     fn shown(&self) -> String {
@@ -350,17 +355,32 @@ impl Bag {
     /// iteration, a message that does not decode does not (the next item is the next message).
     pub fn imu_messages<'a>(&'a self, topic: &str) -> Result<ImuMessages<'a>, BagError> {
         let topic = self.imu_topic(Some(topic))?;
-        Ok(ImuMessages {
-            bag: self,
-            topic,
-            file: 0,
-            reader: None,
-            rest: &[],
-            channels: BTreeMap::new(),
-            number: 0,
-            last_log_time: None,
-            failed: false,
-        })
+        Ok(Messages::new(self, topic, ImuType))
+    }
+
+    /// The messages of motion topic `topic` (`nav_msgs/msg/Odometry` or a twist, in CDR), in
+    /// file order, decoded as [`Bag::imu_messages`] decodes Imu.
+    pub fn motion_messages<'a>(&'a self, topic: &str) -> Result<MotionMessages<'a>, BagError> {
+        let shown = self.path.display();
+        let topics = self.topics();
+        let Some(t) = topics.iter().find(|t| t.topic == topic) else {
+            return Err(err(
+                BagErrorKind::NoSuchTopic,
+                format!("{shown}: no topic {topic}; its topics: {}", list(&topics)),
+            ));
+        };
+        let Some(kind) = t.motion_kind() else {
+            let names: Vec<&str> = MotionKind::ALL.iter().map(|(n, _)| *n).collect();
+            return Err(err(
+                BagErrorKind::NotImu,
+                format!(
+                    "{shown}: topic {}: not a vehicle's motion in cdr ({})",
+                    t.shown(),
+                    names.join(", ")
+                ),
+            ));
+        };
+        Ok(Messages::new(self, topic.to_string(), MotionType(kind)))
     }
 }
 
@@ -461,21 +481,74 @@ fn unquote(s: &str) -> String {
     }
 }
 
-/// One message of an Imu topic.
+/// One message of a topic: decoded, with its log time and number.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ImuRecord {
+pub struct Record<M> {
     /// The message.
-    pub imu: Imu,
-    /// Its MCAP log time, ns (a recorder's receive time; the sample's time is `imu.stamp`).
+    pub msg: M,
+    /// Its MCAP log time, ns (a recorder's receive time; the sample's time is its stamp).
     pub log_time_ns: u64,
     /// Its number on the topic, from 1, as errors count.
     pub number: u64,
 }
 
-/// The messages of one Imu topic of a [`Bag`], in file order ([`Bag::imu_messages`]).
-pub struct ImuMessages<'a> {
+/// One message of an Imu topic.
+pub type ImuRecord = Record<Imu>;
+
+/// What a topic's messages are and how they decode.
+pub trait TopicType {
+    /// The decoded message.
+    type Msg;
+    /// The type's name, for errors.
+    fn name(&self) -> &'static str;
+    /// Whether a topic holds this type.
+    fn accepts(&self, t: &TopicInfo) -> bool;
+    /// Decode one message's CDR.
+    fn decode(&self, bytes: &[u8]) -> Result<Self::Msg, CdrError>;
+}
+
+/// `sensor_msgs/msg/Imu`.
+pub struct ImuType;
+
+impl TopicType for ImuType {
+    type Msg = Imu;
+    fn name(&self) -> &'static str {
+        IMU_TYPE
+    }
+    fn accepts(&self, t: &TopicInfo) -> bool {
+        t.is_imu()
+    }
+    fn decode(&self, bytes: &[u8]) -> Result<Imu, CdrError> {
+        Imu::from_cdr(bytes)
+    }
+}
+
+/// A vehicle's motion of one [`MotionKind`].
+pub struct MotionType(pub MotionKind);
+
+impl TopicType for MotionType {
+    type Msg = Motion;
+    fn name(&self) -> &'static str {
+        self.0.type_name()
+    }
+    fn accepts(&self, t: &TopicInfo) -> bool {
+        t.motion_kind() == Some(self.0)
+    }
+    fn decode(&self, bytes: &[u8]) -> Result<Motion, CdrError> {
+        Motion::from_cdr(self.0, bytes)
+    }
+}
+
+/// The messages of one Imu topic of a [`Bag`] ([`Bag::imu_messages`]).
+pub type ImuMessages<'a> = Messages<'a, ImuType>;
+/// The messages of one motion topic of a [`Bag`] ([`Bag::motion_messages`]).
+pub type MotionMessages<'a> = Messages<'a, MotionType>;
+
+/// The messages of one topic of a [`Bag`], in file order, decoded as `T` says.
+pub struct Messages<'a, T: TopicType> {
     bag: &'a Bag,
     topic: String,
+    ty: T,
     /// The file being read (its index in the bag).
     file: usize,
     reader: Option<mcap::sans_io::linear_reader::LinearReader>,
@@ -487,7 +560,21 @@ pub struct ImuMessages<'a> {
     failed: bool,
 }
 
-impl ImuMessages<'_> {
+impl<'a, T: TopicType> Messages<'a, T> {
+    fn new(bag: &'a Bag, topic: String, ty: T) -> Self {
+        Messages {
+            bag,
+            topic,
+            ty,
+            file: 0,
+            reader: None,
+            rest: &[],
+            channels: BTreeMap::new(),
+            number: 0,
+            last_log_time: None,
+            failed: false,
+        }
+    }
     /// The topic read.
     pub fn topic(&self) -> &str {
         &self.topic
@@ -517,14 +604,15 @@ impl ImuMessages<'_> {
                     .topics()
                     .into_iter()
                     .find(|t| t.topic == self.topic)
-                    .filter(TopicInfo::is_imu);
+                    .filter(|t| self.ty.accepts(t));
                 if t.is_none() {
                     return Err(err(
                         BagErrorKind::NotImu,
                         format!(
-                            "{}: topic {} is not {IMU_TYPE} in cdr in this file",
+                            "{}: topic {} is not {} in cdr in this file",
                             f.path.display(),
-                            self.topic
+                            self.topic,
+                            self.ty.name()
                         ),
                     ));
                 }
@@ -537,7 +625,7 @@ impl ImuMessages<'_> {
     }
 
     /// The next message of the current file, None at its end.
-    fn next_in_file(&mut self) -> Option<Result<ImuRecord, BagError>> {
+    fn next_in_file(&mut self) -> Option<Result<Record<T::Msg>, BagError>> {
         use mcap::sans_io::linear_reader::LinearReadEvent;
         let reader = self.reader.as_mut()?;
         while let Some(event) = reader.next_event() {
@@ -577,22 +665,21 @@ impl ImuMessages<'_> {
                     }
                     self.number += 1;
                     self.last_log_time = Some(header.log_time);
-                    let mut imu = Imu::default();
-                    return Some(match imu.read_cdr(&data) {
-                        Ok(()) => Ok(ImuRecord {
-                            imu,
+                    return Some(match self.ty.decode(&data) {
+                        Ok(msg) => Ok(Record {
+                            msg,
                             log_time_ns: header.log_time,
                             number: self.number,
                         }),
                         Err(e) => Err(err(
                             BagErrorKind::Cdr,
                             format!(
-                                "{}: topic {}, message {} (log time {} ns): not a CDR {IMU_TYPE}: \
-                                 {e}",
+                                "{}: topic {}, message {} (log time {} ns): not a CDR {}: {e}",
                                 self.bag.files[self.file].path.display(),
                                 self.topic,
                                 self.number,
-                                header.log_time
+                                header.log_time,
+                                self.ty.name()
                             ),
                         )),
                     });
@@ -610,8 +697,8 @@ impl ImuMessages<'_> {
     }
 }
 
-impl Iterator for ImuMessages<'_> {
-    type Item = Result<ImuRecord, BagError>;
+impl<T: TopicType> Iterator for Messages<'_, T> {
+    type Item = Result<Record<T::Msg>, BagError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         while !self.failed && self.file < self.bag.files.len() {

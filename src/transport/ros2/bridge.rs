@@ -20,10 +20,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::dds::{
-    DdsReadiness, ImuPublisher, ImuSubscription, MotionKind, MotionSubscription, PublisherId,
-    Ros2Node,
+    DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription, PublisherId, Ros2Node,
 };
 use super::imu::{ImuMapping, IMU_TYPE};
+use super::motion::MotionKind;
 use super::{Ros2Settings, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::monotonic_ns;
 use crate::transport::{

@@ -32,6 +32,7 @@ use ros2_client::{
 use serde::{Deserialize, Serialize};
 
 use super::imu::{Imu, Time};
+use super::motion::MotionKind;
 use crate::transport::{StopSignal, TransportError};
 
 /// Wakes a thread when a watched subscription has messages: its descriptor turns readable
@@ -217,7 +218,7 @@ impl Ros2Node {
         depth: usize,
     ) -> Result<MotionSubscription, TransportError> {
         let qos = subscribe_qos(depth);
-        let t = self.topic(topic, kind.type_name(), &qos)?;
+        let t = self.topic(topic, motion_type(kind), &qos)?;
         let sub = |node: &mut Node| -> Result<MotionPort, ros2_client::CreateError> {
             Ok(match kind {
                 MotionKind::Odometry => {
@@ -492,36 +493,12 @@ impl ImuSubscription {
     }
 }
 
-/// The ROS 2 message a vehicle's motion comes in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MotionKind {
-    /// `nav_msgs/msg/Odometry` (`twist.twist.linear`).
-    Odometry,
-    /// `geometry_msgs/msg/TwistStamped` (`twist.linear`).
-    TwistStamped,
-    /// `geometry_msgs/msg/TwistWithCovarianceStamped` (`twist.twist.linear`).
-    TwistWithCovarianceStamped,
-}
-
-impl MotionKind {
-    /// Every kind, by its ROS 2 type name.
-    pub const ALL: [(&'static str, MotionKind); 3] = [
-        ("nav_msgs/msg/Odometry", MotionKind::Odometry),
-        ("geometry_msgs/msg/TwistStamped", MotionKind::TwistStamped),
-        (
-            "geometry_msgs/msg/TwistWithCovarianceStamped",
-            MotionKind::TwistWithCovarianceStamped,
-        ),
-    ];
-
-    fn type_name(self) -> (&'static str, &'static str) {
-        match self {
-            MotionKind::Odometry => ("nav_msgs", "Odometry"),
-            MotionKind::TwistStamped => ("geometry_msgs", "TwistStamped"),
-            MotionKind::TwistWithCovarianceStamped => {
-                ("geometry_msgs", "TwistWithCovarianceStamped")
-            }
-        }
+/// The package and name of a motion kind's ROS 2 type.
+fn motion_type(kind: MotionKind) -> (&'static str, &'static str) {
+    match kind {
+        MotionKind::Odometry => ("nav_msgs", "Odometry"),
+        MotionKind::TwistStamped => ("geometry_msgs", "TwistStamped"),
+        MotionKind::TwistWithCovarianceStamped => ("geometry_msgs", "TwistWithCovarianceStamped"),
     }
 }
 

@@ -225,13 +225,66 @@ fn double_name(i: usize) -> String {
 }
 
 /// A cursor over the bytes after the encapsulation header (alignment is relative to them).
-struct Cursor<'a> {
-    buf: &'a [u8],
-    pos: usize,
-    big: bool,
+pub(super) struct Cursor<'a> {
+    pub(super) buf: &'a [u8],
+    pub(super) pos: usize,
+    pub(super) big: bool,
 }
 
 impl<'a> Cursor<'a> {
+    /// A cursor after the 4-byte encapsulation header of `bytes` (plain CDR, either order).
+    pub(super) fn after_header(bytes: &'a [u8]) -> Result<Self, CdrError> {
+        if bytes.len() < 4 {
+            return Err(CdrError::NoHeader(bytes.len()));
+        }
+        let big = match (bytes[0], bytes[1]) {
+            (0, 1) => false,
+            (0, 0) => true,
+            (a, b) => return Err(CdrError::Encapsulation { a, b }),
+        };
+        Ok(Cursor {
+            buf: &bytes[4..],
+            pos: 0,
+            big,
+        })
+    }
+
+    /// A double, aligned to 8.
+    pub(super) fn f64(&mut self, field: &str) -> Result<f64, CdrError> {
+        let pad = (8 - self.pos % 8) % 8;
+        let s = self.take(pad + 8, || field.to_string())?;
+        let mut w = [0u8; 8];
+        w.copy_from_slice(&s[pad..]);
+        Ok(if self.big {
+            f64::from_be_bytes(w)
+        } else {
+            f64::from_le_bytes(w)
+        })
+    }
+
+    /// Step over a string (its length checked against the bytes left, never allocated).
+    pub(super) fn skip_string(&mut self, field: &'static str) -> Result<(), CdrError> {
+        let len = self.u32(field)? as usize;
+        self.take(len, || field.to_string())?;
+        Ok(())
+    }
+
+    /// Step over `n` doubles.
+    pub(super) fn skip_f64s(&mut self, n: usize, field: &str) -> Result<(), CdrError> {
+        let pad = (8 - self.pos % 8) % 8;
+        self.take(pad + 8 * n, || field.to_string())?;
+        Ok(())
+    }
+
+    /// Fail on more than 3 bytes after the last field.
+    pub(super) fn end(&self) -> Result<(), CdrError> {
+        let trailing = self.buf.len() - self.pos;
+        if trailing > 3 {
+            return Err(CdrError::Trailing(trailing));
+        }
+        Ok(())
+    }
+
     fn take(&mut self, n: usize, field: impl FnOnce() -> String) -> Result<&'a [u8], CdrError> {
         match self.pos.checked_add(n) {
             Some(end) if end <= self.buf.len() => {
@@ -256,7 +309,7 @@ impl<'a> Cursor<'a> {
         Ok(w)
     }
 
-    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
+    pub(super) fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
         let w = self.word(field)?;
         Ok(if self.big {
             u32::from_be_bytes(w)
@@ -278,19 +331,8 @@ impl Imu {
     /// Decode into `self`, reusing its frame_id's buffer (what a reader of many messages
     /// calls). On an error `self` holds a partly decoded message.
     pub fn read_cdr(&mut self, bytes: &[u8]) -> Result<(), CdrError> {
-        if bytes.len() < 4 {
-            return Err(CdrError::NoHeader(bytes.len()));
-        }
-        let big = match (bytes[0], bytes[1]) {
-            (0, 1) => false,
-            (0, 0) => true,
-            (a, b) => return Err(CdrError::Encapsulation { a, b }),
-        };
-        let mut c = Cursor {
-            buf: &bytes[4..],
-            pos: 0,
-            big,
-        };
+        let mut c = Cursor::after_header(bytes)?;
+        let big = c.big;
         self.stamp.sec = c.u32("header.stamp.sec")? as i32;
         self.stamp.nanosec = c.u32("header.stamp.nanosec")?;
         // The length is checked against the bytes left before anything is taken: a huge one is
@@ -346,11 +388,7 @@ impl Imu {
                 *d = v;
             }
         }
-        let trailing = c.buf.len() - c.pos;
-        if trailing > 3 {
-            return Err(CdrError::Trailing(trailing));
-        }
-        Ok(())
+        c.end()
     }
 
     /// Encode as little-endian CDR, header included, into `out` (cleared first), as ROS 2 on

@@ -3,6 +3,7 @@
 //! | file | concern |
 //! |---|---|
 //! | `imu.rs` | `sensor_msgs/msg/Imu`: fields, CDR by hand, and [`ImuMapping`] from our samples |
+//! | `motion.rs` | a vehicle's motion (Odometry, twists): its types and its speed, CDR by hand |
 //! | `bridge.rs` | the daemon's ROS 2 side: topics to services and back, on its own thread (feature `ros2`) |
 //! | `dds.rs` | live topics: a node in the ROS 2 graph, Imu in and out, motion as a stop signal (feature `ros2`) |
 
@@ -11,16 +12,18 @@ mod bridge;
 #[cfg(feature = "ros2")]
 mod dds;
 mod imu;
+mod motion;
 
 #[cfg(feature = "ros2")]
 pub use bridge::{run_bridge, BridgeCounts};
 #[cfg(feature = "ros2")]
 pub use dds::{
-    domain_id, ros_type_name, DdsReadiness, ImuPublisher, ImuSubscription, MotionKind,
-    MotionSubscription, PublisherId, Ros2Node, DOMAIN_ENV,
+    domain_id, ros_type_name, DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription,
+    PublisherId, Ros2Node, DOMAIN_ENV,
 };
 
 pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE};
+pub use motion::{Motion, MotionKind};
 
 /// The attribute that names the ROS 2 node on the event service where a pipeline's ROS 2 side
 /// says what it does (`driftless list` finds the ROS 2 sides by it).
