@@ -15,13 +15,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{bin, finish, text, Prefix};
-
-/// Set in the child that runs inside the namespace.
-const CHILD: &str = "DRIFTLESS_TEST_IN_NAMESPACE";
+use common::{bin, finish, Prefix};
 
 /// iceoryx2's root directory in the namespace (its own tmpfs).
-const ROOT: &str = "/tmp/iceoryx2";
+const ROOT: &str = common::ICEORYX2_ROOT;
 
 /// A uid that is not ours (nobody).
 const OTHER_UID: u32 = 65_534;
@@ -30,38 +27,8 @@ const OTHER_UID: u32 = 65_534;
 const H: &str = "0354a209029e7d094a819e2d4030ea331e6caaf0";
 const D: &str = "158456425824514663799274340511";
 
-/// Run `test` in a private mount namespace with a tmpfs of `shm_size` on /dev/shm (and one on
-/// iceoryx2's root). Returns true in the child (the caller then runs the scenario); in the
-/// parent, waits for the child, fails if it failed, and returns false.
 fn in_namespace(test: &str, shm_size: &str) -> bool {
-    if std::env::var_os(CHILD).is_some() {
-        return true;
-    }
-    // SAFETY: geteuid cannot fail.
-    if unsafe { libc::geteuid() } != 0 {
-        eprintln!("{test}: skipped: a private mount namespace needs root");
-        return false;
-    }
-    let script = format!(
-        "mount -t tmpfs -o size={shm_size},mode=1777 tmpfs /dev/shm && mkdir -p {ROOT} && \
-         mount -t tmpfs tmpfs {ROOT} && exec \"$0\" \"$@\""
-    );
-    let exe = std::env::current_exe().expect("this test binary");
-    let out = Command::new("unshare")
-        .args(["-m", "--propagation", "private", "sh", "-c", &script])
-        .arg(exe)
-        .args(["--exact", test, "--nocapture", "--test-threads=1"])
-        .env(CHILD, "1")
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .expect("unshare runs");
-    let (stdout, stderr) = text(&out);
-    assert!(
-        out.status.success() && stdout.contains("1 passed"),
-        "{test} in its namespace failed ({}):\n{stdout}\n{stderr}",
-        out.status
-    );
-    false
+    common::in_private_shm(test, shm_size)
 }
 
 /// `driftless ARGS` to its end, or a failure after `limit` (a hang).

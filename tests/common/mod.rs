@@ -360,3 +360,45 @@ pub fn offline_denoised(
     }
     expected
 }
+
+/// Set in the child that runs inside a private namespace ([`in_private_shm`]).
+const IN_NAMESPACE: &str = "DRIFTLESS_TEST_IN_NAMESPACE";
+
+/// iceoryx2's root directory (in a private namespace, its own tmpfs).
+pub const ICEORYX2_ROOT: &str = "/tmp/iceoryx2";
+
+/// Run `test` in a private mount namespace with a tmpfs of `shm_size` on /dev/shm and one on
+/// iceoryx2's root: nothing of another test or program is there. Returns true in the child
+/// (the caller then runs the scenario); in the parent, waits for the child, fails if it
+/// failed, and returns false. Making the namespace needs root (CI runs as root); without it,
+/// says so in one line and returns false.
+pub fn in_private_shm(test: &str, shm_size: &str) -> bool {
+    if std::env::var_os(IN_NAMESPACE).is_some() {
+        return true;
+    }
+    // SAFETY: geteuid cannot fail.
+    if unsafe { libc::geteuid() } != 0 {
+        eprintln!("{test}: skipped: a private mount namespace needs root");
+        return false;
+    }
+    let script = format!(
+        "mount -t tmpfs -o size={shm_size},mode=1777 tmpfs /dev/shm && mkdir -p {ICEORYX2_ROOT} && \
+         mount -t tmpfs tmpfs {ICEORYX2_ROOT} && exec \"$0\" \"$@\""
+    );
+    let exe = std::env::current_exe().expect("this test binary");
+    let out = Command::new("unshare")
+        .args(["-m", "--propagation", "private", "sh", "-c", &script])
+        .arg(exe)
+        .args(["--exact", test, "--nocapture", "--test-threads=1"])
+        .env(IN_NAMESPACE, "1")
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .expect("unshare runs");
+    let (stdout, stderr) = text(&out);
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "{test} in its namespace failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    false
+}
