@@ -38,6 +38,10 @@ pub struct Record {
     /// How long after it was due a paced source's sample was taken, ns (saturated at
     /// u32::MAX); None for a source that is not paced.
     pub late_ns: Option<u32>,
+    /// For an output over the deadline: how long of its end-to-end time the hot thread was off
+    /// a CPU (runnable but not run, or preempted), ns; None where not measured (a sample that
+    /// crossed an external stage).
+    pub off_cpu_ns: Option<u32>,
 }
 
 /// How often the reporter drains the channel: 20 wake-ups a second, a small share of a 1 kHz
@@ -197,6 +201,9 @@ pub struct Counters {
     pub stage_out: [AtomicU64; MAX_STAGES],
     /// End-to-end latencies above the deadline.
     pub deadline_misses: AtomicU64,
+    /// Of them, those the kernel explains: without the time it kept the hot thread off a CPU,
+    /// the output would have made the deadline ([`Record::off_cpu_ns`]).
+    pub misses_explained: AtomicU64,
     /// Records the reporter could not take.
     pub metric_drops: AtomicU64,
     /// Non-finite or driver-invalid input samples.
@@ -366,6 +373,7 @@ impl Reporter {
                     at_s: self.started.elapsed().as_secs_f64(),
                     e2e_ns: r.e2e_ns,
                     stage_ns,
+                    off_cpu_ns: r.off_cpu_ns.map(u64::from),
                 });
             }
         }
@@ -499,6 +507,7 @@ impl Reporter {
             deadline_ns: self.layout.deadline.as_nanos() as u64,
             algorithmic_delay_ns: self.layout.algorithmic_delay.as_nanos() as u64,
             deadline_misses: get(&c.deadline_misses),
+            deadline_misses_explained: get(&c.misses_explained),
             misses: self.misses.clone(),
             metric_drops: get(&c.metric_drops),
             lost: self.lost_total(),
@@ -671,5 +680,82 @@ mod tests {
             assert!(line.len() <= 80, "{} columns: {line:?}", line.len());
         }
         assert!(text.contains("denoise"), "{text}");
+    }
+
+    fn reporter(deadline_us: u64) -> Reporter {
+        let layout = Layout {
+            pipeline: "p".into(),
+            stages: vec![
+                ("sensor".into(), "ingest.sim".into()),
+                ("publish".into(), "publish".into()),
+            ],
+            deadline: Duration::from_micros(deadline_us),
+            algorithmic_delay: Duration::ZERO,
+            interval: Duration::from_secs(60),
+            print: false,
+        };
+        Reporter::new(layout, Arc::default(), Vec::new())
+    }
+
+    fn miss(e2e_us: u64, off_us: Option<u64>) -> Record {
+        Record {
+            stages_run: 2,
+            e2e_ns: e2e_us * 1000,
+            off_cpu_ns: off_us.map(|us| (us * 1000) as u32),
+            ..Record::default()
+        }
+    }
+
+    /// A miss is the kernel's only if, without the time off a CPU, the output made the
+    /// deadline; one not measured is never excused.
+    #[test]
+    fn a_miss_is_the_kernels_only_when_its_time_off_a_cpu_covers_the_overshoot() {
+        assert!(miss_explained(1_800_000, Some(900_000), 1_000_000));
+        assert!(miss_explained(1_800_000, Some(800_000), 1_000_000));
+        assert!(!miss_explained(1_800_000, Some(799_999), 1_000_000));
+        assert!(!miss_explained(1_800_000, None, 1_000_000));
+        assert!(miss_explained(1_800_000, Some(u64::MAX), 1_000_000));
+
+        let mut r = reporter(1000);
+        let mut batch = Batch::default();
+        for (i, rec) in [
+            miss(1800, Some(1750)),
+            miss(1500, Some(20)),
+            miss(1200, None),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            batch.records[i] = rec;
+        }
+        batch.len = 3;
+        r.record_batch(&batch);
+        r.counters.deadline_misses.store(3, Ordering::Relaxed);
+        r.counters.misses_explained.store(1, Ordering::Relaxed);
+        let report = r.report();
+        let text = report.table();
+        assert!(
+            report
+                .verdict()
+                .contains("deadline MISSED: 3 of 3 outputs over 1000.0 us (max")
+                && report
+                    .verdict()
+                    .contains("; 1 the kernel's, 2 UNEXPLAINED)"),
+            "{}",
+            report.verdict()
+        );
+        assert!(
+            text.contains(
+                "1800.0 us end to end; stages 0.0 / 0.0 us; off the CPU 1750.0 us: the kernel's"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains("off the CPU 20.0 us: UNEXPLAINED, ours"),
+            "{text}"
+        );
+        assert!(text.contains("off-CPU time not measured"), "{text}");
+        r.counters.misses_explained.store(3, Ordering::Relaxed);
+        assert!(r.report().verdict().contains("all the kernel's"));
     }
 }

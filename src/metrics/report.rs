@@ -132,6 +132,15 @@ pub struct Miss {
     /// Time of each stage (its compute and the publish of its output), chain order, ns; 0 for a
     /// stage that did not run for it (or ran in another segment, after an `external` stage).
     pub stage_ns: Vec<u64>,
+    /// How long of `e2e_ns` the hot thread was off a CPU, ns (None: not measured).
+    pub off_cpu_ns: Option<u64>,
+}
+
+/// Whether a miss is the kernel's: the output, `e2e_ns` after its ingest, would have made
+/// `deadline_ns` without the `off_cpu_ns` the hot thread spent off a CPU meanwhile (None: not
+/// measured, so not excused).
+pub fn miss_explained(e2e_ns: u64, off_cpu_ns: Option<u64>, deadline_ns: u64) -> bool {
+    off_cpu_ns.is_some_and(|off| e2e_ns.saturating_sub(off) <= deadline_ns)
 }
 
 /// The final report (`--report FILE` writes it as JSON).
@@ -153,6 +162,9 @@ pub struct Report {
     pub algorithmic_delay_ns: u64,
     /// Outputs over the deadline.
     pub deadline_misses: u64,
+    /// Of them, those the kernel explains: the hot thread was off a CPU for longer than the
+    /// output was late, so on a CPU it would have made the deadline.
+    pub deadline_misses_explained: u64,
     /// The first [`MISSES_KEPT`] of them with their time and stage times (fewer than
     /// `deadline_misses` if the reporter could not take some records: `metric_drops`).
     pub misses: Vec<Miss>,
@@ -349,8 +361,15 @@ impl Report {
         let mut s = String::new();
         for m in &self.misses[..shown] {
             let stages: Vec<String> = m.stage_ns.iter().map(|&ns| us(ns)).collect();
+            let why = match m.off_cpu_ns {
+                Some(off) if miss_explained(m.e2e_ns, Some(off), self.deadline_ns) => {
+                    format!("; off the CPU {} us: the kernel's", us(off))
+                }
+                Some(off) => format!("; off the CPU {} us: UNEXPLAINED, ours", us(off)),
+                None => "; off-CPU time not measured (after an external stage)".into(),
+            };
             s.push_str(&format!(
-                "missed at {:.3} s: {} us end to end; stages {} us\n",
+                "missed at {:.3} s: {} us end to end; stages {} us{why}\n",
                 m.at_s,
                 us(m.e2e_ns),
                 stages.join(" / ")
@@ -379,8 +398,14 @@ impl Report {
                 e.count
             )
         } else {
+            let unexplained = self.deadline_misses - self.deadline_misses_explained;
+            let why = match (self.deadline_misses_explained, unexplained) {
+                (_, 0) => "all the kernel's: the hot thread was held off a CPU".to_string(),
+                (0, n) => format!("{n} UNEXPLAINED"),
+                (k, n) => format!("{k} the kernel's, {n} UNEXPLAINED"),
+            };
             format!(
-                "deadline MISSED: {} of {} outputs over {deadline} ({max})",
+                "deadline MISSED: {} of {} outputs over {deadline} ({max}; {why})",
                 self.deadline_misses, e.count
             )
         };

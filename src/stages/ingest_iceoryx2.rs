@@ -19,7 +19,7 @@ use std::time::Duration;
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Poll, Role, Source};
 use crate::stages::schema::{Context, StageTable, POLL_TIMEOUT_US};
-use crate::transport::{monotonic_ns, Input, RawSample, Transport, TransportError, Waker};
+use crate::transport::{Input, RawSample, Transport, TransportError, Waker};
 
 /// `ingest.iceoryx2`.
 pub const KIND: Kind = Kind {
@@ -82,7 +82,7 @@ impl ExternalRaw {
 impl Source for ExternalRaw {
     fn poll(&mut self, _stop: &AtomicBool) -> Poll {
         match self.input.receive() {
-            Ok(Some(s)) => Poll::Sample(s, monotonic_ns(), None),
+            Ok(Some(s)) => Poll::Sample(s, crate::clock::ingest_now(), None),
             Ok(None) | Err(_) => Poll::Idle,
         }
     }

@@ -22,7 +22,7 @@ use crate::io::InputError;
 use crate::sim::{SimConfig, Simulator};
 use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::stages::schema::{Context, Key, StageTable, Type, Units};
-use crate::transport::{monotonic_ns, RawSample};
+use crate::transport::RawSample;
 
 const PROFILE: Key = Key {
     name: "profile",
@@ -194,7 +194,7 @@ impl Source for SimSource {
             epoch: 0,
         };
         self.k += 1;
-        let ingest_ns = monotonic_ns();
+        let ingest_ns = crate::clock::ingest_now();
         Poll::Sample(raw, ingest_ns, due_ns.map(|d| ingest_ns.saturating_sub(d)))
     }
 

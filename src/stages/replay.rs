@@ -13,7 +13,7 @@ use crate::clock::PaceClock;
 use crate::io::InputError;
 use crate::stages::contract::{Poll, Source};
 use crate::stages::schema::{Key, StageTable, Type};
-use crate::transport::{monotonic_ns, RawSample};
+use crate::transport::RawSample;
 
 /// Samples per block the reader thread hands to the hot thread.
 const BLOCK_ROWS: usize = 4096;
@@ -229,7 +229,7 @@ impl Source for BlockReplay {
             None
         };
         self.next += 1;
-        let ingest_ns = monotonic_ns();
+        let ingest_ns = crate::clock::ingest_now();
         Poll::Sample(
             sample,
             ingest_ns,

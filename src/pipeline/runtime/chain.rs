@@ -9,7 +9,10 @@ use std::time::Duration;
 use crossbeam_channel::Sender;
 
 use super::RunError;
-use crate::metrics::{Batch, Counters, HeadingTracker, Outputs, Record, BATCH, MAX_STAGES};
+use crate::clock::thread_cpu_ns;
+use crate::metrics::{
+    miss_explained, Batch, Counters, HeadingTracker, Outputs, Record, BATCH, MAX_STAGES,
+};
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, Side, SideKind, Stage};
@@ -51,6 +54,8 @@ pub(super) struct Local {
     pub(super) stage_in: [u64; MAX_STAGES],
     pub(super) stage_out: [u64; MAX_STAGES],
     pub(super) misses: u64,
+    /// Misses the kernel explains ([`Record::off_cpu_ns`]).
+    pub(super) misses_explained: u64,
     pub(super) repaired: u64,
     /// Published outputs carrying each of [`Outputs::FLAGS`].
     pub(super) outputs: [u64; 4],
@@ -83,6 +88,9 @@ pub(super) struct Chain {
     pub(super) batch_started_ns: u64,
     pub(super) tx: Sender<Batch>,
     pub(super) deadline_ns: u64,
+    /// This thread's CPU time when the sample being processed was ingested (segment 1), to
+    /// tell a miss the kernel caused from one we did ([`Record::off_cpu_ns`]).
+    pub(super) cpu_at_ingest: Option<u64>,
     /// Heading error against the truth (a simulated ingest): raw in segment 1, published
     /// rates in the final segment.
     pub(super) heading: Option<HeadingTracker>,
@@ -110,6 +118,8 @@ impl Chain {
             late_ns: late_ns.map(|ns| ns.min(u64::from(u32::MAX)) as u32),
             ..Record::default()
         };
+        // The source read the thread's CPU clock at the ingest stamp, on this thread.
+        self.cpu_at_ingest = crate::clock::cpu_at_ingest();
         let raw = self.guard.stamp(raw);
         raw_out.send(&raw)?;
         self.local.stage_in[0] += 1;
@@ -195,6 +205,18 @@ impl Chain {
                     rec.e2e_ns = e2e;
                     if e2e > self.deadline_ns {
                         self.local.misses += 1;
+                        // Off the CPU: the wall time since ingest less what this thread ran.
+                        // A later segment's sample crossed other threads: not measured.
+                        let off = self
+                            .head
+                            .is_some()
+                            .then_some(self.cpu_at_ingest)
+                            .flatten()
+                            .map(|cpu| e2e.saturating_sub(thread_cpu_ns().saturating_sub(cpu)));
+                        rec.off_cpu_ns = off.map(|ns| ns.min(u64::from(u32::MAX)) as u32);
+                        if miss_explained(e2e, off, self.deadline_ns) {
+                            self.local.misses_explained += 1;
+                        }
                     }
                 }
                 if out.flags & FLAG_OUTPUT_REPAIRED != 0 {
@@ -250,6 +272,8 @@ impl Chain {
         }
         if self.is_final {
             c.deadline_misses.store(l.misses, Ordering::Relaxed);
+            c.misses_explained
+                .store(l.misses_explained, Ordering::Relaxed);
             c.repaired.store(l.repaired, Ordering::Relaxed);
             for (c, l) in c.outputs.iter().zip(l.outputs) {
                 c.store(l, Ordering::Relaxed);
@@ -422,6 +446,7 @@ pub(super) fn build_segment(
         batch_started_ns: 0,
         tx,
         deadline_ns: p.deadline.as_nanos() as u64,
+        cpu_at_ingest: None,
         heading: (span.lo == 1 || span.is_final)
             .then(|| p.stages[0].params.truth(&p.context()))
             .flatten()
