@@ -25,6 +25,11 @@ done
 trap 'kill "${hogs[@]}" 2>/dev/null' EXIT
 echo "under $(nproc) busy loops, $n runs each: ${targets[*]}"
 for t in "${targets[@]}"; do
-    scripts/repeat.sh "$n" "$t" | tail -1
+    if ! out=$(scripts/repeat.sh "$n" "$t" 2>&1); then
+        echo "$out"
+        echo "$t: FAILED under load"
+        exit 1
+    fi
+    echo "$t: $(echo "$out" | tail -1)"
 done
 echo "all ${#targets[@]} targets passed $n runs in a row"
