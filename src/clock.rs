@@ -24,12 +24,14 @@ pub fn monotonic_ns() -> u64 {
         .wrapping_add(ts.tv_nsec as u64)
 }
 
-/// The ingest stamp of a source's sample: [`monotonic_ns`], with this thread's CPU time read
-/// just before it ([`cpu_at_ingest`]), so that a deadline miss can say how long of its
-/// end-to-end time the hot thread was off a CPU. Read outside the end-to-end window (about
-/// 0.3 us), so the latency is not lengthened by its own measurement.
-pub fn ingest_now() -> u64 {
-    CPU_AT_INGEST.with(|c| c.set(Some(thread_cpu_ns())));
+/// The ingest stamp of a source's sample: [`monotonic_ns`]. With `measured` (a source that
+/// keeps time: paced, or a driver's), this thread's CPU time is read just before it
+/// ([`cpu_at_ingest`]), so that a deadline miss can say how long of its end-to-end time the
+/// hot thread was off a CPU. The read (about 0.3-0.5 us, a system call) is outside the
+/// end-to-end window; a replay as fast as possible skips it (it would cost a third of its
+/// throughput) and its misses are not explained.
+pub fn ingest_now(measured: bool) -> u64 {
+    CPU_AT_INGEST.with(|c| c.set(measured.then(thread_cpu_ns)));
     monotonic_ns()
 }
 

@@ -39,8 +39,8 @@ pub struct Record {
     /// u32::MAX); None for a source that is not paced.
     pub late_ns: Option<u32>,
     /// For an output over the deadline: how long of its end-to-end time the hot thread was off
-    /// a CPU (runnable but not run, or preempted), ns; None where not measured (a sample that
-    /// crossed an external stage).
+    /// a CPU (runnable but not run, or preempted), ns; None where not measured (a replay as
+    /// fast as possible, a sample that crossed an external stage).
     pub off_cpu_ns: Option<u32>,
 }
 

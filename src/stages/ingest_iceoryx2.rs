@@ -82,7 +82,7 @@ impl ExternalRaw {
 impl Source for ExternalRaw {
     fn poll(&mut self, _stop: &AtomicBool) -> Poll {
         match self.input.receive() {
-            Ok(Some(s)) => Poll::Sample(s, crate::clock::ingest_now(), None),
+            Ok(Some(s)) => Poll::Sample(s, crate::clock::ingest_now(true), None),
             Ok(None) | Err(_) => Poll::Idle,
         }
     }

@@ -194,7 +194,7 @@ impl Source for SimSource {
             epoch: 0,
         };
         self.k += 1;
-        let ingest_ns = crate::clock::ingest_now();
+        let ingest_ns = crate::clock::ingest_now(due_ns.is_some());
         Poll::Sample(raw, ingest_ns, due_ns.map(|d| ingest_ns.saturating_sub(d)))
     }
 

@@ -229,7 +229,7 @@ impl Source for BlockReplay {
             None
         };
         self.next += 1;
-        let ingest_ns = crate::clock::ingest_now();
+        let ingest_ns = crate::clock::ingest_now(due_ns.is_some());
         Poll::Sample(
             sample,
             ingest_ns,
