@@ -11,13 +11,18 @@ use std::time::{Duration, Instant};
 
 /// CLOCK_MONOTONIC in nanoseconds: comparable between processes on one host.
 pub fn monotonic_ns() -> u64 {
+    clock_ns(libc::CLOCK_MONOTONIC)
+}
+
+/// `clock` in nanoseconds; `clock` must be one Linux always has.
+fn clock_ns(clock: libc::clockid_t) -> u64 {
     let mut ts = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC is always available on Linux.
+    // SAFETY: `ts` is a valid, writable timespec; the callers pass clocks Linux always has.
     unsafe {
-        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+        libc::clock_gettime(clock, &mut ts);
     }
     (ts.tv_sec as u64)
         .wrapping_mul(1_000_000_000)
@@ -48,17 +53,7 @@ thread_local! {
 /// the same span, what is left is time the thread spent off a CPU (preempted and waiting to
 /// run again, stopped, or blocked; the hot path never blocks by design).
 pub fn thread_cpu_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the calling thread's CPU clock always exists.
-    unsafe {
-        libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts);
-    }
-    (ts.tv_sec as u64)
-        .wrapping_mul(1_000_000_000)
-        .wrapping_add(ts.tv_nsec as u64)
+    clock_ns(libc::CLOCK_THREAD_CPUTIME_ID)
 }
 
 /// The clock of a paced source: when its first sample is due, as an instant to sleep until and
