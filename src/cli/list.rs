@@ -493,8 +493,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
     let prefix = args.iceoryx2.resolve(None)?;
     let result = list(&args, &prefix);
-    // The last process of a prefix removes its management file.
-    transport::remove_prefix_leftovers(&prefix);
+    // The last process of a prefix removes its management file; `--clean` also waits out a
+    // start killed within the last second (its files look like a start in progress).
+    if args.clean {
+        transport::remove_prefix_leftovers_settled(&prefix);
+    } else {
+        transport::remove_prefix_leftovers(&prefix);
+    }
     result
 }
 

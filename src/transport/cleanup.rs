@@ -122,14 +122,28 @@ fn nodes_dir() -> Option<SafeDir> {
 /// the count are left as well: they may be a node that is not listed yet (a listing would
 /// show it without its name).
 pub fn remove_prefix_leftovers(prefix: &str) {
-    let Some(stock) = Leftovers::take(prefix) else {
-        return;
-    };
+    remove_leftovers_once(prefix);
+}
+
+/// [`remove_prefix_leftovers`], and if it left a node's details as too young (a start killed
+/// within the last second looks like one in progress), again once they are
+/// [`NODE_SETTLE`] old: what an explicit clean (`driftless list --clean`) does, at most a
+/// second later.
+pub fn remove_prefix_leftovers_settled(prefix: &str) {
+    if let Some(wait) = remove_leftovers_once(prefix) {
+        std::thread::sleep(wait);
+        remove_leftovers_once(prefix);
+    }
+}
+
+/// One clean-up; how long until the youngest node details it left are settled, if it left any.
+fn remove_leftovers_once(prefix: &str) -> Option<Duration> {
+    let stock = Leftovers::take(prefix)?;
     let counted = std::time::SystemTime::now();
     if Transport::node_count(prefix).map_or(true, |n| n > 0) {
-        return;
+        return None;
     }
-    stock.remove(counted);
+    stock.remove(counted)
 }
 
 /// How long before the nodes are counted a node's details file may be one that is still
@@ -217,8 +231,10 @@ impl Leftovers {
     }
 
     /// Delete every file taken stock of that is still the same file (a node's details only if
-    /// made [`NODE_SETTLE`] before `counted`), then the node directories left empty.
-    fn remove(self, counted: std::time::SystemTime) {
+    /// made [`NODE_SETTLE`] before `counted`), then the node directories left empty. Returns
+    /// how long until the youngest details it left are settled, if it left any.
+    fn remove(self, counted: std::time::SystemTime) -> Option<Duration> {
+        let mut settle: Option<Duration> = None;
         for f in &self.found {
             let dir = &self.dirs[f.dir];
             let Some(now) = dir.stat(&f.name) else {
@@ -231,6 +247,11 @@ impl Leftovers {
                 let made = std::time::UNIX_EPOCH
                     + Duration::new(now.st_ctime.max(0) as u64, now.st_ctime_nsec as u32);
                 if made + NODE_SETTLE > counted {
+                    let wait = (made + NODE_SETTLE)
+                        .duration_since(counted)
+                        .unwrap_or_default()
+                        .min(NODE_SETTLE);
+                    settle = Some(settle.map_or(wait, |s| s.max(wait)));
                     continue;
                 }
             }
@@ -241,6 +262,7 @@ impl Leftovers {
                 let _ = rustix::fs::unlinkat(&nodes.0, OsStr::from_bytes(id), AtFlags::REMOVEDIR);
             }
         }
+        settle
     }
 }
 

@@ -50,7 +50,7 @@ pub mod zenoh;
 /// code generic over them.
 pub use iceoryx2::prelude::ZeroCopySend;
 
-pub use cleanup::remove_prefix_leftovers;
+pub use cleanup::{remove_prefix_leftovers, remove_prefix_leftovers_settled};
 pub use config::{
     check_root, check_service_name, quiet_logging, root, set_root, Qos, DEFAULT_PREFIX,
     DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
