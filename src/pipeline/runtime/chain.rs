@@ -88,9 +88,6 @@ pub(super) struct Chain {
     pub(super) batch_started_ns: u64,
     pub(super) tx: Sender<Batch>,
     pub(super) deadline_ns: u64,
-    /// This thread's CPU time when the sample being processed was ingested (segment 1), to
-    /// tell a miss the kernel caused from one we did ([`Record::off_cpu_ns`]).
-    pub(super) cpu_at_ingest: Option<u64>,
     /// Heading error against the truth (a simulated ingest): raw in segment 1, published
     /// rates in the final segment.
     pub(super) heading: Option<HeadingTracker>,
@@ -118,8 +115,6 @@ impl Chain {
             late_ns: late_ns.map(|ns| ns.min(u64::from(u32::MAX)) as u32),
             ..Record::default()
         };
-        // The source read the thread's CPU clock at the ingest stamp, on this thread.
-        self.cpu_at_ingest = crate::clock::cpu_at_ingest();
         let raw = self.guard.stamp(raw);
         raw_out.send(&raw)?;
         self.local.stage_in[0] += 1;
@@ -205,12 +200,13 @@ impl Chain {
                     rec.e2e_ns = e2e;
                     if e2e > self.deadline_ns {
                         self.local.misses += 1;
-                        // Off the CPU: the wall time since ingest less what this thread ran.
+                        // Off the CPU: the wall time since ingest less what this thread ran
+                        // (the source read its CPU clock at the ingest stamp, on this thread).
                         // A later segment's sample crossed other threads: not measured.
                         let off = self
                             .head
                             .is_some()
-                            .then_some(self.cpu_at_ingest)
+                            .then(crate::clock::cpu_at_ingest)
                             .flatten()
                             .map(|cpu| e2e.saturating_sub(thread_cpu_ns().saturating_sub(cpu)));
                         rec.off_cpu_ns = off.map(|ns| ns.min(u64::from(u32::MAX)) as u32);
@@ -446,7 +442,6 @@ pub(super) fn build_segment(
         batch_started_ns: 0,
         tx,
         deadline_ns: p.deadline.as_nanos() as u64,
-        cpu_at_ingest: None,
         heading: (span.lo == 1 || span.is_final)
             .then(|| p.stages[0].params.truth(&p.context()))
             .flatten()
