@@ -265,16 +265,21 @@ fn trust(
     (line, outside)
 }
 
+/// `term`'s estimate `e` in `units`: value, unit and interval.
+fn format_estimate(term: Term, e: &Estimate, units: TermUnits) -> String {
+    let (unit, f) = term.unit_in(units);
+    format!(
+        "{} {unit}  [{}, {}]",
+        sig(e.value * f, 5),
+        sig(e.lo * f, 5),
+        sig(e.hi * f, 5)
+    )
+}
+
 fn format_term(t: &TermFit, units: TermUnits) -> String {
     match (t.estimate, &t.reason) {
         (Some(e), _) => {
-            let (unit, f) = t.term.unit_in(units);
-            let mut s = format!(
-                "{} {unit}  [{}, {}]",
-                sig(e.value * f, 5),
-                sig(e.lo * f, 5),
-                sig(e.hi * f, 5)
-            );
+            let mut s = format_estimate(t.term, &e, units);
             // A second unit where it is customary: N in the other convention, Q in arcsec.
             let alt = match (units, t.term) {
                 (TermUnits::Seconds, Term::N) => Some(t.term.display()),
@@ -372,15 +377,7 @@ fn stage_table(
             combined_as(*term)
         ));
         for (name, choice) in columns {
-            let (u, f) = term.unit_in(TermUnits::Datasheet);
-            let at = |e: &Estimate| {
-                format!(
-                    "{} {u}  [{}, {}]",
-                    sig(e.value * f, 5),
-                    sig(e.lo * f, 5),
-                    sig(e.hi * f, 5)
-                )
-            };
+            let at = |e: &Estimate| format_estimate(*term, e, TermUnits::Datasheet);
             let what = match choice {
                 Choice::Identified(e) => at(e),
                 Choice::Floor {
