@@ -164,8 +164,9 @@ struct Found {
 struct Leftovers {
     dirs: Vec<SafeDir>,
     found: Vec<Found>,
-    /// Node directories (index into `dirs` of `nodes`, name) to remove once empty.
+    /// Node directories (their names in `nodes`) to remove once empty.
     node_dirs: Vec<Vec<u8>>,
+    /// Index into `dirs` of the `nodes` directory.
     nodes: Option<usize>,
 }
 
@@ -195,11 +196,7 @@ impl Leftovers {
                 .collect();
             let subs: Vec<(Vec<u8>, SafeDir)> = ids
                 .into_iter()
-                .filter(|id| {
-                    nodes.stat(id).is_some_and(|st| {
-                        FileType::from_raw_mode(st.st_mode) == FileType::Directory && is_own(&st)
-                    })
-                })
+                .filter(|id| is_own_dir(&nodes, id))
                 .filter_map(|id| nodes.sub(&id).map(|d| (id, d)))
                 .collect();
             l.nodes = Some(l.add(nodes, Place::Nodes, prefix));
@@ -281,16 +278,19 @@ pub(super) fn remove_node_files(prefix: &str, id: u128) {
 /// Delete `prefix`'s files in `nodes/<id>`, then the directory if it is ours and now empty
 /// (another prefix's node of the same id keeps it).
 fn remove_node_dir(nodes: &SafeDir, prefix: &str, id: &[u8]) {
-    let Some(st) = nodes.stat(id) else {
-        return;
-    };
-    if FileType::from_raw_mode(st.st_mode) != FileType::Directory || !is_own(&st) {
+    if !is_own_dir(nodes, id) {
         return;
     }
     if let Some(dir) = nodes.sub(id) {
         dir.remove_prefix_files(Place::NodeDir, prefix, |_| true);
     }
     let _ = rustix::fs::unlinkat(&nodes.0, OsStr::from_bytes(id), AtFlags::REMOVEDIR);
+}
+
+/// Is `id` in `dir` a directory of ours (not a link to one)?
+fn is_own_dir(dir: &SafeDir, id: &[u8]) -> bool {
+    dir.stat(id)
+        .is_some_and(|st| FileType::from_raw_mode(st.st_mode) == FileType::Directory && is_own(&st))
 }
 
 /// A shared memory segment of ours in `/dev/shm`: its name and what it is.
