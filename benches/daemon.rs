@@ -6,7 +6,8 @@
 //! DRIFTLESS_BENCH_SECONDS=20 cargo bench --bench daemon   # shorter
 //! DRIFTLESS_BENCH_ONLY=scale cargo bench --bench daemon    # runs 5 and 6 alone
 //! DRIFTLESS_BENCH_ONLY=drivers cargo bench --bench daemon  # run 6 alone
-//! DRIFTLESS_BENCH_ONLY=single cargo bench --bench daemon   # runs 1-4 alone (one pipeline)
+//! DRIFTLESS_BENCH_ONLY=single cargo bench --bench daemon   # runs 1-4 and 7 (one pipeline)
+//! DRIFTLESS_BENCH_ONLY=fed cargo bench --bench daemon      # run 7 alone
 //! ```
 //!
 //! Runs, in order (each alone on the machine):
@@ -26,7 +27,11 @@
 //!    running all N on its hot thread, and two daemons of N/2 (a hot thread per core);
 //! 6. drivers: the same N pipelines reading sensor drivers (`ingest.iceoryx2`) instead of the
 //!    simulator, this process publishing every IMU's sample each 1 ms and reading every
-//!    corrected service; N daemons against one daemon.
+//!    corrected service; N daemons against one daemon;
+//! 7. fed by a sensor driver, as deployed: this process publishes a raw sample each 1 ms on
+//!    "sensor/raw" and reads the corrected service; the consumer is the bare chain of the same
+//!    hops in its own process (this binary again), `pipelines/navigator.toml`, then
+//!    `pipelines/external-sensor.toml`. Their CPU is judged against the bare chain's.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -104,21 +109,58 @@ fn row_from_report(name: &str, r: &Value) -> Row {
     }
 }
 
+/// The bare chain's four ipc hops, `{stem}/raw` to `{stem}/corrected`, in one thread: each
+/// sample is sent and received on every hop (the last is only sent, and notified).
+struct BareHops {
+    raw_out: driftless::transport::Output<RawSample>,
+    raw_in: driftless::transport::Input<RawSample>,
+    outs: Vec<driftless::transport::Output<GyroSample>>,
+    ins: Vec<driftless::transport::Input<GyroSample>>,
+}
+
+impl BareHops {
+    fn new(t: &Transport, stem: &str) -> Self {
+        let names = ["denoised", "predicted", "corrected"].map(|h| format!("{stem}/{h}"));
+        Self {
+            raw_out: t.output(&format!("{stem}/raw"), false).expect("pub"),
+            raw_in: t.input(&format!("{stem}/raw")).expect("sub"),
+            outs: names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| t.output(n, i == 2).expect("pub"))
+                .collect(),
+            ins: names[..2]
+                .iter()
+                .map(|n| t.input(n).expect("sub"))
+                .collect(),
+        }
+    }
+
+    /// Pass `raw`, taken at `ingest_ns`, over the four hops; notify the last one's listeners.
+    fn pass(&self, raw: &RawSample, ingest_ns: u64) {
+        self.raw_out.send(raw).expect("send");
+        let r = self.raw_in.receive().expect("recv").expect("sample");
+        let mut g = GyroSample {
+            seq: r.seq,
+            t_ns: r.t_ns,
+            ingest_ns,
+            rate: r.rate,
+            ..GyroSample::default()
+        };
+        for (i, out) in self.outs.iter().enumerate() {
+            out.send(&g).expect("send");
+            if let Some(input) = self.ins.get(i) {
+                g = input.receive().expect("recv").expect("sample");
+            }
+        }
+        self.outs[2].notify();
+    }
+}
+
 /// The bare chain: the same four ipc hops in one thread, no computation.
 fn bare_chain(prefix: &str, rate_hz: Option<f64>, n: u64) -> (Histogram<u64>, f64, f64) {
     let t = Transport::new(prefix, "bare", Qos::default()).expect("node");
-    let raw_out = t.output::<RawSample>("b/raw", false).expect("pub");
-    let raw_in = t.input::<RawSample>("b/raw").expect("sub");
-    let names = ["b/denoised", "b/predicted", "b/corrected"];
-    let outs: Vec<_> = names
-        .iter()
-        .enumerate()
-        .map(|(i, n)| t.output::<GyroSample>(n, i == 2).expect("pub"))
-        .collect();
-    let ins: Vec<_> = names[..2]
-        .iter()
-        .map(|n| t.input::<GyroSample>(n).expect("sub"))
-        .collect();
+    let hops = BareHops::new(&t, "b");
     let mut h = hist();
     let cpu0 = thread_cpu_seconds();
     let start = Instant::now();
@@ -135,19 +177,7 @@ fn bare_chain(prefix: &str, rate_hz: Option<f64>, n: u64) -> (Histogram<u64>, f6
             seq: k,
             ..RawSample::default()
         };
-        raw_out.send(&raw).expect("send");
-        let r = raw_in.receive().expect("recv").expect("sample");
-        let mut g = GyroSample {
-            seq: r.seq,
-            ingest_ns: t0,
-            ..GyroSample::default()
-        };
-        for (i, out) in outs.iter().enumerate() {
-            out.send(&g).expect("send");
-            if let Some(input) = ins.get(i) {
-                g = input.receive().expect("recv").expect("sample");
-            }
-        }
+        hops.pass(&raw, t0);
         h.saturating_record((monotonic_ns() - t0).max(1));
     }
     let elapsed = start.elapsed().as_secs_f64();
@@ -296,9 +326,19 @@ fn main() {
         bare_publisher(&arg);
         return;
     }
+    if let Ok(prefix) = std::env::var(BARE_DRIVEN) {
+        bare_driven(&prefix);
+        return;
+    }
     let secs = bench_seconds(100.0);
     let dir = tempfile::tempdir().expect("tempdir");
     let only = std::env::var("DRIFTLESS_BENCH_ONLY").unwrap_or_default();
+    if only == "fed" {
+        println!("load average at the start: {}", loadavg());
+        realtime(50);
+        driver_fed_rows(secs.min(30.0), dir.path());
+        return;
+    }
     if only == "scale" || only == "drivers" {
         println!("load average at the start: {}", loadavg());
         if only == "scale" {
@@ -504,6 +544,8 @@ fn main() {
         "algorithmic delay of the demo's denoiser (lag / rate): {} us, reported beside the end-to-end latency",
         us(demo["algorithmic_delay_ns"].as_u64().unwrap_or(0))
     );
+    // 7. Fed by a sensor driver, as deployed.
+    driver_fed_rows(bare_secs, dir.path());
     if only != "single" {
         scale(secs, dir.path());
         drivers(secs, dir.path());
@@ -896,4 +938,228 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
         h.count_between(1_000_001, u64::MAX),
         cpu / secs * 100.0,
     );
+}
+
+/// The environment variable that makes this bench binary [`bare_driven`]: the prefix.
+const BARE_DRIVEN: &str = "DRIFTLESS_BENCH_BARE_DRIVEN";
+
+/// The floor of a driver-fed pipeline, in its own process as a daemon is (SCHED_FIFO 50): sleep
+/// on the driver's event service "sensor/raw" (1 ms timeout, as `ingest.iceoryx2`'s
+/// `poll_timeout_us = 1000`), take each raw sample and pass it over the bare chain's four hops
+/// to "bare/corrected", notifying. No computation. Until SIGTERM.
+fn bare_driven(prefix: &str) {
+    realtime(50);
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone()).expect("SIGTERM");
+    let t = Transport::new(prefix, "bare-driven", Qos::default()).expect("node");
+    let sensor = t
+        .input::<RawSample>("sensor/raw")
+        .expect("driver's service");
+    let waker = t.waker("sensor/raw").expect("driver's event service");
+    let hops = BareHops::new(&t, "bare");
+    while !stop.load(Ordering::Relaxed) {
+        let _ = waker.wait(Duration::from_millis(1));
+        while let Ok(Some(raw)) = sensor.receive() {
+            hops.pass(&raw, monotonic_ns());
+        }
+    }
+}
+
+/// What run 7 feeds from a driver.
+#[derive(Clone, Copy)]
+enum Fed<'a> {
+    /// [`bare_driven`].
+    Bare,
+    /// A daemon of this pipeline file; its corrected service and its denoiser's lag (samples).
+    Daemon(&'a Path, &'a str, u64),
+}
+
+/// What run 7 measured of one consumer.
+struct FedRun {
+    /// The consumer's CPU, share of one core, over the driven window.
+    cpu: f64,
+    /// Driver's send to the subscriber's receipt.
+    sub: Histogram<u64>,
+    /// Samples the subscriber found missing (by `seq`).
+    lost: u64,
+    /// The daemon's report (none for the bare chain).
+    report: Option<Value>,
+}
+
+/// Run 7: a sensor driver (this process's thread, SCHED_FIFO 50) publishes a `RawSample` on
+/// "sensor/raw" each 1 ms for `secs` and notifies, as `examples/raw_driver.rs` does; `fed`
+/// consumes it in its own process; a thread of this process subscribes to its corrected
+/// service as a navigator would. The consumer's CPU is its process's (every thread) over the
+/// driven window, from /proc.
+fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
+    let p = prefix(tag);
+    clean(&p);
+    let report = dir.join(format!("{tag}.json"));
+    let (mut child, service, lag) = match fed {
+        Fed::Bare => (
+            std::process::Command::new(std::env::current_exe().expect("this bench"))
+                .env(BARE_DRIVEN, &p)
+                .spawn()
+                .expect("spawn the bare chain"),
+            "bare/corrected",
+            0,
+        ),
+        Fed::Daemon(file, service, lag) => (start_daemon(file, &p, &report, &[]), service, lag),
+    };
+    let driver = Transport::new(&p, "driver", Qos::default()).expect("driver node");
+    let out = driver
+        .output::<RawSample>("sensor/raw", true)
+        .expect("driver's service");
+    let ticks = (secs * 1000.0) as u64;
+    let sent: Arc<Vec<AtomicU64>> = Arc::new((0..ticks).map(|_| AtomicU64::new(0)).collect());
+    let (stop, ready) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicBool::new(false)),
+    );
+    let reader = {
+        let (p, stop, ready, sent) = (p.clone(), stop.clone(), ready.clone(), sent.clone());
+        let service = service.to_string();
+        std::thread::spawn(move || {
+            realtime(50);
+            let t = Transport::new(&p, "navigator", Qos::default()).expect("node");
+            let end = Instant::now() + Duration::from_secs(30);
+            let input = loop {
+                if let Ok(i) = t.open_input::<GyroSample>(&service) {
+                    break i;
+                }
+                assert!(Instant::now() < end, "{service} not offered");
+                std::thread::sleep(Duration::from_millis(20));
+            };
+            let waker = t.waker(&service).expect("waker");
+            ready.store(true, Ordering::Release);
+            let (mut h, mut last, mut lost) = (hist(), None::<u64>, 0u64);
+            while !stop.load(Ordering::Relaxed) {
+                let _ = waker.wait(Duration::from_millis(10));
+                let now = monotonic_ns();
+                while let Ok(Some(s)) = input.receive() {
+                    // The output of sample q leaves with sample q + lag (the denoiser's delay).
+                    let k = (s.seq + lag) as usize;
+                    if s.flags & FLAG_FLUSHED == 0 && k < sent.len() {
+                        let at = sent[k].load(Ordering::Relaxed);
+                        h.saturating_record(now.saturating_sub(at).max(1));
+                    }
+                    lost += last.map_or(0, |l| s.seq.saturating_sub(l + 1));
+                    last = Some(s.seq);
+                }
+            }
+            (h, lost)
+        })
+    };
+    while !ready.load(Ordering::Acquire) {
+        assert!(!reader.is_finished(), "the subscriber gave up");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // Let the consumer's hot thread settle before the window opens.
+    std::thread::sleep(Duration::from_millis(300));
+    let cpu0 = cpu_seconds(child.id());
+    let start = Instant::now();
+    for (k, at) in sent.iter().enumerate() {
+        let due = start + Duration::from_micros(k as u64 * 1000);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+        let t = k as f64 * 1e-3;
+        let t_ns = monotonic_ns();
+        at.store(t_ns, Ordering::Relaxed);
+        let _ = out.send(&RawSample {
+            t_ns,
+            seq: k as u64,
+            rate: [t.sin(), (2.0 * t).cos(), 0.1 * (7.0 * t).sin()],
+            flags: 0,
+            epoch: 0,
+        });
+        out.notify();
+    }
+    let cpu = (cpu_seconds(child.id()) - cpu0) / start.elapsed().as_secs_f64();
+    std::thread::sleep(Duration::from_millis(200));
+    stop.store(true, Ordering::Relaxed);
+    let (sub, lost) = reader.join().expect("subscriber thread");
+    sigterm_and_wait(&mut child);
+    drop((out, driver));
+    clean(&p);
+    FedRun {
+        cpu,
+        sub,
+        lost,
+        report: matches!(fed, Fed::Daemon(..)).then(|| read_report(&report)),
+    }
+}
+
+/// Run 7's rows and goals: the bare chain, `navigator.toml` and `external-sensor.toml`, each
+/// fed by the same driver for `secs`.
+fn driver_fed_rows(secs: f64, dir: &Path) {
+    let nav = root().join("pipelines/navigator.toml");
+    let ext = root().join("pipelines/external-sensor.toml");
+    let runs = [
+        ("bare iceoryx2 chain, 4 hops", Fed::Bare, "fedbare"),
+        (
+            "navigator.toml (bias filter, no denoiser)",
+            Fed::Daemon(&nav, "nav/corrected", 0),
+            "fednav",
+        ),
+        (
+            "external-sensor.toml (denoiser, lag 64)",
+            Fed::Daemon(&ext, "external/corrected", DEMO_LAG),
+            "fedext",
+        ),
+    ]
+    .map(|(label, fed, tag)| (label, driver_fed(fed, tag, secs, dir)));
+    println!();
+    println!("| 1 kHz, fed by a sensor driver | CPU | x the bare chain's | send to receipt p50 / p99 / p99.9 / max us | misses (the kernel's) | lost |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    let bare_cpu = runs[0].1.cpu.max(1e-9);
+    for (label, r) in &runs {
+        let misses = r.report.as_ref().map_or("-".into(), |v| {
+            format!(
+                "{} ({})",
+                v["deadline_misses"].as_u64().unwrap_or(0),
+                v["deadline_misses_explained"].as_u64().unwrap_or(0)
+            )
+        });
+        let reported_lost = r
+            .report
+            .as_ref()
+            .map_or(0, |v| v["lost"].as_u64().unwrap_or(0));
+        println!(
+            "| {label} | {:.1}% | {:.2} | {} / {} / {} / {} | {misses} | {} |",
+            r.cpu * 100.0,
+            r.cpu / bare_cpu,
+            us(r.sub.value_at_quantile(0.5)),
+            us(r.sub.value_at_quantile(0.99)),
+            us(r.sub.value_at_quantile(0.999)),
+            us(r.sub.max()),
+            r.lost + reported_lost,
+        );
+    }
+    let unexplained = |r: &FedRun| {
+        r.report.as_ref().map_or(0, |v| {
+            v["deadline_misses"].as_u64().unwrap_or(0)
+                - v["deadline_misses_explained"].as_u64().unwrap_or(0)
+        })
+    };
+    for (goal, r, ratio) in [
+        (
+            "driver-fed navigator.toml CPU <= 1.5x the bare chain's",
+            &runs[1].1,
+            1.5,
+        ),
+        (
+            "driver-fed external-sensor.toml CPU <= 2.5x the bare chain's",
+            &runs[2].1,
+            2.5,
+        ),
+    ] {
+        println!(
+            "  goal {goal}: {} (x{:.2}; {} unexplained misses, {} lost)",
+            r.cpu <= ratio * bare_cpu,
+            r.cpu / bare_cpu,
+            unexplained(r),
+            r.lost
+        );
+    }
 }
