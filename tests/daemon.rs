@@ -424,20 +424,52 @@ output = "m/corrected"
 }
 
 /// A miss says whose it was: with a deadline shorter than the chain's own compute, the
-/// misses happen on a CPU, ours, and the verdict says UNEXPLAINED (the kernel's case, a thread
-/// held off a CPU longer than the overshoot, is tested where its numbers can be set:
-/// metrics' unit tests; from outside, a stop or a preemption lands inside a 2 us sample too
-/// rarely to test).
+/// misses happen on a CPU, ours, and both `stats` (live) and the verdict say UNEXPLAINED (the
+/// kernel's case, a thread held off a CPU longer than the overshoot, is tested where its
+/// numbers can be set: metrics' unit tests; from outside, a stop or a preemption lands inside a
+/// 2 us sample too rarely to test).
 #[test]
-fn a_miss_on_a_cpu_is_ours_and_the_verdict_says_unexplained() {
+fn a_miss_on_a_cpu_is_ours_and_stats_and_the_verdict_say_unexplained() {
     let dir = Dir::new();
     let report_path = dir.path("report.json");
     // A 0.1 us deadline, under what the chain itself takes.
     let prefix = Prefix::new("ours");
-    let file = dir.write("tight.toml", &sim_pipeline(0.1));
+    let text = sim_pipeline(0.1).replace("report_interval_s = 60.0", "report_interval_s = 0.2");
+    let file = dir.write("tight.toml", &text);
     let mut child = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
     wait_ready(&prefix, "m/stats", &mut child);
     std::thread::sleep(Duration::from_millis(500));
+    let stats = |json: bool| {
+        let out = std::process::Command::new(common::bin())
+            .arg("stats")
+            .arg(&file)
+            .args(["--prefix", &prefix.0, "--once"])
+            .args(json.then_some("--json"))
+            .output()
+            .expect("stats");
+        assert_eq!(out.status.code(), Some(0), "{out:?}");
+        String::from_utf8(out.stdout).expect("UTF-8")
+    };
+    let live = stats(false);
+    assert!(live.contains("UNEXPLAINED)\n"), "{live}");
+    assert!(
+        live.contains("last miss at ") && live.contains(": UNEXPLAINED\n"),
+        "{live}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&stats(true)).expect("one JSON object");
+    let (misses, explained) = (&v["deadline_misses"], &v["deadline_misses_explained"]);
+    assert!(
+        misses.as_u64().unwrap() > explained.as_u64().unwrap(),
+        "{v}"
+    );
+    let last = &v["last_miss"];
+    assert_eq!(last["explained"], false, "{v}");
+    // A paced source keeps time: the thread's time off a CPU was measured, and is short of the
+    // miss's overshoot.
+    assert!(
+        last["off_cpu_ns"].as_u64().unwrap() < last["e2e_ns"].as_u64().unwrap(),
+        "{v}"
+    );
     signal(&child, SIGTERM);
     let (code, err) = finish(child, Duration::from_secs(20));
     assert_eq!(code, Some(0), "{err}");

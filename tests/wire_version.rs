@@ -1,13 +1,15 @@
-//! `GyroSample`'s layout version between real processes: a service of the version 1 layout (as
-//! a driftless before `drift_std` publishes it) is refused by name by `tap`, `record` and the
-//! transport, and a subscriber built for version 1 cannot open our version 2 service (iceoryx2
-//! refuses it: it is never handed bytes it would misread).
+//! The layout versions of `GyroSample` and `StatsSnapshot` between real processes: a service of
+//! the version 1 layout (as a driftless before `drift_std`, or before the misses'
+//! explanation, publishes it) is refused by name by `tap`, `record`, `stats` and the transport,
+//! and a subscriber built for version 1 cannot open our version 2 service (iceoryx2 refuses
+//! it: it is never handed bytes it would misread).
 
 mod common;
 
 use common::{text, Prefix};
 use driftless::transport::{
-    GyroSample, Qos, Transport, TransportError, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME,
+    GyroSample, Qos, StatsSnapshot, Transport, TransportError, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME,
+    STATS_V1_SIZE, STATS_V1_TYPE_NAME,
 };
 use iceoryx2::prelude::*;
 
@@ -24,6 +26,15 @@ struct GyroSampleV1 {
     denoised: [f64; 3],
     flags: u32,
     epoch: u32,
+}
+
+/// `StatsSnapshot` as driftless published it before the misses' explanation (layout version
+/// 1, 904 bytes): only its size and name matter here.
+#[derive(Debug, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StatsSnapshot")]
+struct StatsSnapshotV1 {
+    fields: [u64; 113],
 }
 
 fn node(prefix: &Prefix, name: &str) -> Node<ipc::Service> {
@@ -134,5 +145,70 @@ fn an_old_layout_service_is_refused_by_name_and_an_old_subscriber_cannot_open_ou
     }
 
     drop((old_publisher, old_service, old, me, _ours));
+    driftless::transport::remove_prefix_leftovers(&prefix.0);
+}
+
+#[test]
+fn an_old_stats_service_is_refused_by_name_by_stats_tap_and_list() {
+    assert_eq!(std::mem::size_of::<StatsSnapshotV1>(), STATS_V1_SIZE);
+    // SAFETY: type_name only returns the static string of the derive attribute.
+    assert_eq!(unsafe { StatsSnapshotV1::type_name() }, STATS_V1_TYPE_NAME);
+    let prefix = Prefix::new("statsver");
+    let dir = common::Dir::new();
+    let old = node(&prefix, "old-daemon");
+    let old_service = old
+        .service_builder(&"old/stats".try_into().expect("name"))
+        .publish_subscribe::<StatsSnapshotV1>()
+        .open_or_create()
+        .expect("old service");
+    let _old_publisher = old_service.publisher_builder().create().expect("publisher");
+    let want = "service \"old/stats\" carries driftless::StatsSnapshot (layout v1, 904 bytes, \
+                from an older driftless); this driftless reads driftless::StatsSnapshot.v2 \
+                (layout v2, 936 bytes, with the misses' explanation): run the daemon and its \
+                subscribers from one release (docs/wire-types.md#versions)";
+
+    // `stats` of a pipeline named "old" reads "old/stats".
+    let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml"))
+        .expect("demo.toml");
+    let file = dir.write("old.toml", &demo.replace("demo", "old"));
+    let o = common::driftless(&[
+        "stats",
+        file.to_str().unwrap(),
+        "--prefix",
+        &prefix.0,
+        "--once",
+    ]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "stats: {err}");
+    assert!(out.is_empty(), "{out}");
+    assert_eq!(err.trim_end(), format!("driftless: error: {want}"), "stats");
+
+    let o = common::driftless(&["tap", "old/stats", "--prefix", &prefix.0, "--count", "1"]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "tap: {err}");
+    assert_eq!(err.trim_end(), format!("driftless: error: {want}"), "tap");
+
+    let o = common::driftless(&["list", "--prefix", &prefix.0, "--json"]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "list: {err}");
+    let doc: serde_json::Value = serde_json::from_str(&out).expect("list --json");
+    let listed = doc["services"]
+        .as_array()
+        .expect("services")
+        .iter()
+        .find(|s| s["name"] == "old/stats" && s["pattern"] == "publish-subscribe")
+        .unwrap_or_else(|| panic!("old/stats not listed: {doc:#}"));
+    assert_eq!(
+        listed["wire_type"], "StatsSnapshot (other version)",
+        "{listed}"
+    );
+
+    let me = Transport::new(&prefix.0, "new-stats", Qos::default()).expect("node");
+    match me.open_input::<StatsSnapshot>("old/stats") {
+        Err(TransportError::Version(m)) => assert_eq!(m, want),
+        Err(e) => panic!("not a version refusal: {e}"),
+        Ok(_) => panic!("a version 1 stats service was opened as version 2"),
+    }
+    drop((_old_publisher, old_service, old, me));
     driftless::transport::remove_prefix_leftovers(&prefix.0);
 }

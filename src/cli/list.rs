@@ -209,19 +209,17 @@ fn pid_text(n: &ListedNode) -> String {
     pid(n).map_or("-".into(), |p| p.to_string())
 }
 
-fn type_text(kind: &ServiceKind) -> &str {
+fn type_text(kind: &ServiceKind) -> String {
     match kind {
-        ServiceKind::PubSub { wire: Some(w), .. } => w.short_name(),
+        ServiceKind::PubSub { wire: Some(w), .. } => w.short_name().into(),
         // Ours, in another layout version (an older or newer driftless's daemon).
         ServiceKind::PubSub {
             wire: None,
             type_name,
-        } if crate::transport::wire_version_mismatch("", type_name).is_some() => {
-            "GyroSample (other version)"
-        }
-        ServiceKind::PubSub { wire: None, .. } => "foreign",
-        ServiceKind::Event => "event",
-        ServiceKind::Other(pattern) => pattern,
+        } => crate::transport::other_layout_of(type_name)
+            .map_or_else(|| "foreign".into(), |t| format!("{t} (other version)")),
+        ServiceKind::Event => "event".into(),
+        ServiceKind::Other(pattern) => pattern.to_string(),
     }
 }
 
@@ -361,7 +359,7 @@ fn text(prefix: &str, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
                 let by = published_by(s, listing, pipes);
                 vec![
                     s.name.clone(),
-                    type_text(&s.kind).into(),
+                    type_text(&s.kind),
                     count_text(&s.senders),
                     count_text(&s.receivers),
                     if s.senders.is_none() {

@@ -51,7 +51,11 @@ fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError
     };
     let input = node
         .open_input::<StatsSnapshot>(&p.iceoryx2.stats_service)
-        .map_err(|_| not_running())?;
+        .map_err(|e| match e {
+            // A daemon of another release: say so, not "is it running?".
+            transport::TransportError::Version(m) => CliError::input(m),
+            _ => not_running(),
+        })?;
     let stop = crate::cli::signals::stop_flag();
     // On a terminal the snapshot is redrawn in place (as `top`); piped, snapshots follow each
     // other.

@@ -305,6 +305,27 @@ pub struct StatsMessage {
     pub end_to_end_us: PercentilesUs,
     /// Per-stage statistics.
     pub stages: Vec<StageMessage>,
+    /// Of `deadline_misses`, those the kernel explains (absent in recordings made before
+    /// `StatsSnapshot` v2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deadline_misses_explained: Option<u64>,
+    /// The latest miss (absent before the first, and before `StatsSnapshot` v2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_miss: Option<LastMissMessage>,
+}
+
+/// The latest deadline miss of a [`StatsMessage`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LastMissMessage {
+    /// When, seconds since the pipeline started.
+    pub uptime_s: f64,
+    /// Its end-to-end latency, us.
+    pub e2e_us: f64,
+    /// The hot thread's time off a CPU meanwhile, us (absent: not measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub off_cpu_us: Option<f64>,
+    /// Whether the kernel explains it.
+    pub explained: bool,
 }
 
 impl From<&StatsSnapshot> for StatsMessage {
@@ -335,6 +356,13 @@ impl From<&StatsSnapshot> for StatsMessage {
                     compute_us: (&st.compute).into(),
                 })
                 .collect(),
+            deadline_misses_explained: Some(s.deadline_misses_explained),
+            last_miss: s.last_miss_explained().map(|explained| LastMissMessage {
+                uptime_s: s.last_miss_uptime_ns as f64 * 1e-9,
+                e2e_us: s.last_miss_e2e_ns as f64 * 1e-3,
+                off_cpu_us: s.last_miss_off_cpu().map(|ns| ns as f64 * 1e-3),
+                explained,
+            }),
         }
     }
 }
@@ -359,7 +387,7 @@ pub fn gyro_schema() -> String {
 pub fn stats_schema() -> String {
     const P: &str = r#"{"type":"object","properties":{"count":{"type":"integer"},"p50":{"type":"number"},"p99":{"type":"number"},"p999":{"type":"number"},"max":{"type":"number"}}}"#;
     format!(
-        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot; times in the unit their name ends with","type":"object","properties":{{"uptime_s":{{"type":"number"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":"number"}},"deadline_misses":{{"type":"integer"}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"deadline_us":{{"type":"number"}},"algorithmic_delay_ms":{{"type":"number"}},"end_to_end_us":{P},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_us":{P}}}}}}}}}}}"#
+        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot; times in the unit their name ends with","type":"object","properties":{{"uptime_s":{{"type":"number"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":"number"}},"deadline_misses":{{"type":"integer"}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"deadline_us":{{"type":"number"}},"algorithmic_delay_ms":{{"type":"number"}},"end_to_end_us":{P},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":"object","description":"the latest deadline miss","properties":{{"uptime_s":{{"type":"number"}},"e2e_us":{{"type":"number"}},"off_cpu_us":{{"type":"number","description":"absent: not measured"}},"explained":{{"type":"boolean"}}}}}},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_us":{P}}}}}}}}}}}"#
     )
 }
 

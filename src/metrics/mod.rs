@@ -17,7 +17,9 @@ use crossbeam_channel::{Receiver, TryRecvError};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 
-use crate::transport::{Losses, Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES};
+use crate::transport::{
+    Losses, Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES, OFF_CPU_NOT_MEASURED,
+};
 
 /// Most stages of a pipeline.
 pub const MAX_STAGES: usize = MAX_STATS_STAGES;
@@ -293,6 +295,8 @@ pub struct Reporter {
     e2e: Histogram<u64>,
     heading: Option<HeadingSummary>,
     misses: Vec<Miss>,
+    /// The latest miss, however many came before it (for the stats service).
+    last_miss: Option<Miss>,
     late: Histogram<u64>,
     late_over: u64,
     due: Histogram<u64>,
@@ -322,6 +326,7 @@ impl Reporter {
             e2e: histogram(),
             heading: None,
             misses: Vec::new(),
+            last_miss: None,
             late: histogram(),
             late_over: 0,
             due: histogram(),
@@ -363,18 +368,21 @@ impl Reporter {
         if r.e2e_ns > 0 {
             self.e2e.saturating_record(r.e2e_ns);
             // The hot loop's own test, so the list agrees with its count.
-            if r.e2e_ns > self.layout.deadline.as_nanos() as u64 && self.misses.len() < MISSES_KEPT
-            {
+            if r.e2e_ns > self.layout.deadline.as_nanos() as u64 {
                 let mut stage_ns = vec![0; self.stage_hist.len()];
                 for (d, &ns) in stage_ns[first..n].iter_mut().zip(&r.stage_ns[first..n]) {
                     *d = u64::from(ns);
                 }
-                self.misses.push(Miss {
+                let miss = Miss {
                     at_s: self.started.elapsed().as_secs_f64(),
                     e2e_ns: r.e2e_ns,
                     stage_ns,
                     off_cpu_ns: r.off_cpu_ns.map(u64::from),
-                });
+                };
+                if self.misses.len() < MISSES_KEPT {
+                    self.misses.push(miss.clone());
+                }
+                self.last_miss = Some(miss);
             }
         }
     }
@@ -425,7 +433,7 @@ impl Reporter {
             us(s.end_to_end.p99),
             us(s.end_to_end.p999),
             us(s.end_to_end.max),
-            s.deadline_misses,
+            misses_text(s),
             s.lost,
             s.flagged,
             s.metric_drops
@@ -489,6 +497,17 @@ impl Reporter {
             end_to_end: Pct::of(&self.e2e).wire(),
             stage_count: self.layout.stages.len() as u64,
             stages,
+            deadline_misses_explained: get(&c.misses_explained),
+            last_miss_uptime_ns: self
+                .last_miss
+                .as_ref()
+                .map_or(0, |m| ((m.at_s * 1e9) as u64).max(1)),
+            last_miss_e2e_ns: self.last_miss.as_ref().map_or(0, |m| m.e2e_ns),
+            last_miss_off_cpu_ns: self
+                .last_miss
+                .as_ref()
+                .and_then(|m| m.off_cpu_ns)
+                .unwrap_or(OFF_CPU_NOT_MEASURED),
         }
     }
 
@@ -559,6 +578,13 @@ pub fn snapshot_json(s: &StatsSnapshot) -> serde_json::Value {
         "rate_hz": s.rate_hz,
         "deadline_ns": s.deadline_ns,
         "deadline_misses": s.deadline_misses,
+        "deadline_misses_explained": s.deadline_misses_explained,
+        "last_miss": s.last_miss_explained().map(|explained| serde_json::json!({
+            "uptime_ns": s.last_miss_uptime_ns,
+            "e2e_ns": s.last_miss_e2e_ns,
+            "off_cpu_ns": s.last_miss_off_cpu(),
+            "explained": explained,
+        })),
         "lost": s.lost,
         "flagged": s.flagged,
         "gap_samples": s.gap_samples,
@@ -575,18 +601,30 @@ pub fn snapshot_json(s: &StatsSnapshot) -> serde_json::Value {
     })
 }
 
+/// A snapshot's misses, and whose they were: `0`, `3 (2 the kernel's, 1 UNEXPLAINED)`.
+fn misses_text(s: &StatsSnapshot) -> String {
+    let explained = s.deadline_misses_explained.min(s.deadline_misses);
+    match (s.deadline_misses, s.deadline_misses - explained) {
+        (0, _) => "0".into(),
+        (n, 0) => format!("{n} (all the kernel's)"),
+        (n, u) if u == n => format!("{n} (all UNEXPLAINED)"),
+        (n, u) => format!("{n} ({explained} the kernel's, {u} UNEXPLAINED)"),
+    }
+}
+
 /// Format a snapshot for `driftless stats`.
 pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
-    // Fits an 80-column terminal: three summary lines and a 76-column table.
+    // Fits an 80-column terminal: four summary lines, the last miss and a 76-column table.
     let us = |ns: u64| format!("{:.1}", ns as f64 / 1e3);
     let mut out = format!(
-        "{name}: up {:.1} s, {:.0} Hz; deadline {} us, {} missed\n\
+        "{name}: up {:.1} s, {:.0} Hz; deadline {} us\n\
+         misses: {}\n\
          samples: {} in, {} out, {} lost ({} missing from the source)\n\
          flagged {}; metric drops {}\n",
         s.uptime_ns as f64 / 1e9,
         s.rate_hz,
         us(s.deadline_ns),
-        s.deadline_misses,
+        misses_text(s),
         s.samples_in,
         s.samples_out,
         s.lost,
@@ -594,6 +632,23 @@ pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
         s.flagged,
         s.metric_drops
     );
+    if let Some(explained) = s.last_miss_explained() {
+        let off = s
+            .last_miss_off_cpu()
+            .map_or("off a CPU: not measured".into(), |ns| {
+                format!("{} us off a CPU", us(ns))
+            });
+        out.push_str(&format!(
+            "last miss at {:.1} s: {} us, {off}: {}\n",
+            s.last_miss_uptime_ns as f64 / 1e9,
+            us(s.last_miss_e2e_ns),
+            if explained {
+                "the kernel's"
+            } else {
+                "UNEXPLAINED"
+            }
+        ));
+    }
     let row = |out: &mut String, cells: [&str; 8]| {
         let [name, a, b, c, d, e, f, g] = cells;
         out.push_str(&format!(
@@ -652,7 +707,11 @@ mod tests {
             samples_out: 86_399_936,
             rate_hz: 1000.0,
             deadline_ns: 1_000_000,
-            deadline_misses: 12,
+            deadline_misses: 12_345,
+            deadline_misses_explained: 12_000,
+            last_miss_uptime_ns: 86_399_000_000_000,
+            last_miss_e2e_ns: 99_999_900,
+            last_miss_off_cpu_ns: 99_999_000,
             lost: 123_456,
             flagged: 1_000,
             gap_samples: 500,
@@ -675,11 +734,53 @@ mod tests {
         s.end_to_end.count = 86_400_000;
         s.end_to_end.max = 99_999_900;
         let text = format_snapshot("demo", &s);
-        assert_eq!(text.lines().count(), 3 + 1 + 4 + 1, "{text}");
+        assert_eq!(text.lines().count(), 4 + 1 + 1 + 4 + 1, "{text}");
         for line in text.lines() {
             assert!(line.len() <= 80, "{} columns: {line:?}", line.len());
         }
         assert!(text.contains("denoise"), "{text}");
+        assert!(
+            text.contains("\nmisses: 12345 (12000 the kernel's, 345 UNEXPLAINED)\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains(
+                "last miss at 86399.0 s: 99999.9 us, 99999.0 us off a CPU: the kernel's\n"
+            ),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn the_stats_service_carries_the_latest_miss_and_whose_it_was() {
+        let mut r = reporter(1000);
+        assert_eq!(r.snapshot(0.0).last_miss_explained(), None);
+        // 1.8 ms end to end, 0.9 ms of it off a CPU: the kernel's. Then one on a CPU: ours.
+        for (e2e, off) in [(1_800_000, Some(900_000)), (1_500_000, Some(1_000))] {
+            r.record(&Record {
+                e2e_ns: e2e,
+                stages_run: 2,
+                off_cpu_ns: off,
+                ..Record::default()
+            });
+            let s = r.snapshot(0.0);
+            assert_eq!(s.last_miss_e2e_ns, e2e);
+            assert_eq!(Some(s.last_miss_off_cpu_ns), off.map(u64::from));
+            assert_eq!(s.last_miss_explained(), Some(off == Some(900_000)));
+            assert!(s.last_miss_uptime_ns > 0);
+        }
+        // A source that does not keep time: not measured, so not explained.
+        r.record(&Record {
+            e2e_ns: 2_000_000,
+            stages_run: 2,
+            ..Record::default()
+        });
+        let s = r.snapshot(0.0);
+        assert_eq!(s.last_miss_off_cpu_ns, OFF_CPU_NOT_MEASURED);
+        assert_eq!(s.last_miss_explained(), Some(false));
+        let json = snapshot_json(&s);
+        assert_eq!(json["last_miss"]["off_cpu_ns"], serde_json::Value::Null);
+        assert_eq!(json["last_miss"]["explained"], false);
     }
 
     fn reporter(deadline_us: u64) -> Reporter {

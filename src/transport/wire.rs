@@ -108,8 +108,18 @@ pub const GYRO_VERSION: u32 = 2;
 pub const GYRO_V1_TYPE_NAME: &str = "driftless::GyroSample";
 /// Size of [`GyroSample`] version 1, bytes.
 pub const GYRO_V1_SIZE: usize = 104;
-/// Type name of [`StatsSnapshot`] on the wire.
-pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot";
+/// Type name of [`StatsSnapshot`] on the wire; `.v2` names the layout, as for
+/// [`GYRO_TYPE_NAME`].
+pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot.v2";
+/// The layout version of [`StatsSnapshot`] (the `.vN` of [`STATS_TYPE_NAME`]).
+pub const STATS_VERSION: u32 = 2;
+/// The type name of [`StatsSnapshot`] version 1 (904 bytes, before the misses' explanation).
+pub const STATS_V1_TYPE_NAME: &str = "driftless::StatsSnapshot";
+/// Size of [`StatsSnapshot`] version 1, bytes.
+pub const STATS_V1_SIZE: usize = 904;
+/// [`StatsSnapshot::last_miss_off_cpu_ns`] when the source does not keep time (a replay as
+/// fast as possible): the miss cannot be explained.
+pub const OFF_CPU_NOT_MEASURED: u64 = u64::MAX;
 /// Type name of [`StopSignal`] on the wire.
 pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
 
@@ -236,39 +246,93 @@ impl Default for GyroSample {
     }
 }
 
+/// One of our wire types whose layout has changed.
+struct Versioned {
+    /// The type's name without the crate, as `driftless list` shows it.
+    short: &'static str,
+    /// Version 1's type name and size; version N > 1 is named `{v1}.vN`.
+    v1: &'static str,
+    v1_size: usize,
+    /// The current version: its name, number and size, and what it added.
+    name: &'static str,
+    version: u32,
+    size: usize,
+    added: &'static str,
+}
+
+/// Every type whose layout has changed (docs/wire-types.md#versions).
+const VERSIONED: [Versioned; 2] = [
+    Versioned {
+        short: "GyroSample",
+        v1: GYRO_V1_TYPE_NAME,
+        v1_size: GYRO_V1_SIZE,
+        name: GYRO_TYPE_NAME,
+        version: GYRO_VERSION,
+        size: std::mem::size_of::<GyroSample>(),
+        added: "drift_std",
+    },
+    Versioned {
+        short: "StatsSnapshot",
+        v1: STATS_V1_TYPE_NAME,
+        v1_size: STATS_V1_SIZE,
+        name: STATS_TYPE_NAME,
+        version: STATS_VERSION,
+        size: std::mem::size_of::<StatsSnapshot>(),
+        added: "the misses' explanation",
+    },
+];
+
+/// Which of our versioned types `type_name` is a layout version of, and which version; `None`
+/// when it is not one of ours.
+fn layout_version(type_name: &str) -> Option<(&'static Versioned, u32)> {
+    VERSIONED.iter().find_map(|v| {
+        let version = if type_name == v.v1 {
+            1
+        } else {
+            type_name
+                .strip_prefix(v.v1)?
+                .strip_prefix(".v")?
+                .parse::<u32>()
+                .ok()?
+        };
+        Some((v, version))
+    })
+}
+
+/// The short name (`GyroSample`) of the type whose other layout version `type_name` is; `None`
+/// when it is ours in this release's layout, or not ours at all.
+pub fn other_layout_of(type_name: &str) -> Option<&'static str> {
+    layout_version(type_name)
+        .filter(|(v, version)| *version != v.version)
+        .map(|(v, _)| v.short)
+}
+
 /// The refusal of a payload type that is another layout version of one of ours (a
-/// [`GyroSample`] of an older or newer driftless), met as `what` (e.g. `service
-/// "demo/corrected"`, or a Zenoh sample with its encoding); `None` when `type_name` is ours or
-/// not a version of ours at all. The one place that knows the versions: `tap`, `record`,
-/// `bridge`, the transport's errors and the Zenoh receiver word their refusal with it.
+/// [`GyroSample`] or [`StatsSnapshot`] of an older or newer driftless), met as `what` (e.g.
+/// `service "demo/corrected"`, or a Zenoh sample with its encoding); `None` when `type_name` is
+/// ours or not a version of ours at all. The one place that knows the versions: `tap`,
+/// `record`, `stats`, `bridge`, the transport's errors and the Zenoh receiver word their
+/// refusal with it.
 pub fn wire_version_mismatch(what: &str, type_name: &str) -> Option<String> {
-    let version = if type_name == GYRO_V1_TYPE_NAME {
-        1
-    } else {
-        type_name
-            .strip_prefix(GYRO_V1_TYPE_NAME)?
-            .strip_prefix(".v")?
-            .parse::<u32>()
-            .ok()?
-    };
-    if version == GYRO_VERSION {
+    let (v, version) = layout_version(type_name)?;
+    if version == v.version {
         return None;
     }
-    let whose = if version < GYRO_VERSION {
+    let whose = if version < v.version {
         "an older"
     } else {
         "a newer"
     };
     let size = if version == 1 {
-        format!(", {GYRO_V1_SIZE} bytes")
+        format!(", {} bytes", v.v1_size)
     } else {
         String::new()
     };
     Some(format!(
         "{what} carries {type_name} (layout v{version}{size}, from {whose} driftless); this \
-         driftless reads {GYRO_TYPE_NAME} (layout v{GYRO_VERSION}, {} bytes, with drift_std): \
-         run the daemon and its subscribers from one release (docs/wire-types.md#versions)",
-        std::mem::size_of::<GyroSample>()
+         driftless reads {} (layout v{}, {} bytes, with {}): run the daemon and its \
+         subscribers from one release (docs/wire-types.md#versions)",
+        v.name, v.version, v.size, v.added
     ))
 }
 
@@ -415,7 +479,7 @@ pub struct StageStats {
 /// The daemon's statistics, published on the pipeline's stats service every report interval.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
-#[type_name("driftless::StatsSnapshot")]
+#[type_name("driftless::StatsSnapshot.v2")]
 pub struct StatsSnapshot {
     /// Nanoseconds since the pipeline started.
     pub uptime_ns: u64,
@@ -445,6 +509,35 @@ pub struct StatsSnapshot {
     pub stage_count: u64,
     /// Per-stage statistics.
     pub stages: [StageStats; MAX_STATS_STAGES],
+    /// Of `deadline_misses`, those the kernel explains: the time it kept the hot thread off a
+    /// CPU between the sample's ingest and its output covers the overshoot (version 2).
+    pub deadline_misses_explained: u64,
+    /// The latest miss: when, ns since the pipeline started (0: none yet).
+    pub last_miss_uptime_ns: u64,
+    /// The latest miss's end-to-end latency, ns.
+    pub last_miss_e2e_ns: u64,
+    /// The hot thread's time off a CPU during the latest miss, ns; [`OFF_CPU_NOT_MEASURED`]
+    /// when its source does not keep time.
+    pub last_miss_off_cpu_ns: u64,
+}
+
+impl StatsSnapshot {
+    /// Whether the latest miss was the kernel's ([`crate::metrics::miss_explained`]); `None`
+    /// when there has been none.
+    pub fn last_miss_explained(&self) -> Option<bool> {
+        (self.last_miss_uptime_ns > 0).then(|| {
+            crate::metrics::miss_explained(
+                self.last_miss_e2e_ns,
+                self.last_miss_off_cpu(),
+                self.deadline_ns,
+            )
+        })
+    }
+
+    /// The latest miss's time off a CPU, ns; `None` when not measured.
+    pub fn last_miss_off_cpu(&self) -> Option<u64> {
+        (self.last_miss_off_cpu_ns != OFF_CPU_NOT_MEASURED).then_some(self.last_miss_off_cpu_ns)
+    }
 }
 
 #[cfg(test)]
@@ -481,6 +574,17 @@ mod tests {
              bytes, with drift_std): run the daemon and its subscribers from one release \
              (docs/wire-types.md#versions)"
         );
+        let stats = wire_version_mismatch("service \"d/stats\"", STATS_V1_TYPE_NAME).unwrap();
+        assert_eq!(
+            stats,
+            "service \"d/stats\" carries driftless::StatsSnapshot (layout v1, 904 bytes, from \
+             an older driftless); this driftless reads driftless::StatsSnapshot.v2 (layout v2, \
+             936 bytes, with the misses' explanation): run the daemon and its subscribers from \
+             one release (docs/wire-types.md#versions)"
+        );
+        assert_eq!(other_layout_of(STATS_V1_TYPE_NAME), Some("StatsSnapshot"));
+        assert_eq!(other_layout_of(GYRO_V1_TYPE_NAME), Some("GyroSample"));
+        assert_eq!(other_layout_of(GYRO_TYPE_NAME), None);
         let newer = wire_version_mismatch("key k", "driftless::GyroSample.v3").unwrap();
         assert!(
             newer.contains("(layout v3, from a newer driftless)"),
@@ -492,6 +596,7 @@ mod tests {
             STATS_TYPE_NAME,
             "driftless::GyroSample.vx",
             "driftless::GyroSampleX",
+            "driftless::StatsSnapshotX",
             "other::GyroSample",
         ] {
             assert_eq!(
@@ -563,7 +668,15 @@ mod tests {
         assert_eq!(std::mem::offset_of!(StatsSnapshot, end_to_end), 88);
         assert_eq!(std::mem::offset_of!(StatsSnapshot, stage_count), 128);
         assert_eq!(std::mem::offset_of!(StatsSnapshot, stages), 136);
-        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 904);
+        assert_eq!(
+            std::mem::offset_of!(StatsSnapshot, deadline_misses_explained),
+            STATS_V1_SIZE
+        );
+        assert_eq!(
+            std::mem::offset_of!(StatsSnapshot, last_miss_off_cpu_ns),
+            928
+        );
+        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 936);
     }
 
     #[test]
