@@ -172,9 +172,19 @@ pub fn start(pipeline: &Path, prefix: &Prefix, extra: &[&str]) -> Child {
 }
 
 /// `driftless run FILE --prefix P`, as a user types it (not quiet); the caller adds the rest.
+/// The daemon gets SIGTERM when the test's thread ends: a test that fails before stopping it
+/// must not leave it running beside the tests after it.
 pub fn run_command(pipeline: &Path, prefix: &Prefix) -> Command {
+    use std::os::unix::process::CommandExt as _;
     let mut c = Command::new(bin());
     c.arg("run").arg(pipeline).args(["--prefix", &prefix.0]);
+    // SAFETY: prctl(2) is async-signal-safe; it only sets the child's parent-death signal.
+    unsafe {
+        c.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+            Ok(())
+        });
+    }
     c
 }
 
