@@ -487,10 +487,10 @@ fn main() {
     );
     let sub_floor = bare_sub.value_at_quantile(0.99);
     println!(
-        "subscriber in another process, p99: the demo's {} us, a bare publisher's {} us (+{} us)",
+        "subscriber in another process, p99: the demo's {} us, a bare publisher's {} us ({:+.1} us)",
         us(sub.value_at_quantile(0.99)),
         us(sub_floor),
-        us(sub.value_at_quantile(0.99).saturating_sub(sub_floor))
+        (sub.value_at_quantile(0.99) as f64 - sub_floor as f64) / 1e3
     );
     let p999 = |r: &Value| r["end_to_end_ns"]["p999"].as_u64().unwrap_or(u64::MAX);
     println!(
@@ -506,7 +506,9 @@ fn main() {
         idle_late.count_between(1_000_000, u64::MAX),
         bare_secs / 3.0
     );
-    // Issue 31's goals, each against this machine's floor measured above in the same run.
+    // Issue 41's goals, each against this machine's floor measured above in the same run. The
+    // demo's CPU is reported, not judged: its simulator is not what a user deploys (run 7
+    // judges the driver-fed pipelines' CPU).
     let goals = [
         (
             "1 kHz demo p50 <= 2x the bare chain's",
@@ -515,10 +517,6 @@ fn main() {
         (
             "1 kHz demo p99.9 <= the bare chain's p99.9 + 20 us",
             p999(&demo) <= bare_1k.value_at_quantile(0.999) + 20_000,
-        ),
-        (
-            "1 kHz demo CPU <= 1.5x the bare 1 kHz sleeper's",
-            cpu <= 1.5 * idle_cpu,
         ),
         (
             "1 kHz demo: no unexplained 1 ms miss from ingest",
@@ -737,6 +735,7 @@ fn scale_row(label: &str, groups: &[Vec<&Path>], secs: f64, dir: &Path, goal: bo
         let reports = r.as_array().cloned().unwrap_or_else(|| vec![r]);
         let u = |v: &Value| v.as_u64().unwrap_or(0);
         for r in &reports {
+            print_unexplained(r);
             let e = &r["end_to_end_ns"];
             let d = &r["due_to_published_ns"];
             samples = samples.min(u(&r["samples_out"]));
@@ -771,6 +770,26 @@ fn scale_row(label: &str, groups: &[Vec<&Path>], secs: f64, dir: &Path, goal: bo
              {due_over})",
             misses == explained && lost == 0
         );
+    }
+}
+
+/// Each miss of report `r` the kernel does not explain, with where its time went (the
+/// daemon's verdict says the same; the bench's reports are gone after the run).
+fn print_unexplained(r: &Value) {
+    let deadline = r["deadline_ns"].as_u64().unwrap_or(u64::MAX);
+    for m in r["misses"].as_array().into_iter().flatten() {
+        let e2e = m["e2e_ns"].as_u64().unwrap_or(0);
+        let off = m["off_cpu_ns"].as_u64();
+        if !driftless::metrics::miss_explained(e2e, off, deadline) {
+            println!(
+                "  UNEXPLAINED miss of {}: at {:.1} s, {} us end to end, off a CPU {}, stages (ns) {}",
+                r["pipeline"].as_str().unwrap_or("?"),
+                m["at_s"].as_f64().unwrap_or(0.0),
+                us(e2e),
+                off.map_or("not measured".into(), |o| format!("{} us", us(o))),
+                m["stage_ns"]
+            );
+        }
     }
 }
 
@@ -912,7 +931,7 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
     stop.store(true, Ordering::Relaxed);
     let h = reader.join().expect("reader thread");
     let mut cpu = 0.0;
-    let (mut misses, mut lost) = (0u64, 0u64);
+    let (mut misses, mut explained, mut lost) = (0u64, 0u64, 0u64);
     for (_, child) in &runs {
         // SAFETY: kill(2) on our own child: stop it now rather than at its --duration.
         unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
@@ -921,14 +940,16 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
         cpu += wait_cpu_seconds(child, Duration::from_secs(60));
         let r = read_report(&report);
         for r in r.as_array().cloned().unwrap_or_else(|| vec![r]) {
+            print_unexplained(&r);
             misses += r["deadline_misses"].as_u64().unwrap_or(0);
+            explained += r["deadline_misses_explained"].as_u64().unwrap_or(0);
             lost += r["lost"].as_u64().unwrap_or(0);
         }
     }
     drop((outs, probe));
     clean(&p);
     println!(
-        "| {label} | {} of {} | {} / {} / {} / {}, {} | {misses} | {lost} | {:.0}% |",
+        "| {label} | {} of {} | {} / {} / {} / {}, {} | {misses} ({explained} the kernel's) | {lost} | {:.0}% |",
         h.len(),
         n as u64 * ticks,
         us(h.value_at_quantile(0.5)),

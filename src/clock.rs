@@ -29,24 +29,38 @@ fn clock_ns(clock: libc::clockid_t) -> u64 {
         .wrapping_add(ts.tv_nsec as u64)
 }
 
-/// The ingest stamp of a source's sample: [`monotonic_ns`]. With `measured` (a source that
-/// keeps time: paced, or a driver's), this thread's CPU time is read just before it
-/// ([`cpu_at_ingest`]), so that a deadline miss can say how long of its end-to-end time the
-/// hot thread was off a CPU. The read (about 0.3-0.5 us, a system call) is outside the
-/// end-to-end window; a replay as fast as possible skips it (it would cost a third of its
-/// throughput) and its misses are not explained.
-pub fn ingest_now(measured: bool) -> u64 {
-    CPU_AT_INGEST.with(|c| c.set(measured.then(thread_cpu_ns)));
+/// The ingest stamp of a source's sample: [`monotonic_ns`]. This thread's CPU time is read
+/// just before it ([`cpu_at_ingest`]), so that a deadline miss can say how long of its
+/// end-to-end time the hot thread was off a CPU. The read (about 0.3-0.5 us, a system call) is
+/// outside the end-to-end window. Every sample of a source that keeps time (`every_sample`:
+/// paced, or a driver's) reads it; a replay as fast as possible reads it at every
+/// [`CPU_READ_EVERY`]th sample only (at each it would cost a third of the throughput), so that
+/// its misses are judged on the CPU time since an earlier sample: more than ran since the
+/// ingest, so the time off a CPU it leaves is a lower bound, never more than the truth.
+pub fn ingest_now(every_sample: bool) -> u64 {
+    CPU_AT_INGEST.with(|c| {
+        let (cpu, since) = c.get();
+        c.set(match cpu {
+            Some(_) if !every_sample && since + 1 < CPU_READ_EVERY => (cpu, since + 1),
+            _ => (Some(thread_cpu_ns()), 0),
+        });
+    });
     monotonic_ns()
 }
 
-/// This thread's CPU time at its last [`ingest_now`], ns (None before one).
+/// How often a replay as fast as possible reads its CPU clock ([`ingest_now`]): 64 samples,
+/// about 45 us of its work here.
+pub const CPU_READ_EVERY: u32 = 64;
+
+/// This thread's CPU time at its last [`ingest_now`] that read it, ns (None before one).
 pub fn cpu_at_ingest() -> Option<u64> {
-    CPU_AT_INGEST.with(std::cell::Cell::get)
+    CPU_AT_INGEST.with(|c| c.get().0)
 }
 
 thread_local! {
-    static CPU_AT_INGEST: std::cell::Cell<Option<u64>> = const { std::cell::Cell::new(None) };
+    /// The CPU time last read at an ingest, and the ingests since.
+    static CPU_AT_INGEST: std::cell::Cell<(Option<u64>, u32)> =
+        const { std::cell::Cell::new((None, 0)) };
 }
 
 /// CPU time this thread has run, ns (`CLOCK_THREAD_CPUTIME_ID`): against the wall clock over
@@ -107,5 +121,39 @@ pub fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {
             return true;
         }
         std::thread::sleep((due - now).min(SLICE));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_replay_as_fast_as_possible_reads_its_cpu_clock_every_64th_sample() {
+        // A thread of its own: the clock's state is per thread.
+        std::thread::spawn(|| {
+            assert_eq!(cpu_at_ingest(), None);
+            ingest_now(false);
+            let first = cpu_at_ingest().expect("read at the first sample");
+            let spin = |ns| {
+                let t = thread_cpu_ns();
+                while thread_cpu_ns() < t + ns {}
+            };
+            for _ in 1..CPU_READ_EVERY {
+                spin(10_000);
+                ingest_now(false);
+                assert_eq!(cpu_at_ingest(), Some(first), "kept between reads");
+            }
+            spin(10_000);
+            ingest_now(false);
+            let second = cpu_at_ingest().unwrap();
+            assert!(second > first, "read again at sample {CPU_READ_EVERY}");
+            // A source that keeps time reads it at every sample.
+            spin(10_000);
+            ingest_now(true);
+            assert!(cpu_at_ingest().unwrap() > second);
+        })
+        .join()
+        .unwrap();
     }
 }

@@ -201,7 +201,8 @@ impl Chain {
                     if e2e > self.deadline_ns {
                         self.local.misses += 1;
                         // Off the CPU: the wall time since ingest less what this thread ran
-                        // (the source read its CPU clock at the ingest stamp, on this thread).
+                        // since the source last read its CPU clock (at this ingest, or a few
+                        // samples before it: then a lower bound), on this thread.
                         // A later segment's sample crossed other threads: not measured.
                         let off = self
                             .head
