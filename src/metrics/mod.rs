@@ -41,8 +41,8 @@ pub struct Record {
     /// u32::MAX); None for a source that is not paced.
     pub late_ns: Option<u32>,
     /// For an output over the deadline: how long of its end-to-end time the hot thread was off
-    /// a CPU (runnable but not run, or preempted), ns; None where not measured (a replay as
-    /// fast as possible, a sample that crossed an external stage).
+    /// a CPU (runnable but not run, or preempted), ns; None where not measured (a sample that
+    /// crossed an external stage). A replay as fast as possible gives a lower bound.
     pub off_cpu_ns: Option<u32>,
 }
 
@@ -769,7 +769,7 @@ mod tests {
             assert_eq!(s.last_miss_explained(), Some(off == Some(900_000)));
             assert!(s.last_miss_uptime_ns > 0);
         }
-        // A source that does not keep time: not measured, so not explained.
+        // A sample that crossed an external stage: not measured, so not explained.
         r.record(&Record {
             e2e_ns: 2_000_000,
             stages_run: 2,

@@ -366,7 +366,7 @@ impl Report {
                     format!("; off the CPU {} us: the kernel's", us(off))
                 }
                 Some(off) => format!("; off the CPU {} us: UNEXPLAINED, ours", us(off)),
-                None => "; off-CPU time not measured (a replay as fast as possible, or after an external stage)".into(),
+                None => "; off-CPU time not measured (after an external stage)".into(),
             };
             s.push_str(&format!(
                 "missed at {:.3} s: {} us end to end; stages {} us{why}\n",

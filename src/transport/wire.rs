@@ -117,8 +117,8 @@ pub const STATS_VERSION: u32 = 2;
 pub const STATS_V1_TYPE_NAME: &str = "driftless::StatsSnapshot";
 /// Size of [`StatsSnapshot`] version 1, bytes.
 pub const STATS_V1_SIZE: usize = 904;
-/// [`StatsSnapshot::last_miss_off_cpu_ns`] when the source does not keep time (a replay as
-/// fast as possible): the miss cannot be explained.
+/// [`StatsSnapshot::last_miss_off_cpu_ns`] when it was not measured (an output after an
+/// `external` stage, whose sample crossed threads): the miss cannot be explained.
 pub const OFF_CPU_NOT_MEASURED: u64 = u64::MAX;
 /// Type name of [`StopSignal`] on the wire.
 pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
@@ -517,7 +517,7 @@ pub struct StatsSnapshot {
     /// The latest miss's end-to-end latency, ns.
     pub last_miss_e2e_ns: u64,
     /// The hot thread's time off a CPU during the latest miss, ns; [`OFF_CPU_NOT_MEASURED`]
-    /// when its source does not keep time.
+    /// when not measured.
     pub last_miss_off_cpu_ns: u64,
 }
 
