@@ -47,6 +47,21 @@ fn node(prefix: &Prefix, name: &str) -> Node<ipc::Service> {
         .expect("node")
 }
 
+/// How `driftless list --json` shows the publish-subscribe service `name`.
+fn listed(prefix: &Prefix, name: &str) -> serde_json::Value {
+    let o = common::driftless(&["list", "--prefix", &prefix.0, "--json"]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "list: {err}");
+    let doc: serde_json::Value = serde_json::from_str(&out).expect("list --json");
+    doc["services"]
+        .as_array()
+        .expect("services")
+        .iter()
+        .find(|s| s["name"] == name && s["pattern"] == "publish-subscribe")
+        .unwrap_or_else(|| panic!("{name} not listed: {doc:#}"))
+        .clone()
+}
+
 /// The sentence every one of our tools gives for a version 1 service named `service`.
 fn refusal(service: &str) -> String {
     format!(
@@ -107,16 +122,7 @@ fn an_old_layout_service_is_refused_by_name_and_an_old_subscriber_cannot_open_ou
     assert!(err.contains(&want), "record: {err}");
 
     // `list` names it as ours in another version, not as a foreign type.
-    let o = common::driftless(&["list", "--prefix", &prefix.0, "--json"]);
-    let (out, err) = text(&o);
-    assert_eq!(o.status.code(), Some(0), "list: {err}");
-    let doc: serde_json::Value = serde_json::from_str(&out).expect("list --json");
-    let listed = doc["services"]
-        .as_array()
-        .expect("services")
-        .iter()
-        .find(|s| s["name"] == "old/corrected" && s["pattern"] == "publish-subscribe")
-        .unwrap_or_else(|| panic!("old/corrected not listed: {doc:#}"));
+    let listed = listed(&prefix, "old/corrected");
     assert_eq!(
         listed["wire_type"], "GyroSample (other version)",
         "{listed}"
@@ -188,16 +194,7 @@ fn an_old_stats_service_is_refused_by_name_by_stats_tap_and_list() {
     assert_eq!(o.status.code(), Some(2), "tap: {err}");
     assert_eq!(err.trim_end(), format!("driftless: error: {want}"), "tap");
 
-    let o = common::driftless(&["list", "--prefix", &prefix.0, "--json"]);
-    let (out, err) = text(&o);
-    assert_eq!(o.status.code(), Some(0), "list: {err}");
-    let doc: serde_json::Value = serde_json::from_str(&out).expect("list --json");
-    let listed = doc["services"]
-        .as_array()
-        .expect("services")
-        .iter()
-        .find(|s| s["name"] == "old/stats" && s["pattern"] == "publish-subscribe")
-        .unwrap_or_else(|| panic!("old/stats not listed: {doc:#}"));
+    let listed = listed(&prefix, "old/stats");
     assert_eq!(
         listed["wire_type"], "StatsSnapshot (other version)",
         "{listed}"
