@@ -13,7 +13,7 @@ use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
 use common::{finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix};
-use driftless::transport::{GyroSample, RawSample, Transport};
+use driftless::transport::{GyroSample, RawSample, StatsSnapshot, Transport};
 use iceoryx2::prelude::ZeroCopySend;
 use zenoh::Wait;
 
@@ -441,17 +441,12 @@ fn a_bridge_killed_mid_run_costs_the_other_subscribers_nothing() {
     let zs = session(port);
     let (sub, far) = subscribe(&zs, "driftless/t/corrected");
     let report_path = dir.path("report.json");
-    let mut daemon = start(
-        &file,
-        &prefix,
-        &[
-            "--report",
-            report_path.to_str().unwrap(),
-            "--duration",
-            "5s",
-        ],
-    );
+    let mut daemon = start(&file, &prefix, &["--report", report_path.to_str().unwrap()]);
     wait_ready(&prefix, "t/stats", &mut daemon);
+    let probe = Transport::new(&prefix.0, "stats-probe", qos(16)).expect("probe node");
+    let stats = probe
+        .open_input::<StatsSnapshot>("t/stats")
+        .expect("the daemon's stats");
     let stop = Arc::new(AtomicBool::new(false));
     let other = drain(&prefix.0, "t/corrected", 256, Arc::clone(&stop), gyro_stamp);
     let endpoint = format!("tcp/127.0.0.1:{port}");
@@ -469,6 +464,25 @@ fn a_bridge_killed_mid_run_costs_the_other_subscribers_nothing() {
     signal(&bridge.child, SIGKILL);
     let (code, _) = bridge.finish(Duration::from_secs(5));
     assert_eq!(code, None, "killed by a signal");
+    // The dead bridge's buffer fills until the daemon's next clean-up (every report interval,
+    // 0.5 s here); then it costs nothing more: the loss count stands still while the daemon
+    // serves on. Judged on the daemon's own snapshots, however slow a loaded machine is.
+    while stats.receive().expect("stats").is_some() {} // snapshots from before the kill
+    let (mut last, end) = (
+        None::<StatsSnapshot>,
+        Instant::now() + Duration::from_secs(60),
+    );
+    let settled = loop {
+        assert!(Instant::now() < end, "losses never settled: {last:?}");
+        match stats.receive().expect("stats") {
+            Some(s) => match last {
+                Some(l) if s.lost == l.lost && s.samples_out >= l.samples_out + 400 => break s,
+                _ => last = Some(s),
+            },
+            None => std::thread::sleep(Duration::from_millis(50)),
+        }
+    };
+    signal(&daemon, SIGTERM);
     let (code, err) = finish(daemon, Duration::from_secs(20));
     assert_eq!(code, Some(0), "the daemon ran on to its end: {err}");
     stop.store(true, Ordering::Relaxed);
@@ -476,18 +490,16 @@ fn a_bridge_killed_mid_run_costs_the_other_subscribers_nothing() {
 
     let r = report(&dir);
     let n = r["samples_out"].as_u64().unwrap();
-    assert!(n >= 4000, "about 5 s at 1 kHz: {n}");
     assert_eq!(r["samples_in"], n);
-    assert!(seen.len() > 3000, "{}", seen.len());
+    assert!(seen.len() > 1000, "{}", seen.len());
     assert!(contiguous(&seen), "the other subscriber lost nothing");
     assert_eq!(seen.last().unwrap().1 + 1, n, "to the last sample");
-    // The dead bridge's buffer filled until the daemon's next clean-up (every report interval,
-    // 0.5 s here): at most one buffer's worth plus an interval, not the rest of the run.
     let lost = r["lost"].as_u64().unwrap();
-    assert!(
-        lost < 1000,
-        "a dead subscriber is cleaned up, not charged forever: {lost}"
+    assert_eq!(
+        lost, settled.lost,
+        "a dead subscriber is cleaned up, not charged forever"
     );
+
     eprintln!(
         "daemon with a bridge killed mid-run: {} deadline misses, {lost} lost by the dead bridge",
         r["deadline_misses"]
