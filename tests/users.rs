@@ -236,7 +236,10 @@ fn a_dedicated_user_runs_the_daemon_and_its_subscribers_as_the_systemd_unit_does
         std::thread::sleep(Duration::from_millis(100));
     };
     let (out, err) = text(&o);
-    assert!(o.status.success(), "the user's own subscriber: {err}");
+    if !o.status.success() {
+        let (code, daemon_err) = finish(daemon, Duration::from_secs(15));
+        panic!("the user's own subscriber: {err}; the daemon ({code:?}): {daemon_err}");
+    }
     assert_eq!(
         out.lines().filter(|l| !l.starts_with('#')).count(),
         100,
