@@ -295,8 +295,9 @@ pub struct Reporter {
     e2e: Histogram<u64>,
     heading: Option<HeadingSummary>,
     misses: Vec<Miss>,
-    /// The latest miss, however many came before it (for the stats service).
-    last_miss: Option<Miss>,
+    /// The latest miss, however many came before it (for the stats service): when (s), end
+    /// to end and off a CPU (ns). No stage times, so that keeping it allocates nothing.
+    last_miss: Option<(f64, u64, Option<u64>)>,
     late: Histogram<u64>,
     late_over: u64,
     due: Histogram<u64>,
@@ -369,20 +370,21 @@ impl Reporter {
             self.e2e.saturating_record(r.e2e_ns);
             // The hot loop's own test, so the list agrees with its count.
             if r.e2e_ns > self.layout.deadline.as_nanos() as u64 {
-                let mut stage_ns = vec![0; self.stage_hist.len()];
-                for (d, &ns) in stage_ns[first..n].iter_mut().zip(&r.stage_ns[first..n]) {
-                    *d = u64::from(ns);
-                }
-                let miss = Miss {
-                    at_s: self.started.elapsed().as_secs_f64(),
-                    e2e_ns: r.e2e_ns,
-                    stage_ns,
-                    off_cpu_ns: r.off_cpu_ns.map(u64::from),
-                };
+                let at_s = self.started.elapsed().as_secs_f64();
+                let off_cpu_ns = r.off_cpu_ns.map(u64::from);
+                self.last_miss = Some((at_s, r.e2e_ns, off_cpu_ns));
                 if self.misses.len() < MISSES_KEPT {
-                    self.misses.push(miss.clone());
+                    let mut stage_ns = vec![0; self.stage_hist.len()];
+                    for (d, &ns) in stage_ns[first..n].iter_mut().zip(&r.stage_ns[first..n]) {
+                        *d = u64::from(ns);
+                    }
+                    self.misses.push(Miss {
+                        at_s,
+                        e2e_ns: r.e2e_ns,
+                        stage_ns,
+                        off_cpu_ns,
+                    });
                 }
-                self.last_miss = Some(miss);
             }
         }
     }
@@ -500,13 +502,11 @@ impl Reporter {
             deadline_misses_explained: get(&c.misses_explained),
             last_miss_uptime_ns: self
                 .last_miss
-                .as_ref()
-                .map_or(0, |m| ((m.at_s * 1e9) as u64).max(1)),
-            last_miss_e2e_ns: self.last_miss.as_ref().map_or(0, |m| m.e2e_ns),
+                .map_or(0, |(at_s, _, _)| ((at_s * 1e9) as u64).max(1)),
+            last_miss_e2e_ns: self.last_miss.map_or(0, |(_, e2e, _)| e2e),
             last_miss_off_cpu_ns: self
                 .last_miss
-                .as_ref()
-                .and_then(|m| m.off_cpu_ns)
+                .and_then(|(_, _, off)| off)
                 .unwrap_or(OFF_CPU_NOT_MEASURED),
         }
     }
