@@ -48,6 +48,13 @@ pub fn ingest_now(every_sample: bool) -> u64 {
     monotonic_ns()
 }
 
+/// Whether a miss is the kernel's: the output, `e2e_ns` after its ingest, would have made
+/// `deadline_ns` without the `off_cpu_ns` the hot thread spent off a CPU meanwhile (None: not
+/// measured, so not excused).
+pub fn miss_explained(e2e_ns: u64, off_cpu_ns: Option<u64>, deadline_ns: u64) -> bool {
+    off_cpu_ns.is_some_and(|off| e2e_ns.saturating_sub(off) <= deadline_ns)
+}
+
 /// How often a replay as fast as possible reads its CPU clock ([`ingest_now`]): 64 samples,
 /// about 45 us of its work here.
 pub const CPU_READ_EVERY: u32 = 64;

@@ -136,12 +136,7 @@ pub struct Miss {
     pub off_cpu_ns: Option<u64>,
 }
 
-/// Whether a miss is the kernel's: the output, `e2e_ns` after its ingest, would have made
-/// `deadline_ns` without the `off_cpu_ns` the hot thread spent off a CPU meanwhile (None: not
-/// measured, so not excused).
-pub fn miss_explained(e2e_ns: u64, off_cpu_ns: Option<u64>, deadline_ns: u64) -> bool {
-    off_cpu_ns.is_some_and(|off| e2e_ns.saturating_sub(off) <= deadline_ns)
-}
+pub use crate::clock::miss_explained;
 
 /// The final report (`--report FILE` writes it as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -522,11 +522,11 @@ pub struct StatsSnapshot {
 }
 
 impl StatsSnapshot {
-    /// Whether the latest miss was the kernel's ([`crate::metrics::miss_explained`]); `None`
+    /// Whether the latest miss was the kernel's ([`crate::clock::miss_explained`]); `None`
     /// when there has been none.
     pub fn last_miss_explained(&self) -> Option<bool> {
         (self.last_miss_uptime_ns > 0).then(|| {
-            crate::metrics::miss_explained(
+            crate::clock::miss_explained(
                 self.last_miss_e2e_ns,
                 self.last_miss_off_cpu(),
                 self.deadline_ns,
