@@ -1,5 +1,6 @@
 //! Time: the one clock every timestamp of ours is read on, and the pacing of sources that
-//! follow a sensor's clock (the simulator, a replay in real time).
+//! follow a sensor's clock (the simulator, a replay in real time), and whether a sensor's stamp
+//! can be believed ([`StampCheck`]).
 //!
 //! [`monotonic_ns`] is `CLOCK_MONOTONIC`: the `ingest_ns` stamps on the wire, every latency the
 //! daemon measures and every subscriber's "now" are on it, so they compare between processes on
@@ -8,6 +9,9 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
+
+mod stamps;
+pub use stamps::{StampCheck, StampFault, MAX_STAMP_STEP_NS, RESYNC};
 
 /// CLOCK_MONOTONIC in nanoseconds: comparable between processes on one host.
 pub fn monotonic_ns() -> u64 {

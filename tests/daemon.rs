@@ -11,7 +11,7 @@ use common::{
 };
 use driftless::transport::{
     GyroSample, RawSample, Transport, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
-    FLAG_MOVING, FLAG_STILL, FLAG_TIME_BACKWARDS, FLAG_WARMING_UP, RAW_INVALID,
+    FLAG_MOVING, FLAG_STAMP_FAULT, FLAG_STILL, FLAG_TIME_BACKWARDS, FLAG_WARMING_UP, RAW_INVALID,
 };
 
 const SIGINT: i32 = 2;
@@ -115,6 +115,65 @@ impl Rig {
 }
 
 #[test]
+fn wild_stamps_from_a_driver_are_stamp_faults_and_the_samples_after_them_are_served_whole() {
+    let rig = Rig::new("stamps");
+    let mut child = start(
+        &rig.file,
+        &rig.prefix,
+        &["--report", rig.report_path.to_str().unwrap()],
+    );
+    wait_ready(&rig.prefix, "t/stats", &mut child);
+    // 800 samples at 1 kHz: the year 2100 at 100, 0 at 200, a second back at 300.
+    const MS: u64 = 1_000_000;
+    let t0 = 1_700_000_000_000 * MS;
+    let samples: Vec<RawSample> = (0..800u64)
+        .map(|k| {
+            let t = match k {
+                100 => 4_102_444_800_000 * MS,
+                200 => 0,
+                300 => t0 + k * MS - 1_000 * MS,
+                _ => t0 + k * MS,
+            };
+            raw(k, t, [1.0, 2.0, 3.0])
+        })
+        .collect();
+    let mut got = Vec::new();
+    for chunk in samples.chunks(100) {
+        for s in chunk {
+            rig.sensor.send(s).expect("send");
+        }
+        got.extend(collect(
+            &rig.corrected,
+            chunk.len(),
+            Duration::from_secs(10),
+        ));
+    }
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(got.len(), samples.len(), "every sample served: {err}");
+    for (k, (s, sent)) in got.iter().zip(&samples).enumerate() {
+        assert_eq!((s.seq, s.t_ns), (sent.seq, sent.t_ns), "{k}: as sent");
+        let want = match k {
+            100 => FLAG_STAMP_FAULT,
+            200 | 300 => FLAG_STAMP_FAULT | FLAG_TIME_BACKWARDS,
+            _ => 0,
+        };
+        assert_eq!(s.flags, want, "sample {k}");
+        assert_eq!(s.epoch, got[0].epoch, "one epoch");
+    }
+    let r = report(&rig.dir);
+    assert_eq!(r["flagged"]["stamp_faults"], 3);
+    assert_eq!(r["flagged"]["gaps"], 0);
+    assert_eq!(r["lost"], 0, "a stamp fault is not a loss");
+    assert_eq!(r["samples_in"], 800);
+    assert!(
+        err.contains("nothing lost; 3 stamp faults (flagged, not lost)"),
+        "{err}"
+    );
+}
+
+#[test]
 fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     let rig = Rig::new("bad");
     let mut child = start(
@@ -156,7 +215,7 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     assert_eq!(got[1].flags, FLAG_INPUT_INVALID);
     assert_eq!(got[1].rate, [1.0, 2.0, 3.0], "last good value held");
     assert_eq!(got[2].flags, FLAG_INPUT_INVALID);
-    assert_eq!(got[3].flags, FLAG_TIME_BACKWARDS);
+    assert_eq!(got[3].flags, FLAG_TIME_BACKWARDS | FLAG_STAMP_FAULT);
     assert_eq!(got[3].rate, [4.0, 5.0, 6.0]);
     assert_eq!(got[4].flags, FLAG_INPUT_INVALID);
     assert_eq!(got[5].flags, FLAG_GAP_BEFORE);
@@ -165,7 +224,7 @@ fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     assert_eq!(r["flagged"]["invalid"], 3);
     assert_eq!(r["flagged"]["gaps"], 1);
     assert_eq!(r["flagged"]["missing"], 4);
-    assert_eq!(r["flagged"]["time_backwards"], 1);
+    assert_eq!(r["flagged"]["stamp_faults"], 1);
     assert_eq!(r["lost"], 4, "samples missing from the source are lost");
     assert!(
         err.contains("; 4 samples LOST"),

@@ -15,7 +15,9 @@ use std::time::Duration;
 use common::{collect, driftless, finish, qos, start, text, Dir, Prefix};
 use driftless::io::ros2::{Imu, ImuBagWriter, Time, IMU_TYPE};
 use driftless::sim::{SimConfig, Simulator};
-use driftless::transport::{GyroSample, Transport, FLAG_INPUT_INVALID, FLAG_TIME_BACKWARDS};
+use driftless::transport::{
+    GyroSample, Transport, FLAG_INPUT_INVALID, FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS,
+};
 use serde_json::Value;
 
 fn fixture(name: &str) -> PathBuf {
@@ -438,7 +440,11 @@ fn ingest_mcap_replays_a_bag_once_in_order_flagging_what_it_cannot_use() {
                     m.angular_velocity.map(f64::to_bits),
                     "seq {i}: rad/s bit for bit"
                 );
-                let flags = if i == 799 { FLAG_TIME_BACKWARDS } else { 0 };
+                let flags = if i == 799 {
+                    FLAG_TIME_BACKWARDS | FLAG_STAMP_FAULT
+                } else {
+                    0
+                };
                 assert_eq!(s.flags, flags, "seq {i}");
             }
             _ => unreachable!(),

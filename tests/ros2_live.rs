@@ -32,8 +32,10 @@ fn only_loopback() -> bool {
     })
 }
 
-/// Run `test` in a private network namespace with loopback up and a multicast route on it.
-/// True in the child (run the test there); in the parent, waits and fails if the child failed.
+/// Run `test` in a private network namespace with loopback up and a multicast route on it,
+/// and a private mount namespace with its own `/dev/shm` and iceoryx2 root (Fast DDS's segments
+/// and ours stay there: the host's are as they were). True in the child (run the test there);
+/// in the parent, waits and fails if the child failed.
 fn in_netns(test: &str) -> bool {
     if std::env::var_os(CHILD).is_some() {
         assert!(
@@ -55,9 +57,14 @@ fn in_netns(test: &str) -> bool {
     let out = Command::new("unshare")
         .args([
             "-n",
+            "-m",
+            "--propagation",
+            "private",
             "sh",
             "-c",
-            "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
+            "mount -t tmpfs -o size=512m,mode=1777 tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && \
+             mount -t tmpfs tmpfs /tmp/iceoryx2 && ip link set lo up && \
+             ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
         ])
         .arg(exe)
         .args(["--exact", test, "--nocapture", "--test-threads=1"])
@@ -293,7 +300,8 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
         // The driver's own stamps, in order, once each.
         assert_eq!(m["stamp"][0], 1_700_000_000 + (i / 1000) as i64, "{i}");
         assert_eq!(m["stamp"][1], (i % 1000) as i64 * 1_000_000, "{i}");
-        assert_eq!(m["frame_id"], "imu_link");
+        // No frame_id in ros2.toml: the driver's own frame passes through.
+        assert_eq!(m["frame_id"], "peer_imu");
         let cov: Vec<f64> = m["angular_velocity_covariance"]
             .as_array()
             .unwrap()
@@ -311,7 +319,8 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
     }
     assert!(
         err.contains(&format!(
-            "ros2: {N} Imu in (0 invalid, 0 missing by their stamps, 0 new publishers), {N} Imu out"
+            "ros2: {N} Imu in (0 invalid, 0 stamp faults, 0 missing by their stamps, 0 new \
+             publishers), 0 refused (a second publisher), {N} Imu out"
         )),
         "{err}"
     );
@@ -472,7 +481,8 @@ fn a_restarted_driver_starts_a_new_epoch_and_a_restarted_navigator_gets_data_aga
     assert!(err.contains("/imu/data_raw: a new publisher"), "{err}");
     assert!(
         err.contains(&format!(
-            "{} Imu in (0 invalid, 0 missing by their stamps, 1 new publishers)",
+            "{} Imu in (0 invalid, 0 stamp faults, 0 missing by their stamps, 1 new \
+             publishers), 0 refused",
             2 * N
         )),
         "{err}"
@@ -481,6 +491,145 @@ fn a_restarted_driver_starts_a_new_epoch_and_a_restarted_navigator_gets_data_aga
         err.contains(&format!("pipeline ros2: {0} in, {0} out", 2 * N)),
         "{err}"
     );
+}
+
+#[test]
+fn wild_stamps_are_stamp_faults_not_losses_and_the_samples_after_them_are_served_whole() {
+    if !in_netns(
+        "wild_stamps_are_stamp_faults_not_losses_and_the_samples_after_them_are_served_whole",
+    ) {
+        return;
+    }
+    let n = 800;
+    let d = daemon("stamps");
+    let mut nav = navigator(n);
+    // The farthest stamp ROS 2 holds (2038; the year 2100 does not fit its i32 seconds), a
+    // stamp of 0 ("not set"), and one a second back: 500 samples follow the last.
+    let mut driver = peer_with(
+        "talk",
+        "/imu/data_raw",
+        n,
+        &[("PEER_STAMPS", "100=max,200=zero,300=back")],
+    );
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(d);
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), n, "every message served: {err}");
+    for (i, m) in msgs.iter().enumerate() {
+        let want = match i {
+            100 => [i64::from(i32::MAX), 0],
+            200 => [0, 0],
+            300 => [1_700_000_000 - 1, 300_000_000],
+            _ => [
+                1_700_000_000 + (i / 1000) as i64,
+                (i % 1000) as i64 * 1_000_000,
+            ],
+        };
+        assert_eq!(m["stamp"], serde_json::json!(want), "message {i}");
+    }
+    assert!(
+        err.contains(&format!(
+            "ros2: {n} Imu in (0 invalid, 3 stamp faults, 0 missing by their stamps, 0 new \
+             publishers), 0 refused"
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains(
+            "flagged: 0 invalid, 0 gaps (0 missing from the source, counted as lost), 3 stamp \
+             faults (not lost)"
+        ),
+        "{err}"
+    );
+    assert!(
+        err.contains("nothing lost; 3 stamp faults (flagged, not lost)"),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("pipeline ros2: {n} in, {n} out")),
+        "{err}"
+    );
+}
+
+#[test]
+fn two_publishers_on_one_topic_one_line_one_epoch_and_the_second_refused() {
+    if !in_netns("two_publishers_on_one_topic_one_line_one_epoch_and_the_second_refused") {
+        return;
+    }
+    let d = daemon("twin");
+    let mut nav = navigator(N);
+    let mut twin = peer("twin", "/imu/data_raw", N);
+    assert!(twin.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(d);
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), N, "one publisher's messages, every one: {err}");
+    // The second's rates are the first's negated: none of them mixed in.
+    let sign = |m: &serde_json::Value| m["angular_velocity"][2].as_f64().unwrap() > 0.0;
+    assert!(
+        msgs.iter().all(|m| sign(m) == sign(msgs[0])),
+        "two publishers mixed"
+    );
+    for (i, m) in msgs.iter().enumerate() {
+        assert_eq!(
+            m["stamp"][1],
+            (i % 1000) as i64 * 1_000_000,
+            "{i}: in order"
+        );
+    }
+    assert_eq!(
+        err.matches("/imu/data_raw: a second publisher (GID ")
+            .count(),
+        1,
+        "said once: {err}"
+    );
+    assert!(
+        err.contains(&format!(
+            "ros2: {N} Imu in (0 invalid, 0 stamp faults, 0 missing by their stamps, 0 new \
+             publishers), {N} refused (a second publisher)"
+        )),
+        "{err}"
+    );
+    assert!(!err.contains("a new epoch"), "{err}");
+    assert!(!err.contains("more (source restarts"), "one epoch: {err}");
+    assert!(
+        err.contains(&format!("pipeline ros2: {N} in, {N} out")),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_ros2_tests_leave_the_hosts_dev_shm_as_they_found_it() {
+    // The parent side: the host's /dev/shm before and after a DDS exchange in the namespace.
+    let fastdds = || -> Vec<String> {
+        std::fs::read_dir("/dev/shm")
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains("fastdds") || n.contains("fastrtps"))
+            .collect()
+    };
+    let before = (std::env::var_os(CHILD).is_none()).then(fastdds);
+    if in_netns("the_ros2_tests_leave_the_hosts_dev_shm_as_they_found_it") {
+        // The child: an rclpy talker and listener, which use Fast DDS's shared memory.
+        let mut listener = ready(peer("listen", "/shm_test", 100));
+        let mut talker = peer("talk", "/shm_test", 100);
+        assert!(talker.wait().unwrap().success());
+        let got = lines(&mut listener);
+        assert!(listener.wait().unwrap().success());
+        assert!(got.iter().filter(|v| v.get("stamp").is_some()).count() > 0);
+        return;
+    }
+    if let Some(before) = before {
+        let new: Vec<String> = fastdds()
+            .into_iter()
+            .filter(|n| !before.contains(n))
+            .collect();
+        assert!(new.is_empty(), "new in the host's /dev/shm: {new:?}");
+    }
 }
 
 /// The Python example at `examples/ros2/NAME.py` with `args`, stdout piped.
@@ -552,13 +701,51 @@ fn validate_describes_the_ros2_side() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{text}");
     for line in [
-        "  ros2: node /driftless_ros2 on ROS_DOMAIN_ID's domain, depth 100, frame_id imu_link, rate noise 1.2151 deg/s",
+        "  ros2: node /driftless_ros2 on ROS_DOMAIN_ID's domain, depth 100, frame_id the driver's (imu_link until it says one), rate noise 1.2151 deg/s",
         "    in     /imu/data_raw (sensor_msgs/msg/Imu) -> sensor/raw",
         "    out    ros2/corrected -> /imu/corrected (sensor_msgs/msg/Imu)",
         "    motion /odom (nav_msgs/msg/Odometry) -> vehicle/stop",
     ] {
         assert!(text.lines().any(|l| l == line), "{line:?} in\n{text}");
     }
+}
+
+#[test]
+fn validate_refuses_a_motion_topic_into_a_bias_filter_without_stop_speed() {
+    // A ROS 2 motion message says a speed, never "stands": without stop_speed every signal
+    // would be unknown, silently.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml"))
+        .unwrap();
+    let without = text.replace("stop_speed = 0.05\n", "");
+    assert_ne!(without, text);
+    let dir = std::env::temp_dir().join(format!("dl_motion_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ros2.toml");
+    std::fs::write(&file, &without).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("validate")
+        .arg(&file)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let line = without
+        .lines()
+        .position(|l| l == "service = \"vehicle/stop\"")
+        .unwrap()
+        + 1;
+    assert!(
+        err.contains(&format!(
+            "{}:{line}:11: motion_in feeds \"vehicle/stop\" with the vehicle's speed only",
+            file.display()
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains("add stop_speed = 0.02 (m/s, stands at or below) to stage \"predict\""),
+        "{err}"
+    );
 }
 
 #[test]

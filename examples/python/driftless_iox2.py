@@ -54,8 +54,10 @@ FLAG_GAP_BEFORE = 1 << 2
 FLAG_TIME_BACKWARDS = 1 << 3
 FLAG_FLUSHED = 1 << 4
 FLAG_OUTPUT_REPAIRED = 1 << 5
+FLAG_STAMP_FAULT = 1 << 11
 # Flags that say a delivered sample is not what the driver sent.
-FLAGS_BAD = FLAG_INPUT_INVALID | FLAG_GAP_BEFORE | FLAG_TIME_BACKWARDS | FLAG_OUTPUT_REPAIRED
+FLAGS_BAD = (FLAG_INPUT_INVALID | FLAG_GAP_BEFORE | FLAG_TIME_BACKWARDS | FLAG_OUTPUT_REPAIRED
+             | FLAG_STAMP_FAULT)
 
 # GyroSample.drift_std where no stage estimates the drift's uncertainty (predict.none,
 # predict.rbf, no predict stage): transport::DRIFT_STD_NOT_PROVIDED. Never NaN.

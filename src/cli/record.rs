@@ -60,7 +60,7 @@ pub struct Args {
     #[arg(long, default_value = "mcap", value_parser = ["mcap", "ros2"])]
     pub format: String,
     /// With --format ros2: the messages' header.frame_id.
-    #[arg(long, default_value = "imu_link")]
+    #[arg(long, default_value = crate::transport::ros2::DEFAULT_FRAME_ID)]
     pub frame_id: String,
     /// With --format ros2: the gyro's white rate noise, 1 sigma of one sample in deg/s (N x
     /// sqrt(rate) from `driftless allan`'s N in deg/sqrt(s), or the data sheet's rate noise).
@@ -180,7 +180,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    if args.frame_id != "imu_link" && !ros2 {
+    if args.frame_id != crate::transport::ros2::DEFAULT_FRAME_ID && !ros2 {
         return Err(CliError::input("--frame-id is for --format ros2"));
     }
     let prefix = args.iceoryx2.resolve(None)?;

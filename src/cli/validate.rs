@@ -82,7 +82,7 @@ fn describe(p: &Pipeline) {
             r.namespace.trim_end_matches('/').to_string() + "/",
             r.node,
             r.depth,
-            r.frame_id
+            r.frame_text()
         );
         for t in r.topics() {
             let (topic, ty, service) = (t.topic, t.ty, t.service);

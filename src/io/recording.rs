@@ -312,6 +312,12 @@ pub struct StatsMessage {
     /// The latest miss (absent before the first, and before `StatsSnapshot` v2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub last_miss: Option<LastMissMessage>,
+    /// Of `flagged`, samples whose stamp was not believed (absent before `StatsSnapshot` v3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stamp_faults: Option<u64>,
+    /// How the state-keeping stage started, in words (absent before `StatsSnapshot` v3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warm_start: Option<String>,
 }
 
 /// The latest deadline miss of a [`StatsMessage`].
@@ -363,6 +369,8 @@ impl From<&StatsSnapshot> for StatsMessage {
                 off_cpu_us: s.last_miss_off_cpu().map(|ns| ns as f64 * 1e-3),
                 explained,
             }),
+            stamp_faults: Some(s.stamp_faults),
+            warm_start: Some(crate::transport::warm_start_name(s.warm_start).to_string()),
         }
     }
 }
@@ -387,7 +395,7 @@ pub fn gyro_schema() -> String {
 pub fn stats_schema() -> String {
     const P: &str = r#"{"type":"object","properties":{"count":{"type":"integer"},"p50":{"type":"number"},"p99":{"type":"number"},"p999":{"type":"number"},"max":{"type":"number"}}}"#;
     format!(
-        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot; times in the unit their name ends with","type":"object","properties":{{"uptime_s":{{"type":"number"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":"number"}},"deadline_misses":{{"type":"integer"}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"deadline_us":{{"type":"number"}},"algorithmic_delay_ms":{{"type":"number"}},"end_to_end_us":{P},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":"object","description":"the latest deadline miss","properties":{{"uptime_s":{{"type":"number"}},"e2e_us":{{"type":"number"}},"off_cpu_us":{{"type":"number","description":"absent: not measured"}},"explained":{{"type":"boolean"}}}}}},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_us":{P}}}}}}}}}}}"#
+        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot; times in the unit their name ends with","type":"object","properties":{{"uptime_s":{{"type":"number"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":"number"}},"deadline_misses":{{"type":"integer"}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"deadline_us":{{"type":"number"}},"algorithmic_delay_ms":{{"type":"number"}},"end_to_end_us":{P},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":"object","description":"the latest deadline miss","properties":{{"uptime_s":{{"type":"number"}},"e2e_us":{{"type":"number"}},"off_cpu_us":{{"type":"number","description":"absent: not measured"}},"explained":{{"type":"boolean"}}}}}},"stamp_faults":{{"type":"integer","description":"of flagged, samples whose stamp was not believed"}},"warm_start":{{"type":"string","description":"how the state-keeping stage started"}},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_us":{P}}}}}}}}}}}"#
     )
 }
 

@@ -214,8 +214,11 @@ pub struct Counters {
     pub gaps: AtomicU64,
     /// Sequence numbers missing.
     pub missing: AtomicU64,
-    /// Timestamps going backwards.
-    pub backwards: AtomicU64,
+    /// Stamps not believed ([`crate::clock::StampCheck`]).
+    pub stamp_faults: AtomicU64,
+    /// How the state-keeping stage started ([`crate::transport::WARM_START_NONE`] and its
+    /// siblings; set once before the segments start).
+    pub warm_start: AtomicU64,
     /// Outputs repaired by the publish guard.
     pub repaired: AtomicU64,
     /// The stream's first epoch (set once before the segments start).
@@ -428,7 +431,7 @@ impl Reporter {
             format!(", heading rms vs truth raw {raw} denoised {den} corrected {cor} deg")
         });
         let line = format!(
-            "{}: {:.0} Hz, e2e p50 {:.1} us p99 {:.1} us p99.9 {:.1} us max {:.1} us, misses {}, lost {}, flagged {}, drops {}",
+            "{}: {:.0} Hz, e2e p50 {:.1} us p99 {:.1} us p99.9 {:.1} us max {:.1} us, misses {}, lost {}, flagged {}{}, drops {}",
             self.layout.pipeline,
             s.rate_hz,
             us(s.end_to_end.p50),
@@ -438,6 +441,7 @@ impl Reporter {
             misses_text(s),
             s.lost,
             s.flagged,
+            stamp_faults_text(s.stamp_faults),
             s.metric_drops
         );
         let shm = crate::transport::shared_memory_trouble();
@@ -463,7 +467,7 @@ impl Reporter {
             invalid: get(&c.invalid),
             gaps: get(&c.gaps),
             missing: get(&c.missing),
-            time_backwards: get(&c.backwards),
+            stamp_faults: get(&c.stamp_faults),
             repaired_outputs: get(&c.repaired),
         }
     }
@@ -491,7 +495,7 @@ impl Reporter {
             rate_hz,
             deadline_misses: get(&c.deadline_misses),
             lost: self.lost_total(),
-            flagged: f.invalid + f.gaps + f.time_backwards + f.repaired_outputs,
+            flagged: f.invalid + f.gaps + f.stamp_faults + f.repaired_outputs,
             gap_samples: f.missing,
             metric_drops: get(&c.metric_drops),
             deadline_ns: self.layout.deadline.as_nanos() as u64,
@@ -508,6 +512,8 @@ impl Reporter {
                 .last_miss
                 .and_then(|(_, _, off)| off)
                 .unwrap_or(OFF_CPU_NOT_MEASURED),
+            stamp_faults: f.stamp_faults,
+            warm_start: get(&c.warm_start),
         }
     }
 
@@ -534,6 +540,7 @@ impl Reporter {
             epoch: get(&c.epoch) as u32,
             source_restarts: get(&c.restarts),
             flagged: self.flagged(),
+            warm_start: get(&c.warm_start),
             outputs: Outputs::from_counts(c.outputs.each_ref().map(get)),
             end_to_end_ns: Pct::of(&self.e2e),
             woken_late_ns: (!self.late.is_empty()).then(|| Pct::of(&self.late)),
@@ -587,6 +594,8 @@ pub fn snapshot_json(s: &StatsSnapshot) -> serde_json::Value {
         })),
         "lost": s.lost,
         "flagged": s.flagged,
+        "stamp_faults": s.stamp_faults,
+        "warm_start": crate::transport::warm_start_name(s.warm_start),
         "gap_samples": s.gap_samples,
         "metric_drops": s.metric_drops,
         "algorithmic_delay_ns": s.algorithmic_delay_ns,
@@ -599,6 +608,15 @@ pub fn snapshot_json(s: &StatsSnapshot) -> serde_json::Value {
             "compute_ns": pct(&st.compute),
         })).collect::<Vec<_>>(),
     })
+}
+
+/// `, 3 stamp faults` when there were any (they are in `flagged`, never in `lost`).
+fn stamp_faults_text(n: u64) -> String {
+    match n {
+        0 => String::new(),
+        1 => " (1 stamp fault)".into(),
+        n => format!(" ({n} stamp faults)"),
+    }
 }
 
 /// A snapshot's misses, and whose they were: `0`, `3 (2 the kernel's, 1 UNEXPLAINED)`.
@@ -620,7 +638,7 @@ pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
         "{name}: up {:.1} s, {:.0} Hz; deadline {} us\n\
          misses: {}\n\
          samples: {} in, {} out, {} lost ({} missing from the source)\n\
-         flagged {}; metric drops {}\n",
+         flagged {}{}; metric drops {}\n",
         s.uptime_ns as f64 / 1e9,
         s.rate_hz,
         us(s.deadline_ns),
@@ -630,8 +648,15 @@ pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
         s.lost,
         s.gap_samples,
         s.flagged,
+        stamp_faults_text(s.stamp_faults),
         s.metric_drops
     );
+    if s.warm_start != crate::transport::WARM_START_NONE {
+        out.push_str(&format!(
+            "warm start: {}\n",
+            crate::transport::warm_start_name(s.warm_start)
+        ));
+    }
     if let Some(explained) = s.last_miss_explained() {
         let off = s
             .last_miss_off_cpu()

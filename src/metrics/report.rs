@@ -78,8 +78,9 @@ pub struct Flagged {
     pub gaps: u64,
     /// Sequence numbers missing in the gaps.
     pub missing: u64,
-    /// Timestamps that went backwards.
-    pub time_backwards: u64,
+    /// Stamps not believed: back, a leap over 10 s, or unset ([`crate::clock::StampCheck`]);
+    /// never counted as lost.
+    pub stamp_faults: u64,
     /// Outputs with a non-finite value replaced by 0.
     pub repaired_outputs: u64,
 }
@@ -178,6 +179,9 @@ pub struct Report {
     pub source_restarts: u64,
     /// Flagged input.
     pub flagged: Flagged,
+    /// How the state-keeping stage started ([`crate::transport::warm_start_name`] of the code).
+    #[serde(serialize_with = "warm_start_words")]
+    pub warm_start: u64,
     /// The published outputs by their flags.
     pub outputs: Outputs,
     /// End to end: ingest of the completing sample to publish, ns.
@@ -207,6 +211,10 @@ pub struct Report {
     /// What the stages learnt while running, one line each after the stage's name (e.g. the
     /// bias filter's walk per axis against the configured one).
     pub learnt: Vec<String>,
+}
+
+fn warm_start_words<S: serde::Serializer>(code: &u64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(crate::transport::warm_start_name(*code))
 }
 
 impl Report {
@@ -282,8 +290,8 @@ impl Report {
         }
         let f = &self.flagged;
         s.push_str(&format!(
-            "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} time backwards, {} repaired; metric drops {}\n",
-            f.invalid, f.gaps, f.missing, f.time_backwards, f.repaired_outputs, self.metric_drops
+            "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} stamp faults (not lost), {} repaired; metric drops {}\n",
+            f.invalid, f.gaps, f.missing, f.stamp_faults, f.repaired_outputs, self.metric_drops
         ));
         s.push_str(&self.outputs_line());
         s.push_str(&self.misses_lines());
@@ -430,6 +438,16 @@ impl Report {
                 shm.unbacked_writes, shm.unreserved_bytes
             )
         };
-        format!("verdict: {timing}; {loss}{woken}{due}{shm}")
+        let stamps = match self.flagged.stamp_faults {
+            0 => String::new(),
+            1 => "; 1 stamp fault (flagged, not lost)".to_string(),
+            n => format!("; {n} stamp faults (flagged, not lost)"),
+        };
+        let warm = if self.warm_start == crate::transport::WARM_START_UNUSABLE {
+            "; started COLD: the saved state was unusable (moved aside)"
+        } else {
+            ""
+        };
+        format!("verdict: {timing}; {loss}{stamps}{woken}{due}{shm}{warm}")
     }
 }

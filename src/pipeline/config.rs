@@ -43,9 +43,10 @@ use toml::Spanned;
 
 use crate::io::InputError;
 use crate::pipeline::registry::{self, Entry};
-use crate::stages::contract::{Kind, Params, Role};
+use crate::stages::contract::{Kind, Params, Role, SideKind};
 use crate::stages::schema::Src;
 pub use crate::stages::schema::{Context, Units};
+use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::MotionKind;
 
 /// The iceoryx2 settings of a pipeline.
@@ -443,16 +444,35 @@ fn ros2_settings(
         Some(t) => {
             let t = t.get_ref();
             let service = src.service(&t.service)?;
-            let reads = stages.iter().any(|s| {
-                s.params
-                    .side_inputs()
-                    .iter()
-                    .any(|(side, _)| *side == service)
-            });
-            if !reads {
+            let readers: Vec<(&str, bool)> = stages
+                .iter()
+                .flat_map(|s| {
+                    s.params
+                        .side_inputs()
+                        .into_iter()
+                        .filter_map(|(side, kind)| {
+                            let SideKind::Stop { by_speed } = kind;
+                            (side == service).then_some((s.name.as_str(), by_speed))
+                        })
+                })
+                .collect();
+            if readers.is_empty() {
                 return Err(src.span(
                     &t.service,
                     format!("motion_in.service {service:?} is no stage's stop_input"),
+                ));
+            }
+            // A motion message says a speed, never whether the vehicle stands: judged by the
+            // stands flag alone, every signal would be unknown.
+            if let Some((stage, _)) = readers.iter().find(|(_, by_speed)| !by_speed) {
+                return Err(src.span(
+                    &t.service,
+                    format!(
+                        "motion_in feeds {service:?} with the vehicle's speed only (a ROS 2 \
+                         motion message says no \"stands\"), but stage {stage:?} reads it \
+                         without stop_speed, so it would never learn a stop: add stop_speed = \
+                         {DEFAULT_STOP_SPEED_M_S} (m/s, stands at or below) to stage {stage:?}"
+                    ),
                 ));
             }
             let ty = match &t.ty {
@@ -483,10 +503,7 @@ fn ros2_settings(
             Some(d) => src.int_in(d, "depth", 1, 100_000)?,
             None => 100,
         },
-        frame_id: raw
-            .frame_id
-            .as_ref()
-            .map_or_else(|| "imu_link".to_string(), |f| f.get_ref().clone()),
+        frame_id: raw.frame_id.as_ref().map(|f| f.get_ref().clone()),
         // Not given: the white noise a stage assumes (predict.bias's N), per sample.
         rate_noise: match &raw.rate_noise {
             Some(r) => Some(src.positive(r, "rate_noise", 1e6)?),

@@ -1,16 +1,18 @@
 //! The input guard between the ingest and the first processing stage: units to rad/s, and the
-//! checks on every raw sample (non-finite or driver-invalid values, sequence gaps, timestamps
-//! going backwards). A bad value is replaced by the last good one, flagged and counted: no NaN
+//! checks on every raw sample (non-finite or driver-invalid values, sequence gaps, stamps that
+//! cannot be believed: [`StampCheck`]). A stamp fault is flagged and counted on its own, never
+//! as a loss; only the sequence proves a loss. A bad value is replaced by the last good one, flagged and counted: no NaN
 //! or Inf ever enters a stage. It also keeps the stream's epoch ([`GyroSample::epoch`]): a
 //! source restart starts a new epoch instead of counting as a gap, so that within an epoch
 //! `seq` always rises. A driver whose `seq` repeats or steps back (not to 0) also starts a new
 //! epoch, and that sample is flagged and counted as a gap: subscribers count on the rise.
 
+use crate::clock::{StampCheck, StampFault};
 use crate::pipeline::config::Units;
 use crate::transport::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
-    FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
-    RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+    FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
+    RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
 
 /// Counts of what the guard flagged.
@@ -22,8 +24,8 @@ pub struct GuardCounts {
     pub gaps: u64,
     /// Sequence numbers missing in total.
     pub missing: u64,
-    /// Timestamps that went backwards.
-    pub backwards: u64,
+    /// Stamps not believed: back, a leap over 10 s, or unset ([`StampCheck`]).
+    pub stamp_faults: u64,
     /// New epochs: source restarts, and sequence numbers that repeated or stepped back.
     pub restarts: u64,
 }
@@ -35,7 +37,7 @@ pub struct Guard {
     axes: usize,
     last_good: [f64; 3],
     last_seq: Option<u64>,
-    last_t: Option<u64>,
+    stamps: StampCheck,
     epoch: u32,
     source_epoch: Option<u32>,
     /// Flags [`Guard::stamp`] found for the sample [`Guard::admit`] takes next.
@@ -52,7 +54,8 @@ impl Guard {
             axes: axes.clamp(1, 3),
             last_good: [0.0; 3],
             last_seq: None,
-            last_t: None,
+            // A driver's clock may start at 0; a source whose 0 means "unset" flags it.
+            stamps: StampCheck::new(false),
             epoch: epoch.max(1),
             source_epoch: None,
             pending: 0,
@@ -84,7 +87,7 @@ impl Guard {
             self.epoch = self.epoch.checked_add(1).unwrap_or(1);
             self.counts.restarts += 1;
             self.last_seq = None;
-            self.last_t = None;
+            self.stamps.reset();
         }
         if raw.epoch != 0 {
             self.source_epoch = Some(raw.epoch);
@@ -122,13 +125,24 @@ impl Guard {
             }
         }
         self.last_seq = Some(raw.seq);
-        if let Some(prev) = self.last_t {
-            if raw.t_ns < prev {
+        // A stamp its source did not believe is a fault whatever the check says. It is still
+        // judged, so that the check keeps the history the source's own check keeps (a ROS 2
+        // bridge judges as we do), but for a 0, the "not set" of a ROS 2 stamp, which must never
+        // become the time base.
+        let flagged = raw.flags & RAW_STAMP_FAULT != 0;
+        let judged = if flagged && raw.t_ns == 0 {
+            None
+        } else {
+            self.stamps.judge(raw.t_ns)
+        };
+        let fault = judged.or(flagged.then_some(StampFault::Unset));
+        if let Some(fault) = fault {
+            flags |= FLAG_STAMP_FAULT;
+            if fault == StampFault::Backwards {
                 flags |= FLAG_TIME_BACKWARDS;
-                self.counts.backwards += 1;
             }
+            self.counts.stamp_faults += 1;
         }
-        self.last_t = Some(raw.t_ns);
         // A stop signal logged with the sample travels with it.
         if raw.flags & RAW_VEHICLE_STOPPED != 0 {
             flags |= FLAG_VEHICLE_STOPPED;
@@ -174,15 +188,55 @@ mod tests {
         let s = g.admit(&raw(2, 30, f64::INFINITY), 0);
         assert!(s.rate.iter().all(|v| v.is_finite()));
         assert_eq!(g.admit(&raw(5, 40, 1.0), 0).flags, FLAG_GAP_BEFORE);
-        assert_eq!(g.admit(&raw(6, 35, 1.0), 0).flags, FLAG_TIME_BACKWARDS);
+        assert_eq!(
+            g.admit(&raw(6, 35, 1.0), 0).flags,
+            FLAG_STAMP_FAULT | FLAG_TIME_BACKWARDS
+        );
         assert_eq!(
             g.counts,
             GuardCounts {
                 invalid: 2,
                 gaps: 1,
                 missing: 2,
-                backwards: 1,
+                stamp_faults: 1,
                 restarts: 0,
+            }
+        );
+    }
+
+    #[test]
+    fn a_stamp_fault_is_flagged_and_counted_never_a_loss() {
+        const S: u64 = 1_000_000_000;
+        let t0 = 1_700_000_000 * S;
+        let mut g = Guard::new(Units::RadPerSec, 3, 7);
+        let mut faults = Vec::new();
+        for k in 0..1_000u64 {
+            let mut r = raw(k, t0 + k * S / 100, 1.0);
+            match k {
+                100 => r.t_ns = 4_102_444_800 * S,               // the year 2100
+                200 => (r.t_ns, r.flags) = (0, RAW_STAMP_FAULT), // a ROS 2 stamp of 0, flagged
+                300 => r.t_ns -= S,                              // 1 s back
+                _ => {}
+            }
+            let stamped = g.stamp(&r);
+            let s = g.admit(&stamped, 0);
+            if s.flags != 0 {
+                faults.push((k, s.flags));
+            }
+        }
+        assert_eq!(
+            faults,
+            [
+                (100, FLAG_STAMP_FAULT),
+                (200, FLAG_STAMP_FAULT),
+                (300, FLAG_STAMP_FAULT | FLAG_TIME_BACKWARDS)
+            ]
+        );
+        assert_eq!(
+            g.counts,
+            GuardCounts {
+                stamp_faults: 3,
+                ..GuardCounts::default()
             }
         );
     }

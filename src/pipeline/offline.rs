@@ -59,7 +59,7 @@ impl Offline {
     /// value arrives on the service: offline, the caller publishes the side inputs.
     pub fn side(&mut self, value: &Side) {
         let kind = match value {
-            Side::Stop(_) => SideKind::Stop,
+            Side::Stop(_) => SideKind::Stop { by_speed: false },
         };
         for (stage, kinds) in self.stages.iter_mut().zip(&self.sides) {
             for (slot, k) in kinds.iter().enumerate() {

@@ -20,8 +20,12 @@ use crate::transport::{GyroSample, RawSample, StopSignal};
 /// ([`Params::side_inputs`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SideKind {
-    /// [`StopSignal`]: whether the vehicle stands.
-    Stop,
+    /// [`StopSignal`]: whether the vehicle stands; `by_speed` when the stage judges it by the
+    /// signal's speed (it has a `stop_speed`), so a signal that says only a speed can feed it.
+    Stop {
+        /// The stage judges by speed.
+        by_speed: bool,
+    },
 }
 
 /// The newest value of a side input ([`Stage::side`]).

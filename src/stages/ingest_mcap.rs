@@ -9,8 +9,9 @@
 //! as `seq` n - 1, `t_ns` its `header.stamp`, `rate` its `angular_velocity` (rad/s: the
 //! pipeline's `input_units` must be rad/s), `epoch` 0. A message that does not decode enters
 //! as an invalid sample (`RAW_INVALID`, its time held, said on stderr): the daemon flags it
-//! and keeps serving; a stamp going backwards enters as it is and is flagged downstream
-//! (`time_backwards`). On later passes of a loop, `seq` and `t_ns` are shifted to keep rising.
+//! and keeps serving; a stamp going backwards or leaping enters as it is and is flagged
+//! downstream (`stamp_fault`, [`crate::clock::StampCheck`]); a stamp of 0 ("not set") or
+//! before 1970 enters with the time held, flagged [`RAW_STAMP_FAULT`]. On later passes of a loop, `seq` and `t_ns` are shifted to keep rising.
 //!
 //! Validation opens the file (its summary and footer: a truncated file or one still being
 //! written fails there), finds the topic and decodes its first [`CHECKED_MESSAGES`] messages (a
@@ -51,7 +52,10 @@ use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::Units;
 use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::transport::{RawSample, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED};
+use crate::stages::stop_rule::{StopRule, DEFAULT_STOP_SPEED_M_S, STOP_MAX_AGE_S, STOP_SPEED};
+use crate::transport::{
+    RawSample, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+};
 
 const FILE: Key = Key {
     name: "file",
@@ -72,19 +76,6 @@ const STOP_TOPIC: Key = Key {
     default: "none",
     doc: "the vehicle's motion logged in the bag (wheel odometry): each Imu sample carries whether it stands, from the last motion message by stamp, so `predict.bias` takes the stops by sample time",
 };
-const STOP_SPEED: Key = Key {
-    name: "stop_speed",
-    ty: Type::Positive(100.0),
-    default: "0.02",
-    doc: "with stop_topic: stands when the linear speed is at most this, m/s",
-};
-const STOP_MAX_AGE_S: Key = Key {
-    name: "stop_max_age_s",
-    ty: Type::Positive(60.0),
-    default: "0.5",
-    doc: "with stop_topic: a motion message older than this (by stamp, against the sample's) says nothing",
-};
-
 /// `ingest.mcap`.
 pub const KIND: Kind = Kind {
     name: "ingest.mcap",
@@ -128,10 +119,8 @@ pub struct McapParams {
 pub struct StopTopic {
     /// The topic.
     pub topic: String,
-    /// Stands at or below this speed, m/s.
-    pub speed: f64,
-    /// A message older than this says nothing, ns.
-    pub max_age_ns: i64,
+    /// How its messages are judged.
+    pub rule: StopRule,
 }
 
 /// What an MCAP replay reads.
@@ -148,16 +137,15 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let topic_key = t.get::<String>(&TOPIC)?;
     let replay = Replay::parse(t)?;
     let stop_key = t.get::<String>(&STOP_TOPIC)?;
-    let stop_speed = t.positive(&STOP_SPEED, "stop_speed")?;
-    let stop_age = t.positive(&STOP_MAX_AGE_S, "stop_max_age_s")?;
-    if stop_key.is_none() && (stop_speed.is_some() || stop_age.is_some()) {
+    // A motion message says a speed, never whether the vehicle stands: a speed always rules.
+    let (rule, set) = StopRule::parse(t, Some(DEFAULT_STOP_SPEED_M_S))?;
+    if stop_key.is_none() && set.is_some() {
         return Err(t.error("stop_speed and stop_max_age_s need a stop_topic"));
     }
     let stops = stop_key.map(|k| {
         let stop = StopTopic {
             topic: k.get_ref().clone(),
-            speed: stop_speed.unwrap_or(0.02),
-            max_age_ns: (stop_age.unwrap_or(0.5) * 1e9) as i64,
+            rule,
         };
         (k, stop)
     });
@@ -336,12 +324,7 @@ impl Params for McapParams {
             self.file.display()
         )];
         if let Some(s) = &self.stops {
-            lines.push(format!(
-                "stops from {}: stands at or below {} m/s, unknown after {} s",
-                s.topic,
-                s.speed,
-                s.max_age_ns as f64 / 1e9
-            ));
+            lines.push(format!("stops from {}: {}", s.topic, s.rule.describe()));
         }
         lines
     }
@@ -497,8 +480,11 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
             match m {
                 Ok(m) => {
                     s.rate = m.msg.angular_velocity;
-                    // Before 1970 a stamp has no place on the u64 clock: held, flagged invalid.
-                    if let Some(t) = m.msg.stamp.ns_u64() {
+                    // 0 is ROS 2's "not set", and before 1970 a stamp has no place on the u64
+                    // clock: the time held and the stamp flagged (a stamp fault, not a loss);
+                    // the rate is served as it came.
+                    s.flags = RAW_STAMP_FAULT;
+                    if let Some(t) = m.msg.stamp.ns_u64().filter(|&t| t != 0) {
                         s.flags = stops
                             .as_ref()
                             .map_or(0, |st| st.flags_at(&mut stop_at, m.msg.stamp.ns()));
@@ -546,8 +532,7 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
 /// A bag's motion topic, read whole and sorted by stamp: (stamp ns, speed m/s).
 struct Stops {
     at: Vec<(i64, f64)>,
-    speed: f64,
-    max_age_ns: i64,
+    rule: StopRule,
 }
 
 impl Stops {
@@ -574,11 +559,7 @@ impl Stops {
             );
         }
         at.sort_by_key(|&(t, _)| t);
-        Ok(Stops {
-            at,
-            speed: s.speed,
-            max_age_ns: s.max_age_ns,
-        })
+        Ok(Stops { at, rule: s.rule })
     }
 
     /// The raw flags of a sample stamped `t`: from the last motion message at or before it, if
@@ -591,15 +572,14 @@ impl Stops {
         while self.at.get(*at).is_some_and(|&(s, _)| s <= t) {
             *at += 1;
         }
-        match (*at).checked_sub(1).map(|i| self.at[i]) {
-            Some((s, speed)) if t - s <= self.max_age_ns && speed.is_finite() => {
-                if speed <= self.speed {
-                    RAW_VEHICLE_STOPPED
-                } else {
-                    RAW_VEHICLE_MOVING
-                }
-            }
-            _ => 0,
+        let said = (*at)
+            .checked_sub(1)
+            .map(|i| self.at[i])
+            .and_then(|(s, speed)| self.rule.judge(t.abs_diff(s), speed, None));
+        match said {
+            Some(true) => RAW_VEHICLE_STOPPED,
+            Some(false) => RAW_VEHICLE_MOVING,
+            None => 0,
         }
     }
 }

@@ -45,6 +45,7 @@ pub mod predict;
 pub mod predict_bias;
 pub mod publish;
 pub mod replay;
+pub mod stop_rule;
 
 pub use contract::{Kind, Params, Poll, Role, Side, SideKind, Source, Stage};
 

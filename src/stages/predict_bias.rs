@@ -33,6 +33,7 @@ use crate::stages::bias_state::{self, Owner, Saved, StateWriter};
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::contract::{Side, SideKind};
 use crate::stages::schema::{Context, Key, StageTable, Type};
+use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED};
 use crate::transport::{
     GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
 };
@@ -115,19 +116,6 @@ const STOP_INPUT: Key = Key {
     default: "none: our own stillness detector alone",
     doc: "the vehicle's stop signal (wheel odometry, speed): trusted while fresh, checked against the gyro; our detector decides while it is stale",
 };
-const STOP_MAX_AGE_S: Key = Key {
-    name: "stop_max_age_s",
-    ty: Type::Positive(60.0),
-    default: "0.5",
-    doc: "a stop signal older than this (its t_ns against the sample's ingest_ns) is unknown, never still",
-};
-const STOP_SPEED: Key = Key {
-    name: "stop_speed",
-    ty: Type::Positive(100.0),
-    default: "none: the signal's `stopped` field decides",
-    doc: "stands when the signal's speed_m_s is at most this, m/s (a NaN speed: unknown)",
-};
-
 const STATE_FILE: Key = Key {
     name: "state_file",
     ty: Type::Str("a file path, relative to the pipeline file"),
@@ -206,29 +194,24 @@ pub struct StateConfig {
 pub struct StopConfig {
     /// Its service.
     pub service: String,
-    /// Older than this it is unknown, ns.
-    pub max_age_ns: u64,
-    /// Stands at or below this speed (m/s); None: the `stopped` field decides.
-    pub speed: Option<f64>,
+    /// How it is judged (`stop_speed`, `stop_max_age_s`).
+    pub rule: StopRule,
 }
 
 impl StopConfig {
     /// What `signal` says at ingest time `now_ns`: stands, moves, or unknown (stale, from the
     /// future by more than its age, or not said).
     pub fn judge(&self, signal: &StopSignal, now_ns: u64) -> Option<bool> {
-        let age = now_ns.abs_diff(signal.t_ns);
-        if signal.t_ns == 0 || age > self.max_age_ns {
+        if signal.t_ns == 0 {
             return None;
         }
-        match self.speed {
-            Some(limit) if signal.speed_m_s.is_finite() => Some(signal.speed_m_s.abs() <= limit),
-            Some(_) => None,
-            None => match signal.stopped {
-                0 => Some(false),
-                1 => Some(true),
-                _ => None,
-            },
-        }
+        let stands = match signal.stopped {
+            0 => Some(false),
+            1 => Some(true),
+            _ => None,
+        };
+        self.rule
+            .judge(now_ns.abs_diff(signal.t_ns), signal.speed_m_s, stands)
     }
 }
 
@@ -327,26 +310,21 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         }
         tracker.walk_range = Some((lo, hi));
     }
-    let stop = match t.get::<String>(&STOP_INPUT)? {
+    let input = t.get::<String>(&STOP_INPUT)?;
+    let (rule, set) = StopRule::parse(t, None)?;
+    let stop = match input {
         Some(v) => Some(StopConfig {
             service: src.service(&v)?,
-            max_age_ns: (t
-                .positive(&STOP_MAX_AGE_S, "stop_max_age_s")?
-                .unwrap_or(0.5)
-                * 1e9) as u64,
-            speed: t.positive(&STOP_SPEED, "stop_speed")?,
+            rule,
         }),
-        None => {
-            for key in [&STOP_MAX_AGE_S, &STOP_SPEED] {
-                if t.get::<toml::Value>(key)?.is_some() {
-                    return Err(t.error(format!(
-                        "predict.bias: {} needs stop_input (the service of the stop signal)",
-                        key.name
-                    )));
-                }
+        None => match set {
+            Some(key) => {
+                return Err(t.error(format!(
+                    "predict.bias: {key} needs stop_input (the service of the stop signal)"
+                )))
             }
-            None
-        }
+            None => None,
+        },
     };
     let state = match t.get::<String>(&STATE_FILE)? {
         Some(file) => {
@@ -429,7 +407,10 @@ impl Params for BiasParams {
     fn side_inputs(&self) -> Vec<(String, SideKind)> {
         self.stop
             .iter()
-            .map(|s| (s.service.clone(), SideKind::Stop))
+            .map(|s| {
+                let by_speed = s.rule.speed_m_s.is_some();
+                (s.service.clone(), SideKind::Stop { by_speed })
+            })
             .collect()
     }
 
@@ -445,17 +426,11 @@ impl Params for BiasParams {
             self.tracker.delay_s
         )]
         .into_iter()
-        .chain(self.stop.iter().map(|s| {
-            format!(
-                "stop signal: {} (unknown after {} s; stands {})",
-                s.service,
-                s.max_age_ns as f64 / 1e9,
-                match s.speed {
-                    Some(v) => format!("at speed <= {v} m/s"),
-                    None => "by its stopped field".into(),
-                }
-            )
-        }))
+        .chain(
+            self.stop
+                .iter()
+                .map(|s| format!("stop signal: {} ({})", s.service, s.rule.describe())),
+        )
         .collect()
     }
 }
@@ -633,8 +608,10 @@ mod tests {
     fn a_stop_signal_is_judged_by_age_then_speed_or_flag() {
         let by_flag = StopConfig {
             service: "v/stop".into(),
-            max_age_ns: 500_000_000,
-            speed: None,
+            rule: StopRule {
+                max_age_ns: 500_000_000,
+                speed_m_s: None,
+            },
         };
         let now = 10_000_000_000;
         assert_eq!(
@@ -652,7 +629,10 @@ mod tests {
             "never stamped"
         );
         let by_speed = StopConfig {
-            speed: Some(0.05),
+            rule: StopRule {
+                speed_m_s: Some(0.05),
+                ..by_flag.rule
+            },
             ..by_flag
         };
         assert_eq!(by_speed.judge(&signal(now, 0.04, 0), now), Some(true));

@@ -15,6 +15,10 @@ pub const RAW_VEHICLE_STOPPED: u32 = 1 << 1;
 /// Raw-sample flag: the vehicle moves at this sample (as [`RAW_VEHICLE_STOPPED`]). Neither:
 /// unknown.
 pub const RAW_VEHICLE_MOVING: u32 = 1 << 2;
+/// Raw-sample flag: the source does not believe this sample's stamp (a ROS 2 stamp of 0, "not
+/// set"; or a stamp its bridge judged as the guard would, [`crate::clock::StampCheck`]). The
+/// guard flags it [`FLAG_STAMP_FAULT`] and counts it, never as a loss.
+pub const RAW_STAMP_FAULT: u32 = 1 << 3;
 
 /// Output flag: a stage is still filling (denoiser window, predictor warm-up).
 pub const FLAG_WARMING_UP: u32 = 1;
@@ -43,9 +47,13 @@ pub const FLAG_STOP_CONTRADICTED: u32 = 1 << 8;
 pub const FLAG_VEHICLE_STOPPED: u32 = 1 << 9;
 /// Output flag: the raw sample said the vehicle moved ([`RAW_VEHICLE_MOVING`]).
 pub const FLAG_VEHICLE_MOVING: u32 = 1 << 10;
+/// Output flag: the sensor's stamp was not believed (it went back, leapt more than 10 s ahead,
+/// or was unset: [`crate::clock::StampCheck`]); `t_ns` is the source's as it came. A stamp that
+/// went back also sets [`FLAG_TIME_BACKWARDS`].
+pub const FLAG_STAMP_FAULT: u32 = 1 << 11;
 
 /// The output flags by name, in bit order (`tap`, `record` and reports decode them with it).
-pub const FLAG_NAMES: [(u32, &str); 11] = [
+pub const FLAG_NAMES: [(u32, &str); 12] = [
     (FLAG_WARMING_UP, "warming_up"),
     (FLAG_INPUT_INVALID, "input_invalid"),
     (FLAG_GAP_BEFORE, "gap_before"),
@@ -57,13 +65,15 @@ pub const FLAG_NAMES: [(u32, &str); 11] = [
     (FLAG_STOP_CONTRADICTED, "stop_contradicted"),
     (FLAG_VEHICLE_STOPPED, "vehicle_stopped"),
     (FLAG_VEHICLE_MOVING, "vehicle_moving"),
+    (FLAG_STAMP_FAULT, "stamp_fault"),
 ];
 
 /// The raw-sample flags by name, in bit order.
-pub const RAW_FLAG_NAMES: [(u32, &str); 3] = [
+pub const RAW_FLAG_NAMES: [(u32, &str); 4] = [
     (RAW_INVALID, "invalid"),
     (RAW_VEHICLE_STOPPED, "vehicle_stopped"),
     (RAW_VEHICLE_MOVING, "vehicle_moving"),
+    (RAW_STAMP_FAULT, "stamp_fault"),
 ];
 
 /// Names of the output flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as
@@ -108,11 +118,11 @@ pub const GYRO_VERSION: u32 = 2;
 pub const GYRO_V1_TYPE_NAME: &str = "driftless::GyroSample";
 /// Size of [`GyroSample`] version 1, bytes.
 pub const GYRO_V1_SIZE: usize = 104;
-/// Type name of [`StatsSnapshot`] on the wire; `.v2` names the layout, as for
+/// Type name of [`StatsSnapshot`] on the wire; `.v3` names the layout, as for
 /// [`GYRO_TYPE_NAME`].
-pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot.v2";
+pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot.v3";
 /// The layout version of [`StatsSnapshot`] (the `.vN` of [`STATS_TYPE_NAME`]).
-pub const STATS_VERSION: u32 = 2;
+pub const STATS_VERSION: u32 = 3;
 /// The type name of [`StatsSnapshot`] version 1 (904 bytes, before the misses' explanation).
 pub const STATS_V1_TYPE_NAME: &str = "driftless::StatsSnapshot";
 /// Size of [`StatsSnapshot`] version 1, bytes.
@@ -278,7 +288,7 @@ const VERSIONED: [Versioned; 2] = [
         name: STATS_TYPE_NAME,
         version: STATS_VERSION,
         size: std::mem::size_of::<StatsSnapshot>(),
-        added: "the misses' explanation",
+        added: "the stamp faults and the warm start",
     },
 ];
 
@@ -479,7 +489,7 @@ pub struct StageStats {
 /// The daemon's statistics, published on the pipeline's stats service every report interval.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
-#[type_name("driftless::StatsSnapshot.v2")]
+#[type_name("driftless::StatsSnapshot.v3")]
 pub struct StatsSnapshot {
     /// Nanoseconds since the pipeline started.
     pub uptime_ns: u64,
@@ -493,7 +503,7 @@ pub struct StatsSnapshot {
     pub deadline_misses: u64,
     /// Samples lost by subscribers of any of our services (full buffers).
     pub lost: u64,
-    /// Samples flagged (invalid input, gap, time backwards).
+    /// Flags raised on input and output: invalid input, gaps, stamp faults, repaired outputs.
     pub flagged: u64,
     /// Sequence numbers missing in the input.
     pub gap_samples: u64,
@@ -519,6 +529,32 @@ pub struct StatsSnapshot {
     /// The hot thread's time off a CPU during the latest miss, ns; [`OFF_CPU_NOT_MEASURED`]
     /// when not measured.
     pub last_miss_off_cpu_ns: u64,
+    /// Of `flagged`, samples whose stamp was not believed ([`FLAG_STAMP_FAULT`]); never counted
+    /// in `lost` (version 3).
+    pub stamp_faults: u64,
+    /// How the pipeline's state-keeping stage started: one of the `WARM_START_*` codes.
+    pub warm_start: u64,
+}
+
+/// [`StatsSnapshot::warm_start`]: no stage of the pipeline keeps state across runs.
+pub const WARM_START_NONE: u64 = 0;
+/// [`StatsSnapshot::warm_start`]: resumed from the saved state.
+pub const WARM_START_WARM: u64 = 1;
+/// [`StatsSnapshot::warm_start`]: started cold: no saved state yet, or one too old to use.
+pub const WARM_START_COLD: u64 = 2;
+/// [`StatsSnapshot::warm_start`]: started cold because the saved state could not be used (it
+/// was damaged or another sensor's); the file was moved aside.
+pub const WARM_START_UNUSABLE: u64 = 3;
+
+/// The words of a [`StatsSnapshot::warm_start`] code.
+pub fn warm_start_name(code: u64) -> &'static str {
+    match code {
+        WARM_START_NONE => "none",
+        WARM_START_WARM => "warm",
+        WARM_START_COLD => "cold",
+        WARM_START_UNUSABLE => "cold, the saved state unusable (moved aside)",
+        _ => "unknown",
+    }
 }
 
 impl StatsSnapshot {
@@ -578,9 +614,9 @@ mod tests {
         assert_eq!(
             stats,
             "service \"d/stats\" carries driftless::StatsSnapshot (layout v1, 904 bytes, from \
-             an older driftless); this driftless reads driftless::StatsSnapshot.v2 (layout v2, \
-             936 bytes, with the misses' explanation): run the daemon and its subscribers from \
-             one release (docs/wire-types.md#versions)"
+             an older driftless); this driftless reads driftless::StatsSnapshot.v3 (layout v3, \
+             952 bytes, with the stamp faults and the warm start): run the daemon and its \
+             subscribers from one release (docs/wire-types.md#versions)"
         );
         assert_eq!(other_layout_of(STATS_V1_TYPE_NAME), Some("StatsSnapshot"));
         assert_eq!(other_layout_of(GYRO_V1_TYPE_NAME), Some("GyroSample"));
@@ -676,7 +712,9 @@ mod tests {
             std::mem::offset_of!(StatsSnapshot, last_miss_off_cpu_ns),
             928
         );
-        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 936);
+        // Version 3 appended two counts to version 2's 936 bytes.
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, stamp_faults), 936);
+        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 952);
     }
 
     #[test]

@@ -5,7 +5,11 @@ does the same with a gyro at rest and publishes nav_msgs/msg/Odometry on /odom e
 message, the vehicle moving at 1 m/s for the first half and standing for the second;
 `wrongtype` publishes COUNT geometry_msgs/msg/Vector3Stamped on TOPIC, one every 10 ms. With
 PEER_NAN_AT=i,j,... `talk` sends NaN rates in those messages; with
-PEER_DURABILITY=transient_local `listen` asks for that durability. For benches/ros2.rs: `pace`
+PEER_DURABILITY=transient_local `listen` asks for that durability. With
+PEER_STAMPS=i=what,... `talk` sends wild stamps in those messages: `max` the farthest a ROS 2
+stamp holds (2038-01-19), `zero` 0 ("not set"), `back` one second before the message's own.
+`twin` publishes COUNT messages from each of two publishers on TOPIC, alternating (two drivers
+on one topic): the second's rates are the first's negated. PEER_NODE names the node. For benches/ros2.rs: `pace`
 publishes COUNT messages at PEER_RATE Hz (default 1000) stamped with the system clock just
 before each publish; `latency` receives COUNT and prints, as one JSON line, how many came, in
 order, and the percentiles of receipt minus stamp (us).
@@ -62,7 +66,7 @@ def as_dict(m: Imu) -> dict:
 def main() -> int:
     mode, topic, count, timeout = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
     rclpy.init()
-    node = Node("driftless_test_peer")
+    node = Node(os.environ.get("PEER_NODE", "driftless_test_peer"))
     end = time.monotonic() + timeout
     if mode == "listen":
         reliable = QoSProfile(depth=max(count, 10), reliability=ReliabilityPolicy.RELIABLE,
@@ -130,8 +134,25 @@ def main() -> int:
         for _ in range(count):
             pub.publish(Vector3Stamped())
             time.sleep(0.01)
+    elif mode == "twin":
+        pubs = [node.create_publisher(Imu, topic, 10) for _ in range(2)]
+        while time.monotonic() < end and any(p.get_subscription_count() == 0 for p in pubs):
+            time.sleep(0.01)
+        time.sleep(0.5)
+        for i in range(count):
+            for k, pub in enumerate(pubs):
+                m = message(i)
+                if k == 1:
+                    m.angular_velocity.x *= -1.0
+                    m.angular_velocity.y *= -1.0
+                    m.angular_velocity.z *= -1.0
+                pub.publish(m)
+            time.sleep(0.001)
+        time.sleep(0.5)
+        print(json.dumps({"sent": count}), flush=True)
     else:
         nan_at = {int(k) for k in os.environ.get("PEER_NAN_AT", "").split(",") if k}
+        stamps = dict(kv.split("=") for kv in os.environ.get("PEER_STAMPS", "").split(",") if kv)
         pub = node.create_publisher(Imu, topic, 10)
         odom = node.create_publisher(Odometry, "/odom", 10) if mode == "drive" else None
         while time.monotonic() < end and (
@@ -150,6 +171,13 @@ def main() -> int:
             m = message(i, still=odom is not None)
             if i in nan_at:
                 m.angular_velocity.x = float("nan")
+            wild = stamps.get(str(i))
+            if wild == "max":
+                m.header.stamp.sec, m.header.stamp.nanosec = 2**31 - 1, 0
+            elif wild == "zero":
+                m.header.stamp.sec, m.header.stamp.nanosec = 0, 0
+            elif wild == "back":
+                m.header.stamp.sec -= 1
             pub.publish(m)
             time.sleep(0.001)
         time.sleep(0.5)

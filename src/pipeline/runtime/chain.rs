@@ -29,7 +29,7 @@ pub(super) enum SidePort {
 impl SidePort {
     fn open(transport: &Transport, name: &str, kind: SideKind) -> Result<Self, TransportError> {
         Ok(match kind {
-            SideKind::Stop => SidePort::Stop(transport.input::<StopSignal>(name)?),
+            SideKind::Stop { .. } => SidePort::Stop(transport.input::<StopSignal>(name)?),
         })
     }
 
@@ -285,7 +285,7 @@ impl Chain {
             c.invalid.store(g.invalid, Ordering::Relaxed);
             c.gaps.store(g.gaps, Ordering::Relaxed);
             c.missing.store(g.missing, Ordering::Relaxed);
-            c.backwards.store(g.backwards, Ordering::Relaxed);
+            c.stamp_faults.store(g.stamp_faults, Ordering::Relaxed);
             c.restarts.store(g.restarts, Ordering::Relaxed);
         }
     }

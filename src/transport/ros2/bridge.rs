@@ -8,9 +8,16 @@
 //!   epoch), the angular velocity as its rate (rad/s), a non-finite rate flagged invalid, and
 //!   a sequence number in arrival order that jumps where the stamps show a gap (more than 1.5
 //!   periods at the pipeline's rate), so the guard flags and counts it; nothing is filled.
-//!   Stamps that go backwards reach the guard as they are, which flags them.
+//!   A stamp that cannot be believed ([`StampCheck`]: 0, back, or over 10 s ahead) is flagged
+//!   [`RAW_STAMP_FAULT`] and proves no gap: one wild stamp is one stamp fault, never a loss.
+//! - **One publisher per topic:** the first publisher heard is taken. Another one heard while
+//!   it publishes (two drivers, or one started twice) is named once, with its GID, and its
+//!   messages are refused and counted. When the taken one goes away (discovery loses it, or it
+//!   is silent for [`SILENCE`]), the next publisher heard is a restarted driver: a new epoch.
 //! - **Out:** [`ImuMapping`] (the bag writer's mapping). The stamp: the input's own ROS stamp
 //!   when `imu_in` feeds the pipeline; otherwise the sample's ingest time on the system clock.
+//!   The frame: `frame_id` when it is set; else the input's own `header.frame_id` when `imu_in`
+//!   feeds the pipeline (a navigator's TF lookup wants the driver's frame); else `imu_link`.
 //! - **Motion:** each message becomes a [`StopSignal`] stamped at receipt (its speed the norm
 //!   of the linear velocity).
 //! - A topic nobody matches after [`MATCH_GRACE`] is said on stderr, and again when it matches.
@@ -20,19 +27,25 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::dds::{
-    DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription, PublisherId, Ros2Node,
+    DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription, NodeNames, PublisherId,
+    Ros2Node,
 };
 use super::imu::{ImuMapping, IMU_TYPE};
 use super::motion::MotionKind;
-use super::{Ros2Settings, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
-use crate::clock::monotonic_ns;
+use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
+use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
 use crate::transport::{
     GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError, WakeSet,
-    Waker, RAW_INVALID,
+    Waker, RAW_INVALID, RAW_STAMP_FAULT,
 };
 
 /// How long a topic may go unmatched before stderr says so.
 pub const MATCH_GRACE: Duration = Duration::from_secs(3);
+
+/// How long the taken publisher of the Imu input may be silent before another one is taken in
+/// its place (a driver killed and restarted, whose old writer discovery still lists until its
+/// lease ends).
+pub const SILENCE: Duration = Duration::from_secs(1);
 
 /// One line on stderr (a closed stderr is no reason to stop).
 fn say(line: std::fmt::Arguments<'_>) {
@@ -57,6 +70,10 @@ pub struct BridgeCounts {
     pub imu_in_invalid: u64,
     /// Samples missing from the driver's topic, by its stamps.
     pub imu_in_missing: u64,
+    /// Of `imu_in`, with a stamp not believed (flagged; never a loss).
+    pub imu_in_stamp_faults: u64,
+    /// Imu messages refused: from a second publisher while the first one publishes.
+    pub imu_in_refused: u64,
     /// Messages on an input topic that could not be read (malformed).
     pub unreadable: u64,
     /// Times the driver's topic changed publisher (a restart: each a new epoch).
@@ -73,12 +90,15 @@ impl std::fmt::Display for BridgeCounts {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} Imu in ({} invalid, {} missing by their stamps, {} new publishers), {} Imu out \
-             ({} not sent), {} motion in, {} unreadable",
+            "{} Imu in ({} invalid, {} stamp faults, {} missing by their stamps, {} new \
+             publishers), {} refused (a second publisher), {} Imu out ({} not sent), {} motion \
+             in, {} unreadable",
             self.imu_in,
             self.imu_in_invalid,
+            self.imu_in_stamp_faults,
             self.imu_in_missing,
             self.imu_in_publishers,
+            self.imu_in_refused,
             self.imu_out,
             self.imu_out_failed,
             self.motion_in,
@@ -160,12 +180,76 @@ struct ImuIn {
     out: Output<RawSample>,
     period_ns: f64,
     epoch: u32,
-    publisher: Option<PublisherId>,
+    /// The publisher taken, when it was last heard, and whether discovery still lists it.
+    publisher: Option<(PublisherId, Instant, bool)>,
+    /// Other publishers already named on stderr.
+    named: Vec<PublisherId>,
+    /// Who each publisher's node is (None: discovery could not be read for it).
+    names: Option<NodeNames>,
     next_seq: u64,
-    last_stamp: Option<i64>,
+    stamps: StampCheck,
+    /// Messages since the last believed stamp whose stamps were faults.
+    faults_since: u64,
+    /// The taken publisher's latest `header.frame_id`.
+    frame_id: String,
 }
 
 impl ImuIn {
+    /// Whether a message of `from`, heard `now`, is taken: the first publisher's are; another's
+    /// only once the first went away (then it is a restart: a new epoch).
+    fn admit(&mut self, from: PublisherId, now: Instant, counts: &mut BridgeCounts) -> bool {
+        match self.publisher {
+            Some((taken, _, _)) if taken == from => {}
+            Some((taken, heard, listed)) if listed && now - heard < SILENCE => {
+                counts.imu_in_refused += 1;
+                if !self.named.contains(&from) {
+                    self.named.push(from);
+                    let mut node = |id| {
+                        self.names
+                            .as_mut()
+                            .and_then(|n| n.node_of(id))
+                            .map_or(String::new(), |n| format!(", node {n}"))
+                    };
+                    let (theirs, ours) = (node(from), node(taken));
+                    say(format_args!(
+                        "{}: a second publisher (GID {from}{theirs}) while GID {taken}{ours} \
+                         publishes: its messages are refused and counted (one driver per topic: \
+                         two IMUs need two topics and two pipelines)",
+                        self.topic
+                    ));
+                }
+                return false;
+            }
+            Some(_) => {
+                // The taken one went away: a restarted driver, as a driver's restart on
+                // iceoryx2 is, not a gap.
+                self.epoch = self.epoch.wrapping_add(1).max(1);
+                self.next_seq = 0;
+                self.stamps.reset();
+                self.faults_since = 0;
+                counts.imu_in_publishers += 1;
+                if counts.imu_in_publishers <= 3 {
+                    say(format_args!(
+                        "{}: a new publisher (GID {from}; the one before went away, a driver \
+                         restarted?): a new epoch",
+                        self.topic
+                    ));
+                }
+            }
+            None => {}
+        }
+        self.publisher = Some((from, now, true));
+        true
+    }
+
+    /// Whether discovery still lists the taken publisher (a publisher that said goodbye is
+    /// gone at once; one that died, when its lease ends or after [`SILENCE`]).
+    fn check_publisher(&mut self, node: &Ros2Node) {
+        if let Some((taken, _, listed)) = &mut self.publisher {
+            *listed = node.publishers_on(&self.topic).contains(taken);
+        }
+    }
+
     /// Take what arrived.
     fn pump(&mut self, counts: &mut BridgeCounts) {
         loop {
@@ -180,37 +264,54 @@ impl ImuIn {
                     continue;
                 }
             };
-            // Another publisher (a restarted driver): a new epoch, as a driver's restart on
-            // iceoryx2 is, not a gap.
-            if self.publisher.is_some_and(|p| p != from) {
-                self.epoch = self.epoch.wrapping_add(1).max(1);
-                self.next_seq = 0;
-                self.last_stamp = None;
-                counts.imu_in_publishers += 1;
-                if counts.imu_in_publishers <= 3 {
-                    say(format_args!(
-                        "{}: a new publisher (a driver restarted?): a new epoch",
-                        self.topic
-                    ));
-                }
+            if !self.admit(from, Instant::now(), counts) {
+                continue;
             }
-            self.publisher = Some(from);
-            let stamp = imu.stamp.ns();
-            if let Some(last) = self.last_stamp {
-                let periods = (stamp - last) as f64 / self.period_ns;
-                if periods > 1.5 {
-                    let missing = periods.round() as u64 - 1;
-                    self.next_seq += missing;
-                    counts.imu_in_missing += missing;
-                }
+            if self.frame_id != imu.frame_id {
+                self.frame_id.clone_from(&imu.frame_id);
             }
-            self.last_stamp = Some(stamp);
+            // Before 1970 is no stamp either: 0, which the check refuses.
+            let t_ns = u64::try_from(imu.stamp.ns()).unwrap_or(0);
+            let believed = self.stamps.believed();
+            let fault = self.stamps.judge(t_ns);
+            match (fault, believed) {
+                (Some(_), _) => {
+                    counts.imu_in_stamp_faults += 1;
+                    self.faults_since += 1;
+                }
+                // Only a step the check believed proves a gap (not a resync to a new time
+                // base), less the messages of faulty stamps between, which took their places.
+                (None, Some(last)) if t_ns >= last && t_ns - last <= MAX_STAMP_STEP_NS => {
+                    let periods = ((t_ns - last) as f64 / self.period_ns).round() as u64;
+                    let missing = periods.saturating_sub(1 + self.faults_since);
+                    if missing > 0 {
+                        self.next_seq += missing;
+                        counts.imu_in_missing += missing;
+                    }
+                    self.faults_since = 0;
+                }
+                (None, _) => self.faults_since = 0,
+            }
+            if let Some(fault) = fault.filter(|_| counts.imu_in_stamp_faults <= 3) {
+                say(format_args!(
+                    "{}: a stamp not believed ({fault:?}: {} s {} ns after {}): flagged, not a \
+                     loss",
+                    self.topic,
+                    imu.stamp.sec,
+                    imu.stamp.nanosec,
+                    believed.map_or("none yet".into(), |b| format!("{:.3} s", b as f64 * 1e-9)),
+                ));
+            }
             let finite = imu.angular_velocity.iter().all(|v| v.is_finite());
+            let mut flags = if finite { 0 } else { RAW_INVALID };
+            if fault.is_some() {
+                flags |= RAW_STAMP_FAULT;
+            }
             let raw = RawSample {
-                t_ns: u64::try_from(stamp).unwrap_or(0),
+                t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
-                flags: if finite { 0 } else { RAW_INVALID },
+                flags,
                 epoch: self.epoch,
             };
             self.next_seq += 1;
@@ -305,8 +406,13 @@ pub fn run_bridge(
                     period_ns: 1e9 / rate_hz,
                     epoch: rand::random::<u32>().max(1),
                     publisher: None,
+                    named: Vec::new(),
+                    // Naming a node is a courtesy: without it the GID is said alone.
+                    names: node.node_names().ok(),
                     next_seq: 0,
-                    last_stamp: None,
+                    stamps: StampCheck::new(true),
+                    faults_since: 0,
+                    frame_id: String::new(),
                 })
             }
             None => None,
@@ -318,7 +424,11 @@ pub fn run_bridge(
                 input: transport.open_input::<GyroSample>(service)?,
                 waker: transport.existing_waker(service)?,
                 publisher: node.imu_publisher(topic, settings.depth)?,
-                mapping: ImuMapping::new(&settings.frame_id, 1.0, settings.rate_noise),
+                mapping: ImuMapping::new(
+                    settings.frame_id.as_deref().unwrap_or(DEFAULT_FRAME_ID),
+                    1.0,
+                    settings.rate_noise,
+                ),
             });
         }
         let mut motion = match &settings.motion_in {
@@ -403,7 +513,15 @@ pub fn run_bridge(
         if let Some(i) = &mut imu_in {
             i.pump(&mut counts);
         }
+        // The driver's frame, unless one is configured.
+        let frame = match (&settings.frame_id, &imu_in) {
+            (None, Some(i)) if !i.frame_id.is_empty() => Some(i.frame_id.as_str()),
+            _ => None,
+        };
         for o in &mut outs {
+            if let Some(f) = frame {
+                o.mapping.set_frame_id(f);
+            }
             while let Ok(Some(mut s)) = o.input.receive() {
                 if !ros_stamps {
                     s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
@@ -441,6 +559,9 @@ pub fn run_bridge(
         if now >= next_check {
             for w in &mut watched {
                 w.check(&node, now - t0);
+            }
+            if let Some(i) = &mut imu_in {
+                i.check_publisher(&node);
             }
             for line in node.qos_mismatches() {
                 if said_qos.insert(line.clone()) {

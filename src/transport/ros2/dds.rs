@@ -326,6 +326,111 @@ impl Ros2Node {
     }
 }
 
+impl Ros2Node {
+    /// The publishers on `topic` that discovery knows now (one that went away leaves within its
+    /// lease, at once when it says goodbye).
+    pub fn publishers_on(&self, topic: &str) -> Vec<PublisherId> {
+        let dds_topic = format!("rt/{}", topic.trim_start_matches('/'));
+        self._context
+            .domain_participant()
+            .discovered_writers()
+            .into_iter()
+            .filter(|w| w.publication_topic_data.topic_name == dds_topic)
+            .map(|w| PublisherId(ros2_client::Gid::from(w.writer_proxy.remote_writer_guid)))
+            .collect()
+    }
+}
+
+/// `rmw_dds_common/msg/Gid` (16 bytes from Iron on).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+struct GidMsg([u8; 16]);
+
+/// `rmw_dds_common/msg/NodeEntitiesInfo`.
+#[derive(Debug, Clone, Deserialize)]
+struct NodeEntitiesMsg {
+    node_namespace: String,
+    node_name: String,
+    _reader_gid_seq: Vec<GidMsg>,
+    writer_gid_seq: Vec<GidMsg>,
+}
+
+/// `rmw_dds_common/msg/ParticipantEntitiesInfo`: what a ROS 2 participant says of its nodes
+/// on `ros_discovery_info`. ros2-client reads it only in a spinner, and keeps the writers' GIDs
+/// private; this mirror reads them.
+#[derive(Debug, Clone, Deserialize)]
+struct ParticipantEntitiesMsg {
+    _gid: GidMsg,
+    node_entities_info_seq: Vec<NodeEntitiesMsg>,
+}
+
+/// Which ROS 2 node a publisher belongs to, from `ros_discovery_info`: read when asked, never
+/// while messages flow.
+pub struct NodeNames {
+    reader: ros2_client::dds::rustdds::no_key::DataReader<
+        ParticipantEntitiesMsg,
+        ros2_client::dds::rustdds::CDRDeserializerAdapter<ParticipantEntitiesMsg>,
+    >,
+    /// Writer GID to the node's full name.
+    known: Vec<([u8; 16], String)>,
+}
+
+impl NodeNames {
+    /// The node of `publisher`, as far as the participants have said.
+    pub fn node_of(&mut self, publisher: PublisherId) -> Option<String> {
+        while let Ok(Some(sample)) = self.reader.take_next_sample() {
+            for node in &sample.value().node_entities_info_seq {
+                let ns = node.node_namespace.trim_end_matches('/');
+                let name = format!("{ns}/{}", node.node_name);
+                for w in &node.writer_gid_seq {
+                    match self.known.iter_mut().find(|(g, _)| *g == w.0) {
+                        Some(entry) => entry.1.clone_from(&name),
+                        None => self.known.push((w.0, name.clone())),
+                    }
+                }
+            }
+        }
+        let gid = publisher.0.to_bytes16();
+        self.known
+            .iter()
+            .find(|(g, _)| *g == gid)
+            .map(|(_, n)| n.clone())
+    }
+}
+
+impl Ros2Node {
+    /// A reader of `ros_discovery_info`, to name the node of a publisher.
+    pub fn node_names(&self) -> Result<NodeNames, TransportError> {
+        use ros2_client::dds::rustdds::policy::{
+            Durability as DdsDurability, History as DdsHistory,
+        };
+        use ros2_client::dds::rustdds::{QosPolicyBuilder, TopicKind};
+        let dp = self._context.domain_participant();
+        let qos = QosPolicyBuilder::new()
+            .durability(DdsDurability::TransientLocal)
+            .reliable(ros2_client::dds::rustdds::Duration::ZERO)
+            .history(DdsHistory::KeepLast { depth: 100 })
+            .build();
+        let err = |e: String| setup("ros_discovery_info reader", "ros_discovery_info", e);
+        let topic = dp
+            .create_topic(
+                "ros_discovery_info".to_string(),
+                "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_".to_string(),
+                &qos,
+                TopicKind::NoKey,
+            )
+            .map_err(|e| err(format!("{e:?}")))?;
+        let reader = dp
+            .create_subscriber(&qos)
+            .map_err(|e| err(format!("{e:?}")))?
+            .create_datareader_no_key_cdr::<ParticipantEntitiesMsg>(&topic, Some(qos))
+            .map_err(|e| err(format!("{e:?}")))?;
+        Ok(NodeNames {
+            reader,
+            known: Vec::new(),
+        })
+    }
+}
+
 /// A DDS type name as ROS 2 writes it (`sensor_msgs::msg::dds_::Imu_`) in ROS 2's own form
 /// (`sensor_msgs/msg/Imu`); another name as it is.
 pub fn ros_type_name(dds: &str) -> String {
@@ -476,6 +581,13 @@ impl ImuPublisher {
 /// Which publisher a message came from (a restarted driver is a new one).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct PublisherId(ros2_client::Gid);
+
+impl std::fmt::Display for PublisherId {
+    /// The GID in hex, as `ros2 topic info --verbose` shows it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.0)
+    }
+}
 
 /// Receives [`Imu`] messages.
 pub struct ImuSubscription {

@@ -482,6 +482,14 @@ impl ImuMapping {
         }
     }
 
+    /// Put the next messages in `frame_id` (a no-op when they are in it already).
+    pub fn set_frame_id(&mut self, frame_id: &str) {
+        if self.imu.frame_id != frame_id {
+            self.imu.frame_id.clear();
+            self.imu.frame_id.push_str(frame_id);
+        }
+    }
+
     /// A raw sample's message.
     pub fn raw(&mut self, s: &RawSample) -> Result<&Imu, String> {
         let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());

@@ -19,11 +19,15 @@ pub use bridge::{run_bridge, BridgeCounts};
 #[cfg(feature = "ros2")]
 pub use dds::{
     domain_id, ros_type_name, DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription,
-    PublisherId, Ros2Node, DOMAIN_ENV,
+    NodeNames, PublisherId, Ros2Node, DOMAIN_ENV,
 };
 
 pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE};
 pub use motion::{Motion, MotionKind};
+
+/// The frame of the Imu messages we write when neither a `frame_id` setting nor an input says
+/// one.
+pub const DEFAULT_FRAME_ID: &str = "imu_link";
 
 /// The attribute that names the ROS 2 node on the event service where a pipeline's ROS 2 side
 /// says what it does (`driftless list` finds the ROS 2 sides by it).
@@ -44,8 +48,9 @@ pub struct Ros2Settings {
     pub namespace: String,
     /// History depth of every topic (default 100).
     pub depth: usize,
-    /// `header.frame_id` of the messages we publish (default `imu_link`).
-    pub frame_id: String,
+    /// `header.frame_id` of the messages we publish; None: the Imu input's own frame, else
+    /// `imu_link` ([`bridge`]'s module docs).
+    pub frame_id: Option<String>,
     /// White rate noise per sample, deg/s (1 sigma): the published covariance's first term.
     /// None: the covariance is unknown (all zeros).
     pub rate_noise: Option<f64>,
@@ -95,6 +100,15 @@ pub struct Ros2Topic<'a> {
 }
 
 impl Ros2Settings {
+    /// The frame of the messages we publish, in words (`validate`).
+    pub fn frame_text(&self) -> String {
+        match (&self.frame_id, &self.imu_in) {
+            (Some(f), _) => f.clone(),
+            (None, Some(_)) => format!("the driver's ({DEFAULT_FRAME_ID} until it says one)"),
+            (None, None) => DEFAULT_FRAME_ID.to_string(),
+        }
+    }
+
     /// Every topic: the Imu in, each Imu out, the motion in, in that order.
     pub fn topics(&self) -> Vec<Ros2Topic<'_>> {
         let imu_in = self.imu_in.iter().map(|(topic, service)| Ros2Topic {
