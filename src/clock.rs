@@ -1,6 +1,6 @@
 //! Time: the one clock every timestamp of ours is read on, and the pacing of sources that
-//! follow a sensor's clock (the simulator, a replay in real time), and whether a sensor's stamp
-//! can be believed ([`StampCheck`]).
+//! follow a sensor's clock (the simulator, a replay), in real time or a factor faster, and
+//! whether a sensor's stamp can be believed ([`StampCheck`]).
 //!
 //! [`monotonic_ns`] is `CLOCK_MONOTONIC`: the `ingest_ns` stamps on the wire, every latency the
 //! daemon measures and every subscriber's "now" are on it, so they compare between processes on
@@ -81,6 +81,42 @@ pub fn thread_cpu_ns() -> u64 {
     clock_ns(libc::CLOCK_THREAD_CPUTIME_ID)
 }
 
+/// How fast a source goes through its samples' own time (the `pace` key of a replay or the
+/// simulator): when each sample falls due after the first ([`PaceClock`]), or never.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pace {
+    /// At the samples' times, this many times faster than they were taken (finite, > 0): 1 is
+    /// real time, 10 goes through ten seconds of a log in one.
+    Times(f64),
+    /// As fast as possible: no sample waits.
+    Asap,
+}
+
+impl Pace {
+    /// At the samples' own rate.
+    pub const REALTIME: Pace = Pace::Times(1.0);
+
+    /// When a sample `sensor_ns` of sensor time after the first falls due, after the first's
+    /// due time: `sensor_ns / factor`, to the nanosecond (None as fast as possible). Never
+    /// earlier for a later sample.
+    pub fn due_after(self, sensor_ns: u64) -> Option<Duration> {
+        match self {
+            Pace::Asap => None,
+            // Exact, however long the log (an f64 holds ns exactly only up to 104 days).
+            Pace::Times(1.0) => Some(Duration::from_nanos(sensor_ns)),
+            Pace::Times(f) => Some(Duration::from_nanos((sensor_ns as f64 / f).round() as u64)),
+        }
+    }
+
+    /// How many times real time the samples fall due (None as fast as possible).
+    pub fn factor(self) -> Option<f64> {
+        match self {
+            Pace::Times(f) => Some(f),
+            Pace::Asap => None,
+        }
+    }
+}
+
 /// The clock of a paced source: when its first sample is due, as an instant to sleep until and
 /// as [`monotonic_ns`] to measure lateness on. The pipelines of one daemon share one.
 #[derive(Debug, Clone, Copy)]
@@ -138,6 +174,43 @@ pub fn sleep_until(due: Instant, stop: &AtomicBool) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn at_factor_f_a_sample_falls_due_its_sensor_time_over_f_after_the_first() {
+        let s = 1_000_000_000u64;
+        assert_eq!(Pace::REALTIME.due_after(s), Some(Duration::from_secs(1)));
+        assert_eq!(
+            Pace::Times(10.0).due_after(s),
+            Some(Duration::from_millis(100))
+        );
+        assert_eq!(Pace::Times(0.5).due_after(s), Some(Duration::from_secs(2)));
+        // 1 kHz at 3x: to the nearest ns, and the 1,000th sample 1/3 s after the first.
+        assert_eq!(
+            Pace::Times(3.0).due_after(1_000_000),
+            Some(Duration::from_nanos(333_333))
+        );
+        assert_eq!(
+            Pace::Times(3.0).due_after(1000 * 1_000_000),
+            Some(Duration::from_nanos(333_333_333))
+        );
+        assert_eq!(Pace::Asap.due_after(s), None);
+        // Real time stays exact past where an f64 holds every ns (2^53 ns, 104 days).
+        let late = (1u64 << 53) + 1;
+        assert_eq!(
+            Pace::REALTIME.due_after(late),
+            Some(Duration::from_nanos(late))
+        );
+        // A later sample is never due earlier, at any factor.
+        for f in [1.0, 1.5, 7.0, 10.0, 999.9] {
+            let pace = Pace::Times(f);
+            let mut last = Duration::ZERO;
+            for k in 0..10_000u64 {
+                let due = pace.due_after(k * 1_000_003).unwrap();
+                assert!(due >= last, "{f}: sample {k}");
+                last = due;
+            }
+        }
+    }
 
     #[test]
     fn a_replay_as_fast_as_possible_reads_its_cpu_clock_every_64th_sample() {

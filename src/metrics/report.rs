@@ -186,8 +186,8 @@ pub struct Report {
     pub outputs: Outputs,
     /// End to end: ingest of the completing sample to publish, ns.
     pub end_to_end_ns: Pct,
-    /// How long after it was due each sample of a paced source (`ingest.sim`, a replay at
-    /// `pace = "realtime"`) was taken, ns: the hot thread's wake-up lateness, which
+    /// How long after it was due each sample of a paced source (`ingest.sim` or a replay, at
+    /// a `pace` other than `"asap"`) was taken, ns: the hot thread's wake-up lateness, which
     /// `end_to_end_ns` does not include. None when the source is not paced.
     pub woken_late_ns: Option<Pct>,
     /// Paced samples taken more than the deadline after they were due.

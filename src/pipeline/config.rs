@@ -3,7 +3,8 @@
 //! ```toml
 //! name = "demo"              # pipeline name: node name, default stats service "demo/stats"
 //! rate_hz = 1000.0           # sample rate of the ingest
-//! deadline_us = 1000.0       # end-to-end deadline (default: one sample period)
+//! deadline_us = 1000.0       # end-to-end deadline (default: one sample period, at the
+//!                            # ingest's pace: a tenth of it at pace = 10.0)
 //! axes = 3                   # 1..=3
 //! input_units = "deg/s"      # "deg/s" or "rad/s"; published rates are always rad/s
 //! report_interval_s = 2.0    # stderr summary and stats service period
@@ -217,9 +218,9 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         ));
     }
     let rate_hz = src.positive(&raw.rate_hz, "rate_hz", 1e6)?;
-    let deadline = match &raw.deadline_us {
-        Some(d) => Duration::from_secs_f64(src.positive(d, "deadline_us", 1e9)? * 1e-6),
-        None => Duration::from_secs_f64(1.0 / rate_hz),
+    let deadline_us = match &raw.deadline_us {
+        Some(d) => Some(src.positive(d, "deadline_us", 1e9)?),
+        None => None,
     };
     let axes = match &raw.axes {
         Some(a) => src.int_in(a, "axes", 1, 3)?,
@@ -318,6 +319,19 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         entries.push(registry::stage(&src, value, cx, &name)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
+    let deadline = match deadline_us {
+        Some(us) => Duration::from_secs_f64(us * 1e-6),
+        // One period of the samples as they fall due: a replay at pace 10 takes one every
+        // tenth of a period, and a chain slower than that falls behind.
+        None => {
+            let speed = stages
+                .first()
+                .and_then(|s| s.params.pace())
+                .and_then(crate::clock::Pace::factor)
+                .unwrap_or(1.0);
+            Duration::from_secs_f64(1.0 / (rate_hz * speed))
+        }
+    };
     let warnings = step_warning(&stages, input_units).into_iter().collect();
     let ros2 = match raw.ros2 {
         Some(r) => Some(ros2_settings(
@@ -724,6 +738,7 @@ fn position(e: &InputError) -> Cow<'static, str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::clock::Pace;
 
     const HEAD: &str = "name = \"t\"\nrate_hz = 500.0\n";
     const INGEST: &str =
@@ -794,5 +809,42 @@ mod tests {
             e.starts_with("p.toml:3:8: axes must be in 1..=3, got 4"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_pace_is_a_word_or_a_factor_and_the_default_deadline_one_period_at_it() {
+        let with = |head: &str, pace: &str| {
+            parse_str(&format!(
+                "{head}[[stage]]\nname = \"in\"\nkind = \"ingest.sim\"\noutput = \"t/raw\"\n\
+                 pace = {pace}\n{}",
+                PUBLISH.replace("t/dn", "t/raw")
+            ))
+        };
+        let sim = |pace: &str| with(HEAD, pace);
+        let paced = |pace: &str| {
+            let p = sim(pace).unwrap();
+            (p.stages[0].params.pace(), p.deadline)
+        };
+        let period = Duration::from_millis(2);
+        assert_eq!(paced("\"realtime\""), (Some(Pace::REALTIME), period));
+        assert_eq!(paced("1.0"), paced("\"realtime\""), "1.0 is real time");
+        assert_eq!(paced("\"asap\""), (Some(Pace::Asap), period));
+        assert_eq!(paced("10.0"), (Some(Pace::Times(10.0)), period / 10));
+        assert_eq!(paced("10"), paced("10.0"), "an integer too");
+        assert_eq!(paced("1000"), (Some(Pace::Times(1000.0)), period / 1000));
+        // An explicit deadline is the user's, at any pace.
+        let own = with(&format!("{HEAD}deadline_us = 700.0\n"), "10.0").unwrap();
+        assert_eq!(own.deadline, Duration::from_micros(700));
+        for bad in [
+            "0", "0.0", "-2.5", "nan", "inf", "1000.5", "1e9", "\"fast\"", "true",
+        ] {
+            let e = sim(bad).unwrap_err();
+            assert!(
+                e.starts_with("p.toml:7:8: pace must be \"realtime\", \"asap\" or a number > 0 and <= 1000, got "),
+                "{bad}: {e}"
+            );
+        }
+        assert!(sim("true").unwrap_err().ends_with("got a boolean"));
+        assert!(sim("-2.5").unwrap_err().ends_with("got -2.5"));
     }
 }

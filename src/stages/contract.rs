@@ -94,11 +94,11 @@ pub trait Source {
     }
 
     /// Pace from `clock` from now on: the sample taken first is due at its start (the next
-    /// one a sample period later, and so on). The runtime gives every source of a daemon the
-    /// same clock after their first samples, so that samples of pipelines sharing the hot
-    /// thread fall due together and one wake-up serves them all, and so that the first
-    /// samples' cold cost makes no later one late. Default: nothing (a source that does not
-    /// pace itself).
+    /// one a sample period later at the source's [`Pace`](crate::clock::Pace), and so on). The
+    /// runtime gives every source of a daemon the same clock after their first samples, so
+    /// that samples of pipelines sharing the hot thread (at one rate and pace) fall due
+    /// together and one wake-up serves them all, and so that the first samples' cold cost
+    /// makes no later one late. Default: nothing (a source that does not pace itself).
     fn share_clock(&mut self, _clock: crate::clock::PaceClock) {}
 
     /// For a source that another process tells of new samples: what the runtime sleeps on
@@ -187,6 +187,12 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     /// The step of the raw rate an ingest sees in the data it checked (the smallest difference
     /// between two values on one axis), in input units; None where it read none.
     fn data_step(&self) -> Option<f64> {
+        None
+    }
+
+    /// How fast the source's samples fall due, where it paces them itself (a replay, the
+    /// simulator): the pipeline's deadline is by default one period of them. Default: none.
+    fn pace(&self) -> Option<crate::clock::Pace> {
         None
     }
 

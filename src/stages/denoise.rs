@@ -17,7 +17,7 @@ use toml::Spanned;
 
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
-use crate::stages::schema::{Context, Key, StageTable, Type};
+use crate::stages::schema::{Context, Key, StageTable, Type, WordOr};
 use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP};
 use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
@@ -78,7 +78,7 @@ const LAG: Key = Key {
 };
 const SIGMA: Key = Key {
     name: "sigma",
-    ty: Type::StrOrFloat("\"mad\" | float > 0"),
+    ty: Type::WordOrPositive(&["mad"], f64::MAX),
     default: "\"mad\"",
     doc: "noise sigma: estimated (median absolute deviation) or fixed, in input units",
 };
@@ -128,13 +128,6 @@ pub struct WaveletParams {
     pub sigma: Option<f64>,
 }
 
-#[derive(Debug, serde::Deserialize)]
-#[serde(untagged)]
-enum SigmaSetting {
-    Fixed(f64),
-    Named(String),
-}
-
 fn parse_wavelet(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let src = t.src;
     let wavelet = match t.get::<String>(&WAVELET)? {
@@ -174,24 +167,9 @@ fn parse_wavelet(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputErr
     let lag = t
         .int_in(&LAG, 0, full_lag as i64)?
         .unwrap_or(StreamConfig::DEFAULT_LAG.min(full_lag));
-    let sigma = match t.get::<SigmaSetting>(&SIGMA)? {
-        None => None,
-        Some(s) => match s.get_ref() {
-            SigmaSetting::Named(n) if n == "mad" => None,
-            SigmaSetting::Named(n) => {
-                return Err(src.span(
-                    &s,
-                    format!("sigma must be \"mad\" or a number > 0, got {n:?}"),
-                ))
-            }
-            SigmaSetting::Fixed(x) if x.is_finite() && *x > 0.0 => Some(*x),
-            SigmaSetting::Fixed(x) => {
-                return Err(src.span(
-                    &s,
-                    format!("sigma must be \"mad\" or a number > 0, got {x}"),
-                ))
-            }
-        },
+    let sigma = match t.word_or_positive(&SIGMA)? {
+        Some(WordOr::Number(x)) => Some(x),
+        _ => None,
     };
     let params = WaveletParams {
         wavelet,

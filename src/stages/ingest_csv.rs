@@ -1,4 +1,5 @@
-//! `ingest.csv`: replay a CSV file at its own rate or as fast as possible, optionally looping.
+//! `ingest.csv`: replay a CSV file at its own rate, a factor faster or as fast as possible,
+//! optionally looping.
 //! Sequence numbers count from 0 across loops; timestamps keep increasing.
 //!
 //! Validation reads the header and the first [`CHECKED_ROWS`] rows (a wrong file fails there with
@@ -16,7 +17,7 @@
 //! columns = ["x", "y", "z"]      # one per axis (default x, y, z)
 //! time_column = "t"              # seconds (default: i / rate_hz)
 //! stop_column = "stopped"        # 1 stands, 0 moves, nan unknown (default: none)
-//! pace = "asap"                  # or "realtime" (default)
+//! pace = "asap"                  # or "realtime" (default), or 10.0: ten times real time
 //! loop = false
 //! ```
 
@@ -59,7 +60,8 @@ const STOP_COLUMN: Key = Key {
 pub const KIND: Kind = Kind {
     name: "ingest.csv",
     role: Role::Ingest { has_input: false },
-    summary: "a CSV log replayed at its rate or as fast as possible, optionally looping",
+    summary:
+        "a CSV log replayed at its rate, a factor faster or as fast as possible, optionally looping",
     keys: &[
         FILE,
         COLUMNS,
@@ -112,6 +114,10 @@ pub fn step_of(mut values: Vec<f64>) -> Option<f64> {
 }
 
 impl Params for CsvParams {
+    fn pace(&self) -> Option<crate::clock::Pace> {
+        Some(self.replay.pace)
+    }
+
     fn data_step(&self) -> Option<f64> {
         self.step
     }

@@ -25,7 +25,7 @@
 //! output = "demo/raw"
 //! file = "run.mcap"          # relative to the pipeline file
 //! topic = "demo/raw"         # default: the file's only raw-sample topic (a bag: Imu topic)
-//! pace = "asap"              # or "realtime" (default)
+//! pace = "asap"              # or "realtime" (default), or 10.0: ten times real time
 //! loop = false
 //! # stop_topic = "/odom"     # a bag's vehicle motion (Odometry, twists) as logged stops
 //! # stop_speed = 0.02        # m/s: stands at or below (default 0.02)
@@ -80,7 +80,7 @@ const STOP_TOPIC: Key = Key {
 pub const KIND: Kind = Kind {
     name: "ingest.mcap",
     role: Role::Ingest { has_input: false },
-    summary: "the raw samples of a `driftless record` recording (MCAP) replayed as recorded, or a ROS 2 bag's sensor_msgs/msg/Imu topic (rad/s, stamps as times), at their rate or as fast as possible, optionally looping",
+    summary: "the raw samples of a `driftless record` recording (MCAP) replayed as recorded, or a ROS 2 bag's sensor_msgs/msg/Imu topic (rad/s, stamps as times), at their rate, a factor faster or as fast as possible, optionally looping",
     keys: &[
         FILE,
         TOPIC,
@@ -300,6 +300,10 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
 }
 
 impl Params for McapParams {
+    fn pace(&self) -> Option<crate::clock::Pace> {
+        Some(self.replay.pace)
+    }
+
     fn source(
         &self,
         cx: &Context,

@@ -1,6 +1,7 @@
 //! `ingest.sim`: the built-in gyro simulator ([`crate::sim`]), paced in real time from the
-//! monotonic clock, or as fast as possible (`pace = "asap"`: throughput and delivery tests).
-//! Sensor timestamps are `k / rate` in ns either way; rates are in deg/s.
+//! monotonic clock, a factor faster (`pace = 10.0`, as a replay takes it), or as fast as
+//! possible (`pace = "asap"`: throughput and delivery tests). Sensor timestamps are `k / rate`
+//! in ns at every pace, and the samples are the same; rates are in deg/s.
 //!
 //! ```toml
 //! [[stage]]
@@ -11,16 +12,17 @@
 //! motion = "sines"         # true motion: none, sines (default), steps, turn
 //! seed = 1
 //! # samples = 60000        # stop after this many (default: run until stopped)
-//! # pace = "asap"          # as fast as possible (default "realtime")
+//! # pace = "asap"          # as fast as possible, or 10.0: ten times real time
+//! #                        # (default "realtime")
 //! ```
 
 use std::sync::atomic::AtomicBool;
-use std::time::Duration;
 
-use crate::clock::PaceClock;
+use crate::clock::{Pace, PaceClock};
 use crate::io::InputError;
 use crate::sim::{SimConfig, Simulator};
 use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
+use crate::stages::replay::{read_pace, PACE_TYPE};
 use crate::stages::schema::{Context, Key, StageTable, Type, Units};
 use crate::transport::RawSample;
 
@@ -51,16 +53,16 @@ const SAMPLES: Key = Key {
 
 const PACE: Key = Key {
     name: "pace",
-    ty: Type::Choice(&["realtime", "asap"]),
+    ty: PACE_TYPE,
     default: "\"realtime\"",
-    doc: "at rate_hz, or as fast as possible",
+    doc: "at rate_hz, this many times faster (10.0: ten seconds of samples in one; 1.0 is \"realtime\"), or as fast as possible; the same samples at every pace",
 };
 
 /// `ingest.sim`.
 pub const KIND: Kind = Kind {
     name: "ingest.sim",
     role: Role::Ingest { has_input: false },
-    summary: "the built-in gyro simulator, in real time or as fast as possible; needs input_units = \"deg/s\"",
+    summary: "the built-in gyro simulator, in real time, a factor faster or as fast as possible; needs input_units = \"deg/s\"",
     keys: &[PROFILE, SEED, MOTION, SAMPLES, PACE],
     parse,
 };
@@ -76,8 +78,8 @@ pub struct SimParams {
     pub motion: String,
     /// Stop after this many samples (None: run until stopped).
     pub samples: Option<u64>,
-    /// As fast as possible instead of at the pipeline's rate.
-    pub asap: bool,
+    /// At the pipeline's rate, a factor faster, or as fast as possible.
+    pub pace: Pace,
 }
 
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
@@ -85,7 +87,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let seed = t.int(&SEED)?;
     let motion = t.choice(&MOTION, "motion", false)?;
     let samples = t.int(&SAMPLES)?;
-    let pace = t.choice(&PACE, "pace", true)?;
+    let pace = read_pace(t, &PACE)?;
     if t.cx.units != Units::DegPerSec {
         return Err(t.src.at(
             t.kind_at,
@@ -97,7 +99,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         seed: seed.map_or(1, |s| s as u64),
         motion: motion.unwrap_or_else(|| "sines".into()),
         samples: samples.map(|s| s as u64),
-        asap: pace.as_deref() == Some("asap"),
+        pace,
     };
     sim_config(&params, t.cx.rate_hz, t.cx.axes)
         .map_err(|e| t.error(format!("ingest.sim: {e}")))?;
@@ -105,6 +107,10 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
 }
 
 impl Params for SimParams {
+    fn pace(&self) -> Option<Pace> {
+        Some(self.pace)
+    }
+
     fn source(
         &self,
         cx: &Context,
@@ -146,7 +152,7 @@ pub struct SimSource {
     sim: Simulator,
     rate_hz: f64,
     limit: Option<u64>,
-    asap: bool,
+    pace: Pace,
     k: u64,
     start: Option<PaceClock>,
 }
@@ -159,15 +165,15 @@ impl SimSource {
             sim: Simulator::new(&cfg).map_err(|e| e.to_string())?,
             rate_hz,
             limit: p.samples,
-            asap: p.asap,
+            pace: p.pace,
             k: 0,
             start: None,
         })
     }
 
-    /// When the next sample is due, after the first.
-    fn offset(&self) -> Duration {
-        Duration::from_secs_f64(self.k as f64 / self.rate_hz)
+    /// The next sample's sensor time.
+    fn t_ns(&self) -> u64 {
+        (self.k as f64 * 1e9 / self.rate_hz).round() as u64
     }
 }
 
@@ -176,18 +182,19 @@ impl Source for SimSource {
         if self.limit.is_some_and(|n| self.k >= n) {
             return Poll::End;
         }
-        let due_ns = if self.asap {
-            None
-        } else {
-            let clock = *self.start.get_or_insert_with(PaceClock::now);
-            match clock.wait(self.offset(), stop) {
-                Some(due) => Some(due),
-                None => return Poll::Idle,
+        let due_ns = match self.pace.due_after(self.t_ns()) {
+            None => None,
+            Some(offset) => {
+                let clock = *self.start.get_or_insert_with(PaceClock::now);
+                match clock.wait(offset, stop) {
+                    Some(due) => Some(due),
+                    None => return Poll::Idle,
+                }
             }
         };
         let s = self.sim.next_sample();
         let raw = RawSample {
-            t_ns: (self.k as f64 * 1e9 / self.rate_hz).round() as u64,
+            t_ns: self.t_ns(),
             seq: self.k,
             rate: s.measured,
             flags: 0,
@@ -199,11 +206,57 @@ impl Source for SimSource {
     }
 
     fn next_due(&self) -> Option<std::time::Instant> {
-        let clock = self.start.filter(|_| !self.asap)?;
-        Some(clock.at(self.offset()))
+        Some(self.start?.at(self.pace.due_after(self.t_ns())?))
     }
 
     fn share_clock(&mut self, clock: PaceClock) {
         self.start = Some(clock);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn at_pace_10_the_simulator_takes_its_samples_ten_times_as_often_and_the_same() {
+        let params = |pace| SimParams {
+            profile: "adxrs450".into(),
+            seed: 7,
+            motion: "sines".into(),
+            samples: Some(30),
+            pace,
+        };
+        let stop = AtomicBool::new(false);
+        let take = |source: &mut SimSource| {
+            let mut got = Vec::new();
+            while let Poll::Sample(raw, ingest, late) = source.poll(&stop) {
+                got.push((raw, ingest, late));
+            }
+            got
+        };
+        let mut fast = SimSource::new(&params(Pace::Times(10.0)), 1000.0, 3).unwrap();
+        let Poll::Sample(first, ..) = fast.poll(&stop) else {
+            panic!("the first sample at once")
+        };
+        let clock = PaceClock::now();
+        fast.share_clock(clock);
+        assert_eq!(
+            fast.next_due(),
+            Some(clock.at(std::time::Duration::from_micros(100)))
+        );
+        let mut paced = vec![(first, 0, None)];
+        paced.extend(take(&mut fast));
+        let asap = take(&mut SimSource::new(&params(Pace::Asap), 1000.0, 3).unwrap());
+        assert_eq!(paced.len(), 30);
+        for ((p, _, late), (a, _, none)) in paced[1..].iter().zip(&asap[1..]) {
+            assert_eq!(p, a, "the same sample at any pace");
+            assert!(late.is_some() && none.is_none());
+        }
+        // Each taken no earlier than a tenth of its sensor time after the clock's start.
+        let start = paced[1].1 - paced[1].2.unwrap() - 100_000;
+        for (raw, ingest, _) in &paced[1..] {
+            assert!(ingest - start >= raw.t_ns / 10, "{}", raw.seq);
+        }
     }
 }

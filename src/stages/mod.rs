@@ -3,9 +3,9 @@
 //!
 //! | kind | file | role |
 //! |---|---|---|
-//! | `ingest.sim` | [`ingest_sim`] | simulated sensor, paced in real time |
-//! | `ingest.csv` | [`ingest_csv`] | CSV replay, real time or as fast as possible |
-//! | `ingest.mcap` | [`ingest_mcap`] | replay of a `driftless record` recording (MCAP), real time or as fast as possible |
+//! | `ingest.sim` | [`ingest_sim`] | simulated sensor, paced in real time or a factor faster |
+//! | `ingest.csv` | [`ingest_csv`] | CSV replay, real time, a factor faster or as fast as possible |
+//! | `ingest.mcap` | [`ingest_mcap`] | replay of a `driftless record` recording (MCAP), real time, a factor faster or as fast as possible |
 //! | `ingest.iceoryx2` | [`ingest_iceoryx2`] | raw samples from a driver in another process |
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
 //! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |

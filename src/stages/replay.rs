@@ -2,17 +2,19 @@
 //! into blocks of raw samples, four blocks ahead on a bounded channel; the hot thread takes a
 //! block when the last is spent and hands the spent one back for reuse, so neither allocates per
 //! sample and memory stays bounded whatever the file's length; the hot thread paces the samples
-//! by their timestamps (`realtime`) or not at all (`asap`).
+//! by their timestamps (`realtime`), a factor faster (`pace = 10.0`), or not at all (`asap`).
+//! The pace changes when a sample is taken, never what it is: every pace publishes the same
+//! samples, bit for bit.
 
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
 
-use crate::clock::PaceClock;
+use crate::clock::{Pace, PaceClock};
 use crate::io::InputError;
 use crate::stages::contract::{Poll, Source};
-use crate::stages::schema::{Key, StageTable, Type};
+use crate::stages::schema::{Key, StageTable, Type, WordOr};
 use crate::transport::RawSample;
 
 /// Samples per block the reader thread hands to the hot thread.
@@ -20,13 +22,29 @@ const BLOCK_ROWS: usize = 4096;
 /// Blocks read ahead: 16k samples (16 ms at 1 kHz flat out, 16 s at 1 kHz real time).
 const BLOCKS_AHEAD: usize = 4;
 
+/// The most a `pace` factor may speed a source up: a 1 kHz log at 1 MHz, about as fast as
+/// `"asap"` goes here; more is a typing error.
+pub const MAX_PACE: f64 = 1000.0;
+
+/// The type of a paced source's `pace` key: a word, or how many times real time.
+pub const PACE_TYPE: Type = Type::WordOrPositive(&["realtime", "asap"], MAX_PACE);
+
 /// The `pace` key of a replay.
 pub const PACE: Key = Key {
     name: "pace",
-    ty: Type::Choice(&["realtime", "asap"]),
+    ty: PACE_TYPE,
     default: "\"realtime\"",
-    doc: "at the file's rate, or as fast as possible",
+    doc: "at the file's rate, this many times faster (10.0: ten seconds of the log in one; 1.0 is \"realtime\"), or as fast as possible; the same samples at every pace",
 };
+
+/// A `pace` key of [`PACE_TYPE`] (a replay's or the simulator's): real time when absent.
+pub fn read_pace(t: &mut StageTable<'_, '_>, key: &Key) -> Result<Pace, InputError> {
+    Ok(match t.word_or_positive(key)? {
+        Some(WordOr::Word("asap")) => Pace::Asap,
+        Some(WordOr::Number(f)) => Pace::Times(f),
+        _ => Pace::REALTIME,
+    })
+}
 
 /// The `loop` key of a replay.
 pub const LOOP: Key = Key {
@@ -44,15 +62,6 @@ pub const START_DELAY_S: Key = Key {
     doc: "seconds to wait after the pipeline is up before the first sample: time for a recorder or a navigator to subscribe and miss nothing",
 };
 
-/// Pacing of a replay.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Pace {
-    /// At the file's rate (the samples' timestamps).
-    Realtime,
-    /// As fast as possible.
-    Asap,
-}
-
 /// How a file is replayed: the keys every replay stage takes ([`PACE`], [`LOOP`],
 /// [`START_DELAY_S`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,10 +77,7 @@ pub struct Replay {
 impl Replay {
     /// The replay keys of a stage table, checked.
     pub fn parse(t: &mut StageTable<'_, '_>) -> Result<Replay, InputError> {
-        let pace = match t.choice(&PACE, "pace", true)?.as_deref() {
-            Some("asap") => Pace::Asap,
-            _ => Pace::Realtime,
-        };
+        let pace = read_pace(t, &PACE)?;
         let looped = t.get::<bool>(&LOOP)?.is_some_and(toml::Spanned::into_inner);
         let start_delay = t
             .positive(&START_DELAY_S, "start_delay_s")?
@@ -212,21 +218,22 @@ impl Source for BlockReplay {
             }
         }
         let sample = self.block[self.next];
-        let due_ns = if self.pace == Pace::Realtime {
-            // A shared clock started with the daemon: the delay shifts the whole schedule, so
-            // the samples due while it lasted are not late.
-            let delay = self.start_delay;
-            let (clock, first_t) = *self.start.get_or_insert_with(|| {
-                let clock = self.shared.map_or_else(PaceClock::now, |c| c.later(delay));
-                (clock, sample.t_ns)
-            });
-            let offset = Duration::from_nanos(sample.t_ns.saturating_sub(first_t));
-            match clock.wait(offset, stop) {
-                Some(due) => Some(due),
-                None => return Poll::Idle,
+        let first_t = self.start.map_or(sample.t_ns, |(_, t)| t);
+        let due_ns = match self.pace.due_after(sample.t_ns.saturating_sub(first_t)) {
+            None => None,
+            Some(offset) => {
+                // A shared clock started with the daemon: the delay (wall time at any pace)
+                // shifts the whole schedule, so the samples due while it lasted are not late.
+                let delay = self.start_delay;
+                let (clock, _) = *self.start.get_or_insert_with(|| {
+                    let clock = self.shared.map_or_else(PaceClock::now, |c| c.later(delay));
+                    (clock, sample.t_ns)
+                });
+                match clock.wait(offset, stop) {
+                    Some(due) => Some(due),
+                    None => return Poll::Idle,
+                }
             }
-        } else {
-            None
         };
         self.next += 1;
         let ingest_ns = crate::clock::ingest_now(due_ns.is_some());
@@ -239,9 +246,9 @@ impl Source for BlockReplay {
 
     fn next_due(&self) -> Option<std::time::Instant> {
         // Unknown at a block's end: the next block may not have come yet.
-        let (clock, first_t) = self.start.filter(|_| self.pace == Pace::Realtime)?;
+        let (clock, first_t) = self.start?;
         let t_ns = self.block.get(self.next)?.t_ns;
-        Some(clock.at(Duration::from_nanos(t_ns.saturating_sub(first_t))))
+        Some(clock.at(self.pace.due_after(t_ns.saturating_sub(first_t))?))
     }
 
     fn share_clock(&mut self, clock: PaceClock) {
@@ -249,5 +256,80 @@ impl Source for BlockReplay {
             Some((start, _)) => *start = clock,
             None => self.shared = Some(clock),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A replay of `n` samples 1 ms apart at `pace`.
+    fn replay(n: u64, pace: Pace) -> BlockReplay {
+        let replay = Replay {
+            pace,
+            looped: false,
+            start_delay: Duration::ZERO,
+        };
+        BlockReplay::spawn("replay-test", replay, move |sink| {
+            for k in 0..n {
+                let s = RawSample {
+                    t_ns: 5_000_000_000 + k * 1_000_000,
+                    seq: k,
+                    rate: [k as f64; 3],
+                    flags: 0,
+                    epoch: 0,
+                };
+                if !sink.push(s) {
+                    return;
+                }
+            }
+        })
+        .unwrap()
+    }
+
+    /// Every sample of `r`, with its ingest time and lateness.
+    fn drain(r: &mut BlockReplay) -> Vec<(RawSample, u64, Option<u64>)> {
+        let stop = AtomicBool::new(false);
+        let mut got = Vec::new();
+        loop {
+            match r.poll(&stop) {
+                Poll::Sample(s, ingest, late) => got.push((s, ingest, late)),
+                Poll::Idle => {}
+                Poll::End => return got,
+            }
+        }
+    }
+
+    #[test]
+    fn at_pace_10_a_replay_takes_each_sample_a_tenth_of_its_interval_after_the_first() {
+        let stop = AtomicBool::new(false);
+        let mut r = replay(40, Pace::Times(10.0));
+        let Poll::Sample(first, ..) = r.poll(&stop) else {
+            panic!("the first sample at once")
+        };
+        assert_eq!(first.seq, 0);
+        // As the hot thread does after its first round: the schedule restarts from a shared
+        // clock, the first sample's time kept.
+        let clock = PaceClock::now();
+        r.share_clock(clock);
+        assert_eq!(
+            r.next_due(),
+            Some(clock.at(Duration::from_micros(100))),
+            "1 ms of the log later, at 10x"
+        );
+        let rest = drain(&mut r);
+        assert_eq!(rest.len(), 39);
+        let start_ns = rest[0].1 - rest[0].2.unwrap();
+        for (s, ingest, late) in &rest {
+            let due = start_ns + s.seq * 100_000 - 100_000;
+            // Its lateness measured from its due time (and never taken before it: the lateness
+            // saturates at 0, which would not add up).
+            assert_eq!(ingest - late.expect("paced"), due, "{}", s.seq);
+            assert_eq!(s.rate, [s.seq as f64; 3], "the sample as read");
+        }
+        // As fast as possible nothing is due, nothing late.
+        let mut r = replay(40, Pace::Asap);
+        assert!(drain(&mut r).iter().all(|(_, _, late)| late.is_none()));
+        assert_eq!(r.next_due(), None);
     }
 }

@@ -202,8 +202,8 @@ pub enum Type {
     StrList(&'static str),
     /// true or false.
     Bool,
-    /// A string or a number (described).
-    StrOrFloat(&'static str),
+    /// One of these words, or a finite float in `(0, max]` (`f64::MAX`: no bound).
+    WordOrPositive(&'static [&'static str], f64),
 }
 
 impl Type {
@@ -213,20 +213,40 @@ impl Type {
             Type::Int(lo, i64::MAX) => format!("int >= {lo}"),
             Type::Int(lo, hi) => format!("int {lo}..={hi}"),
             Type::IntDepends(d) => format!("int {d}"),
-            Type::Positive(max) if *max == f64::MAX => "float > 0".into(),
-            Type::Positive(max) => format!("float (0, {max:e}]"),
+            Type::Positive(max) => positive(*max),
             Type::Float(d) => format!("float {d}"),
-            Type::Choice(c) => c
-                .iter()
-                .map(|s| format!("{s:?}"))
-                .collect::<Vec<_>>()
-                .join(" | "),
+            Type::Choice(c) => quoted(c).join(" | "),
             Type::Str(d) => format!("string ({d})"),
             Type::StrList(d) => format!("list of strings ({d})"),
             Type::Bool => "bool".into(),
-            Type::StrOrFloat(d) => d.to_string(),
+            Type::WordOrPositive(words, max) => {
+                format!("{} | {}", quoted(words).join(" | "), positive(*max))
+            }
         }
     }
+}
+
+/// A positive float's range as listed: `float > 0`, or `float (0, 1e3]`.
+fn positive(max: f64) -> String {
+    if max == f64::MAX {
+        "float > 0".into()
+    } else {
+        format!("float (0, {max:e}]")
+    }
+}
+
+/// Words as written in a pipeline file, quoted.
+fn quoted(words: &[&str]) -> Vec<String> {
+    words.iter().map(|w| format!("{w:?}")).collect()
+}
+
+/// A value of a [`Type::WordOrPositive`] key.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WordOr {
+    /// One of the key's words.
+    Word(&'static str),
+    /// A number in the key's range.
+    Number(f64),
 }
 
 /// A key of a stage kind's table: its one declaration, used to read, to check and to list it.
@@ -365,6 +385,45 @@ impl<'a, 'i> StageTable<'a, 'i> {
             ));
         }
         Ok(Some(v.into_inner()))
+    }
+
+    /// A value of a [`Type::WordOrPositive`] key: one of its words, or a number (an integer
+    /// too) in its range; anything else is "{key} must be "a", "b" or a number > 0 and <= max,
+    /// got ...".
+    pub fn word_or_positive(&mut self, key: &Key) -> Result<Option<WordOr>, InputError> {
+        let Type::WordOrPositive(words, max) = key.ty else {
+            unreachable!("{} is not declared Type::WordOrPositive", key.name)
+        };
+        let Some(v) = self.get::<toml::Value>(key)? else {
+            return Ok(None);
+        };
+        let (number, got) = match v.get_ref() {
+            toml::Value::String(s) => match words.iter().find(|w| **w == s.as_str()) {
+                Some(w) => return Ok(Some(WordOr::Word(w))),
+                None => (None, format!("{s:?}")),
+            },
+            toml::Value::Float(x) => (Some(*x), num(*x)),
+            toml::Value::Integer(i) => (Some(*i as f64), i.to_string()),
+            other => (None, format!("a {}", other.type_str())),
+        };
+        match number {
+            Some(x) if x.is_finite() && x > 0.0 && x <= max => Ok(Some(WordOr::Number(x))),
+            _ => {
+                let range = if max == f64::MAX {
+                    String::new()
+                } else {
+                    format!(" and <= {}", num(max))
+                };
+                Err(self.src.span(
+                    &v,
+                    format!(
+                        "{} must be {} or a number > 0{range}, got {got}",
+                        key.name,
+                        quoted(words).join(", ")
+                    ),
+                ))
+            }
+        }
     }
 
     /// A `poll_timeout_us` key (10 us to 1 s, default 1 ms): how long a stage waiting on
