@@ -190,6 +190,13 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
         Vec::new()
     }
+
+    /// Lines worth a warning found when the table was read, that do not stop the pipeline
+    /// (`validate` and `run` print them once): e.g. a file read by what it holds, not by what
+    /// its name says. Default: none.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// A stage kind: its name in pipeline files, its place in the chain, its keys and its parse
