@@ -10,19 +10,6 @@ use std::path::{Path, PathBuf};
 
 use common::{driftless, finish, run_command, text, Dir, Prefix};
 
-/// 5,000 bytes of a fixed xorshift stream: garbage, the same on every run.
-fn garbage() -> Vec<u8> {
-    let mut s = 0x2545_f491_4f6c_dd1du64;
-    (0..5000)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 32) as u8
-        })
-        .collect()
-}
-
 /// A still gyro at 100 Hz, three axes, 3,000 rows.
 fn csv() -> String {
     let mut s = String::from("t,x,y,z\n");
@@ -71,7 +58,7 @@ fn assert_refused(code: Option<i32>, err: &str, needles: &[&str]) {
 #[test]
 fn garbage_named_mcap_is_exit_2_saying_it_is_not_an_mcap_file() {
     let dir = Dir::new();
-    let x = put(&dir, "x.mcap", &garbage());
+    let x = put(&dir, "x.mcap", &common::garbage());
     let (code, out, err) = allan(&x, &["--rate", "100"]);
     assert!(out.is_empty(), "{out}");
     assert_refused(
@@ -86,9 +73,9 @@ fn garbage_named_mcap_is_exit_2_saying_it_is_not_an_mcap_file() {
         ],
     );
     // Named for CSV, or for nothing: what it is not is what the name claimed.
-    let (code, _, err) = allan(&put(&dir, "x.csv", &garbage()), &["--rate", "100"]);
+    let (code, _, err) = allan(&put(&dir, "x.csv", &common::garbage()), &["--rate", "100"]);
     assert_refused(code, &err, &["x.csv: not CSV text: it holds binary data"]);
-    let (code, _, err) = allan(&put(&dir, "x.log", &garbage()), &["--rate", "100"]);
+    let (code, _, err) = allan(&put(&dir, "x.log", &common::garbage()), &["--rate", "100"]);
     assert_refused(
         code,
         &err,
@@ -96,7 +83,7 @@ fn garbage_named_mcap_is_exit_2_saying_it_is_not_an_mcap_file() {
     );
     // A format we do not read: what to do.
     let mut zstd = vec![0x28, 0xb5, 0x2f, 0xfd];
-    zstd.extend(garbage());
+    zstd.extend(common::garbage());
     let (code, _, err) = allan(&put(&dir, "z.csv", &zstd), &["--rate", "100"]);
     assert_refused(
         code,
@@ -204,7 +191,7 @@ fn a_pipelines_ingest_file_is_read_by_what_it_holds_and_refused_for_the_other_ki
     let dir = Dir::new();
     put(&dir, "log.mcap", csv().as_bytes());
     std::fs::copy(bag_fixture(), dir.path("bag.csv")).unwrap();
-    put(&dir, "junk.csv", &garbage());
+    put(&dir, "junk.csv", &common::garbage());
 
     // A CSV named .mcap, replayed by ingest.csv: valid, one line.
     let p = pipeline(&dir, "csvmcap", "ingest.csv", "log.mcap");
@@ -310,7 +297,7 @@ fn a_model_file_that_is_not_json_text_says_what_it_holds() {
     for (name, bytes, needle) in [
         (
             "m.json",
-            garbage(),
+            common::garbage(),
             "m.json: not JSON text: it holds binary data",
         ),
         (

@@ -245,6 +245,9 @@ pub struct Layout {
     pub interval: Duration,
     /// Print the summary line on stderr.
     pub print: bool,
+    /// How the stages that keep state across runs started, one line each after the stage's
+    /// name (`predict: cold: ...`), for the report.
+    pub warm_start: Vec<String>,
 }
 
 mod report;
@@ -556,6 +559,7 @@ impl Reporter {
                 })
                 .collect(),
             heading: self.heading,
+            warm_start: self.layout.warm_start.clone(),
             learnt: Vec::new(),
         }
     }
@@ -794,6 +798,7 @@ mod tests {
             algorithmic_delay: Duration::ZERO,
             interval: Duration::from_secs(60),
             print: false,
+            warm_start: Vec::new(),
         };
         Reporter::new(layout, Arc::default(), Vec::new())
     }

@@ -204,6 +204,10 @@ pub struct Report {
     /// Heading error of the raw, denoised and corrected rates against the truth (a simulated
     /// ingest only).
     pub heading: Option<HeadingSummary>,
+    /// How the stages that keep state across runs started, one line each after the stage's
+    /// name: `predict.bias` warm from its `state_file`, or cold and why (e.g. `predict: cold:
+    /// state_file s: it was saved with other noise terms ...; kept as s.unusable-...`).
+    pub warm_start: Vec<String>,
     /// What the stages learnt while running, one line each after the stage's name (e.g. the
     /// bias filter's walk per axis against the configured one).
     pub learnt: Vec<String>,
@@ -287,6 +291,9 @@ impl Report {
         ));
         s.push_str(&self.outputs_line());
         s.push_str(&self.misses_lines());
+        for l in &self.warm_start {
+            s.push_str(&format!("warm start: {l}\n"));
+        }
         for l in &self.learnt {
             s.push_str(&format!("learnt: {l}\n"));
         }

@@ -58,6 +58,13 @@ pub trait Stage {
         Vec::new()
     }
 
+    /// How a stage that keeps state across runs started (`predict.bias`: warm, or cold and
+    /// why); called once, after it is built. None for a stage that keeps no state. Default:
+    /// None.
+    fn warm_start(&self) -> Option<crate::stages::bias_state::WarmStart> {
+        None
+    }
+
     /// The newest value of side input `slot` (the index in [`Params::side_inputs`]), handed
     /// over before the sample it precedes whenever a new one arrived; never waited for. Must
     /// not allocate. Default: ignored.

@@ -46,6 +46,7 @@ pub mod predict_bias;
 pub mod publish;
 pub mod replay;
 
+pub use bias_state::WarmStart;
 pub use contract::{Kind, Params, Poll, Role, Side, SideKind, Source, Stage};
 
 /// Every stage kind, in the order listed in messages and documentation.
