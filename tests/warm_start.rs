@@ -392,3 +392,26 @@ fn a_directory_at_the_state_path_is_a_cold_start_and_stays() {
     );
     assert!(kept_aside(&state).is_empty(), "a directory is never moved");
 }
+
+#[test]
+fn an_offline_run_moves_an_unusable_state_once_and_resumes_from_its_own_save() {
+    // nav-eval builds the stages once per case, each saving at its end: the state is read
+    // again at each build, so the second finds the first's save, not the garbage.
+    let dir = Dir::new();
+    dir.write("still.csv", &still_csv(10));
+    let file = dir.write("o.toml", &once("o", "o.state"));
+    let state = dir.path("o.state");
+    std::fs::write(&state, common::garbage()).unwrap();
+    let p = driftless::pipeline::config::load(&file).unwrap();
+    let axes: Vec<Vec<f64>> = BIAS.iter().map(|b| vec![*b; 2000]).collect();
+    let inputs: Vec<&[f64]> = axes.iter().map(Vec::as_slice).collect();
+    for _ in 0..2 {
+        driftless::pipeline::offline::Offline::run_series(&p, &inputs, None).unwrap();
+        assert_eq!(kept_aside(&state).len(), 1, "moved once");
+        assert!(read_state(&state).is_some(), "saved at the end of the run");
+    }
+    assert_eq!(
+        std::fs::read(&kept_aside(&state)[0]).unwrap(),
+        common::garbage()
+    );
+}

@@ -204,7 +204,11 @@ pub struct StateConfig {
     pub owner: Owner,
     /// Saved every this many samples.
     pub every: u64,
-    /// What the file held (a required one that cannot be used is refused at parse).
+    /// `state_required`: a file that cannot be used stops the pipeline.
+    pub required: bool,
+    /// What the file held when the pipeline was read (what `validate` says). The stage reads
+    /// it again when it is built: it may have changed since (an offline run builds the stage
+    /// once per case, each saving at its end).
     pub loaded: Loaded,
 }
 
@@ -371,37 +375,17 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
                 rate_hz: t.cx.rate_hz,
                 terms,
             };
-            let mut loaded = bias_state::load(&path, &owner);
-            if let Loaded::Saved(saved) = &loaded {
-                // A layout this filter cannot take (a state of another driftless's model) is
-                // unusable too, found here rather than at the start.
-                let probe = BiasTracker::new(&terms, t.cx.rate_hz, &tracker)
-                    .map_err(|e| t.error(format!("predict.bias: {e}")))?;
-                if let Some(e) = saved
-                    .filters
-                    .iter()
-                    .find_map(|f| probe.clone().resume(f, 0).err())
-                {
-                    loaded = Loaded::Unusable(bias_state::Unusable {
-                        why: format!("state_file {}: {e}", path.display()),
-                        movable: true,
-                    });
-                }
-            }
+            let probe = BiasTracker::new(&terms, t.cx.rate_hz, &tracker)
+                .map_err(|e| t.error(format!("predict.bias: {e}")))?;
+            let loaded = load_checked(&path, &owner, &probe);
             if let (Loaded::Unusable(u), true) = (&loaded, required) {
-                return Err(src.span(
-                    &file,
-                    format!(
-                        "{}: state_required = true: remove it to start cold, or point \
-                         state_file elsewhere",
-                        u.why
-                    ),
-                ));
+                return Err(src.span(&file, refusal(u)));
             }
             Some(StateConfig {
                 path,
                 owner,
                 every: ((every_s * t.cx.rate_hz).round() as u64).max(1),
+                required,
                 loaded,
             })
         }
@@ -445,12 +429,14 @@ impl Params for BiasParams {
         let mut writer = None;
         let mut warm = WarmStart::NotConfigured;
         if let Some(st) = &self.state {
-            warm = match &st.loaded {
+            warm = match load_checked(&st.path, &st.owner, &trackers[0]) {
                 Loaded::Missing => WarmStart::ColdNoFile {
                     path: st.path.clone(),
                 },
-                Loaded::Saved(saved) => resume(&mut trackers, saved, st, cx.rate_hz),
-                Loaded::Unusable(u) => cold_unusable(&st.path, u),
+                Loaded::Saved(saved) => resume(&mut trackers, &saved, st, cx.rate_hz),
+                // Changed since the pipeline was read.
+                Loaded::Unusable(u) if st.required => return Err(refusal(&u)),
+                Loaded::Unusable(u) => cold_unusable(&st.path, &u),
             };
             writer = Some((
                 StateWriter::start(st.path.clone(), st.owner.clone())?,
@@ -514,6 +500,33 @@ impl Params for BiasParams {
     }
 }
 
+/// The state in `path` for `owner`, and unusable too when its layout is not one `probe` (a
+/// cold filter of the stage's) can resume from (a state of another driftless's model).
+fn load_checked(path: &std::path::Path, owner: &Owner, probe: &BiasTracker) -> Loaded {
+    let loaded = bias_state::load(path, owner);
+    if let Loaded::Saved(saved) = &loaded {
+        if let Some(e) = saved
+            .filters
+            .iter()
+            .find_map(|f| probe.clone().resume(f, 0).err())
+        {
+            return Loaded::Unusable(bias_state::Unusable {
+                why: format!("state_file {}: {e}", path.display()),
+                movable: true,
+            });
+        }
+    }
+    loaded
+}
+
+/// The refusal of an unusable state under `state_required = true`.
+fn refusal(u: &bias_state::Unusable) -> String {
+    format!(
+        "{}: state_required = true: remove it to start cold, or point state_file elsewhere",
+        u.why
+    )
+}
+
 /// Resume each axis from `saved`, grown by the time since it was saved; or, if that time is
 /// unknown or the state is worth no more than the prior by now, start cold. Either way one
 /// line says which.
@@ -534,7 +547,7 @@ fn resume(
     let steps = (age.as_secs_f64() * rate_hz).round() as u64;
     let mut fresh = trackers.to_vec();
     for (t, snap) in fresh.iter_mut().zip(&saved.filters) {
-        // Checked at parse: a layout this filter cannot take is unusable there.
+        // Checked by load_checked: a layout this filter cannot take is unusable there.
         if let Err(e) = t.resume(snap, steps) {
             let u = bias_state::Unusable {
                 why: format!("state_file {shown}: {e}"),
