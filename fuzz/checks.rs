@@ -122,10 +122,12 @@ pub fn check_recording(data: &[u8]) {
     }
 }
 
-/// A gzip-compressed CSV log: the fuzz input as a `.csv.gz` file (mostly not gzip: the
-/// decoder's refusals) read by both readers as [`check_csv`] does; and the input gzipped, read
+/// A gzip-compressed CSV log: the fuzz input as a `.csv.gz` file (read by its content: gzip,
+/// or the text it is) read by both readers as [`check_csv`] does; and the input gzipped, read
 /// through the streaming path (decompression, blocks handed between threads), gives what the
-/// plain file gives, value for value, or the same refusal at the same line and column.
+/// plain file gives, value for value, or the same refusal at the same line and column. An
+/// input that is gzip itself is read decompressed from the plain file too (by its content,
+/// whatever its name): the first check covers it.
 pub fn check_csv_gz(data: &[u8]) {
     use driftless::io::csv_table::{read_table, read_table_reference, Table};
     use std::io::Write;
@@ -138,6 +140,9 @@ pub fn check_csv_gz(data: &[u8]) {
         (Ok(a), Ok(b)) => assert_eq!(bits(&a), bits(&b), "the gzip file, both readers"),
         (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "the same refusal"),
         (a, b) => panic!("the readers disagree: fast {a:?}, reference {b:?}"),
+    }
+    if data.starts_with(&[0x1f, 0x8b]) {
+        return;
     }
     let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     gz.write_all(data).expect("gzip into memory");

@@ -1,6 +1,9 @@
 //! `predict.bias`'s warm start (`state_file`) between real daemon processes: killed with
-//! SIGKILL mid-run, the next start's first output is corrected, within the saved uncertainty;
-//! a state of another pipeline, or a corrupt one, is refused with its file and exit 2.
+//! SIGKILL mid-run, the next start's first output is corrected, within the saved uncertainty.
+//! A state that cannot be used (garbage, saved with other terms, another pipeline's) costs the
+//! warm start, never the start: the daemon starts cold, says why in one line, keeps the file
+//! aside byte for byte at `<name>.unusable-<UTC time>` and saves anew at `<name>`; with
+//! `state_required = true` it is refused with exit 2 and left as it was.
 
 mod common;
 
@@ -170,39 +173,270 @@ fn after_sigkill_the_next_start_is_corrected_from_the_first_sample() {
     assert!(state.exists(), "saved again at shutdown");
 }
 
-#[test]
-fn a_state_of_another_pipeline_or_a_corrupt_one_is_refused_with_its_file_and_exit_2() {
-    let dir = Dir::new();
-    dir.write("still.csv", &still_csv(300));
-    let first = dir.write("a.toml", &pipeline("a", "shared.state"));
-    let prefix = Prefix::new("warmref");
-    // A run that ends with its file leaves a state behind.
-    let short = std::fs::read_to_string(&first)
+/// The files beside `state` named `<its name>.unusable-*`.
+fn kept_aside(state: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let name = state.file_name().unwrap().to_string_lossy().into_owned();
+    let mut out: Vec<_> = std::fs::read_dir(state.parent().unwrap())
         .unwrap()
-        .replace("loop = true", "loop = false");
-    let first = dir.write("a.toml", &short);
-    let (code, err) = finish(start(&first, &prefix, &[]), Duration::from_secs(30));
-    assert_eq!(code, Some(0), "{err}");
-    assert!(dir.path("shared.state").exists(), "{err}");
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with(&format!("{name}.unusable-"))
+        })
+        .collect();
+    out.sort();
+    out
+}
 
-    let other = dir.write("b.toml", &pipeline("b", "shared.state"));
-    let out = common::driftless(&["validate", other.to_str().unwrap()]);
-    let text = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{text}");
+/// The one line of `err` that mentions `state` and says the filter starts cold.
+fn cold_line<'a>(err: &'a str, state: &std::path::Path) -> &'a str {
+    let shown = state.display().to_string();
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains(&shown) && l.contains("starts cold"))
+        .collect();
+    assert_eq!(lines.len(), 1, "one line says why: {err}");
+    lines[0]
+}
+
+/// The pipeline of this file replaying the still log once, as fast as possible.
+fn once(name: &str, state: &str) -> String {
+    pipeline(name, state)
+        .replace("loop = true", "loop = false\npace = \"asap\"")
+        .replace("start_delay_s = 1.0", "")
+}
+
+#[test]
+fn a_garbage_state_file_costs_the_warm_start_not_the_start() {
+    let dir = Dir::new();
+    dir.write("still.csv", &still_csv(3000));
+    let file = dir.write("p.toml", &pipeline("g", "g.state"));
+    let state = dir.path("g.state");
+    let bytes = common::garbage();
+    std::fs::write(&state, &bytes).unwrap();
+
+    let prefix = Prefix::new("warmjunk");
+    let report = dir.path("report.json");
+    let mut daemon = start(&file, &prefix, &["--report", report.to_str().unwrap()]);
+    wait_ready(&prefix, "g/stats", &mut daemon);
+    // The old file goes aside at the start; a new state appears where it was (every 0.5 s).
+    let end = Instant::now() + Duration::from_secs(60);
+    while read_state(&state).is_none() {
+        assert!(daemon.try_wait().unwrap().is_none(), "the daemon ended");
+        assert!(Instant::now() < end, "no new state after 60 s");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // The stats service says it too, while the daemon serves.
+    let stats = |json: bool| {
+        let out = std::process::Command::new(common::bin())
+            .arg("stats")
+            .arg(&file)
+            .args(["--prefix", &prefix.0, "--once"])
+            .args(json.then_some("--json"))
+            .output()
+            .unwrap();
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let json: serde_json::Value = serde_json::from_str(&stats(true)).unwrap();
+    assert_eq!(
+        json["warm_start"], "cold, the saved state unusable (moved aside)",
+        "{json}"
+    );
+    let text = stats(false);
     assert!(
-        text.contains("it is pipeline \"a\" stage \"predict\"'s, not \"b\" \"predict\"'s"),
+        text.contains("\nwarm start: cold, the saved state unusable (moved aside)\n"),
         "{text}"
     );
-    assert!(text.contains("b.toml:"), "the pipeline file's line: {text}");
-
-    let state = dir.path("shared.state");
-    let whole = std::fs::read_to_string(&state).unwrap();
-    std::fs::write(&state, &whole[..whole.len() / 3]).unwrap();
-    let out = common::driftless(&["run", first.to_str().unwrap(), "--prefix", &prefix.0]);
-    let text = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{text}");
+    signal(&daemon, libc::SIGTERM);
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
     assert!(
-        text.contains("shared.state:") && text.contains("not a bias state driftless wrote"),
-        "{text}"
+        err.contains("; started COLD: the saved state was unusable (moved aside)"),
+        "the verdict says it: {err}"
+    );
+
+    let aside = kept_aside(&state);
+    assert_eq!(aside.len(), 1, "{aside:?}");
+    let line = cold_line(&err, &state);
+    assert!(
+        line.starts_with("driftless: warning: state_file ")
+            && line.contains("not a bias state driftless wrote: it holds binary data")
+            && line.ends_with(&format!("the file is kept as {}", aside[0].display())),
+        "{line}"
+    );
+    assert_eq!(
+        std::fs::read(&aside[0]).unwrap(),
+        bytes,
+        "kept byte for byte"
+    );
+    let stamp = aside[0]
+        .to_string_lossy()
+        .rsplit('-')
+        .next()
+        .unwrap()
+        .to_string();
+    assert!(
+        stamp.len() == 16 && stamp.ends_with('Z'),
+        "UTC YYYYMMDDTHHMMSSZ: {stamp}"
+    );
+    // Saved anew at its name at exit, and the report says how the start went.
+    let text = std::fs::read_to_string(&state).unwrap();
+    assert!(text.contains("pipeline = \"g\""), "{text}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let lines = report["warm_start"].as_array().unwrap();
+    assert_eq!(lines.len(), 1, "{report}");
+    let l = lines[0].as_str().unwrap();
+    assert!(
+        l.starts_with("predict: cold: state_file ") && l.contains(".unusable-"),
+        "{l}"
+    );
+}
+
+#[test]
+fn a_state_saved_with_other_terms_starts_cold_and_is_kept_aside() {
+    let dir = Dir::new();
+    // 20 s of a still gyro: a state worth more than the prior.
+    dir.write("still.csv", &still_csv(2000));
+    let first = dir.write("a.toml", &once("a", "a.state"));
+    let state = dir.path("a.state");
+    let prefix = Prefix::new("warmterms");
+    let (code, err) = finish(start(&first, &prefix, &[]), Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{err}");
+    let old = std::fs::read(&state).expect("a state saved at the end");
+
+    // The user re-ran `allan --stage` and wrote the unit's own terms in.
+    let own = once("a", "a.state").replace(
+        "profile = \"adis16405\"",
+        "arw = 2.0\nbias_instability = 30.0\nrrw = 0.5",
+    );
+    let second = dir.write("a.toml", &own);
+    // validate says what run will do, and moves nothing.
+    let out = common::driftless(&["validate", second.to_str().unwrap()]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{said}");
+    assert!(
+        said.contains("other noise terms") && said.contains("`run` starts cold and moves it aside"),
+        "{said}"
+    );
+    assert_eq!(
+        std::fs::read(&state).unwrap(),
+        old,
+        "validate moves nothing"
+    );
+    assert!(kept_aside(&state).is_empty());
+
+    let (code, err) = finish(start(&second, &prefix, &[]), Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{err}");
+    let aside = kept_aside(&state);
+    assert_eq!(aside.len(), 1, "{aside:?}");
+    let line = cold_line(&err, &state);
+    assert!(
+        line.contains("it was saved with other noise terms")
+            && line.ends_with(&format!("the file is kept as {}", aside[0].display())),
+        "{line}"
+    );
+    assert_eq!(std::fs::read(&aside[0]).unwrap(), old, "kept byte for byte");
+    // The new state is the new terms': the next start takes it.
+    let (code, err) = finish(start(&second, &prefix, &[]), Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("warm start from state_file"), "{err}");
+    assert_eq!(kept_aside(&state).len(), 1, "nothing more moved");
+}
+
+#[test]
+fn state_required_refuses_an_unusable_state_with_exit_2_and_leaves_it() {
+    let dir = Dir::new();
+    dir.write("still.csv", &still_csv(300));
+    let prefix = Prefix::new("warmreq");
+    let a = dir.write("a.toml", &once("a", "shared.state"));
+    let (code, err) = finish(start(&a, &prefix, &[]), Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{err}");
+    let state = dir.path("shared.state");
+    let required = |name: &str| {
+        once(name, "shared.state").replace(
+            "state_every_s = 0.5",
+            "state_every_s = 0.5\nstate_required = true",
+        )
+    };
+
+    // Another pipeline's state, then garbage: refused by validate and run, untouched.
+    let b = dir.write("b.toml", &required("b"));
+    let whose = "it is pipeline \"a\" stage \"predict\"'s, not \"b\" \"predict\"'s";
+    let cases = [
+        (std::fs::read(&state).unwrap(), whose),
+        (
+            common::garbage(),
+            "not a bias state driftless wrote: it holds binary data",
+        ),
+    ];
+    for (bytes, why) in cases {
+        std::fs::write(&state, &bytes).unwrap();
+        for cmd in [
+            vec!["validate", b.to_str().unwrap()],
+            vec!["run", b.to_str().unwrap(), "--prefix", &prefix.0],
+        ] {
+            let out = common::driftless(&cmd);
+            let text = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{cmd:?}: {text}");
+            assert_eq!(text.trim_end().lines().count(), 1, "one line: {text}");
+            assert!(
+                text.contains(why)
+                    && text.contains("state_required = true")
+                    && text.contains("b.toml:"),
+                "{text}"
+            );
+            assert_eq!(std::fs::read(&state).unwrap(), bytes, "untouched");
+            assert!(kept_aside(&state).is_empty(), "nothing moved");
+        }
+    }
+}
+
+#[test]
+fn a_directory_at_the_state_path_is_a_cold_start_and_stays() {
+    let dir = Dir::new();
+    dir.write("still.csv", &still_csv(300));
+    let file = dir.write("d.toml", &once("d", "d.state"));
+    let state = dir.path("d.state");
+    std::fs::create_dir(&state).unwrap();
+    std::fs::write(state.join("mine"), "a user's file").unwrap();
+    let prefix = Prefix::new("warmdir");
+    let (code, err) = finish(start(&file, &prefix, &[]), Duration::from_secs(60));
+    assert_eq!(code, Some(0), "{err}");
+    let line = cold_line(&err, &state);
+    assert!(
+        line.contains("a directory") && line.ends_with("point state_file at a file"),
+        "{line}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(state.join("mine")).unwrap(),
+        "a user's file"
+    );
+    assert!(kept_aside(&state).is_empty(), "a directory is never moved");
+}
+
+#[test]
+fn an_offline_run_moves_an_unusable_state_once_and_resumes_from_its_own_save() {
+    // nav-eval builds the stages once per case, each saving at its end: the state is read
+    // again at each build, so the second finds the first's save, not the garbage.
+    let dir = Dir::new();
+    dir.write("still.csv", &still_csv(10));
+    let file = dir.write("o.toml", &once("o", "o.state"));
+    let state = dir.path("o.state");
+    std::fs::write(&state, common::garbage()).unwrap();
+    let p = driftless::pipeline::config::load(&file).unwrap();
+    let axes: Vec<Vec<f64>> = BIAS.iter().map(|b| vec![*b; 2000]).collect();
+    let inputs: Vec<&[f64]> = axes.iter().map(Vec::as_slice).collect();
+    for _ in 0..2 {
+        driftless::pipeline::offline::Offline::run_series(&p, &inputs, None).unwrap();
+        assert_eq!(kept_aside(&state).len(), 1, "moved once");
+        assert!(read_state(&state).is_some(), "saved at the end of the run");
+    }
+    assert_eq!(
+        std::fs::read(&kept_aside(&state)[0]).unwrap(),
+        common::garbage()
     );
 }

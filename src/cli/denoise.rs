@@ -218,6 +218,10 @@ fn load(args: &Args) -> Result<Data, CliError> {
         } else {
             args.truth_columns.clone()
         };
+        super::log_input::check_text_input(
+            truth_path,
+            "--truth is CSV text (gzip-compressed too)",
+        )?;
         let truth = read_table(truth_path, &wanted)?;
         if truth.rows() != table.rows() {
             return Err(CliError::input(format!(

@@ -17,7 +17,8 @@ pub struct BagArgs {
 }
 
 /// Read the log at `path` (its `columns`, all without), saying on stderr what is irregular
-/// in a bag's stamps.
+/// in a bag's stamps, and that it was read by what it holds when its name claims another
+/// format.
 pub fn open(
     path: &Path,
     columns: &[String],
@@ -25,10 +26,24 @@ pub fn open(
     keep_time: bool,
 ) -> Result<RateLog, CliError> {
     let log = read_log(path, columns, bag.topic.as_deref(), keep_time)?;
-    if let Some(note) = log.origin.stamp_note() {
+    for note in [&log.origin.format_note, &log.origin.stamp_note()]
+        .into_iter()
+        .flatten()
+    {
         eprintln!("driftless: warning: {note}");
     }
     Ok(log)
+}
+
+/// A CSV input that is not a rate log (a `--truth` file, `takes` saying what it is): refused
+/// unless it holds text (gzip-compressed too), with one line on stderr when its name claims
+/// another format.
+pub fn check_text_input(path: &Path, takes: &str) -> Result<(), CliError> {
+    let sniffed = crate::io::content::text_file(path, takes)?;
+    if let Some(note) = sniffed.csv_note() {
+        eprintln!("driftless: warning: {note}");
+    }
+    Ok(())
 }
 
 /// The unit of a log's rates: a bag's rad/s (`given` must agree), else `given`, deg/s

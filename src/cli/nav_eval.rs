@@ -512,7 +512,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     // A truth file before the windows: its length is the window's.
     let truth = match &args.truth {
-        Some(path) => Some(read_truth(path, rate)?),
+        Some(path) => {
+            super::log_input::check_text_input(path, crate::io::truth::TRUTH_TAKES)?;
+            Some(read_truth(path, rate)?)
+        }
         None => None,
     };
     let window = match (&args.window, &truth) {

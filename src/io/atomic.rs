@@ -42,8 +42,9 @@ impl AtomicFile {
     }
 }
 
-/// Whether `path` names a gzip file (it ends in `.gz`): such a file is read decompressed
-/// ([`crate::io::read_table`]) and written compressed ([`write_text_atomically`]).
+/// Whether `path` names a gzip file (it ends in `.gz`): such a file is written compressed
+/// ([`write_text_atomically`]). A file read is decompressed by its content, whatever its name
+/// ([`crate::io::content`]).
 pub fn is_gzip(path: &Path) -> bool {
     path.extension().is_some_and(|e| e == "gz")
 }

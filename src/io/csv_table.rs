@@ -2,7 +2,8 @@
 //!
 //! A first row in which every cell is a number is data (the columns are then named `c0`, `c1`, ...);
 //! otherwise it is the header. NaN and Inf cells are errors: a sample is never silently altered.
-//! Files ending in `.gz` are decompressed on the fly.
+//! A gzip-compressed file is decompressed on the fly, whatever its name
+//! ([`crate::io::content`]: its content decides, not its `.gz`).
 
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -133,7 +134,7 @@ pub fn read_table_reference(path: &Path, wanted: &[String]) -> Result<Table, Inp
         source,
     })?;
     let raw = BufReader::with_capacity(1 << 20, file);
-    read_reference(raw, super::atomic::is_gzip(path), path, wanted, false)
+    read_reference(raw, gzipped(path)?, path, wanted, false)
 }
 
 /// The reference path over an opened file, decompressed when `gz`.
@@ -179,7 +180,7 @@ fn read_table_impl(path: &Path, wanted: &[String], keep_time: bool) -> Result<Ta
     let file = File::open(path).map_err(io_err)?;
     let meta = file.metadata().map_err(io_err)?;
     let size = meta.len();
-    let gz = super::atomic::is_gzip(path);
+    let gz = gzipped(path)?;
     let min = if gz {
         PROGRESS_MIN_BYTES_GZ
     } else {
@@ -199,6 +200,11 @@ fn read_table_impl(path: &Path, wanted: &[String], keep_time: bool) -> Result<Ta
     };
     progress.finish_and_clear();
     result
+}
+
+/// Whether `path` is read through a gzip decoder: by its content ([`super::content::sniff`]).
+fn gzipped(path: &Path) -> Result<bool, InputError> {
+    Ok(super::content::sniff(path)?.is_gzip())
 }
 
 /// Threads parsing a mapped file: every core, but only for files worth splitting.
@@ -639,7 +645,7 @@ pub enum RowRead {
 /// csv crate (as [`read_table`] reads them), each selected cell by `fast-float2` or, when it
 /// does not take the cell, by the reference `str::parse::<f64>` (so the same values bit for
 /// bit). Unlike [`read_table`] a bad row does not end the reading: it is returned with its
-/// file:line:col, and the next call reads on. Files ending in `.gz` are decompressed on the fly.
+/// file:line:col, and the next call reads on. A gzip-compressed file is decompressed on the fly.
 pub struct RowReader {
     rdr: csv::Reader<Box<dyn Read + Send>>,
     path: PathBuf,
@@ -670,7 +676,7 @@ impl RowReader {
         };
         let file = File::open(path).map_err(io_err)?;
         let raw = BufReader::with_capacity(1 << 16, file);
-        let source: Box<dyn Read + Send> = if super::atomic::is_gzip(path) {
+        let source: Box<dyn Read + Send> = if gzipped(path)? {
             Box::new(CrlfToLf::new(flate2::bufread::MultiGzDecoder::new(raw)))
         } else {
             Box::new(CrlfToLf::new(raw))

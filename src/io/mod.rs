@@ -1,9 +1,11 @@
-//! Files and terminals: CSV tables with positioned errors, atomic output, progress bars, plots,
-//! truth files for the heading benchmark, ROS 2 bags, and rate logs read from either.
+//! Files and terminals: what an input file holds (by its content, [`content`]), CSV tables with
+//! positioned errors, atomic output, progress bars, plots, truth files for the heading
+//! benchmark, ROS 2 bags, and rate logs read from either.
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 
 pub mod atomic;
+pub mod content;
 mod csv_fast;
 pub mod csv_table;
 pub mod model_file;

@@ -1,13 +1,22 @@
 //! Drift model files on disk: read and check, write atomically, and hash input files for
 //! provenance.
 
+use super::content::Content;
 use crate::drift::model::DriftModel;
 use sha2::{Digest, Sha256};
 use std::io::Read;
 use std::path::Path;
 
-/// Read and check a model file; the error is one line naming the file.
+/// What a model file is, for a file that holds something else.
+const MODEL_TAKES: &str = "a model file is JSON text, as `driftless train` writes it";
+
+/// Read and check a model file; the error is one line naming the file (one that does not
+/// hold text says what it holds).
 pub fn read_model(path: &Path) -> Result<DriftModel, String> {
+    let sniffed = super::content::sniff(path).map_err(|e| format!("model {e}"))?;
+    if !matches!(sniffed.content, Content::Text | Content::Stream) {
+        return Err(format!("model {}", sniffed.refuse(MODEL_TAKES)));
+    }
     let text =
         std::fs::read_to_string(path).map_err(|e| format!("model {}: {e}", path.display()))?;
     DriftModel::from_json(&text).map_err(|e| format!("model {}: {e}", path.display()))

@@ -12,6 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::content::{sniff, Content};
 use super::csv_table::{read_table, read_table_keeping_time, InputError, Table, TimeColumn};
 use super::ros2::{seconds_text, Bag, BagError, BagErrorKind};
 
@@ -25,16 +26,14 @@ pub const RATE_TOLERANCE: f64 = 0.01;
 /// An interval further than this fraction from the median interval is irregular.
 const IRREGULAR_FRACTION: f64 = 0.5;
 
-/// Whether `path` is read as a ROS 2 bag: a directory (a rosbag2 bag), or a file that starts
-/// with the MCAP magic. Anything else is read as CSV.
+/// What a rate log is, for a file that holds something else.
+pub const RATE_LOG_TAKES: &str = "a rate log is CSV text (gzip-compressed too) or a ROS 2 bag \
+(an MCAP file or a rosbag2 directory)";
+
+/// Whether `path` is read as a ROS 2 bag: a directory (a rosbag2 bag), or a file that holds
+/// MCAP, whatever its name ([`crate::io::content`]). Anything else is read as CSV.
 pub fn is_bag(path: &Path) -> bool {
-    if path.is_dir() {
-        return true;
-    }
-    let mut head = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
-        .is_ok_and(|()| head[..] == mcap::MAGIC[..])
+    sniff(path).is_ok_and(|s| matches!(s.content, Content::Directory | Content::Mcap))
 }
 
 /// What a bag's stamps say about its sampling.
@@ -153,6 +152,9 @@ pub struct LogOrigin {
     pub path: PathBuf,
     /// Set when the log is a bag.
     pub bag: Option<BagLog>,
+    /// One line when the file's name claims another format than it holds (it was read by
+    /// what it holds): "x.mcap: named .mcap but holds text: read as CSV".
+    pub format_note: Option<String>,
 }
 
 impl LogOrigin {
@@ -212,17 +214,23 @@ impl LogOrigin {
     }
 }
 
-/// Read a rate log: a bag ([`is_bag`]) through its Imu topic (`topic`, or its only one), or a
-/// CSV file as [`read_table`] (with `keep_time`, [`read_table_keeping_time`]) does. `wanted`
-/// names columns (a bag's: `x`, `y`, `z`); empty, every rate column. `topic` with a CSV file
-/// is an error.
+/// Read a rate log, by what the file holds whatever its name: a bag (a directory, or an MCAP
+/// file) through its Imu topic (`topic`, or its only one), or CSV text (gzip-compressed too)
+/// as [`read_table`] (with `keep_time`, [`read_table_keeping_time`]) does; anything else is
+/// refused, saying what it holds. `wanted` names columns (a bag's: `x`, `y`, `z`); empty,
+/// every rate column. `topic` with a CSV file is an error.
 pub fn read_log(
     path: &Path,
     wanted: &[String],
     topic: Option<&str>,
     keep_time: bool,
 ) -> Result<RateLog, InputError> {
-    if !is_bag(path) {
+    let sniffed = sniff(path)?;
+    let is_bag = matches!(sniffed.content, Content::Directory | Content::Mcap);
+    if !is_bag && !sniffed.content.is_text() {
+        return Err(sniffed.refuse(RATE_LOG_TAKES));
+    }
+    if !is_bag {
         if let Some(t) = topic {
             return Err(InputError::file(
                 path,
@@ -237,6 +245,7 @@ pub fn read_log(
         let origin = LogOrigin {
             path: path.to_path_buf(),
             bag: None,
+            format_note: sniffed.csv_note(),
         };
         return Ok(RateLog { table, origin });
     }
@@ -336,6 +345,7 @@ pub fn read_log(
                 topic,
                 stamps: Stamps::from_stamps(&stamps),
             }),
+            format_note: sniffed.note("read as a ROS 2 bag"),
         },
     })
 }

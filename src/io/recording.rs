@@ -52,8 +52,8 @@ pub const MAX_CHUNK_BYTES: u64 = 64 << 20;
 pub enum McapOpenError {
     /// Opening or mapping the file failed.
     Io(std::io::Error),
-    /// No MCAP magic at its start.
-    NotMcap,
+    /// No MCAP magic at its start: what it holds instead.
+    NotMcap(crate::io::content::Content),
     /// No summary section, or one that does not read (truncated, still being written).
     Incomplete(String),
 }
@@ -68,7 +68,8 @@ pub fn map_mcap(path: &Path) -> Result<(memmap2::Mmap, mcap::Summary), McapOpenE
     // once whole).
     let map = unsafe { memmap2::Mmap::map(&file) }.map_err(McapOpenError::Io)?;
     if !map.starts_with(mcap::MAGIC) {
-        return Err(McapOpenError::NotMcap);
+        let head = &map[..map.len().min(4096)];
+        return Err(McapOpenError::NotMcap(crate::io::content::classify(head)));
     }
     match mcap::Summary::read(&map) {
         Ok(Some(s)) => Ok((map, s)),
@@ -487,9 +488,10 @@ impl Recording {
         let shown = path.display();
         let (map, summary) = map_mcap(path).map_err(|e| match e {
             McapOpenError::Io(e) => format!("{shown}: {e}"),
-            McapOpenError::NotMcap => {
-                format!("{shown}: not an MCAP file (no MCAP magic at its start)")
-            }
+            McapOpenError::NotMcap(holds) => format!(
+                "{shown}: not an MCAP file (no MCAP magic at its start): it holds {}",
+                holds.what()
+            ),
             McapOpenError::Incomplete(why) => format!(
                 "{shown}: an incomplete MCAP file ({why}): truncated, or still being written; \
                  a complete recording ends with its summary and footer (recover the chunks of a \

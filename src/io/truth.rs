@@ -1,7 +1,7 @@
 //! Truth files for `driftless nav-eval --truth`: a known angular rate to add to a static log's
 //! windows instead of a built-in motion profile, with the stops an oracle would know.
 //!
-//! A CSV (`.gz` too) with a header row naming its columns:
+//! A CSV (gzip-compressed too) with a header row naming its columns:
 //! - rate columns, deg/s: every column that is neither a time nor a still column; one for every
 //!   axis, or one per axis in the log's column order ([`Truth::traces`]);
 //! - still columns (optional): a name starting with `still`, cells 0 or 1, the oracle's stops;
@@ -82,14 +82,19 @@ enum Role {
     Rate,
 }
 
-/// Read a truth file sampled at `rate_hz` (module docs).
+/// What a truth file is, for a file that holds something else.
+pub const TRUTH_TAKES: &str = "a truth file is CSV text (gzip-compressed too)";
+
+/// Read a truth file sampled at `rate_hz` (module docs); one that does not hold text is
+/// refused, saying what it holds.
 pub fn read_truth(path: &Path, rate_hz: f64) -> Result<Truth, InputError> {
+    let sniffed = super::content::text_file(path, TRUTH_TAKES)?;
     let file = File::open(path).map_err(|source| InputError::Io {
         path: path.display().to_string(),
         source,
     })?;
     let raw = BufReader::new(file);
-    if super::atomic::is_gzip(path) {
+    if sniffed.is_gzip() {
         read_from(flate2::bufread::MultiGzDecoder::new(raw), path, rate_hz)
     } else {
         read_from(raw, path, rate_hz)

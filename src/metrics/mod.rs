@@ -248,6 +248,9 @@ pub struct Layout {
     pub interval: Duration,
     /// Print the summary line on stderr.
     pub print: bool,
+    /// How the stages that keep state across runs started, one line each after the stage's
+    /// name (`predict: cold: ...`), for the report.
+    pub warm_start: Vec<String>,
 }
 
 mod report;
@@ -540,7 +543,7 @@ impl Reporter {
             epoch: get(&c.epoch) as u32,
             source_restarts: get(&c.restarts),
             flagged: self.flagged(),
-            warm_start: get(&c.warm_start),
+            warm_start_outcome: get(&c.warm_start),
             outputs: Outputs::from_counts(c.outputs.each_ref().map(get)),
             end_to_end_ns: Pct::of(&self.e2e),
             woken_late_ns: (!self.late.is_empty()).then(|| Pct::of(&self.late)),
@@ -563,6 +566,7 @@ impl Reporter {
                 })
                 .collect(),
             heading: self.heading,
+            warm_start: self.layout.warm_start.clone(),
             learnt: Vec::new(),
         }
     }
@@ -819,6 +823,7 @@ mod tests {
             algorithmic_delay: Duration::ZERO,
             interval: Duration::from_secs(60),
             print: false,
+            warm_start: Vec::new(),
         };
         Reporter::new(layout, Arc::default(), Vec::new())
     }

@@ -179,9 +179,10 @@ pub struct Report {
     pub source_restarts: u64,
     /// Flagged input.
     pub flagged: Flagged,
-    /// How the state-keeping stage started ([`crate::transport::warm_start_name`] of the code).
+    /// How the state-keeping stages started, the worst of them
+    /// ([`crate::transport::warm_start_name`] of the stats' code; `warm_start` has each line).
     #[serde(serialize_with = "warm_start_words")]
-    pub warm_start: u64,
+    pub warm_start_outcome: u64,
     /// The published outputs by their flags.
     pub outputs: Outputs,
     /// End to end: ingest of the completing sample to publish, ns.
@@ -208,6 +209,10 @@ pub struct Report {
     /// Heading error of the raw, denoised and corrected rates against the truth (a simulated
     /// ingest only).
     pub heading: Option<HeadingSummary>,
+    /// How the stages that keep state across runs started, one line each after the stage's
+    /// name: `predict.bias` warm from its `state_file`, or cold and why (e.g. `predict: cold:
+    /// state_file s: it was saved with other noise terms ...; kept as s.unusable-...`).
+    pub warm_start: Vec<String>,
     /// What the stages learnt while running, one line each after the stage's name (e.g. the
     /// bias filter's walk per axis against the configured one).
     pub learnt: Vec<String>,
@@ -295,6 +300,9 @@ impl Report {
         ));
         s.push_str(&self.outputs_line());
         s.push_str(&self.misses_lines());
+        for l in &self.warm_start {
+            s.push_str(&format!("warm start: {l}\n"));
+        }
         for l in &self.learnt {
             s.push_str(&format!("learnt: {l}\n"));
         }
@@ -443,7 +451,7 @@ impl Report {
             1 => "; 1 stamp fault (flagged, not lost)".to_string(),
             n => format!("; {n} stamp faults (flagged, not lost)"),
         };
-        let warm = if self.warm_start == crate::transport::WARM_START_UNUSABLE {
+        let warm = if self.warm_start_outcome == crate::transport::WARM_START_UNUSABLE {
             "; started COLD: the saved state was unusable (moved aside)"
         } else {
             ""

@@ -183,9 +183,18 @@ struct RawIox {
 
 /// Read and validate a pipeline file: everything `run` needs is checked here, nothing started.
 pub fn load(path: &Path) -> Result<Pipeline, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|source| InputError::Io {
-        path: path.display().to_string(),
-        source,
+    let text = std::fs::read_to_string(path).map_err(|source| {
+        // Not UTF-8: say what it holds instead.
+        let sniffed = crate::io::content::sniff(path);
+        match sniffed {
+            Ok(s) if source.kind() == std::io::ErrorKind::InvalidData && !s.content.is_text() => {
+                s.refuse("a pipeline file is TOML text")
+            }
+            _ => InputError::Io {
+                path: path.display().to_string(),
+                source,
+            },
+        }
     })?;
     parse(path, &text)
 }
@@ -332,7 +341,16 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             Duration::from_secs_f64(1.0 / (rate_hz * speed))
         }
     };
-    let warnings = step_warning(&stages, input_units).into_iter().collect();
+    let warnings = step_warning(&stages, input_units)
+        .into_iter()
+        .chain(stages.iter().flat_map(|s| {
+            let name = &s.name;
+            s.params
+                .warnings()
+                .into_iter()
+                .map(move |w| format!("stage {name:?}: {w}"))
+        }))
+        .collect();
     let ros2 = match raw.ros2 {
         Some(r) => Some(ros2_settings(
             &src,

@@ -5,13 +5,20 @@
 //!   the same directory, synced, renamed over the old one, the directory synced. A crash
 //!   leaves the old state or the new one, never half of one.
 //! - **Tied to its owner**: the pipeline and stage names, the axis count, the rate and the
-//!   noise terms. A state of another owner (another pipeline's, another sensor's terms) is
-//!   refused, as is a file that does not parse (with its line and column): remove it, or point
-//!   `state_file` elsewhere, to start cold.
+//!   noise terms. A state of another owner (another pipeline's, another sensor's terms, terms
+//!   since re-measured), a file that does not parse (with its line and column), garbage, or a
+//!   file that cannot be read is [`Loaded::Unusable`]. A cache must never cost the
+//!   navigation: by default the stage starts cold, says why in one line, and moves the file
+//!   aside to `<name>.unusable-<UTC time>` ([`move_aside`]) so that nothing is lost and the
+//!   next save lands where the last one was; `state_required = true` refuses it (exit 2).
 //! - **Grown by the time that passed**: at start each axis's filter resumes from its saved
 //!   estimate and covariance, predicted through the wall-clock time since the save
 //!   ([`crate::drift::bias::BiasFilter::resume`]). Older than the prior is worth, or saved in
-//!   the future (a clock set back), it is not used: the stage starts cold and says why.
+//!   the future (a clock set back), it is not used: the stage starts cold and says why. Such a
+//!   file is ours and whole: it stays, and the next save replaces it.
+//!
+//! How a start went is a [`WarmStart`], which the built stage gives the runtime
+//! ([`crate::stages::Stage::warm_start`]) for `run`'s report.
 //!
 //! The file is TOML, one table per axis; `bias_deg_s` and `sd_deg_s` are there for a reader
 //! and are not read back.
@@ -112,29 +119,70 @@ struct WalkFile {
     ll: Vec<f64>,
 }
 
-/// The state in `path` for `owner`: None if there is no file; an error (one line, naming the
-/// file, and its line and column where it does not parse) if it cannot be used.
-pub fn load(path: &Path, owner: &Owner) -> Result<Option<Saved>, String> {
+/// What a `state_file` held when the pipeline was read.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Loaded {
+    /// No file: the first start.
+    Missing,
+    /// A state of this owner.
+    Saved(Saved),
+    /// A file that cannot be used.
+    Unusable(Unusable),
+}
+
+/// Why a `state_file` cannot be used, and whether it can be moved aside.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unusable {
+    /// One line naming the file (and its line and column where it does not parse).
+    pub why: String,
+    /// False for a directory: it is not a file we wrote, and is never moved.
+    pub movable: bool,
+}
+
+/// The state in `path` for `owner`: missing, saved, or unusable and why.
+pub fn load(path: &Path, owner: &Owner) -> Loaded {
+    match read(path, owner) {
+        Ok(Some(saved)) => Loaded::Saved(saved),
+        Ok(None) => Loaded::Missing,
+        Err(u) => Loaded::Unusable(u),
+    }
+}
+
+fn read(path: &Path, owner: &Owner) -> Result<Option<Saved>, Unusable> {
     let shown = path.display();
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
+    let unusable = |why: String| Unusable { why, movable: true };
+    let not_ours = "not a bias state driftless wrote";
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(format!("state_file {shown}: {e}")),
+        Err(e) if path.is_dir() => {
+            return Err(Unusable {
+                why: format!("state_file {shown}: a directory ({e}), not a file"),
+                movable: false,
+            })
+        }
+        Err(e) => return Err(unusable(format!("state_file {shown}: cannot be read: {e}"))),
     };
-    let cold = "remove it to start cold, or point state_file elsewhere";
+    let text = match String::from_utf8(bytes) {
+        Ok(t) => t,
+        Err(e) => {
+            let holds = crate::io::content::classify(e.as_bytes());
+            return Err(unusable(format!(
+                "state_file {shown}: {not_ours}: it holds {}",
+                holds.what()
+            )));
+        }
+    };
     let file: File = toml::from_str(&text).map_err(|e| {
         let src = Src { path, text: &text };
-        let why = format!(
-            "not a bias state driftless wrote ({}): {cold}",
-            e.message().trim_end()
-        );
-        src.at(e.span().map_or(0, |s| s.start), why).to_string()
+        let why = format!("{not_ours} ({})", e.message().trim_end());
+        unusable(src.at(e.span().map_or(0, |s| s.start), why).to_string())
     })?;
     if file.format != FORMAT {
-        return Err(format!(
-            "state_file {shown}: format {} (this driftless reads {FORMAT}): {cold}",
+        return Err(unusable(format!(
+            "state_file {shown}: format {} (this driftless reads {FORMAT})",
             file.format
-        ));
+        )));
     }
     let same_terms = file
         .terms
@@ -166,12 +214,12 @@ pub fn load(path: &Path, owner: &Owner) -> Result<Option<Saved>, String> {
         None
     };
     if let Some(why) = mismatch {
-        return Err(format!("state_file {shown}: {why}: {cold}"));
+        return Err(unusable(format!("state_file {shown}: {why}")));
     }
     let mut filters = Vec::with_capacity(file.axis.len());
     for (k, a) in file.axis.iter().enumerate() {
         let n = a.x.len();
-        let bad = |what: &str| format!("state_file {shown}: axis {}: {what}: {cold}", AXES[k]);
+        let bad = |what: &str| unusable(format!("state_file {shown}: axis {}: {what}", AXES[k]));
         if n == 0 || n > MAX_STATES || a.p.len() != n || a.p.iter().any(|r| r.len() != n) {
             return Err(bad(
                 "its x and p do not hold one state vector and its covariance",
@@ -214,6 +262,141 @@ pub fn load(path: &Path, owner: &Owner) -> Result<Option<Saved>, String> {
         filters,
         saved_unix_ns: file.saved_unix_ns,
     }))
+}
+
+/// Move an unusable state file aside, beside it: `<name>.unusable-<UTC time>`
+/// (`YYYYMMDDTHHMMSSZ`: readable, and sorted by name is sorted by time), `-2`, `-3`, ... after
+/// it if that name is taken. Its bytes stay as they were; the next save lands at `path`.
+pub fn move_aside(path: &Path) -> std::io::Result<PathBuf> {
+    let stamp: String = humantime::format_rfc3339_seconds(SystemTime::now())
+        .to_string()
+        .chars()
+        .filter(|c| !matches!(c, '-' | ':'))
+        .collect();
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let base = path.with_file_name(format!("{name}.unusable-{stamp}"));
+    let mut aside = base.clone();
+    let mut n = 1;
+    while aside.symlink_metadata().is_ok() {
+        n += 1;
+        aside = PathBuf::from(format!("{}-{n}", base.display()));
+    }
+    std::fs::rename(path, &aside)?;
+    Ok(aside)
+}
+
+/// How a `predict.bias` started: resumed, or cold and why. The built stage gives it to the
+/// runtime ([`crate::stages::Stage::warm_start`]); its [`Display`](std::fmt::Display) is the
+/// line `run`'s report prints, [`WarmStart::outcome`] a fixed word for programs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WarmStart {
+    /// No `state_file`: every start is cold.
+    NotConfigured,
+    /// Resumed from the state saved this long ago.
+    Warm {
+        /// The state file.
+        path: PathBuf,
+        /// How long before the start it was saved.
+        age: Duration,
+    },
+    /// No state file yet (the first start): cold.
+    ColdNoFile {
+        /// The state file to be.
+        path: PathBuf,
+    },
+    /// Saved so long ago that it is worth no more than the prior: cold; the next save
+    /// replaces it.
+    ColdTooOld {
+        /// The state file.
+        path: PathBuf,
+        /// How long before the start it was saved.
+        age: Duration,
+    },
+    /// Saved in the future (the clock was set back: the time since is unknown): cold; the
+    /// next save replaces it.
+    ColdFuture {
+        /// The state file.
+        path: PathBuf,
+    },
+    /// The file could not be used ([`Unusable`]): cold.
+    ColdUnusable {
+        /// The state file.
+        path: PathBuf,
+        /// Why, one line naming the file.
+        why: String,
+        /// Where it was moved to, byte for byte; None when it was not moved (a directory, or
+        /// the move failed: `why` says).
+        moved_to: Option<PathBuf>,
+    },
+}
+
+impl WarmStart {
+    /// A fixed word for programs: `not-configured`, `warm`, `cold-no-file`, `cold-too-old`,
+    /// `cold-future`, `cold-unusable`.
+    pub fn outcome(&self) -> &'static str {
+        match self {
+            WarmStart::NotConfigured => "not-configured",
+            WarmStart::Warm { .. } => "warm",
+            WarmStart::ColdNoFile { .. } => "cold-no-file",
+            WarmStart::ColdTooOld { .. } => "cold-too-old",
+            WarmStart::ColdFuture { .. } => "cold-future",
+            WarmStart::ColdUnusable { .. } => "cold-unusable",
+        }
+    }
+
+    /// The outcome as the stats service carries it ([`crate::transport::WARM_START_WARM`]
+    /// and its siblings; the larger, the worse).
+    pub fn code(&self) -> u64 {
+        use crate::transport::{
+            WARM_START_COLD, WARM_START_NONE, WARM_START_UNUSABLE, WARM_START_WARM,
+        };
+        match self {
+            WarmStart::NotConfigured => WARM_START_NONE,
+            WarmStart::Warm { .. } => WARM_START_WARM,
+            WarmStart::ColdNoFile { .. }
+            | WarmStart::ColdTooOld { .. }
+            | WarmStart::ColdFuture { .. } => WARM_START_COLD,
+            WarmStart::ColdUnusable { .. } => WARM_START_UNUSABLE,
+        }
+    }
+
+    /// Whether the filter resumed from a saved state.
+    pub fn is_warm(&self) -> bool {
+        matches!(self, WarmStart::Warm { .. })
+    }
+}
+
+impl std::fmt::Display for WarmStart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ago = |age: &Duration| humantime::format_duration(Duration::from_secs(age.as_secs()));
+        match self {
+            WarmStart::NotConfigured => write!(f, "cold: no state_file"),
+            WarmStart::Warm { path, age } => write!(
+                f,
+                "warm from state_file {}, saved {} ago",
+                path.display(),
+                ago(age)
+            ),
+            WarmStart::ColdNoFile { path } => {
+                write!(f, "cold: no state_file {} yet", path.display())
+            }
+            WarmStart::ColdTooOld { path, age } => write!(
+                f,
+                "cold: state_file {} is {} old, no better than the prior",
+                path.display(),
+                ago(age)
+            ),
+            WarmStart::ColdFuture { path } => write!(
+                f,
+                "cold: state_file {} was saved in the future (the clock was set back?)",
+                path.display()
+            ),
+            WarmStart::ColdUnusable { why, moved_to, .. } => match moved_to {
+                Some(to) => write!(f, "cold: {why}; kept as {}", to.display()),
+                None => write!(f, "cold: {why}"),
+            },
+        }
+    }
 }
 
 /// The state as text, saved now.
@@ -426,7 +609,9 @@ mod tests {
             &render(&owner(), &filters, 1_700_000_000_000_000_000),
         )
         .unwrap();
-        let saved = load(&path, &owner()).unwrap().unwrap();
+        let Loaded::Saved(saved) = load(&path, &owner()) else {
+            panic!("its own state")
+        };
         assert_eq!(saved.filters, filters);
         assert_eq!(saved.saved_unix_ns, 1_700_000_000_000_000_000);
         // Another owner's: refused, naming why.
@@ -454,18 +639,56 @@ mod tests {
                 "other noise terms",
             ),
         ] {
-            let e = load(&path, &other).unwrap_err();
-            assert!(e.contains(why) && e.contains("start cold"), "{e}");
+            let Loaded::Unusable(u) = load(&path, &other) else {
+                panic!("{why}: refused")
+            };
+            assert!(u.why.contains(why) && u.movable, "{u:?}");
         }
         // Cut short: refused with a position, never half read.
         let text = std::fs::read_to_string(&path).unwrap();
         std::fs::write(&path, &text[..text.len() / 2]).unwrap();
-        let e = load(&path, &owner()).unwrap_err();
+        let Loaded::Unusable(u) = load(&path, &owner()) else {
+            panic!("half a state")
+        };
         assert!(
-            e.contains("s.toml:") && e.contains("not a bias state"),
-            "{e}"
+            u.why.contains("s.toml:") && u.why.contains("not a bias state"),
+            "{u:?}"
         );
+        // Garbage: what it holds.
+        std::fs::write(&path, [0x1f, 0x8b, 0, 0xff, 0x10]).unwrap();
+        let Loaded::Unusable(u) = load(&path, &owner()) else {
+            panic!("garbage")
+        };
+        assert!(
+            u.why
+                .ends_with("not a bias state driftless wrote: it holds a damaged gzip stream"),
+            "{u:?}"
+        );
+        // Moved aside byte for byte, beside it, and a second one in the same second too.
+        let first = move_aside(&path).unwrap();
+        std::fs::write(&path, b"x = ").unwrap();
+        let second = move_aside(&path).unwrap();
+        assert_eq!(std::fs::read(&first).unwrap(), [0x1f, 0x8b, 0, 0xff, 0x10]);
+        assert_eq!(std::fs::read(&second).unwrap(), b"x = ");
+        assert!(!path.exists());
+        let name = first.file_name().unwrap().to_string_lossy().into_owned();
+        let stamp = name.strip_prefix("s.toml.unusable-").unwrap();
+        assert!(
+            stamp.len() == 16 && stamp.as_bytes()[8] == b'T' && stamp.ends_with('Z'),
+            "{name}"
+        );
+        assert!(
+            second.to_string_lossy().ends_with("-2")
+                || second.to_string_lossy() > first.to_string_lossy(),
+            "{second:?}"
+        );
+        // A directory: unusable, never moved.
+        std::fs::create_dir(&path).unwrap();
+        let Loaded::Unusable(u) = load(&path, &owner()) else {
+            panic!("a directory")
+        };
+        assert!(!u.movable && u.why.contains("a directory"), "{u:?}");
         std::fs::remove_dir_all(&dir).unwrap();
-        assert_eq!(load(&path, &owner()).unwrap(), None, "no file: cold");
+        assert_eq!(load(&path, &owner()), Loaded::Missing, "no file: cold");
     }
 }

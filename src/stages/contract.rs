@@ -62,6 +62,13 @@ pub trait Stage {
         Vec::new()
     }
 
+    /// How a stage that keeps state across runs started (`predict.bias`: warm, or cold and
+    /// why); called once, after it is built. None for a stage that keeps no state. Default:
+    /// None.
+    fn warm_start(&self) -> Option<crate::stages::bias_state::WarmStart> {
+        None
+    }
+
     /// The newest value of side input `slot` (the index in [`Params::side_inputs`]), handed
     /// over before the sample it precedes whenever a new one arrived; never waited for. Must
     /// not allocate. Default: ignored.
@@ -198,6 +205,13 @@ pub trait Params: std::fmt::Debug + Send + Sync {
 
     /// Extra lines for `driftless validate` (indented by the caller).
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// Lines worth a warning found when the table was read, that do not stop the pipeline
+    /// (`validate` and `run` print them once): e.g. a file read by what it holds, not by what
+    /// its name says. Default: none.
+    fn warnings(&self) -> Vec<String> {
         Vec::new()
     }
 }

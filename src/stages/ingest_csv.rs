@@ -13,7 +13,7 @@
 //! name = "sensor"
 //! kind = "ingest.csv"
 //! output = "replay/raw"
-//! file = "data/replay.csv"       # relative to the pipeline file; .gz works
+//! file = "data/replay.csv"       # relative to the pipeline file; gzip-compressed works
 //! columns = ["x", "y", "z"]      # one per axis (default x, y, z)
 //! time_column = "t"              # seconds (default: i / rate_hz)
 //! stop_column = "stopped"        # 1 stands, 0 moves, nan unknown (default: none)
@@ -25,6 +25,7 @@ use std::path::PathBuf;
 
 use toml::Spanned;
 
+use crate::io::content::text_file;
 use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::{InputError, RowRead, RowReader};
 use crate::stages::contract::{Kind, Params, Role, Source};
@@ -34,7 +35,9 @@ use crate::transport::{RawSample, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_S
 
 const FILE: Key = Key {
     name: "file",
-    ty: Type::Str("a CSV file, relative to the pipeline file; .gz works"),
+    ty: Type::Str(
+        "a CSV file, relative to the pipeline file; gzip-compressed works (told by its content)",
+    ),
     default: "required",
     doc: "the log to replay; its header and first 1000 rows checked at validation, then streamed",
 };
@@ -90,6 +93,9 @@ pub struct CsvParams {
     pub step: Option<f64>,
     /// Pacing, looping, delay.
     pub replay: Replay,
+    /// One line when the file's name claims another format than CSV text (it is read by what
+    /// it holds).
+    pub note: Option<String>,
 }
 
 /// Data rows checked at validation, so that a wrong file fails there with its position; later
@@ -122,6 +128,10 @@ impl Params for CsvParams {
         self.step
     }
 
+    fn warnings(&self) -> Vec<String> {
+        self.note.iter().cloned().collect()
+    }
+
     fn source(
         &self,
         cx: &Context,
@@ -136,6 +146,10 @@ impl Params for CsvParams {
     }
 }
 
+/// What `ingest.csv` replays, for a file that holds something else.
+const CSV_TAKES: &str = "ingest.csv replays CSV text (gzip-compressed too); a recording or a \
+ROS 2 bag (MCAP) is replayed by kind = \"ingest.mcap\"";
+
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let columns_key = t.get::<Vec<String>>(&COLUMNS)?;
@@ -144,9 +158,11 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let replay = Replay::parse(t)?;
     let (src, axes, rate_hz) = (t.src, t.cx.axes, t.cx.rate_hz);
     let file = src.resolve(file_key.get_ref());
-    if !file.is_file() {
+    if !file.exists() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
     }
+    // By what it holds: the name is a hint.
+    let sniffed = text_file(&file, CSV_TAKES).map_err(|e| src.span(&file_key, e.to_string()))?;
     let default_cols: Vec<String> = ["x", "y", "z"][..axes]
         .iter()
         .map(|s| s.to_string())
@@ -231,6 +247,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         stop_column: stop_key.map(Spanned::into_inner),
         step: rates.into_iter().filter_map(step_of).reduce(f64::min),
         replay,
+        note: sniffed.csv_note(),
     }))
 }
 

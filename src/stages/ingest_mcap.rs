@@ -44,6 +44,7 @@ use std::path::PathBuf;
 
 use toml::Spanned;
 
+use crate::io::content::{sniff, Content};
 use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
@@ -112,6 +113,9 @@ pub struct McapParams {
     pub replay: Replay,
     /// A bag's motion topic as logged stops.
     pub stops: Option<StopTopic>,
+    /// One line when the file's name claims another format than MCAP (it is read by what it
+    /// holds).
+    pub note: Option<String>,
 }
 
 /// A bag's motion topic read as the vehicle's stops (`stop_topic`).
@@ -132,7 +136,15 @@ pub enum Format {
     Ros2Bag,
 }
 
+/// What `ingest.mcap` replays, for a file that holds something else.
+const MCAP_TAKES: &str = "ingest.mcap replays an MCAP file (a `driftless record` recording or a \
+ROS 2 bag) or a rosbag2 directory; a CSV log is replayed by kind = \"ingest.csv\"";
+
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    parse_file(t).map(|p| Box::new(p) as Box<dyn Params>)
+}
+
+fn parse_file(t: &mut StageTable<'_, '_>) -> Result<McapParams, InputError> {
     let file_key = t.required_str(&FILE)?;
     let topic_key = t.get::<String>(&TOPIC)?;
     let replay = Replay::parse(t)?;
@@ -151,12 +163,19 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     });
     let src = t.src;
     let file = src.resolve(file_key.get_ref());
-    if file.is_dir() {
-        return parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops);
-    }
-    if !file.is_file() {
+    if !file.exists() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
     }
+    // By what it holds: the name is a hint.
+    let sniffed = sniff(&file).map_err(|e| src.span(&file_key, e.to_string()))?;
+    match sniffed.content {
+        Content::Directory => {
+            return parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops);
+        }
+        Content::Mcap => {}
+        _ => return Err(src.span(&file_key, sniffed.refuse(MCAP_TAKES).to_string())),
+    }
+    let note = sniffed.note("read as MCAP");
     let rec = Recording::open(&file).map_err(|e| src.span(&file_key, e))?;
     let channels = rec.channels();
     // A bag's Imu topic, chosen or the only kind of topic the file can replay.
@@ -168,7 +187,8 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         None => !channels.iter().any(|c| c.schema == RAW_SCHEMA) && channels.iter().any(is_imu),
     };
     if bag {
-        return parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops);
+        let p = parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops)?;
+        return Ok(McapParams { note, ..p });
     }
     if let Some((k, _)) = &stops {
         return Err(src.span(
@@ -289,14 +309,15 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     {
         m.map_err(|e| src.at(at_topic, e))?;
     }
-    Ok(Box::new(McapParams {
+    Ok(McapParams {
         file,
         format: Format::Recording,
         topic: channel.topic.clone(),
         messages: channel.messages,
         replay,
         stops: None,
-    }))
+        note,
+    })
 }
 
 impl Params for McapParams {
@@ -332,6 +353,10 @@ impl Params for McapParams {
         }
         lines
     }
+
+    fn warnings(&self) -> Vec<String> {
+        self.note.iter().cloned().collect()
+    }
 }
 
 /// A ROS 2 bag's Imu topic, checked: the pipeline's units rad/s, its rate the stamps' (within
@@ -343,7 +368,7 @@ fn parse_bag(
     topic_key: Option<&Spanned<String>>,
     replay: Replay,
     stops: Option<(Spanned<String>, StopTopic)>,
-) -> Result<Box<dyn Params>, InputError> {
+) -> Result<McapParams, InputError> {
     let src = t.src;
     let bag = Bag::open(&file).map_err(|e| src.span(file_key, e))?;
     if let Some((k, stop)) = &stops {
@@ -426,14 +451,15 @@ fn parse_bag(
         .iter()
         .find(|i| i.topic == topic)
         .map_or(0, |i| i.messages);
-    Ok(Box::new(McapParams {
+    Ok(McapParams {
         file,
         format: Format::Ros2Bag,
         topic,
         messages,
         replay,
         stops: stops.map(|(_, s)| s),
-    }))
+        note: None,
+    })
 }
 
 /// The reader thread of a bag: message `n` of the topic as raw sample `n - 1`, its stamp as

@@ -47,6 +47,7 @@ pub mod publish;
 pub mod replay;
 pub mod stop_rule;
 
+pub use bias_state::WarmStart;
 pub use contract::{Kind, Params, Poll, Role, Side, SideKind, Source, Stage};
 
 /// Every stage kind, in the order listed in messages and documentation.

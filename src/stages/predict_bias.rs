@@ -29,7 +29,7 @@ use crate::drift::bias::{
     TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
-use crate::stages::bias_state::{self, Owner, Saved, StateWriter};
+use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::contract::{Side, SideKind};
 use crate::stages::schema::{Context, Key, StageTable, Type};
@@ -122,6 +122,12 @@ const STATE_FILE: Key = Key {
     default: "none: every start is cold",
     doc: "where the filter's state is saved (at shutdown and every state_every_s) and resumed from at the next start, grown by the time between: corrected from the first sample",
 };
+const STATE_REQUIRED: Key = Key {
+    name: "state_required",
+    ty: Type::Bool,
+    default: "false: an unusable state_file costs the warm start, never the start",
+    doc: "true: a state_file that is there but cannot be used (garbage, another pipeline's or other terms', unreadable) stops the pipeline (exit 2), as before this key, instead of a cold start that moves it aside (`<name>.unusable-<UTC time>`); a missing one is still a cold start",
+};
 const STATE_EVERY_S: Key = Key {
     name: "state_every_s",
     ty: Type::Positive(86_400.0),
@@ -159,6 +165,7 @@ pub const KIND: Kind = Kind {
         STOP_SPEED,
         STATE_FILE,
         STATE_EVERY_S,
+        STATE_REQUIRED,
     ],
     parse,
 };
@@ -185,8 +192,12 @@ pub struct StateConfig {
     pub owner: Owner,
     /// Saved every this many samples.
     pub every: u64,
-    /// The state read (None: no file yet).
-    pub saved: Option<Saved>,
+    /// `state_required`: a file that cannot be used stops the pipeline.
+    pub required: bool,
+    /// What the file held when the pipeline was read (what `validate` says). The stage reads
+    /// it again when it is built: it may have changed since (an offline run builds the stage
+    /// once per case, each saving at its end).
+    pub loaded: Loaded,
 }
 
 /// How `predict.bias` reads a stop signal ([`StopSignal`]).
@@ -332,6 +343,9 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             let every_s = t
                 .positive(&STATE_EVERY_S, "state_every_s")?
                 .unwrap_or(DEFAULT_STATE_EVERY_S);
+            let required = t
+                .get::<bool>(&STATE_REQUIRED)?
+                .is_some_and(toml::Spanned::into_inner);
             let owner = Owner {
                 pipeline: t.owner.0.to_string(),
                 stage: t.owner.1.to_string(),
@@ -339,17 +353,25 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
                 rate_hz: t.cx.rate_hz,
                 terms,
             };
-            let saved = bias_state::load(&path, &owner).map_err(|e| src.span(&file, e))?;
+            let probe = BiasTracker::new(&terms, t.cx.rate_hz, &tracker)
+                .map_err(|e| t.error(format!("predict.bias: {e}")))?;
+            let loaded = load_checked(&path, &owner, &probe);
+            if let (Loaded::Unusable(u), true) = (&loaded, required) {
+                return Err(src.span(&file, refusal(u)));
+            }
             Some(StateConfig {
                 path,
                 owner,
                 every: ((every_s * t.cx.rate_hz).round() as u64).max(1),
-                saved,
+                required,
+                loaded,
             })
         }
         None => {
-            if t.get::<toml::Value>(&STATE_EVERY_S)?.is_some() {
-                return Err(t.error("predict.bias: state_every_s needs state_file"));
+            for key in [&STATE_EVERY_S, &STATE_REQUIRED] {
+                if t.get::<toml::Value>(key)?.is_some() {
+                    return Err(t.error(format!("predict.bias: {} needs state_file", key.name)));
+                }
             }
             None
         }
@@ -383,10 +405,17 @@ impl Params for BiasParams {
             );
         }
         let mut writer = None;
+        let mut warm = WarmStart::NotConfigured;
         if let Some(st) = &self.state {
-            if let Some(saved) = &st.saved {
-                resume(&mut trackers, saved, st, cx.rate_hz);
-            }
+            warm = match load_checked(&st.path, &st.owner, &trackers[0]) {
+                Loaded::Missing => WarmStart::ColdNoFile {
+                    path: st.path.clone(),
+                },
+                Loaded::Saved(saved) => resume(&mut trackers, &saved, st, cx.rate_hz),
+                // Changed since the pipeline was read.
+                Loaded::Unusable(u) if st.required => return Err(refusal(&u)),
+                Loaded::Unusable(u) => cold_unusable(&st.path, &u),
+            };
             writer = Some((
                 StateWriter::start(st.path.clone(), st.owner.clone())?,
                 st.every,
@@ -401,6 +430,7 @@ impl Params for BiasParams {
             writer,
             since_save: 0,
             samples: 0,
+            warm,
         }))
     }
 
@@ -431,28 +461,74 @@ impl Params for BiasParams {
                 .iter()
                 .map(|s| format!("stop signal: {} ({})", s.service, s.rule.describe())),
         )
+        .chain(self.state.iter().map(|st| match &st.loaded {
+            Loaded::Missing => format!("state: none yet in {}: a cold start", st.path.display()),
+            Loaded::Saved(_) => format!("state: {} (a warm start if not too old)", st.path.display()),
+            Loaded::Unusable(u) if u.movable => format!(
+                "state: {}: `run` starts cold and moves it aside to {}.unusable-<UTC time>",
+                u.why,
+                st.path.display()
+            ),
+            Loaded::Unusable(u) => format!("state: {}: `run` starts cold", u.why),
+        }))
         .collect()
     }
+}
+
+/// The state in `path` for `owner`, and unusable too when its layout is not one `probe` (a
+/// cold filter of the stage's) can resume from (a state of another driftless's model).
+fn load_checked(path: &std::path::Path, owner: &Owner, probe: &BiasTracker) -> Loaded {
+    let loaded = bias_state::load(path, owner);
+    if let Loaded::Saved(saved) = &loaded {
+        if let Some(e) = saved
+            .filters
+            .iter()
+            .find_map(|f| probe.clone().resume(f, 0).err())
+        {
+            return Loaded::Unusable(bias_state::Unusable {
+                why: format!("state_file {}: {e}", path.display()),
+                movable: true,
+            });
+        }
+    }
+    loaded
+}
+
+/// The refusal of an unusable state under `state_required = true`.
+fn refusal(u: &bias_state::Unusable) -> String {
+    format!(
+        "{}: state_required = true: remove it to start cold, or point state_file elsewhere",
+        u.why
+    )
 }
 
 /// Resume each axis from `saved`, grown by the time since it was saved; or, if that time is
 /// unknown or the state is worth no more than the prior by now, start cold. Either way one
 /// line says which.
-fn resume(trackers: &mut [BiasTracker], saved: &Saved, st: &StateConfig, rate_hz: f64) {
-    let shown = st.path.display();
+fn resume(
+    trackers: &mut [BiasTracker],
+    saved: &Saved,
+    st: &StateConfig,
+    rate_hz: f64,
+) -> WarmStart {
+    let (shown, path) = (st.path.display(), st.path.clone());
     let Some(age) = saved.age() else {
         eprintln!(
             "driftless: warning: state_file {shown} was saved in the future (the clock was set \
              back?): the time since is unknown, so the filter starts cold"
         );
-        return;
+        return WarmStart::ColdFuture { path };
     };
     let steps = (age.as_secs_f64() * rate_hz).round() as u64;
     let mut fresh = trackers.to_vec();
     for (t, snap) in fresh.iter_mut().zip(&saved.filters) {
+        // Checked by load_checked: a layout this filter cannot take is unusable there.
         if let Err(e) = t.resume(snap, steps) {
-            eprintln!("driftless: warning: state_file {shown}: {e}: the filter starts cold");
-            return;
+            let u = bias_state::Unusable {
+                why: format!("state_file {shown}: {e}"),
+                movable: true,
+            };
+            return cold_unusable(&st.path, &u);
         }
     }
     let now: Vec<_> = fresh.iter().map(BiasTracker::snapshot).collect();
@@ -466,7 +542,7 @@ fn resume(trackers: &mut [BiasTracker], saved: &Saved, st: &StateConfig, rate_hz
              filter starts cold",
             humantime::format_duration(Duration::from_secs(age.as_secs()))
         );
-        return;
+        return WarmStart::ColdTooOld { path, age };
     }
     eprintln!(
         "driftless: warm start from state_file {shown}, saved {} ago: {}",
@@ -474,6 +550,37 @@ fn resume(trackers: &mut [BiasTracker], saved: &Saved, st: &StateConfig, rate_hz
         bias_state::describe(&now)
     );
     trackers.clone_from_slice(&fresh);
+    WarmStart::Warm { path, age }
+}
+
+/// A state that cannot be used costs the warm start, never the start: cold, the file moved
+/// aside (a directory stays), one line saying why and where it went.
+fn cold_unusable(path: &std::path::Path, u: &bias_state::Unusable) -> WarmStart {
+    let (moved_to, why, kept) = if u.movable {
+        match bias_state::move_aside(path) {
+            Ok(to) => {
+                let kept = format!("the file is kept as {}", to.display());
+                (Some(to), u.why.clone(), kept)
+            }
+            Err(e) => (
+                None,
+                format!("{} (not moved aside: {e})", u.why),
+                format!("it could not be moved aside ({e}) and stays"),
+            ),
+        }
+    } else {
+        let kept = "no state can be saved there either: point state_file at a file".to_string();
+        (None, u.why.clone(), kept)
+    };
+    eprintln!(
+        "driftless: warning: {}: the filter starts cold; {kept}",
+        u.why
+    );
+    WarmStart::ColdUnusable {
+        path: path.to_path_buf(),
+        why,
+        moved_to,
+    }
 }
 
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
@@ -490,6 +597,8 @@ pub struct BiasStage {
     since_save: u64,
     /// Samples processed (nothing is saved by a stage that took none).
     samples: u64,
+    /// How the stage started: warm, or cold and why.
+    warm: WarmStart,
 }
 
 impl BiasStage {
@@ -510,6 +619,10 @@ impl Drop for BiasStage {
 }
 
 impl Stage for BiasStage {
+    fn warm_start(&self) -> Option<WarmStart> {
+        Some(self.warm.clone())
+    }
+
     fn learnt(&self) -> Vec<String> {
         // Stops given from outside teach it: without a stop signal it cannot learn.
         if self.learn == LearnWalk::GivenStops && self.stop.is_none() && !self.logged_stops {

@@ -412,3 +412,16 @@ pub fn in_private_shm(test: &str, shm_size: &str) -> bool {
     );
     false
 }
+
+/// 5,000 bytes of a fixed xorshift stream: garbage, the same on every run (a damaged file).
+pub fn garbage() -> Vec<u8> {
+    let mut s = 0x9e37_79b9_7f4a_7c15u64;
+    (0..5000)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 32) as u8
+        })
+        .collect()
+}

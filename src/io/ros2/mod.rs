@@ -210,9 +210,12 @@ impl BagFile {
         let shown = path.display();
         let (map, summary) = map_mcap(path).map_err(|e| match e {
             McapOpenError::Io(e) => err(BagErrorKind::Io, format!("{shown}: {e}")),
-            McapOpenError::NotMcap => err(
+            McapOpenError::NotMcap(holds) => err(
                 BagErrorKind::NotMcap,
-                format!("{shown}: not an MCAP file (no MCAP magic at its start)"),
+                format!(
+                    "{shown}: not an MCAP file (no MCAP magic at its start): it holds {}",
+                    holds.what()
+                ),
             ),
             McapOpenError::Incomplete(why) => err(
                 BagErrorKind::Incomplete,

@@ -16,6 +16,7 @@ use crate::metrics::{
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, Side, SideKind, Stage};
+use crate::stages::WarmStart;
 use crate::transport::{
     monotonic_ns, GyroSample, Input, Losses, Output, Qos, RawSample, StopSignal, Transport,
     TransportError, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
@@ -318,6 +319,17 @@ impl Chain {
         }
     }
 
+    /// How the stages that keep state across runs started ([`Stage::warm_start`]), by stage
+    /// name.
+    pub(super) fn warm_starts(&self, p: &crate::pipeline::Pipeline) -> Vec<(String, WarmStart)> {
+        let name = |k: usize| p.stages[self.first + k].name.clone();
+        self.stages
+            .iter()
+            .enumerate()
+            .filter_map(|(k, stage)| Some((name(k), stage.warm_start()?)))
+            .collect()
+    }
+
     /// What the stages learnt ([`Stage::learnt`]), each line after its stage's name.
     pub(super) fn learnt(&self, p: &crate::pipeline::Pipeline) -> Vec<String> {
         let mut out = Vec::new();
@@ -460,8 +472,9 @@ impl Drop for SetOnDrop {
     }
 }
 
-/// What a later segment's thread reports once its ports exist.
-pub(super) type Ready = Result<(Vec<Arc<Losses>>, usize), RunError>;
+/// What a later segment's thread reports once its ports exist: its outputs' loss counters,
+/// its stages' lags and how its stages started ([`Chain::warm_starts`]).
+pub(super) type Ready = Result<(Vec<Arc<Losses>>, usize, Vec<(String, WarmStart)>), RunError>;
 
 /// A later segment's thread: it wakes on the event service of the external stage's output,
 /// runs its stages on each sample, and after `upstream_done` keeps reading until its input has
@@ -506,7 +519,7 @@ pub(super) fn run_segment(
             return Ok(Vec::new());
         }
     };
-    let _ = ready.send(Ok((lost, lag)));
+    let _ = ready.send(Ok((lost, lag, chain.warm_starts(p))));
     let grace = EXTERNAL_GRACE.as_nanos() as u64;
     let mut next_seq: Option<u64> = None;
     let mut last_rx = monotonic_ns();

@@ -14,6 +14,7 @@ use super::{build_source, node_name, stats_node_name, RunError, RunOptions, METR
 use crate::metrics::{run_all, Batch, Counters, Layout, Publish, Report, Reporter};
 use crate::pipeline::config::Pipeline;
 use crate::stages::contract::{Poll, Source};
+use crate::stages::WarmStart;
 use crate::transport::{
     monotonic_ns, Losses, Qos, RawSample, StatsSnapshot, Transport, TransportError, WakeSet, Waker,
 };
@@ -147,6 +148,10 @@ pub(super) struct Running<'a> {
     pub(super) segment_threads: Vec<std::thread::JoinHandle<Result<Vec<String>, RunError>>>,
     /// What the stages learnt ([`crate::stages::Stage::learnt`]), once their segments ended.
     pub(super) learnt: Vec<String>,
+    /// How the stages that keep state across runs started, by stage name, in chain order
+    /// ([`crate::stages::Stage::warm_start`]; `predict.bias` with or without a
+    /// `state_file`): known once every segment is built, before the first sample.
+    pub(super) warm_starts: Vec<(String, WarmStart)>,
     /// Until the daemon's reporting thread takes it.
     pub(super) stats: Option<Stats>,
     pub(super) failure: Option<RunError>,
@@ -242,6 +247,7 @@ impl<'a> Running<'a> {
         let (tx, rx) = bounded::<Batch>(METRICS_CAPACITY);
         let (mut chain, head_lost, mut lag_total) =
             build_segment(p, &transport, spans[0], Arc::clone(&counters), tx.clone())?;
+        let warm_starts = chain.warm_starts(p);
         let mut lost: Vec<Arc<Losses>> = vec![raw_out.losses()];
         lost.extend(head_lost);
         chain.head = Some(raw_out);
@@ -254,6 +260,7 @@ impl<'a> Running<'a> {
             done: spans.iter().map(|_| Arc::default()).collect(),
             segment_threads: Vec::new(),
             learnt: Vec::new(),
+            warm_starts,
             stats: None,
             failure: None,
             transport,
@@ -303,10 +310,11 @@ impl<'a> Running<'a> {
                 }),
             };
             match started {
-                Ok((seg_lost, lag)) => {
+                Ok((seg_lost, lag, warm)) => {
                     lost.push(external_lost);
                     lost.extend(seg_lost);
                     lag_total += lag;
+                    r.warm_starts.extend(warm);
                 }
                 Err(e) => {
                     drop(tx);
@@ -328,7 +336,21 @@ impl<'a> Running<'a> {
             algorithmic_delay: Duration::from_secs_f64(lag_total as f64 / p.rate_hz),
             interval: p.report_interval,
             print: print_summary,
+            // Only stages with a state file: a line for each start of the others says nothing.
+            warm_start: r
+                .warm_starts
+                .iter()
+                .filter(|(_, w)| *w != WarmStart::NotConfigured)
+                .map(|(stage, w)| format!("{stage}: {w}"))
+                .collect(),
         };
+        // The stats carry one outcome: the worst of the stages' (a second state-keeping
+        // stage is rare; its line is in the report).
+        let outcome = r.warm_starts.iter().map(|(_, w)| w.code()).max();
+        counters.warm_start.store(
+            outcome.unwrap_or(crate::transport::WARM_START_NONE),
+            Ordering::Relaxed,
+        );
         r.stats = Some(Stats {
             reporter: Reporter::new(layout, counters, lost),
             rx,
