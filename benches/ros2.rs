@@ -62,11 +62,17 @@ fn main() {
             return;
         }
         let status = Command::new("unshare")
+            // A private /dev/shm and iceoryx2 root too: Fast DDS's segments stay in them.
             .args([
                 "-n",
+                "-m",
+                "--propagation",
+                "private",
                 "sh",
                 "-c",
-                "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
+                "mount -t tmpfs -o size=512m,mode=1777 tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && \
+                 mount -t tmpfs tmpfs /tmp/iceoryx2 && ip link set lo up && \
+                 ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
             ])
             .arg(std::env::current_exe().unwrap())
             .args(std::env::args().skip(1))

@@ -174,6 +174,29 @@ fn wild_stamps_from_a_driver_are_stamp_faults_and_the_samples_after_them_are_ser
 }
 
 #[test]
+fn a_second_driver_on_the_raw_service_is_refused_by_name() {
+    // Two drivers on one iceoryx2 service never interleave: it takes one publisher.
+    let rig = Rig::new("twodrivers");
+    let mut child = start(&rig.file, &rig.prefix, &[]);
+    wait_ready(&rig.prefix, "t/stats", &mut child);
+    let other = Transport::new(&rig.prefix.0, "driver2", qos(256)).expect("node");
+    let refused = other
+        .output::<RawSample>("t/sensor", true)
+        .err()
+        .expect("a second publisher is refused");
+    signal(&child, SIGTERM);
+    let (code, err) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{err}");
+    let text = refused.to_string();
+    assert!(
+        text.contains("a service takes one: is another driver or daemon publishing it?")
+            && text.contains("t/sensor")
+            && text.contains("ExceedsMaxSupportedPublishers"),
+        "{text}"
+    );
+}
+
+#[test]
 fn bad_samples_are_flagged_counted_and_never_published_as_nan() {
     let rig = Rig::new("bad");
     let mut child = start(
@@ -700,7 +723,7 @@ fn config_errors_name_file_line_column_exit_2_and_start_nothing() {
         ("dangling", good.replace("input = \"c/denoised\"", "input = \"c/nowhere\""), "dangling input"),
         ("duplicate-output", good.replace("output = \"c/corrected\"", "output = \"c/denoised\""), "already the output"),
         ("stage-key", good.replace("pace = \"asap\"", "pace = \"asap\"\nspeed = 2"), "unknown field `speed`"),
-        ("bad-pace", good.replace("pace = \"asap\"", "pace = \"fast\""), "unknown pace"),
+        ("bad-pace", good.replace("pace = \"asap\"", "pace = \"fast\""), "pace must be \"realtime\", \"asap\" or a number"),
         ("missing-file", good.replace("data.csv", "none.csv"), "no such file"),
         ("syntax", good.replace("rate_hz = 1000.0", "rate_hz = = 1"), ""),
         (

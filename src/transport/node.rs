@@ -178,7 +178,14 @@ impl Transport {
             .publisher_builder()
             .backpressure_strategy(BackpressureStrategy::DiscardData)
             .create()
-            .map_err(|e| setup("publisher (is another daemon running?)", name, e))?;
+            .map_err(|e| {
+                // A service takes one publisher: two drivers never interleave on one.
+                setup(
+                    "publisher (a service takes one: is another driver or daemon publishing it?)",
+                    name,
+                    e,
+                )
+            })?;
         let notifier = if notify {
             let event = self
                 .node
