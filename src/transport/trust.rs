@@ -86,6 +86,16 @@ impl Place {
 /// Where this process may not look further (no search permission), nor may iceoryx2 write:
 /// that is left to iceoryx2's own error, which says whose the directory is.
 pub(super) fn check_root_dirs(root: &Path, missing: Missing) -> Result<(), TransportError> {
+    // All of it first, so that a refusal comes before anything is made (a missing `nodes`
+    // beside a linked `services`).
+    walk(root, Missing::Leave)?;
+    if missing == Missing::Make {
+        walk(root, Missing::Make)?;
+    }
+    Ok(())
+}
+
+fn walk(root: &Path, missing: Missing) -> Result<(), TransportError> {
     let steps = steps(root);
     let Some(mut dir) = open_dir(rustix::fs::CWD, b"/", false).ok() else {
         return Ok(());
@@ -324,6 +334,10 @@ mod tests {
         let m = message(check_root_dirs(&root, Missing::Make));
         assert!(m.contains("iox/services is a symbolic link"), "{m}");
         assert_eq!(std::fs::read_dir(&target).unwrap().count(), 0);
+        assert!(
+            !root.join("nodes").exists(),
+            "refused before anything is made"
+        );
     }
 
     #[test]
