@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{bin, finish, Prefix};
+use common::{bin, finish, run_within, Prefix};
 
 /// iceoryx2's root directory in the namespace (its own tmpfs).
 const ROOT: &str = common::ICEORYX2_ROOT;
@@ -29,17 +29,6 @@ const D: &str = "158456425824514663799274340511";
 
 fn in_namespace(test: &str, shm_size: &str) -> bool {
     common::in_private_shm(test, shm_size)
-}
-
-/// `driftless ARGS` to its end, or a failure after `limit` (a hang).
-fn run_within(args: &[&str], limit: Duration) -> (Option<i32>, String) {
-    let child = Command::new(bin())
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("driftless runs");
-    finish(child, limit)
 }
 
 /// The demo for a short while under `prefix`: its exit code and stderr.

@@ -359,7 +359,7 @@ mod imp {
         let node = match Transport::new(prefix, "driftless-bridge", Qos::default()) {
             Ok(n) => n,
             Err(e) => {
-                let _ = ready.send(Err(CliError::internal(e.to_string())));
+                let _ = ready.send(Err(CliError::from(e)));
                 return Ok(());
             }
         };
@@ -465,8 +465,7 @@ mod imp {
             buffer_size: args.buffer_size,
             ..Qos::default()
         };
-        let node = Transport::new(prefix, "driftless-bridge", qos)
-            .map_err(|e| CliError::internal(e.to_string()))?;
+        let node = Transport::new(prefix, "driftless-bridge", qos)?;
         let output = node
             .external_output::<RawSample>(service, true)
             .map_err(|e| CliError::internal(e.to_string()))?;

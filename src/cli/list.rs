@@ -482,10 +482,6 @@ fn document(
     doc
 }
 
-fn internal(e: transport::TransportError) -> CliError {
-    CliError::internal(e.to_string())
-}
-
 /// List what runs under the prefix (after removing dead nodes' leftovers with `--clean`).
 pub fn run(args: Args) -> Result<(), CliError> {
     transport::quiet_logging();
@@ -503,7 +499,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
 fn list(args: &Args, prefix: &str) -> Result<(), CliError> {
     let removed = if args.clean {
-        let removed = Transport::remove_dead_nodes(prefix).map_err(internal)?;
+        let removed = Transport::remove_dead_nodes(prefix)?;
         let names: Vec<String> = removed
             .iter()
             .map(|n| match pid(n) {
@@ -522,7 +518,7 @@ fn list(args: &Args, prefix: &str) -> Result<(), CliError> {
     } else {
         None
     };
-    let listing = Transport::list(prefix).map_err(internal)?;
+    let listing = Transport::list(prefix)?;
     let mut pipes = pipelines(&listing);
     let waiting: Vec<usize> = (0..pipes.len())
         .filter(|&i| pipes[i].daemon.life == NodeLife::Alive && pipes[i].stats_service.is_some())
@@ -531,7 +527,7 @@ fn list(args: &Args, prefix: &str) -> Result<(), CliError> {
         .iter()
         .filter_map(|&i| pipes[i].stats_service.clone())
         .collect();
-    let snapshots = Transport::read_stats(prefix, &services, args.stats_wait).map_err(internal)?;
+    let snapshots = Transport::read_stats(prefix, &services, args.stats_wait)?;
     for (&i, snap) in waiting.iter().zip(snapshots) {
         pipes[i].stats = snap;
     }

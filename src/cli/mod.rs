@@ -9,7 +9,8 @@
 //!   (`run`), iceoryx2 or the operating system failing during a run.
 //! - 2: bad usage or bad input: an unknown option or a bad value (clap's own code for usage
 //!   errors), an input file missing, unreadable or malformed, a pipeline file that does not
-//!   validate, a model that does not fit the data, an output path that cannot be written.
+//!   validate, a model that does not fit the data, an output path that cannot be written, an
+//!   iceoryx2 root directory another user controls (`transport::TransportError::Untrusted`).
 
 use clap::{Parser, Subcommand};
 use std::io::Write as _;
@@ -128,6 +129,18 @@ impl CliError {
 impl From<crate::io::InputError> for CliError {
     fn from(e: crate::io::InputError) -> Self {
         CliError::input(e.to_string())
+    }
+}
+
+/// A transport failure: bad configuration (another user's iceoryx2 root) is exit code 2, the
+/// rest a run-time failure (1).
+impl From<crate::transport::TransportError> for CliError {
+    fn from(e: crate::transport::TransportError) -> Self {
+        if e.is_configuration() {
+            CliError::input(e.to_string())
+        } else {
+            CliError::internal(e.to_string())
+        }
     }
 }
 

@@ -203,8 +203,7 @@ fn record(
         prefix,
         &format!("driftless-record-{}", std::process::id()),
         Default::default(),
-    )
-    .map_err(|e| CliError::internal(e.to_string()))?;
+    )?;
     let ports = args
         .services
         .iter()

@@ -64,8 +64,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         poll_timeout: Duration::from_millis(10),
         delay: Duration::from_micros(args.delay_us),
     };
-    let n = relay(&opts, &stop, || eprintln!("relay: ready"))
-        .map_err(|e| CliError::internal(e.to_string()))?;
+    let n = relay(&opts, &stop, || eprintln!("relay: ready"))?;
     eprintln!("relay: {n} samples relayed");
     Ok(())
 }

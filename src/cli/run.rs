@@ -148,6 +148,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         | RunError::Transport(transport::TransportError::SharedMemoryFull { .. }) => {
             CliError::input(e.to_string())
         }
+        RunError::Transport(e) => e.into(),
         other => CliError::internal(other.to_string()),
     })?;
     let several = results.len() > 1;

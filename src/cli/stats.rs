@@ -41,8 +41,7 @@ fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError
         prefix,
         &format!("driftless-stats-{}", std::process::id()),
         Default::default(),
-    )
-    .map_err(|e| CliError::internal(e.to_string()))?;
+    )?;
     let not_running = || {
         CliError::internal(format!(
             "no statistics from pipeline {:?} on {:?} (prefix {prefix:?}): is it running?",

@@ -360,8 +360,7 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         prefix,
         &format!("driftless-tap-{}", std::process::id()),
         Default::default(),
-    )
-    .map_err(|e| CliError::internal(e.to_string()))?;
+    )?;
     let tapped = if let Ok(i) = node.open_input::<GyroSample>(&args.service) {
         Tapped::Gyro(i)
     } else if let Ok(i) = node.open_input::<RawSample>(&args.service) {

@@ -35,6 +35,12 @@ pub(super) const SHM_DIR: &str = "/dev/shm";
 /// A directory opened without following a link, to read and delete relative to.
 pub(super) struct SafeDir(OwnedFd);
 
+impl AsFd for SafeDir {
+    fn as_fd(&self) -> std::os::fd::BorrowedFd<'_> {
+        self.0.as_fd()
+    }
+}
+
 impl SafeDir {
     /// Open `path`; `None` if it is missing, not a directory, or its last component a link.
     pub(super) fn open(path: &std::path::Path) -> Option<Self> {
@@ -47,10 +53,23 @@ impl SafeDir {
     }
 
     fn open_at(dir: impl AsFd, name: &[u8]) -> Option<Self> {
-        let flags = OFlags::RDONLY | OFlags::DIRECTORY | OFlags::NOFOLLOW | OFlags::CLOEXEC;
-        rustix::fs::openat(dir, OsStr::from_bytes(name), flags, Mode::empty())
-            .ok()
-            .map(SafeDir)
+        Self::open_with(dir, name, OFlags::RDONLY | OFlags::NOFOLLOW).ok()
+    }
+
+    /// Open the directory `name` in `dir` with `flags` (a directory, closed on exec, whatever
+    /// else they say; `O_PATH` gives one only to go through and to [`SafeDir::stat_self`]).
+    pub(super) fn open_with(
+        dir: impl AsFd,
+        name: &[u8],
+        flags: OFlags,
+    ) -> rustix::io::Result<Self> {
+        let flags = flags | OFlags::DIRECTORY | OFlags::CLOEXEC;
+        rustix::fs::openat(dir, OsStr::from_bytes(name), flags, Mode::empty()).map(SafeDir)
+    }
+
+    /// What this directory is (`fstat` of the directory opened, not of a path).
+    pub(super) fn stat_self(&self) -> Option<Stat> {
+        rustix::fs::fstat(&self.0).ok()
     }
 
     /// The names in this directory (at most [`MAX_ENTRIES`]; `.` and `..` left out).

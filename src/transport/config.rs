@@ -3,6 +3,7 @@
 
 use iceoryx2::prelude::*;
 
+use super::trust::{check_root_dirs, Missing};
 use super::TransportError;
 
 /// Default iceoryx2 prefix of the daemon's files in `/dev/shm` and `/tmp/iceoryx2`.
@@ -91,8 +92,21 @@ pub fn root() -> std::path::PathBuf {
         .unwrap_or_else(|| DEFAULT_ROOT.into())
 }
 
-/// The explicit iceoryx2 configuration (never the silently discovered `config/iceoryx2.toml`).
+/// The explicit iceoryx2 configuration (never the silently discovered `config/iceoryx2.toml`),
+/// for a node: the root directory checked and what is missing of it made first
+/// ([`super::trust`]).
+pub(super) fn node_config(prefix: &str) -> Result<Config, TransportError> {
+    check_root_dirs(&root(), Missing::Make)?;
+    explicit(prefix)
+}
+
+/// [`node_config`] for a listing: the root directory checked, nothing made.
 pub(super) fn config(prefix: &str) -> Result<Config, TransportError> {
+    check_root_dirs(&root(), Missing::Leave)?;
+    explicit(prefix)
+}
+
+fn explicit(prefix: &str) -> Result<Config, TransportError> {
     let mut cfg = Config::default();
     cfg.global.prefix = FileName::new(prefix.as_bytes()).map_err(|e| TransportError::Name {
         name: prefix.to_string(),

@@ -8,7 +8,7 @@ use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 
 use super::cleanup::{remove_node_files, remove_unsized_segments};
-use super::config::{config, service_name};
+use super::config::{config, node_config, service_name};
 use super::error::{setup, TransportError};
 use super::node::Transport;
 use super::permissions::process_owner;
@@ -261,7 +261,7 @@ fn listed_node(state: &NodeState<Svc>) -> ListedNode {
 /// A node that only looks: creating, dropping it or opening a service with it removes no dead
 /// node's resources (iceoryx2 does that by default), so `list` shows the dead as dead.
 fn observer(prefix: &str) -> Result<Node<Svc>, TransportError> {
-    let mut cfg = config(prefix)?;
+    let mut cfg = node_config(prefix)?;
     remove_unsized_segments(prefix);
     cfg.global.node.cleanup_dead_nodes_on_creation = false;
     cfg.global.node.cleanup_dead_nodes_on_destruction = false;
@@ -424,7 +424,8 @@ impl Transport {
     /// keeps listing the node as dead, and reports it cleaned up): what is left of such a dead
     /// node (its directory, its monitor files) is removed here.
     pub fn remove_dead_nodes(prefix: &str) -> Result<Vec<ListedNode>, TransportError> {
-        let cfg = config(prefix)?;
+        // iceoryx2 deletes through these directories: checked as for a node.
+        let cfg = node_config(prefix)?;
         remove_unsized_segments(prefix);
         let dead_nodes = |cfg: &Config| -> Result<Vec<ListedNode>, TransportError> {
             let mut dead = Vec::new();

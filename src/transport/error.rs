@@ -54,6 +54,16 @@ pub enum TransportError {
         /// Which file or directory, its owner and mode, and the ways out.
         problem: String,
     },
+    /// iceoryx2's root directory, a directory above it, or its `nodes` or `services`, is
+    /// another user's, a link, or open to others' writes: refused before iceoryx2 touches it
+    /// (iceoryx2 follows links there, so that user would choose where this process writes).
+    #[error("{message}")]
+    Untrusted {
+        /// The directory refused.
+        path: std::path::PathBuf,
+        /// The whole sentence: which directory, whose it is, and the ways out.
+        message: String,
+    },
     /// The service carries another layout version of one of our types (a driftless of another
     /// release publishes it): the whole sentence, from [`super::wire_version_mismatch`].
     #[error("{0}")]
@@ -79,6 +89,13 @@ pub enum TransportError {
         /// iceoryx2's error.
         reason: String,
     },
+}
+
+impl TransportError {
+    /// Whether the user's configuration is at fault (the CLI's exit code 2), not the run.
+    pub fn is_configuration(&self) -> bool {
+        matches!(self, TransportError::Untrusted { .. })
+    }
 }
 
 pub(super) fn setup(what: &'static str, name: &str, e: impl Debug) -> TransportError {

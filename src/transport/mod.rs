@@ -19,6 +19,7 @@
 //! | `shm_space.rs` | room in `/dev/shm`: segments reserved whole, the SIGBUS guard |
 //! | `ros2/` | ROS 2 messages, and live topics over DDS (feature `ros2`) |
 //! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
+//! | `trust.rs` | the root directory checked before iceoryx2 uses it: none another user controls |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
 //!
 //! # Quality of service
@@ -40,6 +41,7 @@ mod permissions;
 mod ports;
 pub mod ros2;
 mod shm_space;
+mod trust;
 mod wake;
 mod wire;
 

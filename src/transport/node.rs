@@ -9,7 +9,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::attribute::{AttributeKey, AttributeValue};
 
 use super::cleanup::{remove_unsized_segments, restrict_global_segment};
-use super::config::{config, service_name, Qos};
+use super::config::{config, node_config, service_name, Qos};
 use super::discovery::{holder, NodeHolder};
 use super::error::{setup, TransportError};
 use super::ports::{Input, Output};
@@ -35,8 +35,11 @@ pub struct Transport {
 impl Transport {
     /// Create a node named `node_name` under `prefix`. Creating a node also removes the
     /// resources of dead nodes (a daemon killed with SIGKILL) of the same prefix.
+    ///
+    /// Refused with [`TransportError::Untrusted`], before anything is created, when another
+    /// user controls iceoryx2's root directory (see `trust.rs`).
     pub fn new(prefix: &str, node_name: &str, qos: Qos) -> Result<Self, TransportError> {
-        let cfg = config(prefix)?;
+        let cfg = node_config(prefix)?;
         install_sigbus_guard();
         remove_unsized_segments(prefix);
         note_existing(prefix);

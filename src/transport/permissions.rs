@@ -4,21 +4,16 @@
 use super::config::{root, ROOT_ENV};
 
 /// A user's name and id, as `name (uid N)`, or `uid N` when it has no name.
-fn who(uid: u32) -> String {
+pub(super) fn who(uid: u32) -> String {
     match user_name(uid) {
         Some(n) => format!("{n} (uid {uid})"),
         None => format!("uid {uid}"),
     }
 }
 
-/// `belongs to NAME (uid N), mode 0750`.
-fn owner_and_mode(m: &std::fs::Metadata) -> String {
-    use std::os::unix::fs::MetadataExt;
-    format!(
-        "belongs to {}, mode {:04o}",
-        who(m.uid()),
-        m.mode() & 0o7777
-    )
+/// `belongs to NAME (uid N), mode 0750`, of a file whose owner is `uid` and mode `mode`.
+pub(super) fn owner_and_mode(uid: u32, mode: u32) -> String {
+    format!("belongs to {}, mode {:04o}", who(uid), mode & 0o7777)
 }
 
 /// The first of iceoryx2's directories (root, nodes, services) that belongs to another user
@@ -37,7 +32,7 @@ pub(super) fn foreign_directory() -> Option<String> {
                 return Some(format!(
                     "iceoryx2's directory {} {}",
                     dir.display(),
-                    owner_and_mode(&m)
+                    owner_and_mode(m.uid(), m.mode())
                 ));
             }
             Ok(_) => {}
@@ -49,7 +44,7 @@ pub(super) fn foreign_directory() -> Option<String> {
                         "iceoryx2 cannot create {}: {} {}",
                         dir.display(),
                         parent.display(),
-                        owner_and_mode(&m)
+                        owner_and_mode(m.uid(), m.mode())
                     )
                 });
             }

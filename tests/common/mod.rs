@@ -70,6 +70,17 @@ pub fn driftless(args: &[&str]) -> std::process::Output {
         .expect("the binary runs")
 }
 
+/// `driftless ARGS` to its end, or a failure after `limit` (a hang).
+pub fn run_within(args: &[&str], limit: Duration) -> (Option<i32>, String) {
+    let child = Command::new(bin())
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("driftless runs");
+    finish(child, limit)
+}
+
 /// A run's stdout and stderr as text.
 pub fn text(o: &std::process::Output) -> (String, String) {
     (
@@ -383,6 +394,28 @@ pub const ICEORYX2_ROOT: &str = "/tmp/iceoryx2";
 /// failed, and returns false. Making the namespace needs root (CI runs as root); without it,
 /// says so in one line and returns false.
 pub fn in_private_shm(test: &str, shm_size: &str) -> bool {
+    in_private_mounts(
+        test,
+        &format!(
+            "mount -t tmpfs -o size={shm_size},mode=1777 tmpfs /dev/shm && mkdir -p {ICEORYX2_ROOT} \
+             && mount -t tmpfs tmpfs {ICEORYX2_ROOT}"
+        ),
+    )
+}
+
+/// [`in_private_shm`] with a private `/tmp` instead of a private iceoryx2 root: a tmpfs of mode
+/// 1777 on each of `/dev/shm` and `/tmp`, where `/tmp/iceoryx2` is not there yet and the test
+/// may make it anything (another user's, a link).
+pub fn in_private_tmp(test: &str) -> bool {
+    in_private_mounts(
+        test,
+        "mount -t tmpfs -o size=64m,mode=1777 tmpfs /dev/shm && \
+         mount -t tmpfs -o size=64m,mode=1777 tmpfs /tmp",
+    )
+}
+
+/// Run `test` again in a private mount namespace after the shell commands `mounts`.
+fn in_private_mounts(test: &str, mounts: &str) -> bool {
     if std::env::var_os(IN_NAMESPACE).is_some() {
         return true;
     }
@@ -391,10 +424,7 @@ pub fn in_private_shm(test: &str, shm_size: &str) -> bool {
         eprintln!("{test}: skipped: a private mount namespace needs root");
         return false;
     }
-    let script = format!(
-        "mount -t tmpfs -o size={shm_size},mode=1777 tmpfs /dev/shm && mkdir -p {ICEORYX2_ROOT} && \
-         mount -t tmpfs tmpfs {ICEORYX2_ROOT} && exec \"$0\" \"$@\""
-    );
+    let script = format!("{mounts} && exec \"$0\" \"$@\"");
     let exe = std::env::current_exe().expect("this test binary");
     let out = Command::new("unshare")
         .args(["-m", "--propagation", "private", "sh", "-c", &script])
