@@ -769,6 +769,21 @@ mod tests {
         }
         assert!(text.contains("denoise"), "{text}");
         assert!(
+            !text.contains("warm start"),
+            "no state-keeping stage: {text}"
+        );
+        s.warm_start = crate::transport::WARM_START_UNUSABLE;
+        s.stamp_faults = 3;
+        let text = format_snapshot("demo", &s);
+        assert!(
+            text.contains("\nwarm start: cold, the saved state unusable (moved aside)\n"),
+            "{text}"
+        );
+        assert!(text.contains("flagged 1000 (3 stamp faults);"), "{text}");
+        for line in text.lines() {
+            assert!(line.len() <= 80, "{} columns: {line:?}", line.len());
+        }
+        assert!(
             text.contains("\nmisses: 12345 (12000 the kernel's, 345 UNEXPLAINED)\n"),
             "{text}"
         );
