@@ -157,8 +157,8 @@ fn parse_wavelet(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputErr
         }
         v => v.map(Spanned::into_inner),
     };
-    let beta = t.positive(&BETA, "beta")?;
-    let kappa = t.positive(&KAPPA, "kappa")?;
+    let beta = t.positive(&BETA)?;
+    let kappa = t.positive(&KAPPA)?;
     let window = t.int(&WINDOW)?.unwrap_or(StreamConfig::DEFAULT_WINDOW);
     let filter_len = crate::wavelet::Wavelet::by_name(&wavelet)
         .map(|w| w.filter_len())

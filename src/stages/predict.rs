@@ -183,7 +183,7 @@ fn parse_rbf(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> 
         .iter_mut()
         .zip([&VAR_ENTER, &VAR_EXIT, &MEAN_ENTER, &MEAN_EXIT])
     {
-        *slot = t.positive(key, "stillness threshold")?;
+        *slot = t.positive(key)?;
     }
     let (src, cx) = (t.src, t.cx);
     let axes = cx.axes;

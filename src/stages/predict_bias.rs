@@ -229,7 +229,7 @@ impl StopConfig {
 fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let src = t.src;
     let profile = t.choice(&PROFILE, "profile", false)?;
-    let arw = t.positive(&ARW, "arw")?;
+    let arw = t.positive(&ARW)?;
     let non_negative = |t: &mut StageTable<'_, '_>, key: &Key| -> Result<Option<f64>, InputError> {
         match t.get::<f64>(key)? {
             Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => Err(src.span(
@@ -243,7 +243,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let k = non_negative(t, &RRW)?;
     let q = non_negative(t, &QUANTIZATION)?;
     let lsb = non_negative(t, &LSB)?;
-    let initial_sd = t.positive(&INITIAL_SD, "initial_sd")?;
+    let initial_sd = t.positive(&INITIAL_SD)?;
     let delay_s = match t.get::<f64>(&DELAY_S)? {
         Some(v) => Some(src.float_in(&v, "delay_s", 0.0, 60.0)?),
         None => None,
@@ -303,8 +303,8 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             }
         }
     }
-    let walk_min = t.positive(&WALK_MIN, "walk_min")?;
-    let walk_max = t.positive(&WALK_MAX, "walk_max")?;
+    let walk_min = t.positive(&WALK_MIN)?;
+    let walk_max = t.positive(&WALK_MAX)?;
     if walk_min.is_some() || walk_max.is_some() {
         let configured = BiasModel::new(&terms, t.cx.rate_hz, Instability::from_terms(&terms))
             .map(|m| m.walk_per_s(t.cx.rate_hz))
@@ -340,9 +340,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let state = match t.get::<String>(&STATE_FILE)? {
         Some(file) => {
             let path = src.resolve(file.get_ref());
-            let every_s = t
-                .positive(&STATE_EVERY_S, "state_every_s")?
-                .unwrap_or(DEFAULT_STATE_EVERY_S);
+            let every_s = t.positive(&STATE_EVERY_S)?.unwrap_or(DEFAULT_STATE_EVERY_S);
             let required = t
                 .get::<bool>(&STATE_REQUIRED)?
                 .is_some_and(toml::Spanned::into_inner);

@@ -80,7 +80,7 @@ impl Replay {
         let pace = read_pace(t, &PACE)?;
         let looped = t.get::<bool>(&LOOP)?.is_some_and(toml::Spanned::into_inner);
         let start_delay = t
-            .positive(&START_DELAY_S, "start_delay_s")?
+            .positive(&START_DELAY_S)?
             .map_or(Duration::ZERO, Duration::from_secs_f64);
         Ok(Replay {
             pace,

@@ -340,13 +340,13 @@ impl<'a, 'i> StageTable<'a, 'i> {
             .transpose()
     }
 
-    /// A float of a [`Type::Positive`] key, checked (named `what` in the message).
-    pub fn positive(&mut self, key: &Key, what: &str) -> Result<Option<f64>, InputError> {
+    /// A float of a [`Type::Positive`] key, checked (named by the key in the message).
+    pub fn positive(&mut self, key: &Key) -> Result<Option<f64>, InputError> {
         let Type::Positive(max) = key.ty else {
             unreachable!("{} is not declared Type::Positive", key.name)
         };
         self.get::<f64>(key)?
-            .map(|v| self.src.positive(&v, what, max))
+            .map(|v| self.src.positive(&v, key.name, max))
             .transpose()
     }
 

@@ -44,8 +44,8 @@ impl StopRule {
         t: &mut StageTable<'_, '_>,
         default_speed: Option<f64>,
     ) -> Result<(StopRule, Option<&'static str>), InputError> {
-        let speed = t.positive(&STOP_SPEED, STOP_SPEED.name)?;
-        let age = t.positive(&STOP_MAX_AGE_S, STOP_MAX_AGE_S.name)?;
+        let speed = t.positive(&STOP_SPEED)?;
+        let age = t.positive(&STOP_MAX_AGE_S)?;
         let rule = StopRule {
             speed_m_s: speed.or(default_speed),
             max_age_ns: (age.unwrap_or(DEFAULT_MAX_AGE_S) * 1e9) as u64,
