@@ -216,9 +216,6 @@ pub struct Counters {
     pub missing: AtomicU64,
     /// Stamps not believed ([`crate::clock::StampCheck`]).
     pub stamp_faults: AtomicU64,
-    /// How the state-keeping stage started ([`crate::transport::WARM_START_NONE`] and its
-    /// siblings; set once before the segments start).
-    pub warm_start: AtomicU64,
     /// Outputs repaired by the publish guard.
     pub repaired: AtomicU64,
     /// The stream's first epoch (set once before the segments start).
@@ -251,6 +248,9 @@ pub struct Layout {
     /// How the stages that keep state across runs started, one line each after the stage's
     /// name (`predict: cold: ...`), for the report.
     pub warm_start: Vec<String>,
+    /// The worst of their outcomes, for the stats ([`crate::transport::WARM_START_NONE`] and
+    /// its siblings).
+    pub warm_start_outcome: u64,
 }
 
 mod report;
@@ -516,7 +516,7 @@ impl Reporter {
                 .and_then(|(_, _, off)| off)
                 .unwrap_or(OFF_CPU_NOT_MEASURED),
             stamp_faults: f.stamp_faults,
-            warm_start: get(&c.warm_start),
+            warm_start: self.layout.warm_start_outcome,
         }
     }
 
@@ -543,7 +543,7 @@ impl Reporter {
             epoch: get(&c.epoch) as u32,
             source_restarts: get(&c.restarts),
             flagged: self.flagged(),
-            warm_start_outcome: get(&c.warm_start),
+            warm_start_outcome: self.layout.warm_start_outcome,
             outputs: Outputs::from_counts(c.outputs.each_ref().map(get)),
             end_to_end_ns: Pct::of(&self.e2e),
             woken_late_ns: (!self.late.is_empty()).then(|| Pct::of(&self.late)),
@@ -839,6 +839,7 @@ mod tests {
             interval: Duration::from_secs(60),
             print: false,
             warm_start: Vec::new(),
+            warm_start_outcome: crate::transport::WARM_START_NONE,
         };
         Reporter::new(layout, Arc::default(), Vec::new())
     }

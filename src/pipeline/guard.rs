@@ -1,8 +1,8 @@
 //! The input guard between the ingest and the first processing stage: units to rad/s, and the
 //! checks on every raw sample (non-finite or driver-invalid values, sequence gaps, stamps that
 //! cannot be believed: [`StampCheck`]). A stamp fault is flagged and counted on its own, never
-//! as a loss; only the sequence proves a loss. A bad value is replaced by the last good one, flagged and counted: no NaN
-//! or Inf ever enters a stage. It also keeps the stream's epoch ([`GyroSample::epoch`]): a
+//! as a loss; only the sequence proves a loss. A bad value is replaced by the last good one,
+//! flagged and counted: no NaN or Inf ever enters a stage. It also keeps the stream's epoch ([`GyroSample::epoch`]): a
 //! source restart starts a new epoch instead of counting as a gap, so that within an epoch
 //! `seq` always rises. A driver whose `seq` repeats or steps back (not to 0) also starts a new
 //! epoch, and that sample is flagged and counted as a gap: subscribers count on the rise.

@@ -343,14 +343,15 @@ impl<'a> Running<'a> {
                 .filter(|(_, w)| *w != WarmStart::NotConfigured)
                 .map(|(stage, w)| format!("{stage}: {w}"))
                 .collect(),
+            // The stats carry one outcome: the worst of the stages' (a second state-keeping
+            // stage is rare; its line is in the report).
+            warm_start_outcome: r
+                .warm_starts
+                .iter()
+                .map(|(_, w)| w.code())
+                .max()
+                .unwrap_or(crate::transport::WARM_START_NONE),
         };
-        // The stats carry one outcome: the worst of the stages' (a second state-keeping
-        // stage is rare; its line is in the report).
-        let outcome = r.warm_starts.iter().map(|(_, w)| w.code()).max();
-        counters.warm_start.store(
-            outcome.unwrap_or(crate::transport::WARM_START_NONE),
-            Ordering::Relaxed,
-        );
         r.stats = Some(Stats {
             reporter: Reporter::new(layout, counters, lost),
             rx,
