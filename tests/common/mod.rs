@@ -407,10 +407,27 @@ pub fn in_private_shm(test: &str, shm_size: &str) -> bool {
 /// 1777 on each of `/dev/shm` and `/tmp`, where `/tmp/iceoryx2` is not there yet and the test
 /// may make it anything (another user's, a link).
 pub fn in_private_tmp(test: &str) -> bool {
+    // A checkout or test binary under /tmp (a CI clone in a mktemp directory) is bound back
+    // into the private /tmp, reached through the shell's cwd in the old one.
+    let exe = std::env::current_exe().expect("this test binary");
+    let mut keep: Vec<String> = [Path::new(env!("CARGO_MANIFEST_DIR")), exe.as_path()]
+        .iter()
+        .filter_map(|p| p.strip_prefix("/tmp").ok()?.components().next())
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    keep.dedup();
+    let binds: String = keep
+        .iter()
+        .map(|d| {
+            format!(" && mkdir -p '/tmp/{d}' && mount --no-canonicalize --bind './{d}' '/tmp/{d}'")
+        })
+        .collect();
     in_private_mounts(
         test,
-        "mount -t tmpfs -o size=64m,mode=1777 tmpfs /dev/shm && \
-         mount -t tmpfs -o size=64m,mode=1777 tmpfs /tmp",
+        &format!(
+            "cd /tmp && mount -t tmpfs -o size=64m,mode=1777 tmpfs /dev/shm && \
+             mount -t tmpfs -o size=64m,mode=1777 tmpfs /tmp{binds}"
+        ),
     )
 }
 
