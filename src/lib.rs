@@ -26,6 +26,7 @@ pub mod metrics;
 pub mod nav;
 pub mod pipeline;
 pub mod quality;
+pub mod sides;
 pub mod sim;
 pub mod stages;
 pub mod synthetic;

@@ -23,8 +23,9 @@ const LAYERS: &[(&str, u32)] = &[
     ("io", 5),
     ("metrics", 6),
     ("stages", 7),
-    ("pipeline", 8),
-    ("cli", 9),
+    ("sides", 8),
+    ("pipeline", 9),
+    ("cli", 10),
 ];
 
 /// The maths: pure computation, usable as a library without a daemon.
@@ -239,6 +240,52 @@ fn only_transport_touches_iceoryx2_and_only_the_bridge_zenoh_and_only_dds_ros2_c
             }
         }
     }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// A side runs beside the chain and reaches it only through its services: it never names what
+/// runs on the hot thread (a `Stage`, a `Source`, the runtime, the metrics' records), and the
+/// runtime starts it in `runtime/sides.rs` alone, on a thread of its own.
+#[test]
+fn a_side_reaches_the_chain_only_through_services_and_never_runs_on_the_hot_thread() {
+    let hot = [
+        "crate::pipeline",
+        "crate::metrics",
+        "Stage,",
+        "Stage}",
+        "Source",
+        "dyn Stage",
+    ];
+    let mut wrong = Vec::new();
+    for (path, text) in files() {
+        let r = rel(&path);
+        // The hot thread's files: the group that serves the pipelines, the chains it runs.
+        let hot_thread = [
+            "src/pipeline/runtime/group.rs",
+            "src/pipeline/runtime/chain.rs",
+        ];
+        for (n, line) in code(&text) {
+            if r.starts_with("src/sides/") {
+                if let Some(word) = hot.iter().find(|w| line.contains(*w)) {
+                    wrong.push(format!("{r}:{n}: a side names `{word}`: {}", line.trim()));
+                }
+            }
+            let names_a_side = ["crate::sides", "sides::", "SideSpec", "Sides"];
+            if hot_thread.contains(&r.as_str()) && names_a_side.iter().any(|w| line.contains(w)) {
+                wrong.push(format!(
+                    "{r}:{n}: the hot thread names a side: {}",
+                    line.trim()
+                ));
+            }
+        }
+    }
+    let sides = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/pipeline/runtime/sides.rs");
+    let sides = std::fs::read_to_string(sides).unwrap();
+    let (spawn, run) = (sides.find(".spawn(move ||"), sides.find("side.run("));
+    assert!(
+        matches!((spawn, run), (Some(s), Some(r)) if s < r),
+        "runtime/sides.rs runs a side inside the thread it spawns for it"
+    );
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 

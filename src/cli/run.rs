@@ -106,10 +106,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    // A ROS 2 side needs a valid domain: bad configuration, refused before anything starts.
-    #[cfg(feature = "ros2")]
-    if loaded.iter().any(|(p, _)| p.ros2.is_some()) {
-        crate::transport::ros2::domain_id().map_err(CliError::input)?;
+    // What a side needs of its environment is configuration: refused before anything starts.
+    for (p, _) in &loaded {
+        for spec in &p.sides {
+            spec.side.check_environment().map_err(CliError::input)?;
+        }
     }
     let stop = crate::cli::signals::stop_flag();
     if stop.load(std::sync::atomic::Ordering::SeqCst) {

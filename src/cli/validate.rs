@@ -9,7 +9,6 @@ use crate::cli::CliError;
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::runtime;
 use crate::stages::contract::{Kind, Role};
-use crate::transport::ros2::Direction;
 
 /// Arguments of `driftless validate`.
 #[derive(Debug, clap::Args)]
@@ -73,24 +72,15 @@ fn describe(p: &Pipeline) {
         }
     }
     println!("  stats on {}", p.iceoryx2.stats_service);
-    if let Some(r) = &p.ros2 {
-        let noise = r.rate_noise.map_or("covariance unknown".into(), |n| {
-            format!("rate noise {n:.4} deg/s")
-        });
+    for spec in &p.sides {
+        let mut lines = spec.side.describe().into_iter();
         println!(
-            "  ros2: node {}{} on ROS_DOMAIN_ID's domain, depth {}, frame_id {}, {noise}",
-            r.namespace.trim_end_matches('/').to_string() + "/",
-            r.node,
-            r.depth,
-            r.frame_text()
+            "  {}: {}",
+            spec.kind.table,
+            lines.next().unwrap_or_default()
         );
-        for t in r.topics() {
-            let (topic, ty, service) = (t.topic, t.ty, t.service);
-            match t.direction {
-                Direction::In => println!("    in     {topic} ({ty}) -> {service}"),
-                Direction::Out => println!("    out    {service} -> {topic} ({ty})"),
-                Direction::Stop => println!("    motion {topic} ({ty}) -> {service}"),
-            }
+        for line in lines {
+            println!("  {line}");
         }
     }
 }

@@ -38,15 +38,16 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
-use serde::Deserialize;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 use crate::io::InputError;
 use crate::pipeline::registry::{self, Entry};
-use crate::stages::contract::{Kind, Params, Role};
-use crate::stages::schema::Src;
+use crate::sides::{Chain, SideSpec, SIDES};
+use crate::stages::contract::Role;
+pub use crate::stages::contract::StageSpec;
 pub use crate::stages::schema::{Context, Units};
+use crate::stages::schema::{Key, Src, StageTable, Type};
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,29 +91,12 @@ pub struct Pipeline {
     pub prewarm: Duration,
     /// iceoryx2 settings.
     pub iceoryx2: Iceoryx2Settings,
-    /// Live ROS 2 topics in and out (`[ros2]`), if any.
-    pub ros2: Option<Ros2Settings>,
+    /// What runs beside the chain (`[ros2]`...), in the order of the file.
+    pub sides: Vec<SideSpec>,
     /// Lines worth a warning that do not stop the pipeline (`validate` and `run` print them).
     pub warnings: Vec<String>,
     /// The stages, in chain order.
     pub stages: Vec<StageSpec>,
-}
-
-pub use crate::transport::ros2::Ros2Settings;
-
-/// One stage of a pipeline.
-#[derive(Debug, Clone)]
-pub struct StageSpec {
-    /// Unique name in the pipeline.
-    pub name: String,
-    /// Input service (None for the simulator and CSV ingest).
-    pub input: Option<String>,
-    /// Output service.
-    pub output: String,
-    /// The kind ([`registry::KINDS`]).
-    pub kind: &'static Kind,
-    /// Its validated parameters, as the kind's parse function made them.
-    pub params: Arc<dyn Params>,
 }
 
 impl Pipeline {
@@ -127,33 +111,164 @@ impl Pipeline {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Raw (serde) shapes of the pipeline-wide tables: deny unknown keys; spans on everything checked
-// afterwards. Each stage kind reads its own table (see `crate::stages`).
+// The pipeline's own keys, declared like a stage kind's: the same declarations check the file,
+// and `validate --kinds` and the generated reference list them.
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawTop {
-    name: Spanned<String>,
-    rate_hz: Spanned<f64>,
-    deadline_us: Option<Spanned<f64>>,
-    axes: Option<Spanned<i64>>,
-    input_units: Option<Spanned<String>>,
-    report_interval_s: Option<Spanned<f64>>,
-    realtime_priority: Option<Spanned<i64>>,
-    cpu: Option<Spanned<i64>>,
-    prewarm_us: Option<Spanned<f64>>,
-    iceoryx2: Option<RawIox>,
-    ros2: Option<Spanned<crate::pipeline::ros2_table::RawRos2>>,
+const NAME: Key = Key {
+    name: "name",
+    ty: Type::Str("`[A-Za-z0-9_-]+`"),
+    default: "required",
+    doc: "pipeline name; the daemon's node is `driftless-<name>`",
+};
+const RATE_HZ: Key = Key {
+    name: "rate_hz",
+    ty: Type::Positive(1e6),
+    default: "required",
+    doc: "sample rate of the ingest",
+};
+const DEADLINE_US: Key = Key {
+    name: "deadline_us",
+    ty: Type::Positive(1e9),
+    default: "one period (at the ingest's `pace`)",
+    doc: "end-to-end deadline counted in `deadline_misses`",
+};
+const AXES: Key = Key {
+    name: "axes",
+    ty: Type::Int(1, 3),
+    default: "3",
+    doc: "axes processed; unused axes are 0",
+};
+const INPUT_UNITS: Key = Key {
+    name: "input_units",
+    ty: Type::Choice(&["deg/s", "rad/s"]),
+    default: "\"deg/s\"",
+    doc: "units of the raw rates; published rates are rad/s",
+};
+const REPORT_INTERVAL_S: Key = Key {
+    name: "report_interval_s",
+    ty: Type::Float("0.01..=3600"),
+    default: "2",
+    doc: "period of the stderr line and of the stats service",
+};
+const REALTIME_PRIORITY: Key = Key {
+    name: "realtime_priority",
+    ty: Type::Int(1, 99),
+    default: "none",
+    doc: "SCHED_FIFO priority of the hot thread (docs/pipelines.md, Scheduling)",
+};
+const CPU: Key = Key {
+    name: "cpu",
+    ty: Type::Int(0, 1023),
+    default: "none",
+    doc: "pin the hot thread to this CPU",
+};
+const PREWARM_US: Key = Key {
+    name: "prewarm_us",
+    ty: Type::Float("0..=half a period"),
+    default: "0 (off)",
+    doc: "wake this long before each paced sample to warm the cache (docs/pipelines.md, \
+          Scheduling)",
+};
+
+/// The pipeline file's top-level keys, in the order listed.
+pub const PIPELINE_KEYS: &[Key] = &[
+    NAME,
+    RATE_HZ,
+    DEADLINE_US,
+    AXES,
+    INPUT_UNITS,
+    REPORT_INTERVAL_S,
+    REALTIME_PRIORITY,
+    CPU,
+    PREWARM_US,
+];
+
+const PREFIX: Key = Key {
+    name: "prefix",
+    ty: Type::Str("letters, digits, `-`, `.`, ending in its only `_`"),
+    default: "`driftless_`",
+    doc: "prefix of the iceoryx2 files (docs/operations.md); `--prefix` or \
+          `DRIFTLESS_IOX2_PREFIX` override it",
+};
+const ROOT_PATH: Key = Key {
+    name: "root_path",
+    ty: Type::Str("an absolute path"),
+    default: "`/tmp/iceoryx2`",
+    doc: "iceoryx2's directory of node and service files; `--root-path` or \
+          `DRIFTLESS_IOX2_ROOT` override it",
+};
+const BUFFER_SIZE: Key = Key {
+    name: "buffer_size",
+    ty: Type::Int(1, 65_536),
+    default: "256",
+    doc: "samples a subscriber may hold unread before it loses new ones",
+};
+const MAX_SUBSCRIBERS: Key = Key {
+    name: "max_subscribers",
+    ty: Type::Int(1, 64),
+    default: "8",
+    doc: "subscribers per service (all for other processes: the daemon reads none of its own)",
+};
+const STATS_SERVICE: Key = Key {
+    name: "stats_service",
+    ty: Type::Str("a service name"),
+    default: "`<name>/stats`",
+    doc: "where the statistics snapshot is published",
+};
+
+/// The `[iceoryx2]` table's keys, in the order listed.
+pub const ICEORYX2_KEYS: &[Key] = &[
+    PREFIX,
+    ROOT_PATH,
+    BUFFER_SIZE,
+    MAX_SUBSCRIBERS,
+    STATS_SERVICE,
+];
+
+/// The top-level tables that are the pipeline's own (the sides' tables and `[[stage]]` aside).
+const ICEORYX2_TABLE: &str = "iceoryx2";
+
+/// Split a table's entries by the keys declared for it: an undeclared key is an error at its
+/// position that lists the valid ones.
+fn split<'i>(
+    src: &Src<'_>,
+    table: DeTable<'i>,
+    valid: &[&'static str],
+) -> Result<Vec<(&'static str, Spanned<DeValue<'i>>)>, InputError> {
+    let mut out = Vec::new();
+    let mut strays: Vec<(String, usize)> = Vec::new();
+    for (k, v) in table {
+        match valid.iter().find(|n| **n == k.get_ref().as_ref()) {
+            Some(&n) => out.push((n, v)),
+            None => strays.push((k.get_ref().to_string(), k.span().start)),
+        }
+    }
+    match strays.iter().min_by_key(|(_, at)| *at) {
+        Some((key, at)) => {
+            let listed: Vec<String> = valid.iter().map(|k| format!("`{k}`")).collect();
+            Err(src.at(
+                *at,
+                format!(
+                    "unknown field `{key}`, expected one of {}",
+                    listed.join(", ")
+                ),
+            ))
+        }
+        None => Ok(out),
+    }
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawIox {
-    prefix: Option<Spanned<String>>,
-    root_path: Option<Spanned<String>>,
-    buffer_size: Option<Spanned<i64>>,
-    max_subscribers: Option<Spanned<i64>>,
-    stats_service: Option<Spanned<String>>,
+/// A table value as its entries, or an error at it.
+fn table<'i>(
+    src: &Src<'_>,
+    key: &str,
+    value: Spanned<DeValue<'i>>,
+) -> Result<(usize, DeTable<'i>), InputError> {
+    let at = value.span().start;
+    match value.into_inner() {
+        DeValue::Table(t) => Ok((at, t)),
+        _ => Err(src.at(at, format!("`{key}` must be a table ([{key}])"))),
+    }
 }
 
 /// Read and validate a pipeline file: everything `run` needs is checked here, nothing started.
@@ -181,102 +296,103 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     let doc_span = doc.span();
     let mut top = DeTable::new();
     let mut stage_values: Option<Spanned<DeValue<'_>>> = None;
+    let mut iox = DeTable::new();
+    let mut iox_at = doc_span.start;
+    let mut side_tables = Vec::new();
     for (k, v) in doc.into_inner() {
-        if k.get_ref() == "stage" {
+        let key = k.get_ref().as_ref();
+        if key == "stage" {
             stage_values = Some(v);
+        } else if key == ICEORYX2_TABLE {
+            (iox_at, iox) = table(&src, key, v)?;
+        } else if let Some(kind) = SIDES.iter().find(|s| s.table == key) {
+            side_tables.push((*kind, table(&src, key, v)?));
         } else {
             top.insert(k, v);
         }
     }
-    let raw: RawTop = src.de(Spanned::new(doc_span.clone(), DeValue::Table(top)))?;
-
-    let name = raw.name.get_ref().clone();
-    if name.is_empty()
+    let valid: Vec<&'static str> = PIPELINE_KEYS
+        .iter()
+        .map(|k| k.name)
+        .chain([ICEORYX2_TABLE])
+        .chain(SIDES.iter().map(|s| s.table))
+        .collect();
+    // Until the chain is read, the context is unknown: the pipeline's own readers need none.
+    let unknown = Context {
+        rate_hz: f64::NAN,
+        axes: 0,
+        units: Units::DegPerSec,
+    };
+    let top = split(&src, top, &valid)?;
+    let mut t = StageTable::new(
+        &src,
+        unknown,
+        doc_span.start,
+        doc_span.start,
+        None,
+        ("", ""),
+        top,
+    );
+    let name = t.required_str(&NAME)?;
+    let rate = t.get::<f64>(&RATE_HZ)?;
+    let rate = rate.ok_or_else(|| t.error("missing field `rate_hz`"))?;
+    if name.get_ref().is_empty()
         || !name
+            .get_ref()
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
     {
         return Err(src.span(
-            &raw.name,
+            &name,
             "name must be non-empty ASCII letters, digits, '-' or '_'",
         ));
     }
-    let rate_hz = src.positive(&raw.rate_hz, "rate_hz", 1e6)?;
-    let deadline_us = match &raw.deadline_us {
-        Some(d) => Some(src.positive(d, "deadline_us", 1e9)?),
-        None => None,
+    let name = name.into_inner();
+    let rate_hz = src.positive(&rate, "rate_hz", 1e6)?;
+    let deadline_us = t.positive(&DEADLINE_US)?;
+    let axes = t.int(&AXES)?.unwrap_or(3);
+    let input_units = match t.choice(&INPUT_UNITS, "input_units", true)?.as_deref() {
+        Some("rad/s") => Units::RadPerSec,
+        _ => Units::DegPerSec,
     };
-    let axes = match &raw.axes {
-        Some(a) => src.int_in(a, "axes", 1, 3)?,
-        None => 3,
-    };
-    let input_units = match &raw.input_units {
-        None => Units::DegPerSec,
-        Some(u) => match u.get_ref().as_str() {
-            "deg/s" => Units::DegPerSec,
-            "rad/s" => Units::RadPerSec,
-            other => {
-                return Err(src.span(
-                    u,
-                    format!("unknown input_units {other:?} (valid: \"deg/s\", \"rad/s\")"),
-                ))
-            }
-        },
-    };
-    let report_interval = match &raw.report_interval_s {
+    let report_interval = match t.get::<f64>(&REPORT_INTERVAL_S)? {
         // A report line is for people: more often than every 10 ms is a mistake, not a need.
-        Some(r) => Duration::from_secs_f64(src.float_in(r, "report_interval_s", 0.01, 3600.0)?),
+        Some(r) => Duration::from_secs_f64(src.float_in(&r, "report_interval_s", 0.01, 3600.0)?),
         None => Duration::from_secs(2),
     };
-    let realtime_priority = match &raw.realtime_priority {
-        Some(p) => Some(src.int_in(p, "realtime_priority", 1, 99)? as i32),
-        None => None,
-    };
-    let cpu = match &raw.cpu {
-        Some(c) => Some(src.int_in(c, "cpu", 0, 1023)?),
-        None => None,
-    };
-    let prewarm = match &raw.prewarm_us {
+    let realtime_priority = t.int(&REALTIME_PRIORITY)?.map(|p| p as i32);
+    let cpu = t.int(&CPU)?;
+    let prewarm = match t.get::<f64>(&PREWARM_US)? {
         // Waking a whole period early would be waking for the sample before.
         Some(w) => {
-            Duration::from_secs_f64(src.float_in(w, "prewarm_us", 0.0, 0.5e6 / rate_hz)? * 1e-6)
+            Duration::from_secs_f64(src.float_in(&w, "prewarm_us", 0.0, 0.5e6 / rate_hz)? * 1e-6)
         }
         None => Duration::ZERO,
     };
-    let iox = raw.iceoryx2.unwrap_or(RawIox {
-        prefix: None,
-        root_path: None,
-        buffer_size: None,
-        max_subscribers: None,
-        stats_service: None,
-    });
-    let prefix = match &iox.prefix {
+    let valid: Vec<&'static str> = ICEORYX2_KEYS.iter().map(|k| k.name).collect();
+    let iox = split(&src, iox, &valid)?;
+    let mut t = StageTable::new(&src, unknown, iox_at, iox_at, None, (&name, ""), iox);
+    let prefix = match t.get::<String>(&PREFIX)? {
         Some(p) => {
             crate::transport::check_prefix(p.get_ref())
-                .map_err(|e| src.span(p, format!("invalid prefix: {e}")))?;
-            p.get_ref().clone()
+                .map_err(|e| src.span(&p, format!("invalid prefix: {e}")))?;
+            p.into_inner()
         }
         None => crate::transport::DEFAULT_PREFIX.to_string(),
     };
-    let root_path = match &iox.root_path {
+    let root_path = match t.get::<String>(&ROOT_PATH)? {
         Some(r) => {
             let path = PathBuf::from(r.get_ref());
             crate::transport::check_root(&path)
-                .map_err(|e| src.span(r, format!("invalid root_path: {e}")))?;
+                .map_err(|e| src.span(&r, format!("invalid root_path: {e}")))?;
             Some(path)
         }
         None => None,
     };
-    let buffer_size = match &iox.buffer_size {
-        Some(b) => src.int_in(b, "buffer_size", 1, 65_536)?,
-        None => 256,
-    };
-    let max_subscribers = match &iox.max_subscribers {
-        Some(m) => src.int_in(m, "max_subscribers", 1, 64)?,
-        None => 8,
-    };
-    let stats_service = match &iox.stats_service {
-        Some(s) => src.service(s)?,
+    let buffer_size = t.int(&BUFFER_SIZE)?.unwrap_or(256);
+    let max_subscribers = t.int(&MAX_SUBSCRIBERS)?.unwrap_or(8);
+    let stats_service = match t.get::<String>(&STATS_SERVICE)? {
+        Some(s) => src.service(&s)?,
         None => format!("{name}/stats"),
     };
 
@@ -326,17 +442,22 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
                 .map(move |w| format!("stage {name:?}: {w}"))
         }))
         .collect();
-    let ros2 = match raw.ros2 {
-        Some(r) => Some(crate::pipeline::ros2_table::ros2_settings(
-            &src,
-            &name,
-            input_units,
-            rate_hz,
-            &stages,
-            r,
-        )?),
-        None => None,
+    let chain = Chain {
+        pipeline: &name,
+        cx,
+        stages: &stages,
     };
+    let mut sides = Vec::new();
+    for (kind, (at, table)) in side_tables {
+        let valid: Vec<&'static str> = kind.keys.iter().map(|k| k.name).collect();
+        let own = split(&src, table, &valid)?;
+        let mut t = StageTable::new(&src, cx, at, at, None, (&name, kind.table), own);
+        let side = (kind.read)(&mut t, &chain)?;
+        sides.push(SideSpec {
+            kind,
+            side: Arc::from(side),
+        });
+    }
     Ok(Pipeline {
         path: path.to_path_buf(),
         name,
@@ -355,7 +476,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
             max_subscribers,
             stats_service,
         },
-        ros2,
+        sides,
         warnings,
         stages,
     })

@@ -10,7 +10,6 @@ pub mod config;
 pub mod guard;
 pub mod offline;
 pub mod registry;
-mod ros2_table;
 pub mod runtime;
 
 pub use config::{Pipeline, StageSpec};

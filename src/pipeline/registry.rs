@@ -10,8 +10,7 @@ use toml::de::DeValue;
 use toml::Spanned;
 
 use crate::io::InputError;
-use crate::pipeline::config::StageSpec;
-use crate::stages::contract::{Kind, Params};
+use crate::stages::contract::{Kind, Params, StageSpec};
 use crate::stages::schema::{Context, Src, StageTable};
 pub use crate::stages::KINDS;
 

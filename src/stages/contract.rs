@@ -248,3 +248,18 @@ impl std::fmt::Debug for Kind {
         f.write_str(self.name)
     }
 }
+
+/// One stage of a pipeline, as its table was read and checked: what the runtime builds it from.
+#[derive(Debug, Clone)]
+pub struct StageSpec {
+    /// Unique name in the pipeline.
+    pub name: String,
+    /// Input service (None for the simulator and CSV ingest).
+    pub input: Option<String>,
+    /// Output service.
+    pub output: String,
+    /// The kind ([`crate::stages::KINDS`]).
+    pub kind: &'static Kind,
+    /// Its validated parameters, as the kind's parse function made them.
+    pub params: std::sync::Arc<dyn Params>,
+}

@@ -202,6 +202,10 @@ pub enum Type {
     StrList(&'static str),
     /// true or false.
     Bool,
+    /// A table of its own (its keys described).
+    Table(&'static str),
+    /// A list of tables (`[[...]]`, their keys described).
+    TableList(&'static str),
     /// One of these words, or a finite float in `(0, max]` (`f64::MAX`: no bound).
     WordOrPositive(&'static [&'static str], f64),
 }
@@ -219,6 +223,8 @@ impl Type {
             Type::Str(d) => format!("string ({d})"),
             Type::StrList(d) => format!("list of strings ({d})"),
             Type::Bool => "bool".into(),
+            Type::Table(d) => format!("table ({d})"),
+            Type::TableList(d) => format!("list of tables ({d})"),
             Type::WordOrPositive(words, max) => {
                 format!("{} | {}", quoted(words).join(" | "), positive(*max))
             }

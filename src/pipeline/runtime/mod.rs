@@ -39,15 +39,16 @@
 //! Files: this one starts and stops pipelines ([`run`], [`run_group`]); `chain.rs` is one
 //! chain's stages run in-thread (segments, their threads when a stage is external, flushing);
 //! `group.rs` is the hot thread that serves every pipeline of the daemon (waking, pacing,
-//! failing alone) and the checks that let pipelines share it.
+//! failing alone) and the checks that let pipelines share it; `sides.rs` starts and stops
+//! what runs beside the pipelines (`[ros2]`...), each on a thread of its own.
 
 mod chain;
 mod group;
-#[cfg(feature = "ros2")]
-mod ros2;
+mod sides;
 
 pub use chain::EXTERNAL_GRACE;
 pub use group::check_group;
+pub use sides::announcement_service;
 
 use group::{hot_settings, schedule_hot_thread, serve, spawn_reporter, Notified, Running};
 
@@ -215,9 +216,8 @@ pub fn run_group(
     {
         return abandon(group, e.into());
     }
-    // The ROS 2 sides on threads of their own, once the services they feed and read exist.
-    #[cfg(feature = "ros2")]
-    let ros2 = match ros2::Ros2Sides::start(members) {
+    // The sides on threads of their own, once the services they feed and read exist.
+    let sides = match sides::Sides::start(members) {
         Ok(sides) => sides,
         Err(e) => return abandon(group, e),
     };
@@ -225,8 +225,7 @@ pub fn run_group(
     let reporter = match spawn_reporter(stats) {
         Ok(h) => h,
         Err(e) => {
-            #[cfg(feature = "ros2")]
-            ros2.finish(false);
+            sides.finish(false);
             let e = RunError::Stage {
                 stage: "reporter".into(),
                 message: e.to_string(),
@@ -242,8 +241,7 @@ pub fn run_group(
         }
     }
     serve(&mut group, opts, prewarm_of(members), notified);
-    #[cfg(feature = "ros2")]
-    ros2.finish(true);
+    sides.finish(true);
     let finished: Vec<Result<Vec<String>, RunError>> =
         group.into_iter().map(Running::finish).collect();
     // Every sender is gone now: the reporting thread ends with the final reports.

@@ -1,0 +1,291 @@
+//! The `[ros2]` side: the daemon as a node of the ROS 2 graph (docs/ros2.md). A driver's
+//! `sensor_msgs/msg/Imu` topic feeds an `ingest.iceoryx2` stage's service, a stage's output
+//! goes out as an Imu topic, and a vehicle's motion topic feeds a `predict.bias` stage's
+//! `stop_input`. This file owns the table's keys and their check against the chain; the
+//! bridge itself is [`crate::transport::ros2`]'s (cargo feature `ros2`).
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::contract::{Chain, Kind, Ready, Side, Start};
+use crate::io::InputError;
+use crate::stages::contract::SideKind;
+use crate::stages::schema::{Key, StageTable, Type, Units};
+use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
+use crate::transport::ros2::{Direction, MotionKind, Ros2Settings, IMU_TYPE};
+
+const NODE: Key = Key {
+    name: "node",
+    ty: Type::Str("a ROS 2 node name"),
+    default: "`driftless_<pipeline>`",
+    doc: "the node's name (a `-` in the pipeline's name becomes `_`)",
+};
+const NAMESPACE: Key = Key {
+    name: "namespace",
+    ty: Type::Str("a ROS 2 namespace"),
+    default: "`/`",
+    doc: "the node's namespace",
+};
+const DEPTH: Key = Key {
+    name: "depth",
+    ty: Type::Int(1, 100_000),
+    default: "100",
+    doc: "history depth (keep last) of every topic",
+};
+const FRAME_ID: Key = Key {
+    name: "frame_id",
+    ty: Type::Str("a TF frame"),
+    default: "the driver's",
+    doc: "`header.frame_id` of what we publish. Not set: the `imu_in` messages' own frame \
+          passes through (a navigator's TF lookup wants the driver's frame); with no \
+          `imu_in`, `imu_link`",
+};
+const RATE_NOISE: Key = Key {
+    name: "rate_noise",
+    ty: Type::Positive(1e6),
+    default: "from `predict.bias`",
+    doc: "the gyro's white rate noise per sample, deg/s (1 sigma): N in deg/sqrt(h) / 60 x \
+          sqrt(rate_hz). Not given, it is `predict.bias`'s N so converted; with no \
+          `predict.bias` either, the published covariance is all zeros (\"unknown\")",
+};
+const IMU_IN: Key = Key {
+    name: "imu_in",
+    ty: Type::Table("`topic`, `service`, `type` = \"sensor_msgs/msg/Imu\""),
+    default: "none",
+    doc: "a driver node's Imu topic, into the service an `ingest.iceoryx2` stage reads. The \
+          pipeline's `input_units` must be `\"rad/s\"` (REP 103)",
+};
+const IMU_OUT: Key = Key {
+    name: "imu_out",
+    ty: Type::TableList("`topic`, `service`, `type` = \"sensor_msgs/msg/Imu\""),
+    default: "none",
+    doc: "a stage's output service, published as an Imu topic; repeat the table \
+          (`[[ros2.imu_out]]`) for more",
+};
+const MOTION_IN: Key = Key {
+    name: "motion_in",
+    ty: Type::Table("`topic`, `service`, `type`"),
+    default: "none; its `type`: `nav_msgs/msg/Odometry`",
+    doc: "the vehicle's motion (`nav_msgs/msg/Odometry`, `geometry_msgs/msg/TwistStamped` or \
+          `geometry_msgs/msg/TwistWithCovarianceStamped`), into the service a `predict.bias` \
+          stage names as `stop_input` (it must have `stop_speed`)",
+};
+
+/// The `[ros2]` side kind.
+pub const KIND: Kind = Kind {
+    table: "ros2",
+    summary: "the daemon as a ROS 2 node: a driver's Imu topic in, stages' outputs out as Imu \
+              topics, a vehicle's motion in as a stop signal (cargo feature `ros2`)",
+    keys: &[
+        NODE, NAMESPACE, DEPTH, FRAME_ID, RATE_NOISE, IMU_IN, IMU_OUT, MOTION_IN,
+    ],
+    read,
+};
+
+/// One `[ros2.*]` topic table.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTopic {
+    topic: Spanned<String>,
+    service: Spanned<String>,
+    #[serde(rename = "type")]
+    ty: Option<Spanned<String>>,
+}
+
+/// A ROS 2 side, checked against its chain.
+#[derive(Debug)]
+struct Ros2Side(Ros2Settings);
+
+fn read(t: &mut StageTable<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, InputError> {
+    if !cfg!(feature = "ros2") {
+        return Err(t.error(
+            "[ros2] needs a driftless built with ROS 2: cargo build --release --features ros2",
+        ));
+    }
+    let src = t.src;
+    let topic = |t: &Spanned<String>| -> Result<String, InputError> {
+        let name = t.get_ref();
+        let ok = name.starts_with('/')
+            && name.len() > 1
+            && !name.ends_with('/')
+            && !name.contains("//")
+            && !name.contains("__")
+            && name[1..].split('/').all(|part| {
+                part.chars()
+                    .next()
+                    .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                    && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            });
+        if !ok {
+            return Err(src.span(
+                t,
+                format!(
+                    "topic {name:?}: an absolute ROS 2 name (/a/b: letters, digits, '_', each part \
+                     not starting with a digit, no '__')"
+                ),
+            ));
+        }
+        Ok(name.clone())
+    };
+    let imu_type = |ty: &Option<Spanned<String>>, key: &str| match ty {
+        Some(ty) if ty.get_ref() != IMU_TYPE => {
+            Err(src.span(ty, format!("{key}.type is {IMU_TYPE}")))
+        }
+        _ => Ok(()),
+    };
+    let node = t.get::<String>(&NODE)?;
+    let namespace = t.get::<String>(&NAMESPACE)?;
+    let depth = t.int(&DEPTH)?;
+    let frame_id = t.get::<String>(&FRAME_ID)?;
+    let rate_noise = t.positive(&RATE_NOISE)?;
+    let imu_in = match t.get::<RawTopic>(&IMU_IN)? {
+        Some(raw) => {
+            let raw = raw.into_inner();
+            let service = src.service(&raw.service)?;
+            if chain
+                .reader(&service)
+                .is_none_or(|s| s.kind.name != "ingest.iceoryx2")
+            {
+                return Err(src.span(
+                    &raw.service,
+                    format!("imu_in.service {service:?} is no ingest.iceoryx2 stage's input"),
+                ));
+            }
+            if chain.cx.units != Units::RadPerSec {
+                return Err(src.span(
+                    &raw.service,
+                    "imu_in: ROS 2 rates are rad/s (REP 103): set input_units = \"rad/s\"",
+                ));
+            }
+            imu_type(&raw.ty, "imu_in")?;
+            Some((topic(&raw.topic)?, service))
+        }
+        None => None,
+    };
+    let mut imu_out = Vec::new();
+    for raw in t
+        .get::<Vec<Spanned<RawTopic>>>(&IMU_OUT)?
+        .map_or_else(Vec::new, Spanned::into_inner)
+    {
+        let raw = raw.into_inner();
+        let service = src.service(&raw.service)?;
+        if chain.writer(&service).is_none() {
+            return Err(src.span(
+                &raw.service,
+                format!("imu_out.service {service:?} is no stage's output"),
+            ));
+        }
+        imu_type(&raw.ty, "imu_out")?;
+        imu_out.push((service, topic(&raw.topic)?));
+    }
+    let motion_in = match t.get::<RawTopic>(&MOTION_IN)? {
+        Some(raw) => {
+            let raw = raw.into_inner();
+            let service = src.service(&raw.service)?;
+            let readers = chain.side_readers(&service);
+            if readers.is_empty() {
+                return Err(src.span(
+                    &raw.service,
+                    format!("motion_in.service {service:?} is no stage's stop_input"),
+                ));
+            }
+            // A motion message says a speed, never whether the vehicle stands: judged by the
+            // stands flag alone, every signal would be unknown.
+            let by_stands = readers
+                .iter()
+                .find(|(_, kind)| *kind == SideKind::Stop { by_speed: false });
+            if let Some((stage, _)) = by_stands {
+                let stage = &stage.name;
+                return Err(src.span(
+                    &raw.service,
+                    format!(
+                        "motion_in feeds {service:?} with the vehicle's speed only (a ROS 2 \
+                         motion message says no \"stands\"), but stage {stage:?} reads it \
+                         without stop_speed, so it would never learn a stop: add stop_speed = \
+                         {DEFAULT_STOP_SPEED_M_S} (m/s, stands at or below) to stage {stage:?}"
+                    ),
+                ));
+            }
+            let ty = match &raw.ty {
+                Some(ty) if MotionKind::of_type(ty.get_ref()).is_some() => ty.get_ref().clone(),
+                Some(ty) => {
+                    let names: Vec<&str> = MotionKind::ALL.iter().map(|(n, _)| *n).collect();
+                    return Err(
+                        src.span(ty, format!("motion_in.type: one of {}", names.join(", ")))
+                    );
+                }
+                None => MotionKind::Odometry.type_name().to_string(),
+            };
+            Some((topic(&raw.topic)?, ty, service))
+        }
+        None => None,
+    };
+    Ok(Box::new(Ros2Side(Ros2Settings {
+        node: node.map_or_else(
+            || format!("driftless_{}", chain.pipeline.replace('-', "_")),
+            Spanned::into_inner,
+        ),
+        namespace: namespace.map_or_else(|| "/".to_string(), Spanned::into_inner),
+        depth: depth.unwrap_or(100),
+        frame_id: frame_id.map(Spanned::into_inner),
+        // Not given: the white noise a stage assumes (predict.bias's N), per sample.
+        rate_noise: rate_noise.or_else(|| chain.white_noise().map(|n| n * chain.cx.rate_hz.sqrt())),
+        imu_in,
+        imu_out,
+        motion_in,
+    })))
+}
+
+impl Side for Ros2Side {
+    fn describe(&self) -> Vec<String> {
+        let r = &self.0;
+        let noise = r.rate_noise.map_or("covariance unknown".into(), |n| {
+            format!("rate noise {n:.4} deg/s")
+        });
+        let mut lines = vec![format!(
+            "node {}{} on ROS_DOMAIN_ID's domain, depth {}, frame_id {}, {noise}",
+            r.namespace.trim_end_matches('/').to_string() + "/",
+            r.node,
+            r.depth,
+            r.frame_text()
+        )];
+        for t in r.topics() {
+            let (topic, ty, service) = (t.topic, t.ty, t.service);
+            lines.push(match t.direction {
+                Direction::In => format!("  in     {topic} ({ty}) -> {service}"),
+                Direction::Out => format!("  out    {service} -> {topic} ({ty})"),
+                Direction::Stop => format!("  motion {topic} ({ty}) -> {service}"),
+            });
+        }
+        lines
+    }
+
+    #[cfg(feature = "ros2")]
+    fn check_environment(&self) -> Result<(), String> {
+        crate::transport::ros2::domain_id().map(|_| ())
+    }
+
+    #[cfg(feature = "ros2")]
+    fn run(&self, start: &Start<'_>, ready: Ready<'_>) -> Result<String, String> {
+        crate::transport::ros2::run_bridge(
+            &self.0,
+            start.prefix,
+            start.node,
+            start.announce_as,
+            start.qos,
+            start.rate_hz,
+            start.stop,
+            ready,
+        )
+        .map(|counts| counts.to_string())
+        .map_err(|e| e.to_string())
+    }
+
+    #[cfg(not(feature = "ros2"))]
+    fn run(&self, _: &Start<'_>, ready: Ready<'_>) -> Result<String, String> {
+        // `read` refuses the table in a build without the bridge.
+        let why = "built without ROS 2".to_string();
+        ready(Err(why.clone()));
+        Err(why)
+    }
+}
