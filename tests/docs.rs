@@ -2,7 +2,7 @@
 //! docs/**/*.md.
 //!
 //! 1. **Generated references.** `docs/reference/cli.md` (`driftless man --markdown`) and
-//!    `docs/reference/stages.md` (`driftless validate --kinds --markdown`) are exactly what the
+//!    `docs/reference/pipeline-file.md` (`driftless validate --kinds --markdown`) are exactly what the
 //!    binary prints now. When one differs the test names the command that regenerates it;
 //!    `DRIFTLESS_BLESS=1 cargo test --release --test docs` rewrites both instead.
 //! 2. **Relative links.** Every link that is not a URL (`http:`, `https:`, `mailto:`, any
@@ -78,7 +78,7 @@ fn read(rel: &Path) -> String {
 const REFERENCES: &[(&str, &[&str])] = &[
     ("docs/reference/cli.md", &["man", "--markdown"]),
     (
-        "docs/reference/stages.md",
+        "docs/reference/pipeline-file.md",
         &["validate", "--kinds", "--markdown"],
     ),
 ];

@@ -82,7 +82,7 @@ fn every_recorded_case_prints_its_recorded_message() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-/// docs/reference/stages.md is, whole, what `validate --kinds --markdown` prints from the keys
+/// docs/reference/pipeline-file.md is, whole, what `validate --kinds --markdown` prints from the keys
 /// the stage files declare (tests/docs.rs checks it too, and rewrites it with DRIFTLESS_BLESS=1).
 #[test]
 fn the_stage_reference_is_the_generated_one() {
@@ -105,13 +105,13 @@ fn the_stage_reference_is_the_generated_one() {
     }
     let doc = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/docs/reference/stages.md"
+        "/docs/reference/pipeline-file.md"
     ))
-    .expect("docs/reference/stages.md");
+    .expect("docs/reference/pipeline-file.md");
     assert!(
         doc == generated,
-        "docs/reference/stages.md is stale: regenerate it with `cargo run --release -- validate \
-         --kinds --markdown > docs/reference/stages.md` (or DRIFTLESS_BLESS=1 cargo test --release \
+        "docs/reference/pipeline-file.md is stale: regenerate it with `cargo run --release -- validate \
+         --kinds --markdown > docs/reference/pipeline-file.md` (or DRIFTLESS_BLESS=1 cargo test --release \
          --test docs)"
     );
 }

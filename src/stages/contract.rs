@@ -223,7 +223,7 @@ pub struct Kind {
     pub name: &'static str,
     /// Where it sits in the chain.
     pub role: Role,
-    /// One line on what it does (`docs/reference/stages.md` is generated from it).
+    /// One line on what it does (`docs/reference/pipeline-file.md` is generated from it).
     pub summary: &'static str,
     /// Its own keys, beyond `name`, `kind`, `input` and `output`, in the order listed.
     pub keys: &'static [Key],

@@ -29,7 +29,7 @@
 //!
 //! Nothing else changes: the pipeline file's reader finds the kind in [`KINDS`], rejects keys
 //! the kind does not declare (naming the kind a stray key belongs to), and `driftless validate
-//! --kinds` and `docs/reference/stages.md` (generated from it) list the new keys.
+//! --kinds` and `docs/reference/pipeline-file.md` (generated from it) list the new keys.
 
 pub mod bias_state;
 pub mod contract;
