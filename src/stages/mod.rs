@@ -19,9 +19,12 @@
 //!
 //! # Adding a stage kind
 //! 1. Write `src/stages/<kind>.rs` with: its keys as [`Key`](crate::stages::schema::Key)
-//!    constants; a parse function reading them from the
-//!    [`StageTable`](crate::stages::schema::StageTable) (it checks types, ranges and anything
-//!    else `run` needs, positioning every error) and returning its parameters; a parameters
+//!    constants, each with its typed default
+//!    ([`DefaultValue`](crate::stages::schema::DefaultValue)); a parse function reading them
+//!    from the [`StageTable`](crate::stages::schema::StageTable) with the reader the default
+//!    asks for (`required_str` for a required key, an `*_or_default` reader for a typed
+//!    default, an optional one for the rest; it checks types, ranges and anything else `run`
+//!    needs, positioning every error) and returning its parameters; a parameters
 //!    type implementing [`Params`](crate::stages::contract::Params) (how the stage or source is
 //!    built, what `validate` says of it); and a `pub const KIND: Kind` tying them together with
 //!    its name, [`Role`](crate::stages::contract::Role) and one-line summary.

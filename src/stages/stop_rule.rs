@@ -36,7 +36,7 @@ pub const STOP_MAX_AGE_S: Key = Key {
 };
 
 /// The speed at or below which a motion topic's vehicle stands when `stop_speed` is not set
-/// (`STOP_SPEED_OF_TOPIC`'s default, and the `[ros2]` side's), m/s.
+/// ([`STOP_SPEED_OF_TOPIC`]'s default; the value the `[ros2]` table's check suggests), m/s.
 pub const DEFAULT_STOP_SPEED_M_S: f64 = 0.02;
 
 /// How a stage judges the vehicle's motion.
