@@ -141,6 +141,54 @@ fn kinds_lists_every_key_with_type_and_default() {
     assert_eq!(out.status.code(), Some(2));
 }
 
+/// The reference (`validate --kinds`, text and Markdown) prints each key's default as its key
+/// declares it: the typed value the readers apply, or the words of a default the stage derives.
+#[test]
+fn the_reference_prints_every_keys_declared_default() {
+    let kinds = |markdown: bool| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_driftless"));
+        cmd.args(["validate", "--kinds"]);
+        if markdown {
+            cmd.arg("--markdown");
+        }
+        let out = cmd.output().expect("run driftless validate --kinds");
+        assert_eq!(out.status.code(), Some(0));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let (text, md) = (kinds(false), kinds(true));
+    for kind in driftless::stages::KINDS {
+        for key in kind.keys {
+            let line = format!(
+                "  {:<16} {}; default {}\n",
+                key.name,
+                key.ty.describe(),
+                key.default
+            );
+            assert!(text.contains(&line), "{}: {line:?} in\n{text}", kind.name);
+            let row = format!(
+                "| `{}` | {} | {} | {} |\n",
+                key.name,
+                key.ty.describe().replace('|', "\\|"),
+                key.default,
+                key.doc
+            );
+            assert!(md.contains(&row), "{}: {row:?} in\n{md}", kind.name);
+        }
+    }
+    // Typed defaults print their values: the maths' own constants where the key takes them.
+    let lag = driftless::wavelet::stream::StreamConfig::DEFAULT_LAG;
+    for line in [
+        format!("lag              int 0..=full lag ((2^level - 1)(filter length - 1)); default {lag} (at most the full lag)"),
+        "window           int 2..=1048576; default 1024".into(),
+        "sigma            \"mad\" | float > 0; default \"mad\"".into(),
+        "stop_max_age_s   float (0, 6e1]; default 0.5".into(),
+        "state_every_s    float (0, 8.64e4]; default 120".into(),
+        "columns          list of strings (one column name per axis); default [\"x\", \"y\", \"z\"] (first `axes`)".into(),
+    ] {
+        assert!(text.contains(&line), "{line:?} in\n{text}");
+    }
+}
+
 #[test]
 fn a_profile_whose_lsb_differs_from_the_datas_step_gets_one_warning_line() {
     let dir = std::env::temp_dir().join(format!("dl-lsb-{}", std::process::id()));

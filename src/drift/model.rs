@@ -137,7 +137,7 @@ impl PredictorKind {
     pub const NAMES: [&'static str; 2] = ["rbf", "ar"];
 
     /// Its name in a pipeline file.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             PredictorKind::Rbf => Self::NAMES[0],
             PredictorKind::Ar => Self::NAMES[1],

@@ -47,7 +47,7 @@ use crate::sides::{Chain, SideSpec, SIDES};
 use crate::stages::contract::Role;
 pub use crate::stages::contract::StageSpec;
 pub use crate::stages::schema::{Context, Units};
-use crate::stages::schema::{Key, Src, StageTable, Type};
+use crate::stages::schema::{DefaultValue, Key, Src, Table, Type};
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]
@@ -117,55 +117,55 @@ impl Pipeline {
 const NAME: Key = Key {
     name: "name",
     ty: Type::Str("`[A-Za-z0-9_-]+`"),
-    default: "required",
+    default: DefaultValue::Required,
     doc: "pipeline name; the daemon's node is `driftless-<name>`",
 };
 const RATE_HZ: Key = Key {
     name: "rate_hz",
     ty: Type::Positive(1e6),
-    default: "required",
+    default: DefaultValue::Required,
     doc: "sample rate of the ingest",
 };
 const DEADLINE_US: Key = Key {
     name: "deadline_us",
     ty: Type::Positive(1e9),
-    default: "one period (at the ingest's `pace`)",
+    default: DefaultValue::Derived("one period (at the ingest's `pace`)"),
     doc: "end-to-end deadline counted in `deadline_misses`",
 };
 const AXES: Key = Key {
     name: "axes",
     ty: Type::Int(1, 3),
-    default: "3",
+    default: DefaultValue::Int(3),
     doc: "axes processed; unused axes are 0",
 };
 const INPUT_UNITS: Key = Key {
     name: "input_units",
     ty: Type::Choice(&["deg/s", "rad/s"]),
-    default: "\"deg/s\"",
+    default: DefaultValue::Word("deg/s"),
     doc: "units of the raw rates; published rates are rad/s",
 };
 const REPORT_INTERVAL_S: Key = Key {
     name: "report_interval_s",
-    ty: Type::Float("0.01..=3600"),
-    default: "2",
+    ty: Type::FloatIn(0.01, 3600.0),
+    default: DefaultValue::Float(2.0),
     doc: "period of the stderr line and of the stats service",
 };
 const REALTIME_PRIORITY: Key = Key {
     name: "realtime_priority",
     ty: Type::Int(1, 99),
-    default: "none",
+    default: DefaultValue::Absent("none"),
     doc: "SCHED_FIFO priority of the hot thread (docs/pipelines.md, Scheduling)",
 };
 const CPU: Key = Key {
     name: "cpu",
     ty: Type::Int(0, 1023),
-    default: "none",
+    default: DefaultValue::Absent("none"),
     doc: "pin the hot thread to this CPU",
 };
 const PREWARM_US: Key = Key {
     name: "prewarm_us",
     ty: Type::Float("0..=half a period"),
-    default: "0 (off)",
+    default: DefaultValue::Noted(&DefaultValue::Float(0.0), " (off)"),
     doc: "wake this long before each paced sample to warm the cache (docs/pipelines.md, \
           Scheduling)",
 };
@@ -186,33 +186,33 @@ pub const PIPELINE_KEYS: &[Key] = &[
 const PREFIX: Key = Key {
     name: "prefix",
     ty: Type::Str("letters, digits, `-`, `.`, ending in its only `_`"),
-    default: "`driftless_`",
+    default: DefaultValue::Word(crate::transport::DEFAULT_PREFIX),
     doc: "prefix of the iceoryx2 files (docs/operations.md); `--prefix` or \
           `DRIFTLESS_IOX2_PREFIX` override it",
 };
 const ROOT_PATH: Key = Key {
     name: "root_path",
     ty: Type::Str("an absolute path"),
-    default: "`/tmp/iceoryx2`",
+    default: DefaultValue::Absent("none: iceoryx2's, `/tmp/iceoryx2`"),
     doc: "iceoryx2's directory of node and service files; `--root-path` or \
           `DRIFTLESS_IOX2_ROOT` override it",
 };
 const BUFFER_SIZE: Key = Key {
     name: "buffer_size",
     ty: Type::Int(1, 65_536),
-    default: "256",
+    default: DefaultValue::Int(256),
     doc: "samples a subscriber may hold unread before it loses new ones",
 };
 const MAX_SUBSCRIBERS: Key = Key {
     name: "max_subscribers",
     ty: Type::Int(1, 64),
-    default: "8",
+    default: DefaultValue::Int(8),
     doc: "subscribers per service (all for other processes: the daemon reads none of its own)",
 };
 const STATS_SERVICE: Key = Key {
     name: "stats_service",
     ty: Type::Str("a service name"),
-    default: "`<name>/stats`",
+    default: DefaultValue::Derived("`<name>/stats`"),
     doc: "where the statistics snapshot is published",
 };
 
@@ -324,7 +324,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         units: Units::DegPerSec,
     };
     let top = split(&src, top, &valid)?;
-    let mut t = StageTable::new(
+    let mut t = Table::new(
         &src,
         unknown,
         doc_span.start,
@@ -334,8 +334,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         top,
     );
     let name = t.required_str(&NAME)?;
-    let rate = t.get::<f64>(&RATE_HZ)?;
-    let rate = rate.ok_or_else(|| t.error("missing field `rate_hz`"))?;
+    let rate_hz = t.required_float(&RATE_HZ)?;
     if name.get_ref().is_empty()
         || !name
             .get_ref()
@@ -348,38 +347,30 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         ));
     }
     let name = name.into_inner();
-    let rate_hz = src.positive(&rate, "rate_hz", 1e6)?;
-    let deadline_us = t.positive(&DEADLINE_US)?;
-    let axes = t.int(&AXES)?.unwrap_or(3);
-    let input_units = match t.choice(&INPUT_UNITS, "input_units", true)?.as_deref() {
-        Some("rad/s") => Units::RadPerSec,
+    let deadline_us = t.float(&DEADLINE_US)?;
+    let axes = t.int_or_default(&AXES)?;
+    let input_units = match t
+        .choice_or_default(&INPUT_UNITS, "input_units", true)?
+        .as_str()
+    {
+        "rad/s" => Units::RadPerSec,
         _ => Units::DegPerSec,
     };
-    let report_interval = match t.get::<f64>(&REPORT_INTERVAL_S)? {
-        // A report line is for people: more often than every 10 ms is a mistake, not a need.
-        Some(r) => Duration::from_secs_f64(src.float_in(&r, "report_interval_s", 0.01, 3600.0)?),
-        None => Duration::from_secs(2),
-    };
+    let report_interval = Duration::from_secs_f64(t.float_or_default(&REPORT_INTERVAL_S)?);
     let realtime_priority = t.int(&REALTIME_PRIORITY)?.map(|p| p as i32);
     let cpu = t.int(&CPU)?;
-    let prewarm = match t.get::<f64>(&PREWARM_US)? {
+    let prewarm_us = match t.get::<f64>(&PREWARM_US)? {
         // Waking a whole period early would be waking for the sample before.
-        Some(w) => {
-            Duration::from_secs_f64(src.float_in(&w, "prewarm_us", 0.0, 0.5e6 / rate_hz)? * 1e-6)
-        }
-        None => Duration::ZERO,
+        Some(w) => src.float_in(&w, PREWARM_US.name, 0.0, 0.5e6 / rate_hz)?,
+        None => PREWARM_US.default.float(),
     };
+    let prewarm = Duration::from_secs_f64(prewarm_us * 1e-6);
     let valid: Vec<&'static str> = ICEORYX2_KEYS.iter().map(|k| k.name).collect();
     let iox = split(&src, iox, &valid)?;
-    let mut t = StageTable::new(&src, unknown, iox_at, iox_at, None, (&name, ""), iox);
-    let prefix = match t.get::<String>(&PREFIX)? {
-        Some(p) => {
-            crate::transport::check_prefix(p.get_ref())
-                .map_err(|e| src.span(&p, format!("invalid prefix: {e}")))?;
-            p.into_inner()
-        }
-        None => crate::transport::DEFAULT_PREFIX.to_string(),
-    };
+    let mut t = Table::new(&src, unknown, iox_at, iox_at, None, (&name, ""), iox);
+    let prefix = t.str_or_default(&PREFIX, |p| {
+        crate::transport::check_prefix(p).map_err(|e| format!("invalid prefix: {e}"))
+    })?;
     let root_path = match t.get::<String>(&ROOT_PATH)? {
         Some(r) => {
             let path = PathBuf::from(r.get_ref());
@@ -389,8 +380,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         }
         None => None,
     };
-    let buffer_size = t.int(&BUFFER_SIZE)?.unwrap_or(256);
-    let max_subscribers = t.int(&MAX_SUBSCRIBERS)?.unwrap_or(8);
+    let buffer_size = t.int_or_default(&BUFFER_SIZE)?;
+    let max_subscribers = t.int_or_default(&MAX_SUBSCRIBERS)?;
     let stats_service = match t.get::<String>(&STATS_SERVICE)? {
         Some(s) => src.service(&s)?,
         None => format!("{name}/stats"),
@@ -451,7 +442,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     for (kind, (at, table)) in side_tables {
         let valid: Vec<&'static str> = kind.keys.iter().map(|k| k.name).collect();
         let own = split(&src, table, &valid)?;
-        let mut t = StageTable::new(&src, cx, at, at, None, (&name, kind.table), own);
+        let mut t = Table::new(&src, cx, at, at, None, (&name, kind.table), own);
         let side = (kind.read)(&mut t, &chain)?;
         sides.push(SideSpec {
             kind,
@@ -796,5 +787,55 @@ mod tests {
         }
         assert!(sim("true").unwrap_err().ends_with("got a boolean"));
         assert!(sim("-2.5").unwrap_err().ends_with("got -2.5"));
+    }
+
+    /// The pipeline's own, `[iceoryx2]`'s and every side's keys: a typed default is a value
+    /// of the key's own type and range.
+    #[test]
+    fn every_pipeline_and_side_default_fits_its_key() {
+        let sides = crate::sides::SIDES.iter().flat_map(|s| s.keys);
+        for key in PIPELINE_KEYS.iter().chain(ICEORYX2_KEYS).chain(sides) {
+            key.check_default().unwrap_or_else(|e| panic!("{e}"));
+        }
+    }
+
+    /// A file that writes out every typed default reads as the file that leaves them out: the
+    /// declared default (what the reference prints) is the applied one.
+    #[test]
+    fn the_declared_defaults_are_the_applied_ones() {
+        let written = |keys: &[Key]| -> String {
+            keys.iter()
+                .filter_map(|k| {
+                    let value = match k.default.value()? {
+                        DefaultValue::Int(v) => v.to_string(),
+                        DefaultValue::Float(v) => format!("{v:?}"),
+                        DefaultValue::Word(w) => format!("{w:?}"),
+                        DefaultValue::Bool(b) => b.to_string(),
+                        other => panic!("{}: {other:?} has no TOML form here", k.name),
+                    };
+                    Some(format!("{} = {value}\n", k.name))
+                })
+                .collect()
+        };
+        let (top, iox) = (written(PIPELINE_KEYS), written(ICEORYX2_KEYS));
+        assert_eq!(top.lines().count(), 4, "{top}");
+        assert_eq!(iox.lines().count(), 3, "{iox}");
+        let chain = format!("{INGEST}{DENOISE}{PUBLISH}");
+        let bare = parse_str(&format!("{HEAD}{chain}")).unwrap();
+        let full = parse_str(&format!("{HEAD}{top}[iceoryx2]\n{iox}{chain}")).unwrap();
+        let settings = |p: &Pipeline| {
+            format!(
+                "{} {:?} {} {:?} {:?} {:?} {:?} {:?}",
+                p.rate_hz,
+                p.deadline,
+                p.axes,
+                p.input_units,
+                p.report_interval,
+                p.prewarm,
+                p.cpu,
+                p.iceoryx2
+            )
+        };
+        assert_eq!(settings(&full), settings(&bare));
     }
 }

@@ -11,7 +11,7 @@ use toml::Spanned;
 
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, StageSpec};
-use crate::stages::schema::{Context, Src, StageTable};
+use crate::stages::schema::{Context, Src, Table};
 pub use crate::stages::KINDS;
 
 /// The kind called `name` in pipeline files.
@@ -147,7 +147,7 @@ pub(crate) fn stage(
         None
     };
     let output = take("output")?.ok_or_else(|| missing("output"))?;
-    let mut t = StageTable::new(
+    let mut t = Table::new(
         src,
         cx,
         start,

@@ -13,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 
 use crate::io::InputError;
 use crate::stages::contract::{SideKind, StageSpec};
-use crate::stages::schema::{Context, Key, StageTable};
+use crate::stages::schema::{Context, Key, Table};
 use crate::transport::Qos;
 
 /// A side kind: its table in the pipeline file, its keys, and how its table is read.
@@ -29,7 +29,7 @@ pub struct Kind {
 }
 
 /// How a side kind reads its table against the chain.
-pub type Read = fn(&mut StageTable<'_, '_>, &Chain<'_>) -> Result<Box<dyn Side>, InputError>;
+pub type Read = fn(&mut Table<'_, '_>, &Chain<'_>) -> Result<Box<dyn Side>, InputError>;
 
 impl Debug for Kind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

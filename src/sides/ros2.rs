@@ -10,32 +10,32 @@ use toml::Spanned;
 use super::contract::{Chain, Kind, Ready, Side, Start};
 use crate::io::InputError;
 use crate::stages::contract::SideKind;
-use crate::stages::schema::{Key, StageTable, Type, Units};
+use crate::stages::schema::{DefaultValue, Key, Table, Type, Units};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::{Direction, MotionKind, Ros2Settings, IMU_TYPE};
 
 const NODE: Key = Key {
     name: "node",
     ty: Type::Str("a ROS 2 node name"),
-    default: "`driftless_<pipeline>`",
+    default: DefaultValue::Derived("`driftless_<pipeline>`"),
     doc: "the node's name (a `-` in the pipeline's name becomes `_`)",
 };
 const NAMESPACE: Key = Key {
     name: "namespace",
     ty: Type::Str("a ROS 2 namespace"),
-    default: "`/`",
+    default: DefaultValue::Word("/"),
     doc: "the node's namespace",
 };
 const DEPTH: Key = Key {
     name: "depth",
     ty: Type::Int(1, 100_000),
-    default: "100",
+    default: DefaultValue::Int(100),
     doc: "history depth (keep last) of every topic",
 };
 const FRAME_ID: Key = Key {
     name: "frame_id",
     ty: Type::Str("a TF frame"),
-    default: "the driver's",
+    default: DefaultValue::Derived("the driver's"),
     doc: "`header.frame_id` of what we publish. Not set: the `imu_in` messages' own frame \
           passes through (a navigator's TF lookup wants the driver's frame); with no \
           `imu_in`, `imu_link`",
@@ -43,7 +43,7 @@ const FRAME_ID: Key = Key {
 const RATE_NOISE: Key = Key {
     name: "rate_noise",
     ty: Type::Positive(1e6),
-    default: "from `predict.bias`",
+    default: DefaultValue::Derived("from `predict.bias`"),
     doc: "the gyro's white rate noise per sample, deg/s (1 sigma): N in deg/sqrt(h) / 60 x \
           sqrt(rate_hz). Not given, it is `predict.bias`'s N so converted; with no \
           `predict.bias` either, the published covariance is all zeros (\"unknown\")",
@@ -51,21 +51,21 @@ const RATE_NOISE: Key = Key {
 const IMU_IN: Key = Key {
     name: "imu_in",
     ty: Type::Table("`topic`, `service`, `type` = \"sensor_msgs/msg/Imu\""),
-    default: "none",
+    default: DefaultValue::Absent("none"),
     doc: "a driver node's Imu topic, into the service an `ingest.iceoryx2` stage reads. The \
           pipeline's `input_units` must be `\"rad/s\"` (REP 103)",
 };
 const IMU_OUT: Key = Key {
     name: "imu_out",
     ty: Type::TableList("`topic`, `service`, `type` = \"sensor_msgs/msg/Imu\""),
-    default: "none",
+    default: DefaultValue::Absent("none"),
     doc: "a stage's output service, published as an Imu topic; repeat the table \
           (`[[ros2.imu_out]]`) for more",
 };
 const MOTION_IN: Key = Key {
     name: "motion_in",
     ty: Type::Table("`topic`, `service`, `type`"),
-    default: "none; its `type`: `nav_msgs/msg/Odometry`",
+    default: DefaultValue::Absent("none; its `type`: `nav_msgs/msg/Odometry`"),
     doc: "the vehicle's motion (`nav_msgs/msg/Odometry`, `geometry_msgs/msg/TwistStamped` or \
           `geometry_msgs/msg/TwistWithCovarianceStamped`), into the service a `predict.bias` \
           stage names as `stop_input` (it must have `stop_speed`)",
@@ -96,7 +96,7 @@ struct RawTopic {
 #[derive(Debug)]
 struct Ros2Side(Ros2Settings);
 
-fn read(t: &mut StageTable<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, InputError> {
+fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, InputError> {
     if !cfg!(feature = "ros2") {
         return Err(t.error(
             "[ros2] needs a driftless built with ROS 2: cargo build --release --features ros2",
@@ -134,10 +134,10 @@ fn read(t: &mut StageTable<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, 
         _ => Ok(()),
     };
     let node = t.get::<String>(&NODE)?;
-    let namespace = t.get::<String>(&NAMESPACE)?;
-    let depth = t.int(&DEPTH)?;
+    let namespace = t.str_or_default(&NAMESPACE, |_| Ok(()))?;
+    let depth = t.int_or_default(&DEPTH)?;
     let frame_id = t.get::<String>(&FRAME_ID)?;
-    let rate_noise = t.positive(&RATE_NOISE)?;
+    let rate_noise = t.float(&RATE_NOISE)?;
     let imu_in = match t.get::<RawTopic>(&IMU_IN)? {
         Some(raw) => {
             let raw = raw.into_inner();
@@ -225,8 +225,8 @@ fn read(t: &mut StageTable<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, 
             || format!("driftless_{}", chain.pipeline.replace('-', "_")),
             Spanned::into_inner,
         ),
-        namespace: namespace.map_or_else(|| "/".to_string(), Spanned::into_inner),
-        depth: depth.unwrap_or(100),
+        namespace,
+        depth,
         frame_id: frame_id.map(Spanned::into_inner),
         // Not given: the white noise a stage assumes (predict.bias's N), per sample.
         rate_noise: rate_noise.or_else(|| chain.white_noise().map(|n| n * chain.cx.rate_hz.sqrt())),

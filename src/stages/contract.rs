@@ -13,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use crate::io::InputError;
-use crate::stages::schema::{Context, Key, StageTable};
+use crate::stages::schema::{Context, Key, Table};
 use crate::transport::{GyroSample, RawSample, StopSignal};
 
 /// What a side input carries: a service a stage reads beside its chain input
@@ -228,7 +228,7 @@ pub struct Kind {
     /// Its own keys, beyond `name`, `kind`, `input` and `output`, in the order listed.
     pub keys: &'static [Key],
     /// Read and check its table; everything the stage needs is validated here.
-    pub parse: fn(&mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError>,
+    pub parse: fn(&mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError>,
 }
 
 impl Kind {

@@ -13,11 +13,9 @@
 //! lag = 64                   # output delay, samples (0..=full lag)
 //! ```
 
-use toml::Spanned;
-
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
-use crate::stages::schema::{Context, Key, StageTable, Type, WordOr};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, WordOr};
 use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP};
 use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
@@ -25,61 +23,64 @@ use crate::wavelet::threshold::ThresholdFn;
 const WAVELET: Key = Key {
     name: "wavelet",
     ty: Type::Str("haar, db1..db20, sym2..sym20, coif1..coif17"),
-    default: "\"db6\"",
+    default: DefaultValue::Word("db6"),
     doc: "the wavelet",
 };
 const LEVEL: Key = Key {
     name: "level",
     ty: Type::Int(1, 12),
-    default: "5",
+    default: DefaultValue::Int(5),
     doc: "decomposition level",
 };
 const THRESHOLD: Key = Key {
     name: "threshold",
     ty: Type::Choice(&["hard", "soft", "garrote", "firm", "improved"]),
-    default: "\"improved\"",
+    default: DefaultValue::Word("improved"),
     doc: "threshold function",
 };
 const RATIO: Key = Key {
     name: "ratio",
-    ty: Type::Float("> 1"),
-    default: "the function's",
+    ty: Type::Greater(1.0),
+    default: DefaultValue::Float(ThresholdFn::FIRM_RATIO),
     doc: "firm threshold: upper / lower threshold",
 };
 const A: Key = Key {
     name: "a",
-    ty: Type::Float(">= 0"),
-    default: "0.5",
+    ty: Type::NonNegative,
+    default: DefaultValue::Float(ThresholdFn::IMPROVED_A),
     doc: "improved threshold: shrinkage below the threshold",
 };
 const BETA: Key = Key {
     name: "beta",
     ty: Type::Positive(1e9),
-    default: "5",
+    default: DefaultValue::Float(ThresholdFn::IMPROVED_BETA),
     doc: "improved threshold: how fast it tends to hard above the threshold",
 };
 const KAPPA: Key = Key {
     name: "kappa",
     ty: Type::Positive(1e9),
-    default: "5",
+    default: DefaultValue::Float(ThresholdFn::IMPROVED_KAPPA),
     doc: "improved threshold: how fast small coefficients vanish",
 };
 const WINDOW: Key = Key {
     name: "window",
     ty: Type::Int(2, 1 << 20),
-    default: "1024",
+    default: DefaultValue::Int(StreamConfig::DEFAULT_WINDOW as i64),
     doc: "samples of the sliding noise-sigma window",
 };
 const LAG: Key = Key {
     name: "lag",
     ty: Type::IntDepends("0..=full lag ((2^level - 1)(filter length - 1))"),
-    default: "64 (at most the full lag)",
+    default: DefaultValue::Noted(
+        &DefaultValue::Int(StreamConfig::DEFAULT_LAG as i64),
+        " (at most the full lag)",
+    ),
     doc: "output delay in samples: more lag, closer to offline denoising",
 };
 const SIGMA: Key = Key {
     name: "sigma",
     ty: Type::WordOrPositive(&["mad"], f64::MAX),
-    default: "\"mad\"",
+    default: DefaultValue::Word("mad"),
     doc: "noise sigma: estimated (median absolute deviation) or fixed, in input units",
 };
 
@@ -112,14 +113,14 @@ pub struct WaveletParams {
     pub level: usize,
     /// Threshold function name.
     pub threshold: String,
-    /// Firm threshold ratio.
-    pub ratio: Option<f64>,
-    /// Improved threshold `a`.
-    pub a: Option<f64>,
-    /// Improved threshold `beta`.
-    pub beta: Option<f64>,
-    /// Improved threshold `kappa`.
-    pub kappa: Option<f64>,
+    /// Firm threshold ratio (used by `firm` only).
+    pub ratio: f64,
+    /// Improved threshold `a` (used by `improved` only).
+    pub a: f64,
+    /// Improved threshold `beta` (used by `improved` only).
+    pub beta: f64,
+    /// Improved threshold `kappa` (used by `improved` only).
+    pub kappa: f64,
     /// Sliding window length, samples.
     pub window: usize,
     /// Output lag, samples.
@@ -128,48 +129,27 @@ pub struct WaveletParams {
     pub sigma: Option<f64>,
 }
 
-fn parse_wavelet(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
-    let src = t.src;
-    let wavelet = match t.get::<String>(&WAVELET)? {
-        Some(w) => {
-            crate::wavelet::Wavelet::by_name(w.get_ref())
-                .map_err(|e| src.span(&w, e.to_string()))?;
-            w.into_inner()
-        }
-        None => "db6".to_string(),
-    };
-    let level = t.int(&LEVEL)?.unwrap_or(5);
-    let threshold = t
-        .choice(&THRESHOLD, "threshold function", false)?
-        .unwrap_or_else(|| "improved".into());
-    let ratio = match t.get::<f64>(&RATIO)? {
-        Some(v) if *v.get_ref() <= 1.0 || !v.get_ref().is_finite() => {
-            return Err(src.span(&v, format!("ratio must be > 1, got {}", v.get_ref())))
-        }
-        v => v.map(Spanned::into_inner),
-    };
-    let a = match t.get::<f64>(&A)? {
-        Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => {
-            return Err(src.span(
-                &v,
-                format!("a must be finite and >= 0, got {}", v.get_ref()),
-            ))
-        }
-        v => v.map(Spanned::into_inner),
-    };
-    let beta = t.positive(&BETA)?;
-    let kappa = t.positive(&KAPPA)?;
-    let window = t.int(&WINDOW)?.unwrap_or(StreamConfig::DEFAULT_WINDOW);
+fn parse_wavelet(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    let wavelet = t.str_or_default(&WAVELET, |w| {
+        crate::wavelet::Wavelet::by_name(w)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    })?;
+    let level = t.int_or_default(&LEVEL)?;
+    let threshold = t.choice_or_default(&THRESHOLD, "threshold function", false)?;
+    let ratio = t.float_or_default(&RATIO)?;
+    let a = t.float_or_default(&A)?;
+    let beta = t.float_or_default(&BETA)?;
+    let kappa = t.float_or_default(&KAPPA)?;
+    let window = t.int_or_default(&WINDOW)?;
     let filter_len = crate::wavelet::Wavelet::by_name(&wavelet)
         .map(|w| w.filter_len())
         .unwrap_or(2);
     let full_lag = StreamConfig::full_lag(filter_len, level);
-    let lag = t
-        .int_in(&LAG, 0, full_lag as i64)?
-        .unwrap_or(StreamConfig::DEFAULT_LAG.min(full_lag));
-    let sigma = match t.word_or_positive(&SIGMA)? {
-        Some(WordOr::Number(x)) => Some(x),
-        _ => None,
+    let lag = t.int_in_or_default(&LAG, 0, full_lag as i64)?;
+    let sigma = match t.word_or_positive_or_default(&SIGMA)? {
+        WordOr::Number(x) => Some(x),
+        WordOr::Word(_) => None,
     };
     let params = WaveletParams {
         wavelet,
@@ -210,22 +190,8 @@ impl Params for NoDenoise {
 pub fn stream_config(p: &WaveletParams) -> Result<StreamConfig, String> {
     let mut threshold: ThresholdFn = p.threshold.parse().map_err(|e| format!("{e}"))?;
     match &mut threshold {
-        ThresholdFn::Firm { ratio } => {
-            if let Some(r) = p.ratio {
-                *ratio = r;
-            }
-        }
-        ThresholdFn::Improved { a, beta, kappa } => {
-            if let Some(v) = p.a {
-                *a = v;
-            }
-            if let Some(v) = p.beta {
-                *beta = v;
-            }
-            if let Some(v) = p.kappa {
-                *kappa = v;
-            }
-        }
+        ThresholdFn::Firm { ratio } => *ratio = p.ratio,
+        ThresholdFn::Improved { a, beta, kappa } => (*a, *beta, *kappa) = (p.a, p.beta, p.kappa),
         _ => {}
     }
     Ok(StreamConfig {
@@ -336,10 +302,10 @@ mod tests {
             wavelet: "db4".into(),
             level: 3,
             threshold: "soft".into(),
-            ratio: None,
-            a: None,
-            beta: None,
-            kappa: None,
+            ratio: ThresholdFn::FIRM_RATIO,
+            a: ThresholdFn::IMPROVED_A,
+            beta: ThresholdFn::IMPROVED_BETA,
+            kappa: ThresholdFn::IMPROVED_KAPPA,
             window: 64,
             lag,
             sigma: None,

@@ -24,7 +24,7 @@ use std::time::Duration;
 
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role};
-use crate::stages::schema::{StageTable, POLL_TIMEOUT_US};
+use crate::stages::schema::{Table, POLL_TIMEOUT_US};
 use crate::transport::{GyroSample, Qos, Transport, TransportError};
 
 /// `external`.
@@ -44,7 +44,7 @@ pub struct ExternalParams {
     pub poll_timeout: Duration,
 }
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     Ok(Box::new(ExternalParams {
         poll_timeout: t.poll_timeout(&POLL_TIMEOUT_US)?,
     }))

@@ -30,7 +30,7 @@ use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::{InputError, RowRead, RowReader};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
-use crate::stages::schema::{Context, Key, StageTable, Type};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::transport::{RawSample, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED};
 
 const FILE: Key = Key {
@@ -38,25 +38,25 @@ const FILE: Key = Key {
     ty: Type::Str(
         "a CSV file, relative to the pipeline file; gzip-compressed works (told by its content)",
     ),
-    default: "required",
+    default: DefaultValue::Required,
     doc: "the log to replay; its header and first 1000 rows checked at validation, then streamed",
 };
 const COLUMNS: Key = Key {
     name: "columns",
     ty: Type::StrList("one column name per axis"),
-    default: "[\"x\", \"y\", \"z\"] (first `axes`)",
+    default: DefaultValue::Noted(&DefaultValue::Words(&["x", "y", "z"]), " (first `axes`)"),
     doc: "the rate columns",
 };
 const TIME_COLUMN: Key = Key {
     name: "time_column",
     ty: Type::Str("a column name; seconds, not negative"),
-    default: "none (i / rate_hz)",
+    default: DefaultValue::Absent("none (i / rate_hz)"),
     doc: "sensor timestamps",
 };
 const STOP_COLUMN: Key = Key {
     name: "stop_column",
     ty: Type::Str("a column name; 1 stands, 0 moves, nan unknown"),
-    default: "none",
+    default: DefaultValue::Absent("none"),
     doc: "the vehicle's stops logged beside the rates (wheel odometry): carried with each sample, so `predict.bias` takes them by sample time, in any replay speed",
 };
 /// `ingest.csv`.
@@ -150,7 +150,7 @@ impl Params for CsvParams {
 const CSV_TAKES: &str = "ingest.csv replays CSV text (gzip-compressed too); a recording or a \
 ROS 2 bag (MCAP) is replayed by kind = \"ingest.mcap\"";
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let columns_key = t.get::<Vec<String>>(&COLUMNS)?;
     let time_key = t.get::<String>(&TIME_COLUMN)?;
@@ -163,13 +163,17 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     }
     // By what it holds: the name is a hint.
     let sniffed = text_file(&file, CSV_TAKES).map_err(|e| src.span(&file_key, e.to_string()))?;
-    let default_cols: Vec<String> = ["x", "y", "z"][..axes]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    let columns = columns_key
-        .as_ref()
-        .map_or(default_cols, |c| c.get_ref().clone());
+    let columns = columns_key.as_ref().map_or_else(
+        || {
+            // The default's first `axes` names, as its note says.
+            let names = COLUMNS.default.words();
+            names[..axes.min(names.len())]
+                .iter()
+                .map(|s| s.to_string())
+                .collect()
+        },
+        |c| c.get_ref().clone(),
+    );
     if let Some(c) = &columns_key {
         if c.get_ref().len() != axes {
             return Err(src.span(

@@ -18,7 +18,7 @@ use std::time::Duration;
 
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Poll, Role, Source};
-use crate::stages::schema::{Context, StageTable, POLL_TIMEOUT_US};
+use crate::stages::schema::{Context, Table, POLL_TIMEOUT_US};
 use crate::transport::{Input, RawSample, Transport, TransportError, Waker};
 
 /// `ingest.iceoryx2`.
@@ -37,7 +37,7 @@ pub struct Iceoryx2Params {
     pub poll_timeout: Duration,
 }
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     Ok(Box::new(Iceoryx2Params {
         poll_timeout: t.poll_timeout(&POLL_TIMEOUT_US)?,
     }))

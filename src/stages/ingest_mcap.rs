@@ -52,8 +52,8 @@ use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::Units;
-use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::stages::stop_rule::{StopRule, DEFAULT_STOP_SPEED_M_S, STOP_MAX_AGE_S, STOP_SPEED};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
+use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
 use crate::transport::{
     RawSample, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
@@ -61,20 +61,22 @@ use crate::transport::{
 const FILE: Key = Key {
     name: "file",
     ty: Type::Str("an MCAP file from `driftless record`, or a ROS 2 bag (an MCAP file or a rosbag2 directory), relative to the pipeline file"),
-    default: "required",
+    default: DefaultValue::Required,
     doc: "the recording or bag to replay; its summary and first 1000 messages of the topic checked at validation, then streamed",
 };
 const TOPIC: Key = Key {
     name: "topic",
     ty: Type::Str("a recorded raw service: \"demo/raw\" or its topic \"/demo/raw\"; or a bag's sensor_msgs/msg/Imu topic: \"/imu/data\""),
-    default: "the file's only driftless.RawSample topic, else its only sensor_msgs/msg/Imu topic",
+    default: DefaultValue::Derived(
+        "the file's only driftless.RawSample topic, else its only sensor_msgs/msg/Imu topic",
+    ),
     doc: "which recorded service or Imu topic to replay",
 };
 
 const STOP_TOPIC: Key = Key {
     name: "stop_topic",
     ty: Type::Str("a bag's topic of nav_msgs/msg/Odometry, geometry_msgs/msg/TwistStamped or geometry_msgs/msg/TwistWithCovarianceStamped"),
-    default: "none",
+    default: DefaultValue::Absent("none"),
     doc: "the vehicle's motion logged in the bag (wheel odometry): each Imu sample carries whether it stands, from the last motion message by stamp, so `predict.bias` takes the stops by sample time",
 };
 /// `ingest.mcap`.
@@ -89,7 +91,7 @@ pub const KIND: Kind = Kind {
         LOOP,
         START_DELAY_S,
         STOP_TOPIC,
-        STOP_SPEED,
+        STOP_SPEED_OF_TOPIC,
         STOP_MAX_AGE_S,
     ],
     parse,
@@ -140,17 +142,17 @@ pub enum Format {
 const MCAP_TAKES: &str = "ingest.mcap replays an MCAP file (a `driftless record` recording or a \
 ROS 2 bag) or a rosbag2 directory; a CSV log is replayed by kind = \"ingest.csv\"";
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     parse_file(t).map(|p| Box::new(p) as Box<dyn Params>)
 }
 
-fn parse_file(t: &mut StageTable<'_, '_>) -> Result<McapParams, InputError> {
+fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
     let file_key = t.required_str(&FILE)?;
     let topic_key = t.get::<String>(&TOPIC)?;
     let replay = Replay::parse(t)?;
     let stop_key = t.get::<String>(&STOP_TOPIC)?;
     // A motion message says a speed, never whether the vehicle stands: a speed always rules.
-    let (rule, set) = StopRule::parse(t, Some(DEFAULT_STOP_SPEED_M_S))?;
+    let (rule, set) = StopRule::parse(t, &STOP_SPEED_OF_TOPIC)?;
     if stop_key.is_none() && set.is_some() {
         return Err(t.error("stop_speed and stop_max_age_s need a stop_topic"));
     }
@@ -362,7 +364,7 @@ impl Params for McapParams {
 /// A ROS 2 bag's Imu topic, checked: the pipeline's units rad/s, its rate the stamps' (within
 /// 1 %) over the first [`CHECKED_MESSAGES`] messages, none of which may be corrupt.
 fn parse_bag(
-    t: &StageTable<'_, '_>,
+    t: &Table<'_, '_>,
     file: PathBuf,
     file_key: &Spanned<String>,
     topic_key: Option<&Spanned<String>>,

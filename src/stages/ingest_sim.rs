@@ -23,38 +23,38 @@ use crate::io::InputError;
 use crate::sim::{SimConfig, Simulator};
 use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::stages::replay::{read_pace, PACE_TYPE};
-use crate::stages::schema::{Context, Key, StageTable, Type, Units};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, Units};
 use crate::transport::RawSample;
 
 const PROFILE: Key = Key {
     name: "profile",
     ty: Type::Choice(&["adxrs450", "adis16405"]),
-    default: "\"adxrs450\"",
+    default: DefaultValue::Word("adxrs450"),
     doc: "noise profile (IEEE 952 terms of the part)",
 };
 const SEED: Key = Key {
     name: "seed",
     ty: Type::Int(0, i64::MAX),
-    default: "1",
+    default: DefaultValue::Int(1),
     doc: "random seed",
 };
 const MOTION: Key = Key {
     name: "motion",
     ty: Type::Choice(&["none", "sines", "steps", "turn", "stop-and-go"]),
-    default: "\"sines\"",
+    default: DefaultValue::Word("sines"),
     doc: "true motion added to the noise",
 };
 const SAMPLES: Key = Key {
     name: "samples",
     ty: Type::Int(1, i64::MAX),
-    default: "none (until stopped)",
+    default: DefaultValue::Absent("none (until stopped)"),
     doc: "stop after this many samples",
 };
 
 const PACE: Key = Key {
     name: "pace",
     ty: PACE_TYPE,
-    default: "\"realtime\"",
+    default: DefaultValue::Word("realtime"),
     doc: "at rate_hz, this many times faster (10.0: ten seconds of samples in one; 1.0 is \"realtime\"), or as fast as possible; the same samples at every pace",
 };
 
@@ -82,10 +82,10 @@ pub struct SimParams {
     pub pace: Pace,
 }
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
-    let profile = t.choice(&PROFILE, "profile", false)?;
-    let seed = t.int(&SEED)?;
-    let motion = t.choice(&MOTION, "motion", false)?;
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    let profile = t.choice_or_default(&PROFILE, "profile", false)?;
+    let seed = t.int_or_default(&SEED)?;
+    let motion = t.choice_or_default(&MOTION, "motion", false)?;
     let samples = t.int(&SAMPLES)?;
     let pace = read_pace(t, &PACE)?;
     if t.cx.units != Units::DegPerSec {
@@ -95,9 +95,9 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         ));
     }
     let params = SimParams {
-        profile: profile.unwrap_or_else(|| "adxrs450".into()),
-        seed: seed.map_or(1, |s| s as u64),
-        motion: motion.unwrap_or_else(|| "sines".into()),
+        profile,
+        seed: seed as u64,
+        motion,
         samples: samples.map(|s| s as u64),
         pace,
     };

@@ -19,9 +19,12 @@
 //!
 //! # Adding a stage kind
 //! 1. Write `src/stages/<kind>.rs` with: its keys as [`Key`](crate::stages::schema::Key)
-//!    constants; a parse function reading them from the
-//!    [`StageTable`](crate::stages::schema::StageTable) (it checks types, ranges and anything
-//!    else `run` needs, positioning every error) and returning its parameters; a parameters
+//!    constants, each with its typed default
+//!    ([`DefaultValue`](crate::stages::schema::DefaultValue)); a parse function reading them
+//!    from the [`Table`](crate::stages::schema::Table) with the reader the default
+//!    asks for (`required_str` for a required key, an `*_or_default` reader for a typed
+//!    default, an optional one for the rest; it checks types, ranges and anything else `run`
+//!    needs, positioning every error) and returning its parameters; a parameters
 //!    type implementing [`Params`](crate::stages::contract::Params) (how the stage or source is
 //!    built, what `validate` says of it); and a `pub const KIND: Kind` tying them together with
 //!    its name, [`Role`](crate::stages::contract::Role) and one-line summary.
@@ -64,3 +67,101 @@ pub const KINDS: &[&Kind] = &[
     &external::KIND,
     &publish::KIND,
 ];
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::io::InputError;
+    use crate::stages::schema::{Context, DefaultValue, Src, Table, Type, Units};
+
+    /// Every kind's keys: a typed default is a value of the key's own type and range, and an
+    /// `Either` names another key of the same kind.
+    #[test]
+    fn every_default_fits_its_key() {
+        for kind in KINDS {
+            for key in kind.keys {
+                key.check_default()
+                    .unwrap_or_else(|e| panic!("{}: {e}", kind.name));
+                if let DefaultValue::Either(other) = key.default {
+                    assert!(
+                        kind.keys
+                            .iter()
+                            .any(|k| k.name == other && k.name != key.name),
+                        "{}: {} names {other}, not a key of the kind",
+                        kind.name,
+                        key.name
+                    );
+                }
+            }
+        }
+    }
+
+    /// The kind's own table read from `text` (keys of the kind only), under a pipeline at
+    /// 100 Hz, 3 axes, deg/s, whose file sits in a folder that does not exist.
+    fn parse(kind: &Kind, text: &str) -> Result<Box<dyn Params>, InputError> {
+        let src = Src {
+            path: Path::new("/nonexistent/driftless-keys-test/pipeline.toml"),
+            text,
+        };
+        let entries = toml::de::DeTable::parse(text)
+            .unwrap()
+            .into_inner()
+            .into_iter()
+            .map(|(k, v)| {
+                let key = kind.keys.iter().find(|key| key.name == k.get_ref());
+                (key.expect("a key of the kind").name, v)
+            })
+            .collect();
+        let cx = Context {
+            rate_hz: 100.0,
+            axes: 3,
+            units: Units::DegPerSec,
+        };
+        let mut t = Table::new(&src, cx, 0, 0, Some("in/raw"), ("keys", "s"), entries);
+        (kind.parse)(&mut t)
+    }
+
+    /// Every kind reads each key with the reader its default asks for (a reader given another
+    /// key panics: a required key by a required reader, a typed default by a defaulting one,
+    /// the rest by an optional one), and a required key missing is said by name. Each kind is
+    /// read from an empty table, then with its required keys and its string keys without a
+    /// default given (a file or service that does not exist: those errors are the file's).
+    #[test]
+    fn every_kind_reads_its_keys_as_their_defaults_say() {
+        for kind in KINDS {
+            let required: Vec<&str> = kind
+                .keys
+                .iter()
+                .filter(|k| k.default == DefaultValue::Required)
+                .map(|k| k.name)
+                .collect();
+            match (parse(kind, ""), required.first()) {
+                (Err(e), Some(first)) => assert!(
+                    e.to_string().contains(&format!("missing field `{first}`")),
+                    "{}: {e}",
+                    kind.name
+                ),
+                (Ok(_), Some(first)) => panic!("{} without {first} read", kind.name),
+                (_, None) => {}
+            }
+            let given: String = kind
+                .keys
+                .iter()
+                .filter(|k| {
+                    matches!(k.ty, Type::Str(_))
+                        && matches!(k.default, DefaultValue::Required | DefaultValue::Absent(_))
+                })
+                .map(|k| format!("{} = \"keys-test/{}\"\n", k.name, k.name))
+                .collect();
+            if let Err(e) = parse(kind, &given) {
+                assert!(
+                    !e.to_string().contains("missing field"),
+                    "{}: {e}",
+                    kind.name
+                );
+            }
+        }
+    }
+}

@@ -23,7 +23,7 @@ use crate::drift::compensator::{Compensator, Mode};
 use crate::drift::{ModelPredictor, PredictorKind};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
-use crate::stages::schema::{Context, Key, StageTable, Type};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::transport::{
     GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP,
 };
@@ -31,55 +31,55 @@ use crate::transport::{
 const MODEL: Key = Key {
     name: "model",
     ty: Type::Str("a model file from `driftless train`, relative to the pipeline file"),
-    default: "required, or `models`",
+    default: DefaultValue::Either("models"),
     doc: "one drift model for every axis",
 };
 const MODELS: Key = Key {
     name: "models",
     ty: Type::StrList("one model file per axis"),
-    default: "required, or `model`",
+    default: DefaultValue::Either("model"),
     doc: "one drift model per axis",
 };
 const PREDICTOR: Key = Key {
     name: "predictor",
     ty: Type::Choice(&PredictorKind::NAMES),
-    default: "rbf",
+    default: DefaultValue::Word(PredictorKind::Rbf.name()),
     doc: "what predicts the drift: the model's network, or the AR(p) baseline fitted on the same training drift and lags (the same gating and free run)",
 };
 const STILL_WINDOW: Key = Key {
     name: "still_window",
     ty: Type::Int(2, 1_000_000),
-    default: "the model's",
+    default: DefaultValue::Derived("the model's"),
     doc: "samples of the stillness detector's window",
 };
 const SETTLE: Key = Key {
     name: "settle",
     ty: Type::Int(0, 100_000_000),
-    default: "the model's",
+    default: DefaultValue::Derived("the model's"),
     doc: "quiet samples before moving turns to still",
 };
 const VAR_ENTER: Key = Key {
     name: "var_enter",
     ty: Type::Positive(f64::MAX),
-    default: "the model's",
+    default: DefaultValue::Derived("the model's"),
     doc: "window variance above which the sensor is moving (input units squared)",
 };
 const VAR_EXIT: Key = Key {
     name: "var_exit",
     ty: Type::Positive(f64::MAX),
-    default: "the model's",
+    default: DefaultValue::Derived("the model's"),
     doc: "window variance below which it may be still again (<= var_enter)",
 };
 const MEAN_ENTER: Key = Key {
     name: "mean_enter",
     ty: Type::Positive(f64::MAX),
-    default: "the model's",
+    default: DefaultValue::Derived("the model's"),
     doc: "|window mean - drift| above which the sensor is moving (input units)",
 };
 const MEAN_EXIT: Key = Key {
     name: "mean_exit",
     ty: Type::Positive(f64::MAX),
-    default: "the model's",
+    default: DefaultValue::Derived("the model's"),
     doc: "|window mean - drift| below which it may be still again (<= mean_enter)",
 };
 
@@ -169,13 +169,12 @@ impl Params for RbfParams {
 
 /// Load every model of a `predict.rbf` stage and check it against the pipeline: it loads, its
 /// rate and units are the pipeline's, and there is one per axis (or one shared).
-fn parse_rbf(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse_rbf(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let model = t.get::<String>(&MODEL)?;
     let models = t.get::<Vec<Spanned<String>>>(&MODELS)?;
-    let predictor = t
-        .choice(&PREDICTOR, "predictor", true)?
-        .and_then(|name| PredictorKind::from_name(&name))
-        .unwrap_or_default();
+    let predictor = t.choice_or_default(&PREDICTOR, "predictor", true)?;
+    // One of the key's choices, PredictorKind::NAMES.
+    let predictor = PredictorKind::from_name(&predictor).unwrap_or_default();
     let still_window = t.int(&STILL_WINDOW)?;
     let settle = t.int(&SETTLE)?;
     let mut thresholds = [None; 4];
@@ -183,7 +182,7 @@ fn parse_rbf(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> 
         .iter_mut()
         .zip([&VAR_ENTER, &VAR_EXIT, &MEAN_ENTER, &MEAN_EXIT])
     {
-        *slot = t.positive(key)?;
+        *slot = t.float(key)?;
     }
     let (src, cx) = (t.src, t.cx);
     let axes = cx.axes;

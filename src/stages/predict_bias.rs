@@ -32,8 +32,8 @@ use crate::io::InputError;
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::contract::{Side, SideKind};
-use crate::stages::schema::{Context, Key, StageTable, Type};
-use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
+use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::transport::{
     GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
 };
@@ -45,98 +45,101 @@ use std::time::Duration;
 const PROFILE: Key = Key {
     name: "profile",
     ty: Type::Choice(&["adis16405", "adxrs450"]),
-    default: "\"adis16405\" (unless arw, bias_instability and rrw are all given)",
+    default: DefaultValue::Noted(
+        &DefaultValue::Word("adis16405"),
+        " (unless arw, bias_instability and rrw are all given)",
+    ),
     doc: "the noise terms of a named sensor; with it, any term given replaces that sensor's",
 };
 const ARW: Key = Key {
     name: "arw",
     ty: Type::Positive(1e6),
-    default: "the profile's (without a profile: required)",
+    default: DefaultValue::Derived("the profile's (without a profile: required)"),
     doc: "angle random walk N, deg/sqrt(h) (as `driftless allan` prints it)",
 };
 const BIAS_INSTABILITY: Key = Key {
     name: "bias_instability",
-    ty: Type::Float(">= 0"),
-    default: "the profile's (without a profile: required)",
+    ty: Type::NonNegative,
+    default: DefaultValue::Derived("the profile's (without a profile: required)"),
     doc: "bias instability B, deg/h",
 };
 const RRW: Key = Key {
     name: "rrw",
-    ty: Type::Float(">= 0"),
-    default: "the profile's (without a profile: required)",
+    ty: Type::NonNegative,
+    default: DefaultValue::Derived("the profile's (without a profile: required)"),
     doc: "rate random walk K, deg/h/sqrt(h)",
 };
 const QUANTIZATION: Key = Key {
     name: "quantization",
-    ty: Type::Float(">= 0"),
-    default: "the profile's (without a profile: 0)",
+    ty: Type::NonNegative,
+    default: DefaultValue::Derived("the profile's (without a profile: 0)"),
     doc: "quantisation noise Q, deg (as `driftless allan` prints it)",
 };
 const LSB: Key = Key {
     name: "lsb",
-    ty: Type::Float(">= 0"),
-    default: "the profile's (without a profile: 0)",
+    ty: Type::NonNegative,
+    default: DefaultValue::Derived("the profile's (without a profile: 0)"),
     doc: "output step of the raw rate, input units (0: not quantised)",
 };
 const INITIAL_SD: Key = Key {
     name: "initial_sd",
     ty: Type::Positive(1e6),
-    default: "1 deg/s",
+    default: DefaultValue::Noted(&DefaultValue::Float(DEFAULT_INITIAL_SD), " deg/s"),
     doc: "spread of the turn-on bias before the first stop, input units",
 };
 const DELAY_S: Key = Key {
     name: "delay_s",
-    ty: Type::Float("0..=60"),
-    default: "1",
+    ty: Type::FloatIn(0.0, 60.0),
+    default: DefaultValue::Float(TrackerConfig::DEFAULT_DELAY_S),
     doc: "a still sample enters the filter only after the sensor stayed still this long after it",
 };
 
 const LEARN_WALK: Key = Key {
     name: "learn_walk",
     ty: Type::Choice(&["given-stops", "always", "off"]),
-    default: "\"given-stops\"",
+    default: DefaultValue::Word(TrackerConfig::DEFAULT_LEARN_WALK.name()),
     doc: "which stops teach the filter how fast this unit's bias wanders: stops given from outside, every stop (our detector's too), or none (keep the terms' walk)",
 };
 const WALK_MIN: Key = Key {
     name: "walk_min",
     ty: Type::Positive(1e9),
-    default: "the terms' walk / 100",
+    default: DefaultValue::Derived("the terms' walk / 100"),
     doc: "least walk learnt, as a rate random walk in deg/h/sqrt(h)",
 };
 const WALK_MAX: Key = Key {
     name: "walk_max",
     ty: Type::Positive(1e9),
-    default: "the terms' walk x 10",
+    default: DefaultValue::Derived("the terms' walk x 10"),
     doc: "largest walk learnt, deg/h/sqrt(h)",
 };
 
 const STOP_INPUT: Key = Key {
     name: "stop_input",
     ty: Type::Str("a service of StopSignal another process publishes"),
-    default: "none: our own stillness detector alone",
+    default: DefaultValue::Absent("none: our own stillness detector alone"),
     doc: "the vehicle's stop signal (wheel odometry, speed): trusted while fresh, checked against the gyro; our detector decides while it is stale",
 };
 const STATE_FILE: Key = Key {
     name: "state_file",
     ty: Type::Str("a file path, relative to the pipeline file"),
-    default: "none: every start is cold",
+    default: DefaultValue::Absent("none: every start is cold"),
     doc: "where the filter's state is saved (at shutdown and every state_every_s) and resumed from at the next start, grown by the time between: corrected from the first sample",
 };
 const STATE_REQUIRED: Key = Key {
     name: "state_required",
     ty: Type::Bool,
-    default: "false: an unusable state_file costs the warm start, never the start",
+    default: DefaultValue::Noted(
+        &DefaultValue::Bool(false),
+        ": an unusable state_file costs the warm start, never the start",
+    ),
     doc: "true: a state_file that is there but cannot be used (garbage, another pipeline's or other terms', unreadable) stops the pipeline (exit 2), as before this key, instead of a cold start that moves it aside (`<name>.unusable-<UTC time>`); a missing one is still a cold start",
 };
 const STATE_EVERY_S: Key = Key {
     name: "state_every_s",
     ty: Type::Positive(86_400.0),
-    default: "120",
+    default: DefaultValue::Float(120.0),
     doc: "how often the state is saved while running (a daemon killed without its shutdown resumes from the last save)",
 };
-
-/// Default of [`STATE_EVERY_S`].
-const DEFAULT_STATE_EVERY_S: f64 = 120.0;
 
 /// A walk in (deg/s)^2/s as a rate random walk in deg/h/sqrt(h), the unit of `rrw`.
 pub fn walk_to_rrw(walk: f64) -> f64 {
@@ -162,7 +165,7 @@ pub const KIND: Kind = Kind {
         WALK_MAX,
         STOP_INPUT,
         STOP_MAX_AGE_S,
-        STOP_SPEED,
+        STOP_SPEED_OF_SIGNAL,
         STATE_FILE,
         STATE_EVERY_S,
         STATE_REQUIRED,
@@ -226,28 +229,16 @@ impl StopConfig {
     }
 }
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let src = t.src;
     let profile = t.choice(&PROFILE, "profile", false)?;
-    let arw = t.positive(&ARW)?;
-    let non_negative = |t: &mut StageTable<'_, '_>, key: &Key| -> Result<Option<f64>, InputError> {
-        match t.get::<f64>(key)? {
-            Some(v) if !(v.get_ref().is_finite() && *v.get_ref() >= 0.0) => Err(src.span(
-                &v,
-                format!("{} must be finite and >= 0, got {}", key.name, v.get_ref()),
-            )),
-            v => Ok(v.map(toml::Spanned::into_inner)),
-        }
-    };
-    let b = non_negative(t, &BIAS_INSTABILITY)?;
-    let k = non_negative(t, &RRW)?;
-    let q = non_negative(t, &QUANTIZATION)?;
-    let lsb = non_negative(t, &LSB)?;
-    let initial_sd = t.positive(&INITIAL_SD)?;
-    let delay_s = match t.get::<f64>(&DELAY_S)? {
-        Some(v) => Some(src.float_in(&v, "delay_s", 0.0, 60.0)?),
-        None => None,
-    };
+    let arw = t.float(&ARW)?;
+    let b = t.float(&BIAS_INSTABILITY)?;
+    let k = t.float(&RRW)?;
+    let q = t.float(&QUANTIZATION)?;
+    let lsb = t.float(&LSB)?;
+    let initial_sd = t.float(&INITIAL_SD)?;
+    let delay_s = t.float_or_default(&DELAY_S)?;
     // Your own terms, or a named sensor's: never a sensor's terms for the ones you left out
     // unless you name it (a gyro that is not an ADIS16405 must not get its noise silently).
     let given = [
@@ -267,7 +258,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             )));
         }
     }
-    let name = profile.as_deref().unwrap_or("adis16405");
+    let name = profile.as_deref().unwrap_or(PROFILE.default.word());
     let mut terms = BiasTerms::profile(name).map_err(|e| t.error(format!("predict.bias: {e}")))?;
     if own {
         // Not that sensor: what is not given is not there.
@@ -291,20 +282,20 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     if let Some(l) = lsb {
         terms.lsb = l * to_deg;
     }
-    terms.initial_sd = initial_sd.map_or(DEFAULT_INITIAL_SD, |s| s * to_deg);
-    let mut tracker = TrackerConfig::default();
-    if let Some(d) = delay_s {
-        tracker.delay_s = d;
-    }
-    if let Some(name) = t.choice(&LEARN_WALK, "learn_walk", false)? {
-        for l in [LearnWalk::Off, LearnWalk::GivenStops, LearnWalk::Always] {
-            if l.name() == name {
-                tracker.learn_walk = l;
-            }
+    // A given spread is in input units; the default, as its note says, in deg/s.
+    terms.initial_sd = initial_sd.map_or(INITIAL_SD.default.float(), |s| s * to_deg);
+    let mut tracker = TrackerConfig {
+        delay_s,
+        ..TrackerConfig::default()
+    };
+    let learn_walk = t.choice_or_default(&LEARN_WALK, "learn_walk", false)?;
+    for l in [LearnWalk::Off, LearnWalk::GivenStops, LearnWalk::Always] {
+        if l.name() == learn_walk {
+            tracker.learn_walk = l;
         }
     }
-    let walk_min = t.positive(&WALK_MIN)?;
-    let walk_max = t.positive(&WALK_MAX)?;
+    let walk_min = t.float(&WALK_MIN)?;
+    let walk_max = t.float(&WALK_MAX)?;
     if walk_min.is_some() || walk_max.is_some() {
         let configured = BiasModel::new(&terms, t.cx.rate_hz, Instability::from_terms(&terms))
             .map(|m| m.walk_per_s(t.cx.rate_hz))
@@ -322,7 +313,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         tracker.walk_range = Some((lo, hi));
     }
     let input = t.get::<String>(&STOP_INPUT)?;
-    let (rule, set) = StopRule::parse(t, None)?;
+    let (rule, set) = StopRule::parse(t, &STOP_SPEED_OF_SIGNAL)?;
     let stop = match input {
         Some(v) => Some(StopConfig {
             service: src.service(&v)?,
@@ -340,10 +331,8 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let state = match t.get::<String>(&STATE_FILE)? {
         Some(file) => {
             let path = src.resolve(file.get_ref());
-            let every_s = t.positive(&STATE_EVERY_S)?.unwrap_or(DEFAULT_STATE_EVERY_S);
-            let required = t
-                .get::<bool>(&STATE_REQUIRED)?
-                .is_some_and(toml::Spanned::into_inner);
+            let every_s = t.float_or_default(&STATE_EVERY_S)?;
+            let required = t.bool_or_default(&STATE_REQUIRED)?;
             let owner = Owner {
                 pipeline: t.owner.0.to_string(),
                 stage: t.owner.1.to_string(),
@@ -367,7 +356,7 @@ fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         }
         None => {
             for key in [&STATE_EVERY_S, &STATE_REQUIRED] {
-                if t.get::<toml::Value>(key)?.is_some() {
+                if t.has(key) {
                     return Err(t.error(format!("predict.bias: {} needs state_file", key.name)));
                 }
             }

@@ -10,17 +10,15 @@
 //! # notify = true            # notify the event service of the same name after each sample
 //! ```
 
-use toml::Spanned;
-
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
-use crate::stages::schema::{Context, Key, StageTable, Type};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_OUTPUT_REPAIRED};
 
 const NOTIFY: Key = Key {
     name: "notify",
     ty: Type::Bool,
-    default: "true",
+    default: DefaultValue::Bool(true),
     doc: "notify the event service named like `output` after each sample",
 };
 
@@ -41,9 +39,9 @@ pub struct PublishParams {
     pub notify: bool,
 }
 
-fn parse(t: &mut StageTable<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     Ok(Box::new(PublishParams {
-        notify: t.get::<bool>(&NOTIFY)?.is_none_or(Spanned::into_inner),
+        notify: t.bool_or_default(&NOTIFY)?,
     }))
 }
 

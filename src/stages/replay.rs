@@ -14,7 +14,7 @@ use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvErro
 use crate::clock::{Pace, PaceClock};
 use crate::io::InputError;
 use crate::stages::contract::{Poll, Source};
-use crate::stages::schema::{Key, StageTable, Type, WordOr};
+use crate::stages::schema::{DefaultValue, Key, Table, Type, WordOr};
 use crate::transport::RawSample;
 
 /// Samples per block the reader thread hands to the hot thread.
@@ -33,15 +33,15 @@ pub const PACE_TYPE: Type = Type::WordOrPositive(&["realtime", "asap"], MAX_PACE
 pub const PACE: Key = Key {
     name: "pace",
     ty: PACE_TYPE,
-    default: "\"realtime\"",
+    default: DefaultValue::Word("realtime"),
     doc: "at the file's rate, this many times faster (10.0: ten seconds of the log in one; 1.0 is \"realtime\"), or as fast as possible; the same samples at every pace",
 };
 
-/// A `pace` key of [`PACE_TYPE`] (a replay's or the simulator's): real time when absent.
-pub fn read_pace(t: &mut StageTable<'_, '_>, key: &Key) -> Result<Pace, InputError> {
-    Ok(match t.word_or_positive(key)? {
-        Some(WordOr::Word("asap")) => Pace::Asap,
-        Some(WordOr::Number(f)) => Pace::Times(f),
+/// A `pace` key of [`PACE_TYPE`] (a replay's or the simulator's), else its default.
+pub fn read_pace(t: &mut Table<'_, '_>, key: &Key) -> Result<Pace, InputError> {
+    Ok(match t.word_or_positive_or_default(key)? {
+        WordOr::Word("asap") => Pace::Asap,
+        WordOr::Number(f) => Pace::Times(f),
         _ => Pace::REALTIME,
     })
 }
@@ -50,7 +50,7 @@ pub fn read_pace(t: &mut StageTable<'_, '_>, key: &Key) -> Result<Pace, InputErr
 pub const LOOP: Key = Key {
     name: "loop",
     ty: Type::Bool,
-    default: "false",
+    default: DefaultValue::Bool(false),
     doc: "replay again from the start at the end of the file",
 };
 
@@ -58,7 +58,7 @@ pub const LOOP: Key = Key {
 pub const START_DELAY_S: Key = Key {
     name: "start_delay_s",
     ty: Type::Positive(3600.0),
-    default: "none: the first sample at once",
+    default: DefaultValue::Absent("none: the first sample at once"),
     doc: "seconds to wait after the pipeline is up before the first sample: time for a recorder or a navigator to subscribe and miss nothing",
 };
 
@@ -76,11 +76,11 @@ pub struct Replay {
 
 impl Replay {
     /// The replay keys of a stage table, checked.
-    pub fn parse(t: &mut StageTable<'_, '_>) -> Result<Replay, InputError> {
+    pub fn parse(t: &mut Table<'_, '_>) -> Result<Replay, InputError> {
         let pace = read_pace(t, &PACE)?;
-        let looped = t.get::<bool>(&LOOP)?.is_some_and(toml::Spanned::into_inner);
+        let looped = t.bool_or_default(&LOOP)?;
         let start_delay = t
-            .positive(&START_DELAY_S)?
+            .float(&START_DELAY_S)?
             .map_or(Duration::ZERO, Duration::from_secs_f64);
         Ok(Replay {
             pace,

@@ -2,9 +2,12 @@
 //! keys with their ranges and defaults, and the pipeline-wide values a stage may depend on.
 //!
 //! A stage kind declares its keys as [`Key`]s (name, type and range, default, meaning); the
-//! same declarations check the table ([`StageTable`]'s readers), reject keys of other kinds,
+//! same declarations check the table ([`Table`]'s readers), reject keys of other kinds,
 //! and are listed by `driftless validate --kinds`, so the documentation cannot drift from the
-//! checks. Arrows point one way: stage files use this module; it knows no stage file.
+//! checks. A key's default is typed ([`DefaultValue`]): the `*_or_default` readers apply it
+//! and the reference prints it, so a stage file never writes a default value itself; a
+//! default that follows from other values says so in words, and the stage computes it.
+//! Arrows point one way: stage files use this module; it knows no stage file.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -192,6 +195,12 @@ pub enum Type {
     IntDepends(&'static str),
     /// A finite float in `(0, max]`.
     Positive(f64),
+    /// A finite float `>= 0`.
+    NonNegative,
+    /// A finite float `> lo`.
+    Greater(f64),
+    /// A finite float in `[lo, hi]`.
+    FloatIn(f64, f64),
     /// A float with a described range.
     Float(&'static str),
     /// One of these strings.
@@ -218,6 +227,9 @@ impl Type {
             Type::Int(lo, hi) => format!("int {lo}..={hi}"),
             Type::IntDepends(d) => format!("int {d}"),
             Type::Positive(max) => positive(*max),
+            Type::NonNegative => "float >= 0".into(),
+            Type::Greater(lo) => format!("float > {}", num(*lo)),
+            Type::FloatIn(lo, hi) => format!("float {}..={}", num(*lo), num(*hi)),
             Type::Float(d) => format!("float {d}"),
             Type::Choice(c) => quoted(c).join(" | "),
             Type::Str(d) => format!("string ({d})"),
@@ -255,6 +267,109 @@ pub enum WordOr {
     Number(f64),
 }
 
+/// What a key is when the file does not give it: one declaration, which the readers apply and
+/// the reference prints (`Display`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DefaultValue {
+    /// None: the file must give it (`required`).
+    Required,
+    /// None, but the file must give it or the named other key (`required, or `other``).
+    Either(&'static str),
+    /// An integer.
+    Int(i64),
+    /// A float (shown as [`num`] writes it).
+    Float(f64),
+    /// true or false.
+    Bool(bool),
+    /// A word (shown quoted).
+    Word(&'static str),
+    /// A list of words (shown as a TOML array).
+    Words(&'static [&'static str]),
+    /// A typed value and how the stage applies it, shown after it: a unit (`1 deg/s`), a cut or
+    /// a cap by other values (`33 (at most the full lag)`). The note starts with its separator
+    /// (a space, a colon).
+    Noted(&'static DefaultValue, &'static str),
+    /// No value: the key is absent and nothing replaces it. The text, shown as written, says
+    /// what absence means (`none: every start is cold`).
+    Absent(&'static str),
+    /// A value that follows from other keys, the profile or the model, computed by the stage.
+    /// The text, shown as written, says how (`the model's`).
+    Derived(&'static str),
+}
+
+impl DefaultValue {
+    /// The typed value a reader applies (a [`Noted`](DefaultValue::Noted) one's value), or
+    /// None when there is none to apply (required, absent, derived).
+    pub const fn value(&self) -> Option<&DefaultValue> {
+        match self {
+            DefaultValue::Int(_)
+            | DefaultValue::Float(_)
+            | DefaultValue::Bool(_)
+            | DefaultValue::Word(_)
+            | DefaultValue::Words(_) => Some(self),
+            DefaultValue::Noted(v, _) => v.value(),
+            _ => None,
+        }
+    }
+
+    /// Its integer; a key declared otherwise is a programming error.
+    pub fn int(&self) -> i64 {
+        match self.value() {
+            Some(DefaultValue::Int(v)) => *v,
+            _ => unreachable!("the default {self:?} is not an integer"),
+        }
+    }
+
+    /// Its float (an integer's value too); a key declared otherwise is a programming error.
+    pub fn float(&self) -> f64 {
+        match self.value() {
+            Some(DefaultValue::Float(v)) => *v,
+            Some(DefaultValue::Int(v)) => *v as f64,
+            _ => unreachable!("the default {self:?} is not a number"),
+        }
+    }
+
+    /// Its truth value; a key declared otherwise is a programming error.
+    pub fn bool(&self) -> bool {
+        match self.value() {
+            Some(DefaultValue::Bool(v)) => *v,
+            _ => unreachable!("the default {self:?} is not a bool"),
+        }
+    }
+
+    /// Its word; a key declared otherwise is a programming error.
+    pub fn word(&self) -> &'static str {
+        match self.value() {
+            Some(DefaultValue::Word(v)) => v,
+            _ => unreachable!("the default {self:?} is not a word"),
+        }
+    }
+
+    /// Its words; a key declared otherwise is a programming error.
+    pub fn words(&self) -> &'static [&'static str] {
+        match self.value() {
+            Some(DefaultValue::Words(v)) => v,
+            _ => unreachable!("the default {self:?} is not a list of words"),
+        }
+    }
+}
+
+impl std::fmt::Display for DefaultValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DefaultValue::Required => f.write_str("required"),
+            DefaultValue::Either(other) => write!(f, "required, or `{other}`"),
+            DefaultValue::Int(v) => write!(f, "{v}"),
+            DefaultValue::Float(v) => f.write_str(&num(*v)),
+            DefaultValue::Bool(v) => write!(f, "{v}"),
+            DefaultValue::Word(w) => write!(f, "{w:?}"),
+            DefaultValue::Words(w) => write!(f, "[{}]", quoted(w).join(", ")),
+            DefaultValue::Noted(v, note) => write!(f, "{v}{note}"),
+            DefaultValue::Absent(text) | DefaultValue::Derived(text) => f.write_str(text),
+        }
+    }
+}
+
 /// A key of a stage kind's table: its one declaration, used to read, to check and to list it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Key {
@@ -262,16 +377,93 @@ pub struct Key {
     pub name: &'static str,
     /// Its type and range.
     pub ty: Type,
-    /// Its default as shown to users (`"required"` when it has none).
-    pub default: &'static str,
+    /// Its default: applied by the `*_or_default` readers, listed as written by its `Display`.
+    pub default: DefaultValue,
     /// What it means.
     pub doc: &'static str,
 }
 
-/// A stage kind's own `[[stage]]` table (without `name`, `kind`, `input`, `output`): the kind's
-/// parse function takes its keys through the readers below, which check types and ranges
-/// against the [`Key`] declarations and position every error.
-pub struct StageTable<'a, 'i> {
+impl Key {
+    /// Whether its typed default is a value of its own type, within its range or among its
+    /// choices (an `IntDepends` or described `Float` range is not checked; a note must start
+    /// with its separator; absent text says "none").
+    pub fn check_default(&self) -> Result<(), String> {
+        let bad = |why: String| Err(format!("{}: default {}: {why}", self.name, self.default));
+        if let DefaultValue::Noted(_, note) = self.default {
+            if !note.starts_with([' ', ':']) {
+                return bad("a note starts with a space or a colon".into());
+            }
+        }
+        if let DefaultValue::Absent(text) = self.default {
+            if !text.starts_with("none") {
+                return bad("absent text starts with \"none\"".into());
+            }
+        }
+        let Some(value) = self.default.value() else {
+            return Ok(());
+        };
+        let finite = |x: f64, ok: bool| x.is_finite() && ok;
+        let fits = match (self.ty, *value) {
+            (Type::Int(lo, hi), DefaultValue::Int(v)) => (lo..=hi).contains(&v),
+            (Type::IntDepends(_), DefaultValue::Int(v)) => v >= 0,
+            (Type::Positive(max), DefaultValue::Float(x)) => finite(x, x > 0.0 && x <= max),
+            (Type::NonNegative, DefaultValue::Float(x)) => finite(x, x >= 0.0),
+            (Type::Greater(lo), DefaultValue::Float(x)) => finite(x, x > lo),
+            (Type::FloatIn(lo, hi), DefaultValue::Float(x)) => finite(x, (lo..=hi).contains(&x)),
+            (Type::Float(_), DefaultValue::Float(x)) => x.is_finite(),
+            (Type::Choice(c), DefaultValue::Word(w)) => c.contains(&w),
+            (Type::Str(_), DefaultValue::Word(_)) => true,
+            (Type::StrList(_), DefaultValue::Words(_)) => true,
+            (Type::Bool, DefaultValue::Bool(_)) => true,
+            (Type::WordOrPositive(words, _), DefaultValue::Word(w)) => words.contains(&w),
+            (Type::WordOrPositive(_, max), DefaultValue::Float(x)) => {
+                finite(x, x > 0.0 && x <= max)
+            }
+            _ => return bad(format!("not a value of type {}", self.ty.describe())),
+        };
+        if fits {
+            Ok(())
+        } else {
+            bad(format!("outside {}", self.ty.describe()))
+        }
+    }
+}
+
+/// How a reader takes a key, against how the key's default is declared: a required key by a
+/// required reader, a typed default by an `*_or_default` reader (the stage never writes it
+/// again), the rest by an optional reader. Anything else is a programming error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reading {
+    Required,
+    Optional,
+    OrDefault,
+}
+
+fn expect(key: &Key, reading: Reading) {
+    let typed = key.default.value().is_some();
+    let ok = match reading {
+        Reading::Required => key.default == DefaultValue::Required,
+        Reading::OrDefault => typed,
+        // A noted default is a value the stage applies as its note says: it reads the key's
+        // presence, and the value from the key.
+        Reading::Optional => {
+            key.default != DefaultValue::Required
+                && (!typed || matches!(key.default, DefaultValue::Noted(..)))
+        }
+    };
+    assert!(
+        ok,
+        "{}: default {:?} read as {reading:?}",
+        key.name, key.default
+    );
+}
+
+/// One table of the pipeline file, its keys already sorted against their declarations: a stage
+/// kind's own `[[stage]]` table (without `name`, `kind`, `input`, `output`), a side's table, or
+/// the pipeline's own keys. Its reader takes the keys through the readers below, which check
+/// types and ranges against the [`Key`] declarations, apply typed defaults and position every
+/// error. `kind_at` and `input` are a stage's; `cx` is the pipeline's once its own keys are read.
+pub struct Table<'a, 'i> {
     /// The pipeline file.
     pub src: &'a Src<'a>,
     /// The pipeline's rate, axes and units.
@@ -287,7 +479,7 @@ pub struct StageTable<'a, 'i> {
     entries: Vec<(&'static str, Spanned<DeValue<'i>>)>,
 }
 
-impl<'a, 'i> StageTable<'a, 'i> {
+impl<'a, 'i> Table<'a, 'i> {
     /// A table whose keys were already checked against the kind's declarations.
     pub(crate) fn new(
         src: &'a Src<'a>,
@@ -298,7 +490,7 @@ impl<'a, 'i> StageTable<'a, 'i> {
         owner: (&'a str, &'a str),
         entries: Vec<(&'static str, Spanned<DeValue<'i>>)>,
     ) -> Self {
-        StageTable {
+        Table {
             src,
             cx,
             start,
@@ -314,8 +506,15 @@ impl<'a, 'i> StageTable<'a, 'i> {
         self.src.at(self.start, message)
     }
 
-    /// The value of `key` deserialized as `T`, spanned; None when absent.
+    /// The value of `key` deserialized as `T`, spanned; None when absent: for a key without
+    /// a typed default (or with a noted one, whose value the stage takes from the key), or
+    /// whose value the kind checks itself.
     pub fn get<T: Deserialize<'i>>(&mut self, key: &Key) -> Result<Option<Spanned<T>>, InputError> {
+        expect(key, Reading::Optional);
+        self.take(key)
+    }
+
+    fn take<T: Deserialize<'i>>(&mut self, key: &Key) -> Result<Option<Spanned<T>>, InputError> {
         match self.entries.iter().position(|(k, _)| *k == key.name) {
             Some(i) => {
                 let (_, v) = self.entries.swap_remove(i);
@@ -325,40 +524,148 @@ impl<'a, 'i> StageTable<'a, 'i> {
         }
     }
 
+    /// Whether the table gives `key` (it is left to be read).
+    pub fn has(&self, key: &Key) -> bool {
+        self.entries.iter().any(|(k, _)| *k == key.name)
+    }
+
     /// A required string.
     pub fn required_str(&mut self, key: &Key) -> Result<Spanned<String>, InputError> {
-        self.get(key)?
+        expect(key, Reading::Required);
+        self.take(key)?
             .ok_or_else(|| self.error(format!("missing field `{}`", key.name)))
     }
 
-    /// An integer of a [`Type::Int`] key, range-checked.
+    /// A required float, checked as [`Table::float`] checks it.
+    pub fn required_float(&mut self, key: &Key) -> Result<f64, InputError> {
+        expect(key, Reading::Required);
+        self.take_float(key)?
+            .ok_or_else(|| self.error(format!("missing field `{}`", key.name)))
+    }
+
+    /// A string of a [`Type::Str`] key, `check`ed when given (its error positioned at the
+    /// value), else its default word.
+    pub fn str_or_default(
+        &mut self,
+        key: &Key,
+        check: impl FnOnce(&str) -> Result<(), String>,
+    ) -> Result<String, InputError> {
+        let Type::Str(_) = key.ty else {
+            unreachable!("{} is not declared Type::Str", key.name)
+        };
+        expect(key, Reading::OrDefault);
+        match self.take::<String>(key)? {
+            Some(v) => {
+                check(v.get_ref()).map_err(|e| self.src.span(&v, e))?;
+                Ok(v.into_inner())
+            }
+            None => Ok(key.default.word().to_string()),
+        }
+    }
+
+    /// An integer of a [`Type::Int`] key, range-checked; None when absent.
     pub fn int(&mut self, key: &Key) -> Result<Option<usize>, InputError> {
+        expect(key, Reading::Optional);
+        self.take_int(key)
+    }
+
+    /// An integer of a [`Type::Int`] key, range-checked, else its default.
+    pub fn int_or_default(&mut self, key: &Key) -> Result<usize, InputError> {
+        expect(key, Reading::OrDefault);
+        Ok(self.take_int(key)?.unwrap_or(key.default.int() as usize))
+    }
+
+    fn take_int(&mut self, key: &Key) -> Result<Option<usize>, InputError> {
         let Type::Int(lo, hi) = key.ty else {
             unreachable!("{} is not declared Type::Int", key.name)
         };
-        self.int_in(key, lo, hi)
-    }
-
-    /// An integer in `lo..=hi` (for keys whose range depends on others).
-    pub fn int_in(&mut self, key: &Key, lo: i64, hi: i64) -> Result<Option<usize>, InputError> {
-        self.get::<i64>(key)?
+        self.take::<i64>(key)?
             .map(|v| self.src.int_in(&v, key.name, lo, hi))
             .transpose()
     }
 
-    /// A float of a [`Type::Positive`] key, checked (named by the key in the message).
-    pub fn positive(&mut self, key: &Key) -> Result<Option<f64>, InputError> {
-        let Type::Positive(max) = key.ty else {
-            unreachable!("{} is not declared Type::Positive", key.name)
+    /// An integer of a [`Type::IntDepends`] key in `lo..=hi` (the range the other keys
+    /// give), else its default brought into that range.
+    pub fn int_in_or_default(&mut self, key: &Key, lo: i64, hi: i64) -> Result<usize, InputError> {
+        let Type::IntDepends(_) = key.ty else {
+            unreachable!("{} is not declared Type::IntDepends", key.name)
         };
-        self.get::<f64>(key)?
-            .map(|v| self.src.positive(&v, key.name, max))
-            .transpose()
+        expect(key, Reading::OrDefault);
+        Ok(match self.take::<i64>(key)? {
+            Some(v) => self.src.int_in(&v, key.name, lo, hi)?,
+            None => key.default.int().clamp(lo, hi) as usize,
+        })
+    }
+
+    /// A float of a [`Type::Positive`], [`Type::NonNegative`], [`Type::Greater`] or
+    /// [`Type::FloatIn`] key, checked (named by the key in the message); None when absent.
+    pub fn float(&mut self, key: &Key) -> Result<Option<f64>, InputError> {
+        expect(key, Reading::Optional);
+        self.take_float(key)
+    }
+
+    /// A float as [`Table::float`] reads it, else its default.
+    pub fn float_or_default(&mut self, key: &Key) -> Result<f64, InputError> {
+        expect(key, Reading::OrDefault);
+        Ok(self.take_float(key)?.unwrap_or(key.default.float()))
+    }
+
+    fn take_float(&mut self, key: &Key) -> Result<Option<f64>, InputError> {
+        let Some(v) = self.take::<f64>(key)? else {
+            return Ok(None);
+        };
+        let (x, name) = (*v.get_ref(), key.name);
+        match key.ty {
+            Type::Positive(max) => self.src.positive(&v, name, max).map(Some),
+            Type::FloatIn(lo, hi) => self.src.float_in(&v, name, lo, hi).map(Some),
+            Type::NonNegative if !(x.is_finite() && x >= 0.0) => Err(self
+                .src
+                .span(&v, format!("{name} must be finite and >= 0, got {x}"))),
+            Type::Greater(lo) if !(x.is_finite() && x > lo) => Err(self
+                .src
+                .span(&v, format!("{name} must be > {}, got {x}", num(lo)))),
+            Type::NonNegative | Type::Greater(_) => Ok(Some(x)),
+            _ => unreachable!("{name} is not declared a checked float"),
+        }
+    }
+
+    /// true or false, of a [`Type::Bool`] key, else its default.
+    pub fn bool_or_default(&mut self, key: &Key) -> Result<bool, InputError> {
+        let Type::Bool = key.ty else {
+            unreachable!("{} is not declared Type::Bool", key.name)
+        };
+        expect(key, Reading::OrDefault);
+        Ok(self
+            .take::<bool>(key)?
+            .map_or(key.default.bool(), Spanned::into_inner))
     }
 
     /// A string of a [`Type::Choice`] key, checked against its choices: "unknown {what} "x"
-    /// (valid: ...)", the choices quoted when `quote` is set.
+    /// (valid: ...)", the choices quoted when `quote` is set; None when absent.
     pub fn choice(
+        &mut self,
+        key: &Key,
+        what: &str,
+        quote: bool,
+    ) -> Result<Option<String>, InputError> {
+        expect(key, Reading::Optional);
+        self.take_choice(key, what, quote)
+    }
+
+    /// A choice as [`Table::choice`] reads it, else its default word.
+    pub fn choice_or_default(
+        &mut self,
+        key: &Key,
+        what: &str,
+        quote: bool,
+    ) -> Result<String, InputError> {
+        expect(key, Reading::OrDefault);
+        Ok(self
+            .take_choice(key, what, quote)?
+            .unwrap_or_else(|| key.default.word().to_string()))
+    }
+
+    fn take_choice(
         &mut self,
         key: &Key,
         what: &str,
@@ -367,7 +674,7 @@ impl<'a, 'i> StageTable<'a, 'i> {
         let Type::Choice(valid) = key.ty else {
             unreachable!("{} is not declared Type::Choice", key.name)
         };
-        let Some(v) = self.get::<String>(key)? else {
+        let Some(v) = self.take::<String>(key)? else {
             return Ok(None);
         };
         if !valid.contains(&v.get_ref().as_str()) {
@@ -395,12 +702,29 @@ impl<'a, 'i> StageTable<'a, 'i> {
 
     /// A value of a [`Type::WordOrPositive`] key: one of its words, or a number (an integer
     /// too) in its range; anything else is "{key} must be "a", "b" or a number > 0 and <= max,
-    /// got ...".
+    /// got ..."; None when absent.
     pub fn word_or_positive(&mut self, key: &Key) -> Result<Option<WordOr>, InputError> {
+        expect(key, Reading::Optional);
+        self.take_word_or_positive(key)
+    }
+
+    /// A value as [`Table::word_or_positive`] reads it, else its default.
+    pub fn word_or_positive_or_default(&mut self, key: &Key) -> Result<WordOr, InputError> {
+        expect(key, Reading::OrDefault);
+        Ok(match self.take_word_or_positive(key)? {
+            Some(v) => v,
+            None => match key.default.value() {
+                Some(DefaultValue::Word(w)) => WordOr::Word(w),
+                _ => WordOr::Number(key.default.float()),
+            },
+        })
+    }
+
+    fn take_word_or_positive(&mut self, key: &Key) -> Result<Option<WordOr>, InputError> {
         let Type::WordOrPositive(words, max) = key.ty else {
             unreachable!("{} is not declared Type::WordOrPositive", key.name)
         };
-        let Some(v) = self.get::<toml::Value>(key)? else {
+        let Some(v) = self.take::<toml::Value>(key)? else {
             return Ok(None);
         };
         let (number, got) = match v.get_ref() {
@@ -432,12 +756,10 @@ impl<'a, 'i> StageTable<'a, 'i> {
         }
     }
 
-    /// A `poll_timeout_us` key (10 us to 1 s, default 1 ms): how long a stage waiting on
-    /// another process's service sleeps before checking for shutdown.
+    /// A `poll_timeout_us` key: how long a stage waiting on another process's service sleeps
+    /// before checking for shutdown.
     pub fn poll_timeout(&mut self, key: &Key) -> Result<Duration, InputError> {
-        Ok(self.int(key)?.map_or(Duration::from_millis(1), |us| {
-            Duration::from_micros(us as u64)
-        }))
+        Ok(Duration::from_micros(self.int_or_default(key)? as u64))
     }
 }
 
@@ -445,6 +767,150 @@ impl<'a, 'i> StageTable<'a, 'i> {
 pub const POLL_TIMEOUT_US: Key = Key {
     name: "poll_timeout_us",
     ty: Type::Int(10, 1_000_000),
-    default: "1000",
+    default: DefaultValue::Int(1000),
     doc: "the longest sleep before looking again when the other process does not notify",
 };
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const fn key(ty: Type, default: DefaultValue) -> Key {
+        Key {
+            name: "k",
+            ty,
+            default,
+            doc: "",
+        }
+    }
+
+    #[test]
+    fn a_typed_default_outside_its_keys_range_or_type_fails_the_check() {
+        use DefaultValue as D;
+        for ok in [
+            key(Type::Int(1, 12), D::Int(12)),
+            key(Type::Positive(100.0), D::Float(100.0)),
+            key(Type::NonNegative, D::Float(0.0)),
+            key(Type::Greater(1.0), D::Float(2.0)),
+            key(Type::FloatIn(0.0, 60.0), D::Float(60.0)),
+            key(Type::Choice(&["a", "b"]), D::Word("b")),
+            key(Type::WordOrPositive(&["mad"], 1.0), D::Word("mad")),
+            key(Type::Bool, D::Noted(&D::Bool(false), ": why")),
+            key(Type::StrList(""), D::Words(&["x"])),
+            key(Type::Int(1, 12), D::Required),
+            key(Type::Str(""), D::Absent("none: nothing")),
+        ] {
+            assert_eq!(ok.check_default(), Ok(()), "{ok:?}");
+        }
+        for bad in [
+            key(Type::Int(1, 12), D::Int(13)),
+            key(Type::Int(1, 12), D::Float(5.0)),
+            key(Type::Positive(100.0), D::Float(0.0)),
+            key(Type::Positive(100.0), D::Float(f64::NAN)),
+            key(Type::NonNegative, D::Float(-1.0)),
+            key(Type::Greater(1.0), D::Float(1.0)),
+            key(Type::FloatIn(0.0, 60.0), D::Float(61.0)),
+            key(Type::Choice(&["a", "b"]), D::Word("c")),
+            key(Type::WordOrPositive(&["mad"], 1.0), D::Float(2.0)),
+            key(Type::Bool, D::Noted(&D::Int(0), ": why")),
+            key(Type::Bool, D::Noted(&D::Bool(true), "no separator")),
+            key(Type::Str(""), D::Absent("nothing")),
+        ] {
+            assert!(bad.check_default().is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn a_default_prints_as_a_pipeline_file_writes_it() {
+        use DefaultValue as D;
+        for (d, text) in [
+            (D::Required, "required"),
+            (D::Either("models"), "required, or `models`"),
+            (D::Int(1024), "1024"),
+            (D::Float(0.02), "0.02"),
+            (D::Float(120.0), "120"),
+            (D::Bool(true), "true"),
+            (D::Word("db6"), "\"db6\""),
+            (D::Words(&["x", "y", "z"]), "[\"x\", \"y\", \"z\"]"),
+            (D::Noted(&D::Float(1.0), " deg/s"), "1 deg/s"),
+            (D::Absent("none (until stopped)"), "none (until stopped)"),
+            (D::Derived("the model's"), "the model's"),
+        ] {
+            assert_eq!(d.to_string(), text);
+        }
+    }
+
+    fn read<T>(text: &str, f: impl FnOnce(&mut Table<'_, '_>) -> T) -> T {
+        let src = Src {
+            path: Path::new("p.toml"),
+            text,
+        };
+        let entries = toml::de::DeTable::parse(text)
+            .unwrap()
+            .into_inner()
+            .into_iter()
+            .map(|(k, v)| {
+                assert_eq!(k.get_ref(), "k");
+                ("k", v)
+            })
+            .collect();
+        let cx = Context {
+            rate_hz: 100.0,
+            axes: 1,
+            units: Units::DegPerSec,
+        };
+        f(&mut Table::new(&src, cx, 0, 0, None, ("p", "s"), entries))
+    }
+
+    #[test]
+    fn the_readers_apply_the_typed_default_and_check_a_given_value() {
+        const LEVEL: Key = key(Type::Int(1, 12), DefaultValue::Int(5));
+        assert_eq!(read("", |t| t.int_or_default(&LEVEL).unwrap()), 5);
+        assert_eq!(read("k = 7", |t| t.int_or_default(&LEVEL).unwrap()), 7);
+        let e = read("k = 13", |t| t.int_or_default(&LEVEL).unwrap_err());
+        assert!(e.to_string().contains("k must be in 1..=12, got 13"), "{e}");
+        const LAG: Key = key(
+            Type::IntDepends(""),
+            DefaultValue::Noted(&DefaultValue::Int(33), " (at most the full lag)"),
+        );
+        assert_eq!(read("", |t| t.int_in_or_default(&LAG, 0, 10).unwrap()), 10);
+        assert_eq!(read("", |t| t.int_in_or_default(&LAG, 0, 99).unwrap()), 33);
+        const RATIO: Key = key(Type::Greater(1.0), DefaultValue::Float(2.0));
+        assert_eq!(read("", |t| t.float_or_default(&RATIO).unwrap()), 2.0);
+        let e = read("k = 1.0", |t| t.float_or_default(&RATIO).unwrap_err());
+        assert!(e.to_string().contains("k must be > 1, got 1"), "{e}");
+        const SIGMA: Key = key(
+            Type::WordOrPositive(&["mad"], f64::MAX),
+            DefaultValue::Word("mad"),
+        );
+        let sigma = |text| read(text, |t| t.word_or_positive_or_default(&SIGMA).unwrap());
+        assert_eq!(sigma(""), WordOr::Word("mad"));
+        assert_eq!(sigma("k = 2"), WordOr::Number(2.0));
+        const NOTIFY: Key = key(Type::Bool, DefaultValue::Bool(true));
+        assert!(read("", |t| t.bool_or_default(&NOTIFY).unwrap()));
+        const FILE: Key = key(Type::Str(""), DefaultValue::Required);
+        let e = read("", |t| t.required_str(&FILE).unwrap_err());
+        assert!(e.to_string().contains("missing field `k`"), "{e}");
+    }
+
+    #[test]
+    #[should_panic(expected = "read as Optional")]
+    fn a_typed_default_read_by_an_optional_reader_is_a_programming_error() {
+        const LEVEL: Key = key(Type::Int(1, 12), DefaultValue::Int(5));
+        read("", |t| t.int(&LEVEL).unwrap());
+    }
+
+    #[test]
+    #[should_panic(expected = "read as Optional")]
+    fn a_required_key_read_by_an_optional_reader_is_a_programming_error() {
+        const FILE: Key = key(Type::Str(""), DefaultValue::Required);
+        read("", |t| t.get::<String>(&FILE).unwrap());
+    }
+
+    #[test]
+    #[should_panic(expected = "read as OrDefault")]
+    fn a_key_without_a_value_read_by_a_defaulting_reader_is_a_programming_error() {
+        const SAMPLES: Key = key(Type::Int(1, 12), DefaultValue::Absent("none"));
+        read("", |t| t.int_or_default(&SAMPLES).unwrap());
+    }
+}

@@ -5,28 +5,39 @@
 //! at ingest).
 
 use crate::io::InputError;
-use crate::stages::schema::{Key, StageTable, Type};
+use crate::stages::schema::{DefaultValue, Key, Table, Type};
 
-/// `stop_speed`.
-pub const STOP_SPEED: Key = Key {
-    name: "stop_speed",
-    ty: Type::Positive(100.0),
-    default: "0.02 for a bag's stop_topic; for a stop_input none: the signal's stopped field decides",
-    doc: "stands when the vehicle's speed is at most this, m/s (a NaN speed: unknown); a signal that says only a speed (a ROS 2 motion topic) needs it",
-};
+/// A `stop_speed` key whose default is `default`: the key and its meaning are the rule's, its
+/// default the stage's (a motion topic says only a speed; a stop signal says whether it stands).
+pub const fn stop_speed(default: DefaultValue) -> Key {
+    Key {
+        name: "stop_speed",
+        ty: Type::Positive(100.0),
+        default,
+        doc: "stands when the vehicle's speed is at most this, m/s (a NaN speed: unknown); a signal that says only a speed (a ROS 2 motion topic) needs it",
+    }
+}
+
+/// `stop_speed` of a motion topic (`ingest.mcap`'s `stop_topic`): a speed always rules.
+pub const STOP_SPEED_OF_TOPIC: Key = stop_speed(DefaultValue::Float(DEFAULT_STOP_SPEED_M_S));
+
+/// `stop_speed` of a stop signal (`predict.bias`'s `stop_input`): by default its own stands
+/// flag decides.
+pub const STOP_SPEED_OF_SIGNAL: Key = stop_speed(DefaultValue::Absent(
+    "none: the signal's stopped field decides",
+));
 
 /// `stop_max_age_s`.
 pub const STOP_MAX_AGE_S: Key = Key {
     name: "stop_max_age_s",
     ty: Type::Positive(60.0),
-    default: "0.5",
+    default: DefaultValue::Float(0.5),
     doc: "a motion message or stop signal older than this (its time against the sample's) says nothing: unknown, never still",
 };
 
-/// [`STOP_SPEED`] where the motion says only a speed and no key is set, m/s.
+/// The speed at or below which a motion topic's vehicle stands when `stop_speed` is not set
+/// ([`STOP_SPEED_OF_TOPIC`]'s default; the value the `[ros2]` table's check suggests), m/s.
 pub const DEFAULT_STOP_SPEED_M_S: f64 = 0.02;
-
-const DEFAULT_MAX_AGE_S: f64 = 0.5;
 
 /// How a stage judges the vehicle's motion.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,22 +49,24 @@ pub struct StopRule {
 }
 
 impl StopRule {
-    /// The rule of a stage's table, `default_speed` when `stop_speed` is not set; and the
-    /// first of the two keys that was set (a stage without a stop source refuses them).
+    /// The rule of a stage's table, `speed` being its `stop_speed` key (one of [`stop_speed`]'s,
+    /// whose default applies); and the first of the two keys that was set (a stage without a
+    /// stop source refuses them).
     pub fn parse(
-        t: &mut StageTable<'_, '_>,
-        default_speed: Option<f64>,
+        t: &mut Table<'_, '_>,
+        speed: &Key,
     ) -> Result<(StopRule, Option<&'static str>), InputError> {
-        let speed = t.positive(&STOP_SPEED)?;
-        let age = t.positive(&STOP_MAX_AGE_S)?;
-        let rule = StopRule {
-            speed_m_s: speed.or(default_speed),
-            max_age_ns: (age.unwrap_or(DEFAULT_MAX_AGE_S) * 1e9) as u64,
+        let set = [speed, &STOP_MAX_AGE_S]
+            .into_iter()
+            .find(|k| t.has(k))
+            .map(|k| k.name);
+        let speed_m_s = match speed.default.value() {
+            Some(_) => Some(t.float_or_default(speed)?),
+            None => t.float(speed)?,
         };
-        let set = match (speed, age) {
-            (Some(_), _) => Some(STOP_SPEED.name),
-            (None, Some(_)) => Some(STOP_MAX_AGE_S.name),
-            (None, None) => None,
+        let rule = StopRule {
+            speed_m_s,
+            max_age_ns: (t.float_or_default(&STOP_MAX_AGE_S)? * 1e9) as u64,
         };
         Ok((rule, set))
     }

@@ -63,7 +63,7 @@ pub enum LearnWalk {
 
 impl LearnWalk {
     /// Its name in a `predict.bias` table (`learn_walk`).
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             LearnWalk::Off => "off",
             LearnWalk::GivenStops => "given-stops",
@@ -90,6 +90,13 @@ pub fn default_walk_bounds(configured: f64) -> (f64, f64) {
     )
 }
 
+impl TrackerConfig {
+    /// The default delay window, s (`predict.bias`'s `delay_s`).
+    pub const DEFAULT_DELAY_S: f64 = 1.0;
+    /// The default of what the walk is learnt from (`predict.bias`'s `learn_walk`).
+    pub const DEFAULT_LEARN_WALK: LearnWalk = LearnWalk::GivenStops;
+}
+
 impl Default for TrackerConfig {
     /// Window 1 s, settle 0.25 s, delay 1 s, onset guard 0.5 s, shortest stop 0.5 s, backfill
     /// 0.5 s, variance 4 sd, mean 4 sd, hysteresis 1.5, estimate 3 sd, the default instability
@@ -99,7 +106,7 @@ impl Default for TrackerConfig {
         TrackerConfig {
             window_s: 1.0,
             settle_s: 0.25,
-            delay_s: 1.0,
+            delay_s: Self::DEFAULT_DELAY_S,
             onset_guard_s: 0.5,
             min_stop_s: 0.5,
             backfill_s: 0.5,
@@ -108,7 +115,7 @@ impl Default for TrackerConfig {
             hysteresis: 1.5,
             estimate_sigmas: 3.0,
             instability: None,
-            learn_walk: LearnWalk::GivenStops,
+            learn_walk: Self::DEFAULT_LEARN_WALK,
             walk_range: None,
         }
     }
