@@ -15,7 +15,7 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use super::csv_table::InputError;
+use super::error::InputError;
 
 /// How much of a file's start is read to tell what it holds.
 const HEAD_BYTES: usize = 4096;

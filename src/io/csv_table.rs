@@ -10,6 +10,7 @@ use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use super::csv_fast;
+use super::error::InputError;
 
 /// File size from which reading shows a progress bar: about 10^6 rows of a 3-axis log as text
 /// (24 bytes a row); gzip packs such logs 4:1 to 8:1 (the real ADIS16405 log: 8:1).
@@ -18,52 +19,6 @@ const PROGRESS_MIN_BYTES_GZ: u64 = PROGRESS_MIN_BYTES / 8;
 
 /// Column names taken for time stamps, not signals: left out when no column is named.
 pub const TIME_COLUMNS: [&str; 5] = ["t", "t_s", "time", "time_s", "timestamp"];
-
-/// A bad input file, with the position of the fault where there is one.
-#[derive(Debug, thiserror::Error)]
-pub enum InputError {
-    /// The file could not be opened or read.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// What the operating system said.
-        source: std::io::Error,
-    },
-    /// A fault at a place in the file (1-based line and column).
-    #[error("{path}:{line}:{column}: {message}")]
-    At {
-        /// The file.
-        path: String,
-        /// 1-based line.
-        line: u64,
-        /// 1-based column (characters from the start of the line).
-        column: u64,
-        /// What is wrong there.
-        message: String,
-    },
-    /// A fault of a ROS 2 bag (its message names the file, and the message where there is one).
-    #[error(transparent)]
-    Bag(#[from] super::ros2::BagError),
-    /// A fault of the file as a whole.
-    #[error("{path}: {message}")]
-    File {
-        /// The file.
-        path: String,
-        /// What is wrong with it.
-        message: String,
-    },
-}
-
-impl InputError {
-    /// A whole-file error.
-    pub fn file(path: &Path, message: impl Into<String>) -> Self {
-        InputError::File {
-            path: path.display().to_string(),
-            message: message.into(),
-        }
-    }
-}
 
 /// Numeric columns read from a CSV file.
 #[derive(Debug, Clone, PartialEq)]

@@ -3,11 +3,18 @@
 //! benchmark, ROS 2 bags, and rate logs read from either.
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
+//!
+//! The files stand in layers, none importing another that imports it back: the errors of a bad
+//! input file ([`InputError`], and a bag's `BagError`, in `error.rs`) and `atomic` at the
+//! ground; the sniffer ([`content`]); MCAP opening ([`mcap_file`]) and the CSV reader above
+//! it; the readers of recordings and bags on [`mcap_file`]; rate logs and truth files on top.
 
 pub mod atomic;
 pub mod content;
 mod csv_fast;
 pub mod csv_table;
+mod error;
+pub mod mcap_file;
 pub mod model_file;
 pub mod plot;
 pub mod progress;
@@ -18,5 +25,6 @@ pub mod truth;
 
 pub use csv_table::{
     read_table, read_table_keeping_time, read_table_reference, write_table, write_table_with_time,
-    InputError, RowRead, RowReader, Table, TimeColumn, TIME_COLUMNS,
+    RowRead, RowReader, Table, TimeColumn, TIME_COLUMNS,
 };
+pub use error::InputError;

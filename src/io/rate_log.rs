@@ -13,7 +13,8 @@
 use std::path::{Path, PathBuf};
 
 use super::content::{sniff, Content};
-use super::csv_table::{read_table, read_table_keeping_time, InputError, Table, TimeColumn};
+use super::csv_table::{read_table, read_table_keeping_time, Table, TimeColumn};
+use super::error::InputError;
 use super::ros2::{seconds_text, Bag, BagError, BagErrorKind};
 
 /// The column names a bag's angular velocity is read into.

@@ -14,7 +14,8 @@
 //! neither 0 nor 1, a row with a missing field, a time stamp off the log's rate: an error at the
 //! file's line and column.
 
-use super::csv_table::{csv_error, field_column, parse_cell, InputError, TIME_COLUMNS};
+use super::csv_table::{csv_error, field_column, parse_cell, TIME_COLUMNS};
+use super::error::InputError;
 use crate::nav::MotionTrace;
 use std::fs::File;
 use std::io::{BufReader, Read};

@@ -14,6 +14,9 @@
 //!   followed;
 //! - no recursion, at most [`MAX_ENTRIES`] entries read per directory: no walk can loop or
 //!   hang.
+//!
+//! A leaf: it takes a prefix, reads the root in force and deletes; whether a node is left is for
+//! its caller to count (`discovery.rs`), so nothing here sets up or lists nodes.
 
 use std::ffi::OsStr;
 use std::os::fd::{AsFd, OwnedFd};
@@ -24,7 +27,6 @@ use rustix::fs::{AtFlags, FileType, Mode, OFlags, Stat};
 
 use super::config::root;
 use super::names::{is_node_dir, is_ours, Place};
-use super::node::Transport;
 
 /// Entries read from one directory at most (a walk never reads more, whatever is planted).
 pub(super) const MAX_ENTRIES: usize = 100_000;
@@ -130,9 +132,11 @@ fn nodes_dir() -> Option<SafeDir> {
     SafeDir::open(&root())?.sub(b"nodes")
 }
 
-/// Remove the files of `prefix` that iceoryx2 leaves once no node of it is left (the
-/// per-prefix management segment in `/dev/shm`, and whatever a killed process left). Does
-/// nothing while a node of the prefix is alive, or if the nodes cannot be listed.
+/// One clean-up of the files of `prefix` that iceoryx2 leaves once no node of it is left (the
+/// per-prefix management segment in `/dev/shm`, and whatever a killed process left): does
+/// nothing while a node of the prefix is alive, or if the nodes cannot be listed
+/// (`node_count`: the prefix's nodes, alive or dead; None if they cannot be listed). Returns
+/// how long until the youngest node details it left are settled, if it left any.
 ///
 /// Another process may be creating a node meanwhile: iceoryx2 writes a node's details before
 /// the monitor that makes it listed. So the files are taken stock of before the nodes are
@@ -140,26 +144,13 @@ fn nodes_dir() -> Option<SafeDir> {
 /// after the stock is never touched). A node's details made less than [`NODE_SETTLE`] before
 /// the count are left as well: they may be a node that is not listed yet (a listing would
 /// show it without its name).
-pub fn remove_prefix_leftovers(prefix: &str) {
-    remove_leftovers_once(prefix);
-}
-
-/// [`remove_prefix_leftovers`], and if it left a node's details as too young (a start killed
-/// within the last second looks like one in progress), again once they are
-/// [`NODE_SETTLE`] old: what an explicit clean (`driftless list --clean`) does, at most a
-/// second later.
-pub fn remove_prefix_leftovers_settled(prefix: &str) {
-    if let Some(wait) = remove_leftovers_once(prefix) {
-        std::thread::sleep(wait);
-        remove_leftovers_once(prefix);
-    }
-}
-
-/// One clean-up; how long until the youngest node details it left are settled, if it left any.
-fn remove_leftovers_once(prefix: &str) -> Option<Duration> {
+pub(super) fn remove_leftovers_once(
+    prefix: &str,
+    node_count: impl FnOnce() -> Option<usize>,
+) -> Option<Duration> {
     let stock = Leftovers::take(prefix)?;
     let counted = std::time::SystemTime::now();
-    if Transport::node_count(prefix).map_or(true, |n| n > 0) {
+    if node_count().is_none_or(|n| n > 0) {
         return None;
     }
     stock.remove(counted)
@@ -178,7 +169,7 @@ struct Found {
     stat: Stat,
 }
 
-/// The files of a prefix that [`remove_prefix_leftovers`] deletes, taken stock of beforehand,
+/// The files of a prefix that [`remove_leftovers_once`] deletes, taken stock of beforehand,
 /// with the directories (opened without following links) they are in.
 struct Leftovers {
     dirs: Vec<SafeDir>,

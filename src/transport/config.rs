@@ -1,10 +1,10 @@
 //! Where iceoryx2's files live and what may be named: the prefix and root directory, the
-//! explicit iceoryx2 `Config` every node is built from, name checks, and the one [`Qos`].
+//! explicit iceoryx2 `Config` every node is built from (handed out by `trust.rs` once the root
+//! is checked), name checks, and the one [`Qos`].
 
 use iceoryx2::prelude::*;
 
-use super::trust::{check_root_dirs, Missing};
-use super::TransportError;
+use super::error::TransportError;
 
 /// Default iceoryx2 prefix of the daemon's files in `/dev/shm` and `/tmp/iceoryx2`.
 pub const DEFAULT_PREFIX: &str = "driftless_";
@@ -22,6 +22,14 @@ pub const ROOT_ENV: &str = "DRIFTLESS_IOX2_ROOT";
 
 /// The root directory every node of this process uses (`None`: [`DEFAULT_ROOT`]).
 static ROOT: std::sync::RwLock<Option<std::path::PathBuf>> = std::sync::RwLock::new(None);
+
+/// The iceoryx2 service flavour used everywhere: inter-process, even inside one process
+/// (`local` lost wake-ups at high rates on our machines).
+pub(super) type Svc = iceoryx2::prelude::ipc::Service;
+
+/// A publish-subscribe service of ours with payload `T`, as a port is made from it.
+pub(super) type PubSubFactory<T> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
 /// Quality of service of every service the daemon creates (one definition, see module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,21 +100,10 @@ pub fn root() -> std::path::PathBuf {
         .unwrap_or_else(|| DEFAULT_ROOT.into())
 }
 
-/// The explicit iceoryx2 configuration (never the silently discovered `config/iceoryx2.toml`),
-/// for a node: the root directory checked and what is missing of it made first
-/// ([`super::trust`]).
-pub(super) fn node_config(prefix: &str) -> Result<Config, TransportError> {
-    check_root_dirs(&root(), Missing::Make)?;
-    explicit(prefix)
-}
-
-/// [`node_config`] for a listing: the root directory checked, nothing made.
-pub(super) fn config(prefix: &str) -> Result<Config, TransportError> {
-    check_root_dirs(&root(), Missing::Leave)?;
-    explicit(prefix)
-}
-
-fn explicit(prefix: &str) -> Result<Config, TransportError> {
+/// The explicit iceoryx2 configuration for `prefix` and the root in force (never the silently
+/// discovered `config/iceoryx2.toml`), unchecked: nodes and listings take it from
+/// [`super::trust`], which checks the root directory first.
+pub(super) fn explicit_config(prefix: &str) -> Result<Config, TransportError> {
     let mut cfg = Config::default();
     cfg.global.prefix = FileName::new(prefix.as_bytes()).map_err(|e| TransportError::Name {
         name: prefix.to_string(),

@@ -1,5 +1,7 @@
 //! Discovery: the nodes and services of a prefix as iceoryx2 lists them (`driftless list`),
-//! who holds a pipeline, the removal of dead nodes, and a running daemon's stats snapshot.
+//! who holds a pipeline, and what is done with a listing: the removal of dead nodes and, once
+//! no node is left, of a prefix's leftovers (`cleanup.rs` deletes; it is told the count), and a
+//! running daemon's stats snapshot.
 
 use std::fmt::Debug;
 use std::time::Duration;
@@ -7,16 +9,16 @@ use std::time::Duration;
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 
-use super::cleanup::{remove_node_files, remove_unsized_segments};
-use super::config::{config, node_config, service_name};
-use super::error::{setup, TransportError};
+use super::cleanup::{remove_leftovers_once, remove_node_files, remove_unsized_segments};
+use super::config::{service_name, Svc};
+use super::error::TransportError;
 use super::node::Transport;
-use super::permissions::process_owner;
+use super::permissions::{process_owner, setup};
+use super::trust::{listing_config, node_config};
 use super::wire::{
     GyroSample, RawSample, StatsSnapshot, StopSignal, GYRO_TYPE_NAME, RAW_TYPE_NAME,
     STATS_TYPE_NAME, STOP_TYPE_NAME,
 };
-use super::{Svc, ZeroCopySend};
 
 /// A live iceoryx2 node as the node list describes it: which process, whose, since when.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -319,13 +321,47 @@ fn event_ports(node: &Node<Svc>, name: &ServiceName) -> Option<(Vec<u128>, Vec<u
 }
 
 impl Transport {
+    /// Number of live nodes named `node_name` under `prefix`, other than the caller's.
+    pub fn live_nodes_named(prefix: &str, node_name: &str) -> Result<usize, TransportError> {
+        Ok(Self::holders_of(prefix, node_name)?.len())
+    }
+
+    /// The live nodes named `node_name` under `prefix` (other than the caller's), described as
+    /// far as iceoryx2's node list and `/proc` tell: who holds a pipeline.
+    pub fn holders_of(prefix: &str, node_name: &str) -> Result<Vec<NodeHolder>, TransportError> {
+        let cfg = listing_config(prefix)?;
+        let mut holders = Vec::new();
+        Node::<Svc>::list(&cfg, |state| {
+            if let NodeState::Alive(view) = &state {
+                if view.details().as_ref().map(|d| d.name().as_str()) == Some(node_name) {
+                    holders.extend(holder(view, true));
+                }
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
+        Ok(holders)
+    }
+
+    /// Number of nodes (alive or dead) under `prefix`.
+    pub fn node_count(prefix: &str) -> Result<usize, TransportError> {
+        let cfg = listing_config(prefix)?;
+        let mut count = 0;
+        Node::<Svc>::list(&cfg, |_| {
+            count += 1;
+            CallbackProgression::Continue
+        })
+        .map_err(|e| setup("node list", prefix, e))?;
+        Ok(count)
+    }
+
     /// Every node and service under `prefix` (iceoryx2's `Node::list` and `Service::list`), with
     /// the nodes of each service's ports. Removes nothing: a dead node is listed as dead. The
     /// ports are read through a node of this process that exists only during the call (and is
     /// not in the listing); nothing is created when the prefix holds no service.
     pub fn list(prefix: &str) -> Result<Listing, TransportError> {
         use iceoryx2::service::static_config::messaging_pattern::MessagingPattern as Static;
-        let cfg = config(prefix)?;
+        let cfg = listing_config(prefix)?;
         let mut listing = Listing::default();
         let mut found = Vec::new();
         Svc::list(&cfg, |details| {
@@ -510,6 +546,25 @@ impl Transport {
             }
             std::thread::sleep(Duration::from_millis(10));
         }
+    }
+}
+
+/// Remove the files of `prefix` that iceoryx2 leaves once no node of it is left (the
+/// per-prefix management segment in `/dev/shm`, and whatever a killed process left). Does
+/// nothing while a node of the prefix is alive, or if the nodes cannot be listed. Only files
+/// taken stock of before the nodes are counted are deleted, and a node's details made within
+/// the last second are left (they may be a node not listed yet): see `cleanup.rs`.
+pub fn remove_prefix_leftovers(prefix: &str) {
+    remove_leftovers_once(prefix, || Transport::node_count(prefix).ok());
+}
+
+/// [`remove_prefix_leftovers`], and if it left a node's details as too young (a start killed
+/// within the last second looks like one in progress), again once they are settled: what an
+/// explicit clean (`driftless list --clean`) does, at most a second later.
+pub fn remove_prefix_leftovers_settled(prefix: &str) {
+    if let Some(wait) = remove_leftovers_once(prefix, || Transport::node_count(prefix).ok()) {
+        std::thread::sleep(wait);
+        remove_leftovers_once(prefix, || Transport::node_count(prefix).ok());
     }
 }
 

@@ -1,8 +1,5 @@
-//! [`TransportError`]: what failed, on which name, and for a refusal on permissions, whose files.
-
-use std::fmt::Debug;
-
-use super::permissions::{access_problem, foreign_directory};
+//! [`TransportError`]: what failed, on which name, and for a refusal on permissions, whose files
+//! (found by `permissions.rs`, which builds that variant).
 
 /// A transport failure, with what was being done.
 #[derive(Debug, thiserror::Error)]
@@ -95,23 +92,5 @@ impl TransportError {
     /// Whether the user's configuration is at fault (the CLI's exit code 2), not the run.
     pub fn is_configuration(&self) -> bool {
         matches!(self, TransportError::Untrusted { .. })
-    }
-}
-
-pub(super) fn setup(what: &'static str, name: &str, e: impl Debug) -> TransportError {
-    let reason = format!("{e:?}");
-    // iceoryx2 says only `InsufficientPermissions`, or even `InternalError`: say whose files.
-    let culprit = foreign_directory();
-    if culprit.is_some() || reason.contains("Permission") {
-        return TransportError::Permission {
-            what,
-            name: name.to_string(),
-            problem: access_problem(culprit, &reason),
-        };
-    }
-    TransportError::Setup {
-        what,
-        name: name.to_string(),
-        reason,
     }
 }

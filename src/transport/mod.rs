@@ -10,17 +10,22 @@
 //! | file | concern |
 //! |---|---|
 //! | `wire.rs` | the wire types, their flags and type names, the clock of their stamps |
-//! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`] |
+//! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`], the service flavour |
 //! | `node.rs` | [`Transport`]: one node and the services and ports it sets up |
 //! | `ports.rs` | [`Output`] and [`Input`] |
 //! | `wake.rs` | [`Waker`] and [`WakeSet`]: sleeping until another process notifies |
-//! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline |
+//! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline, what is removed once no node is left |
 //! | `names.rs` | iceoryx2's file names, and the prefixes we allow ([`check_prefix`]) |
 //! | `shm_space.rs` | room in `/dev/shm`: segments reserved whole, the SIGBUS guard |
 //! | `ros2/` | ROS 2 messages, and live topics over DDS (feature `ros2`) |
 //! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
-//! | `trust.rs` | the root directory checked before iceoryx2 uses it: none another user controls |
+//! | `trust.rs` | the root directory checked before iceoryx2 uses it: none another user controls; every node's and listing's `Config` |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
+//!
+//! The files stand in layers, each using only files below it: `error`, `names` and `wire` on
+//! the ground; `config`; `permissions`, `cleanup`, `ports` and `wake`; `trust` and `shm_space`;
+//! `node`; `discovery` on top. The clean-up is a leaf that the others call: it deletes what is
+//! provably ours and knows nothing of nodes (`discovery` counts them and tells it).
 //!
 //! # Quality of service
 //! One definition ([`Qos`]) is used for every service the daemon creates: history 0, safe
@@ -52,7 +57,6 @@ pub mod zenoh;
 /// code generic over them.
 pub use iceoryx2::prelude::ZeroCopySend;
 
-pub use cleanup::{remove_prefix_leftovers, remove_prefix_leftovers_settled};
 pub use config::{
     check_root, check_service_name, quiet_logging, root, set_root, Qos, DEFAULT_PREFIX,
     DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
@@ -60,6 +64,7 @@ pub use config::{
 pub use discovery::{
     display_name, ListedNode, ListedService, Listing, NodeHolder, NodeLife, ServiceKind, WireType,
 };
+pub use discovery::{remove_prefix_leftovers, remove_prefix_leftovers_settled};
 pub use error::TransportError;
 pub use names::check_prefix;
 pub use node::{Announcement, Transport, MAX_ATTRIBUTES};
@@ -71,9 +76,3 @@ pub use wire::*;
 
 /// The clock of the wire's `ingest_ns` stamps (a subscriber reads its "now" on it).
 pub use crate::clock::monotonic_ns;
-
-/// The iceoryx2 service flavour used everywhere: inter-process, even inside one process
-/// (`local` lost wake-ups at high rates on our machines).
-type Svc = iceoryx2::prelude::ipc::Service;
-
-type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;

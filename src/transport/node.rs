@@ -4,18 +4,18 @@ use std::cell::Cell;
 use std::fmt::Debug;
 use std::sync::Arc;
 
-use iceoryx2::node::NodeView as _;
 use iceoryx2::prelude::*;
 use iceoryx2::service::attribute::{AttributeKey, AttributeValue};
 
 use super::cleanup::{remove_unsized_segments, restrict_global_segment};
-use super::config::{config, node_config, service_name, Qos};
-use super::discovery::{holder, NodeHolder};
-use super::error::{setup, TransportError};
+use super::config::{service_name, PubSubFactory, Qos, Svc};
+use super::error::TransportError;
+use super::permissions::setup;
 use super::ports::{Input, Output};
 use super::shm_space::{install_sigbus_guard, note_existing, reserve_new, reserve_new_or_count};
+use super::trust::node_config;
 use super::wake::Waker;
-use super::{PubSubFactory, Svc, ZeroCopySend};
+use super::wire::wire_version_mismatch;
 
 /// How many attributes an [`Transport::announce`]d service holds (iceoryx2's limit).
 pub const MAX_ATTRIBUTES: usize = 8;
@@ -84,40 +84,6 @@ impl Transport {
     /// Remove the resources of dead nodes of this prefix; returns how many were cleaned.
     pub fn cleanup_dead_nodes(&self) -> u64 {
         self.node.try_cleanup_dead_nodes().cleanups
-    }
-
-    /// Number of live nodes named `node_name` under `prefix`, other than the caller's.
-    pub fn live_nodes_named(prefix: &str, node_name: &str) -> Result<usize, TransportError> {
-        Ok(Self::holders_of(prefix, node_name)?.len())
-    }
-
-    /// The live nodes named `node_name` under `prefix` (other than the caller's), described as
-    /// far as iceoryx2's node list and `/proc` tell: who holds a pipeline.
-    pub fn holders_of(prefix: &str, node_name: &str) -> Result<Vec<NodeHolder>, TransportError> {
-        let cfg = config(prefix)?;
-        let mut holders = Vec::new();
-        Node::<Svc>::list(&cfg, |state| {
-            if let NodeState::Alive(view) = &state {
-                if view.details().as_ref().map(|d| d.name().as_str()) == Some(node_name) {
-                    holders.extend(holder(view, true));
-                }
-            }
-            CallbackProgression::Continue
-        })
-        .map_err(|e| setup("node list", prefix, e))?;
-        Ok(holders)
-    }
-
-    /// Number of nodes (alive or dead) under `prefix`.
-    pub fn node_count(prefix: &str) -> Result<usize, TransportError> {
-        let cfg = config(prefix)?;
-        let mut count = 0;
-        Node::<Svc>::list(&cfg, |_| {
-            count += 1;
-            CallbackProgression::Continue
-        })
-        .map_err(|e| setup("node list", prefix, e))?;
-        Ok(count)
     }
 
     fn pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
@@ -375,7 +341,7 @@ impl Transport {
     /// [`super::wire_version_mismatch`]; None otherwise.
     pub fn version_mismatch(&self, name: &str) -> Option<String> {
         let found = self.payload_type_name(name).ok().flatten()?;
-        super::wire_version_mismatch(&format!("service {name:?}"), &found)
+        wire_version_mismatch(&format!("service {name:?}"), &found)
     }
 
     /// The payload type name of the publish-subscribe service `name` (e.g.

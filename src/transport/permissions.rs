@@ -1,7 +1,32 @@
-//! Who owns iceoryx2's files and processes: the diagnostics behind a permission refusal and
-//! behind "who holds this pipeline".
+//! Who owns iceoryx2's files and processes: the diagnostics behind a permission refusal
+//! ([`setup`]: iceoryx2's error as a [`TransportError`] that says whose files) and behind "who
+//! holds this pipeline".
+
+use std::fmt::Debug;
 
 use super::config::{root, ROOT_ENV};
+use super::error::TransportError;
+
+/// iceoryx2's error setting up `what` (`name`) as a [`TransportError`]: a
+/// [`TransportError::Permission`] that says whose files are in the way where permissions are
+/// the cause, [`TransportError::Setup`] otherwise.
+pub(super) fn setup(what: &'static str, name: &str, e: impl Debug) -> TransportError {
+    let reason = format!("{e:?}");
+    // iceoryx2 says only `InsufficientPermissions`, or even `InternalError`: say whose files.
+    let culprit = foreign_directory();
+    if culprit.is_some() || reason.contains("Permission") {
+        return TransportError::Permission {
+            what,
+            name: name.to_string(),
+            problem: access_problem(culprit, &reason),
+        };
+    }
+    TransportError::Setup {
+        what,
+        name: name.to_string(),
+        reason,
+    }
+}
 
 /// A user's name and id, as `name (uid N)`, or `uid N` when it has no name.
 pub(super) fn who(uid: u32) -> String {

@@ -11,8 +11,8 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections as _;
 use iceoryx2::prelude::*;
 
+use super::config::{PubSubFactory, Svc};
 use super::error::TransportError;
-use super::{PubSubFactory, Svc, ZeroCopySend};
 
 /// What subscribers of one output could not take, readable from another thread.
 #[derive(Debug, Default)]

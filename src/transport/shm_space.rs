@@ -20,8 +20,8 @@ use std::sync::Mutex;
 use rustix::fs::{FallocateFlags, OFlags};
 
 use super::cleanup::{own_segments, SHM_DIR};
+use super::error::TransportError;
 use super::names::is_segment;
-use super::TransportError;
 
 /// Writes to a segment that `/dev/shm` could not back (each redirected to a private page).
 static FAULTS: AtomicU64 = AtomicU64::new(0);

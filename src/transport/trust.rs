@@ -1,5 +1,6 @@
 //! iceoryx2's root directory, checked before iceoryx2 uses it: a root that another user
-//! controls is refused ([`TransportError::Untrusted`]).
+//! controls is refused ([`TransportError::Untrusted`]). Nodes and listings take their iceoryx2
+//! `Config` from here ([`node_config`], [`listing_config`]), so none is had unchecked.
 //!
 //! iceoryx2 0.10 never opens its directories without following links: it names its files by
 //! path (`<root>/nodes/<id>/...`, `<root>/services/...`), `stat`s and `mkdir`s each missing
@@ -40,10 +41,12 @@ use std::path::{Component, Path, PathBuf};
 use rustix::fs::{FileType, Mode, OFlags, Stat};
 use rustix::io::Errno;
 
+use iceoryx2::config::Config;
+
 use super::cleanup::{is_own, SafeDir};
-use super::config::ROOT_ENV;
+use super::config::{explicit_config, root, ROOT_ENV};
+use super::error::TransportError;
 use super::permissions::{owner_and_mode, who};
-use super::TransportError;
 
 /// The directories iceoryx2 0.10 makes in its root for the services and nodes we create.
 const SUBDIRS: [&str; 2] = ["nodes", "services"];
@@ -53,7 +56,7 @@ const DIR_MODE: rustix::fs::RawMode = 0o750;
 
 /// What to do with a directory that does not exist yet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Missing {
+enum Missing {
     /// Make it (before a node is created: iceoryx2 would make it, following links).
     Make,
     /// Stop there (a listing: iceoryx2 makes nothing then).
@@ -81,11 +84,25 @@ impl Place {
     }
 }
 
+/// The explicit iceoryx2 configuration for a node of `prefix` (never the silently discovered
+/// `config/iceoryx2.toml`): the root directory in force checked first, and what is missing of
+/// it made.
+pub(super) fn node_config(prefix: &str) -> Result<Config, TransportError> {
+    check_root_dirs(&root(), Missing::Make)?;
+    explicit_config(prefix)
+}
+
+/// [`node_config`] for a listing: the root directory checked, nothing made.
+pub(super) fn listing_config(prefix: &str) -> Result<Config, TransportError> {
+    check_root_dirs(&root(), Missing::Leave)?;
+    explicit_config(prefix)
+}
+
 /// Refuse `root` as iceoryx2's root if another user controls it, a directory above it, or its
 /// `nodes` or `services` (module docs); `missing` says whether to make what does not exist.
 /// Where this process may not look further (no search permission), nor may iceoryx2 write:
 /// that is left to iceoryx2's own error, which says whose the directory is.
-pub(super) fn check_root_dirs(root: &Path, missing: Missing) -> Result<(), TransportError> {
+fn check_root_dirs(root: &Path, missing: Missing) -> Result<(), TransportError> {
     // All of it first, so that a refusal comes before anything is made (a missing `nodes`
     // beside a linked `services`).
     walk(root, Missing::Leave)?;

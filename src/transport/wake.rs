@@ -7,8 +7,8 @@ use std::time::Duration;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
 
+use super::config::Svc;
 use super::error::TransportError;
-use super::Svc;
 
 /// Sleeps until a publisher notifies (or a timeout passes).
 pub struct Waker {

@@ -41,7 +41,9 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::io::atomic::AtomicFile;
-use crate::io::recording::{limited_reader, map_mcap, McapOpenError};
+use crate::io::mcap_file::{limited_reader, map_mcap, McapOpenError};
+
+pub use crate::io::error::{BagError, BagErrorKind};
 
 pub use crate::transport::ros2::{
     seconds_text, CdrError, Imu, ImuMapping, Motion, MotionKind, Time, IMU_DEFINITION, IMU_TYPE,
@@ -66,7 +68,7 @@ durability: 2\n  deadline:\n    sec: 9223372036\n    nsec: 854775807\n  lifespan
 sec: 9223372036\n    nsec: 854775807\n  liveliness: 1\n  liveliness_lease_duration:\n    \
 sec: 9223372036\n    nsec: 854775807\n  avoid_ros_namespace_conventions: false";
 
-pub use crate::io::recording::MAX_CHUNK_BYTES;
+pub use crate::io::mcap_file::MAX_CHUNK_BYTES;
 
 /// The channel metadata rosbag2 writes for an Imu topic: [`OFFERED_QOS_PROFILES`] and the
 /// type hash.
@@ -93,52 +95,6 @@ pub fn topic_for_service(service: &str) -> String {
         }
     }));
     t
-}
-
-/// What went wrong with a bag, for a caller that acts on the kind (the message says it all).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BagErrorKind {
-    /// The file or directory cannot be read (or written).
-    Io,
-    /// Not an MCAP file, or a rosbag2 bag of another storage.
-    NotMcap,
-    /// No summary: truncated, or still being written.
-    Incomplete,
-    /// No Imu topic in the bag.
-    NoImuTopic,
-    /// Several Imu topics and none chosen.
-    SeveralImuTopics,
-    /// The chosen topic is not in the bag.
-    NoSuchTopic,
-    /// The chosen topic is of another type (not Imu; for a motion topic, not a motion type).
-    NotImu,
-    /// A corrupt record or chunk.
-    Corrupt,
-    /// A message that does not decode.
-    Cdr,
-    /// A stamp that does not rise (the reader of a log checks it).
-    Stamp,
-    /// A value a log cannot hold (a non-finite rate).
-    Value,
-    /// A message that cannot be written (a stamp before 1970, a bad topic name).
-    Write,
-}
-
-/// An error reading or writing a bag: one line naming the file and, for a message, the topic,
-/// the message's number on it and its log time.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{message}")]
-pub struct BagError {
-    /// What went wrong.
-    pub kind: BagErrorKind,
-    /// The line to show.
-    pub message: String,
-}
-
-impl From<BagError> for String {
-    fn from(e: BagError) -> String {
-        e.message
-    }
 }
 
 fn err(kind: BagErrorKind, message: String) -> BagError {
