@@ -573,7 +573,9 @@ fn our_reader_decodes_the_committed_recording_as_the_python_mcap_package_did() {
         let decoded: Vec<Value> = match c.schema.as_str() {
             "driftless.RawSample" => values::<RawMessage>(&rec, &c.topic),
             "driftless.GyroSample" => values::<GyroMessage>(&rec, &c.topic),
-            "driftless.StatsSnapshot" => values::<StatsMessage>(&rec, &c.topic),
+            // Recording format 1: statistics in s, ms and us, which no part of driftless
+            // reads back (format 2 writes `StatsMessage`, the form of `stats --json`).
+            "driftless.StatsSnapshot" => values::<Value>(&rec, &c.topic),
             other => panic!("unexpected schema {other}"),
         };
         assert_eq!(want["count"], decoded.len() as u64, "{}", c.topic);

@@ -259,11 +259,6 @@ fn table(header: &[&str], right: &[bool], rows: &[Vec<String>]) -> String {
 }
 
 fn text(prefix: &str, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
-    let others: Vec<&ListedNode> = listing
-        .nodes
-        .iter()
-        .filter(|n| !pipes.iter().any(|p| p.nodes.iter().any(|m| m.id == n.id)))
-        .collect();
     let dead = listing
         .nodes
         .iter()
@@ -284,33 +279,54 @@ fn text(prefix: &str, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
         },
         plural(listing.services.len(), "service"),
     );
-    if !pipes.is_empty() {
-        let rows: Vec<Vec<String>> = pipes
-            .iter()
-            .map(|p| {
-                let rate = match (&p.stats, p.daemon.life) {
-                    (Some(s), _) => format!("{:.1} Hz", s.rate_hz),
-                    (None, NodeLife::Alive) => "?".into(),
-                    (None, _) => "-".into(),
-                };
-                vec![
-                    p.name.clone(),
-                    p.daemon.life.as_str().into(),
-                    pid_text(p.daemon),
-                    user(p.daemon),
-                    started(p.daemon),
-                    rate,
-                ]
-            })
-            .collect();
+    for section in [
+        pipelines_table(pipes),
+        ros2_table(pipes),
+        others_table(listing, pipes),
+        services_table(listing, pipes),
+    ]
+    .into_iter()
+    .flatten()
+    {
         out.push('\n');
-        out.push_str(&table(
-            &["PIPELINE", "STATE", "PID", "USER", "STARTED", "RATE"],
-            &[false, false, true, false, false, true],
-            &rows,
-        ));
+        out.push_str(&section);
     }
-    let ros2_rows: Vec<Vec<String>> = pipes
+    out
+}
+
+/// The pipelines, with the rate of their latest stats snapshot.
+fn pipelines_table(pipes: &[Pipeline<'_>]) -> Option<String> {
+    if pipes.is_empty() {
+        return None;
+    }
+    let rows: Vec<Vec<String>> = pipes
+        .iter()
+        .map(|p| {
+            let rate = match (&p.stats, p.daemon.life) {
+                (Some(s), _) => format!("{:.1} Hz", s.rate_hz),
+                (None, NodeLife::Alive) => "?".into(),
+                (None, _) => "-".into(),
+            };
+            vec![
+                p.name.clone(),
+                p.daemon.life.as_str().into(),
+                pid_text(p.daemon),
+                user(p.daemon),
+                started(p.daemon),
+                rate,
+            ]
+        })
+        .collect();
+    Some(table(
+        &["PIPELINE", "STATE", "PID", "USER", "STARTED", "RATE"],
+        &[false, false, true, false, false, true],
+        &rows,
+    ))
+}
+
+/// The topics of the pipelines' ROS 2 sides.
+fn ros2_table(pipes: &[Pipeline<'_>]) -> Option<String> {
+    let rows: Vec<Vec<String>> = pipes
         .iter()
         .filter_map(|p| Some((p, p.ros2.as_ref()?)))
         .flat_map(|(p, r)| {
@@ -321,65 +337,71 @@ fn text(prefix: &str, listing: &Listing, pipes: &[Pipeline<'_>]) -> String {
             })
         })
         .collect();
-    if !ros2_rows.is_empty() {
-        out.push('\n');
-        out.push_str(&table(
+    (!rows.is_empty()).then(|| {
+        table(
             &[
                 "ROS 2 OF", "NODE", "DOMAIN", "DIR", "TOPIC", "TYPE", "SERVICE",
             ],
             &[false, false, true, false, false, false, false],
-            &ros2_rows,
-        ));
-    }
-    if !others.is_empty() {
-        let rows: Vec<Vec<String>> = others
-            .iter()
-            .map(|n| {
-                vec![
-                    display_name(n),
-                    n.life.as_str().into(),
-                    pid_text(n),
-                    user(n),
-                    started(n),
-                ]
-            })
-            .collect();
-        out.push('\n');
-        out.push_str(&table(
+            &rows,
+        )
+    })
+}
+
+/// The nodes no pipeline holds.
+fn others_table(listing: &Listing, pipes: &[Pipeline<'_>]) -> Option<String> {
+    let rows: Vec<Vec<String>> = listing
+        .nodes
+        .iter()
+        .filter(|n| !pipes.iter().any(|p| p.nodes.iter().any(|m| m.id == n.id)))
+        .map(|n| {
+            vec![
+                display_name(n),
+                n.life.as_str().into(),
+                pid_text(n),
+                user(n),
+                started(n),
+            ]
+        })
+        .collect();
+    (!rows.is_empty()).then(|| {
+        table(
             &["NODE", "STATE", "PID", "USER", "STARTED"],
             &[false, false, true, false, false],
             &rows,
-        ));
-    }
-    if !listing.services.is_empty() {
-        let rows: Vec<Vec<String>> = listing
-            .services
-            .iter()
-            .map(|s| {
-                let by = published_by(s, listing, pipes);
-                vec![
-                    s.name.clone(),
-                    type_text(&s.kind),
-                    count_text(&s.senders),
-                    count_text(&s.receivers),
-                    if s.senders.is_none() {
-                        "?".into()
-                    } else if by.is_empty() {
-                        "-".into()
-                    } else {
-                        by.join(", ")
-                    },
-                ]
-            })
-            .collect();
-        out.push('\n');
-        out.push_str(&table(
+        )
+    })
+}
+
+/// Every service, its type, ports and publishers.
+fn services_table(listing: &Listing, pipes: &[Pipeline<'_>]) -> Option<String> {
+    let rows: Vec<Vec<String>> = listing
+        .services
+        .iter()
+        .map(|s| {
+            let by = published_by(s, listing, pipes);
+            vec![
+                s.name.clone(),
+                type_text(&s.kind),
+                count_text(&s.senders),
+                count_text(&s.receivers),
+                if s.senders.is_none() {
+                    "?".into()
+                } else if by.is_empty() {
+                    "-".into()
+                } else {
+                    by.join(", ")
+                },
+            ]
+        })
+        .collect();
+    (!rows.is_empty()).then(|| {
+        table(
             &["SERVICE", "TYPE", "PUB", "SUB", "PUBLISHED BY"],
             &[false, false, true, true, false],
             &rows,
-        ));
-    }
-    out
+        )
+    })
 }
 
 fn node_json(n: &ListedNode, pipeline: Option<&str>) -> Value {

@@ -65,7 +65,7 @@ fn watch(args: &Args, p: &config::Pipeline, prefix: &str) -> Result<(), CliError
         match input.receive() {
             Ok(Some(s)) => {
                 let text = if args.json {
-                    let mut v = crate::metrics::snapshot_json(&s);
+                    let mut v = crate::io::recording::StatsMessage::json(&s);
                     v["pipeline"] = p.name.clone().into();
                     format!("{v}\n")
                 } else if redraw {

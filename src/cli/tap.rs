@@ -6,7 +6,9 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
-use crate::transport::{self, GyroSample, Input, RawSample, StatsSnapshot, Transport};
+use crate::transport::{
+    self, AnyInput, Carried, GyroSample, RawSample, StatsSnapshot, Transport, WireType,
+};
 
 /// How samples are printed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -94,12 +96,6 @@ pub struct Args {
     pub duration: Option<Duration>,
 }
 
-enum Tapped {
-    Gyro(Input<GyroSample>),
-    Raw(Input<RawSample>),
-    Stats(Input<StatsSnapshot>),
-}
-
 /// One received item (on the stack, one at a time: its size does not matter).
 #[allow(clippy::large_enum_variant)]
 enum Item {
@@ -108,21 +104,13 @@ enum Item {
     Stats(StatsSnapshot),
 }
 
-impl Tapped {
-    fn publishers(&self) -> usize {
-        match self {
-            Tapped::Gyro(i) => i.publishers(),
-            Tapped::Raw(i) => i.publishers(),
-            Tapped::Stats(i) => i.publishers(),
-        }
-    }
-
-    fn receive(&self) -> Option<Item> {
-        match self {
-            Tapped::Gyro(i) => i.receive().ok().flatten().map(Item::Gyro),
-            Tapped::Raw(i) => i.receive().ok().flatten().map(Item::Raw),
-            Tapped::Stats(i) => i.receive().ok().flatten().map(Item::Stats),
-        }
+/// The next item of `input`, if one is there (`tap` opens no stop-signal service).
+fn receive(input: &AnyInput) -> Option<Item> {
+    match input {
+        AnyInput::Gyro(i) => i.receive().ok().flatten().map(Item::Gyro),
+        AnyInput::Raw(i) => i.receive().ok().flatten().map(Item::Raw),
+        AnyInput::Stats(i) => i.receive().ok().flatten().map(Item::Stats),
+        AnyInput::Stop(_) => None,
     }
 }
 
@@ -207,6 +195,20 @@ impl Printer {
             Item::Raw(_) => format!("epoch,seq,t_s,{},flags,flag_names", axes("rate", "input")),
             Item::Stats(_) => return None,
         })
+    }
+
+    /// Print `item` (after the header, the first time); false when the reader went away.
+    fn print(&mut self, out: &mut impl Write, item: &Item) -> Result<bool, CliError> {
+        if !self.header_done {
+            self.header_done = true;
+            if let Some(h) = self.header(item) {
+                if writeln!(out, "{h}").is_err() {
+                    return Ok(false);
+                }
+            }
+        }
+        let line = self.line(item)?;
+        Ok(writeln!(out, "{line}").is_ok())
     }
 
     fn line(&self, item: &Item) -> Result<String, CliError> {
@@ -294,7 +296,9 @@ impl Printer {
                 "flag_names": transport::raw_flag_names(s.flags),
             })
             .to_string(),
-            (Format::Json, Item::Stats(s)) => crate::metrics::snapshot_json(s).to_string(),
+            (Format::Json, Item::Stats(s)) => {
+                crate::io::recording::StatsMessage::json(s).to_string()
+            }
         })
     }
 }
@@ -355,30 +359,85 @@ pub fn run(args: Args) -> Result<(), CliError> {
     result
 }
 
+/// Subscribe to the service, whichever of our sample types it carries.
+fn open(args: &Args, node: &Transport, prefix: &str) -> Result<AnyInput, CliError> {
+    // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.
+    let missing = || {
+        CliError::internal(format!(
+            "no service {:?} of a driftless type under prefix {prefix:?} (is the pipeline running?)",
+            args.service
+        ))
+    };
+    let wire = match node.carried(&args.service) {
+        Ok(Carried::Ours(w)) if w != WireType::Stop => w,
+        Ok(Carried::OtherVersion(m)) => return Err(CliError::input(m)),
+        _ => return Err(missing()),
+    };
+    let input = node.open_any(&args.service, wire).map_err(|_| missing())?;
+    if wire == WireType::Stats && args.format == Format::Csv && !args.hz {
+        return Err(no_csv_for_stats(&args.service));
+    }
+    Ok(input)
+}
+
+/// What came so far: the totals, and the display window's rate and intervals.
+#[derive(Default)]
+struct Seen {
+    total: u64,
+    window: u64,
+    gaps: u64,
+    intervals: Intervals,
+    /// (epoch, seq, timestamp ns) of the last sample; epoch and seq are None for stats.
+    last: Option<(Option<(u32, u64)>, u64)>,
+}
+
+impl Seen {
+    fn add(&mut self, item: &Item) {
+        self.total += 1;
+        self.window += 1;
+        let (seq, t_ns) = item.stamp();
+        // Sequence numbers and timestamps count within one epoch (a daemon or source restart
+        // starts another).
+        if let Some((prev_seq, prev_t)) = self.last {
+            let same_epoch = match (seq, prev_seq) {
+                (Some((e, _)), Some((pe, _))) => e == pe,
+                _ => true,
+            };
+            if same_epoch {
+                if let (Some((_, s)), Some((_, p))) = (seq, prev_seq) {
+                    if s > p + 1 {
+                        self.gaps += s - p - 1;
+                    }
+                }
+                self.intervals
+                    .add(t_ns.wrapping_sub(prev_t) as i64 as f64 * 1e-9);
+            }
+        }
+        self.last = Some((seq, t_ns));
+    }
+
+    /// The rate line over the window of `dt`, and a new window.
+    fn rate_line(&mut self, service: &str, dt: Duration) -> String {
+        let line = format!(
+            "{service}: {:.1} Hz ({}), {} samples, {} missing (sequence gaps)",
+            self.window as f64 / dt.as_secs_f64(),
+            self.intervals.describe(),
+            self.total,
+            self.gaps
+        );
+        self.window = 0;
+        self.intervals = Intervals::default();
+        line
+    }
+}
+
 fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     let node = Transport::new(
         prefix,
         &format!("driftless-tap-{}", std::process::id()),
         Default::default(),
     )?;
-    let tapped = if let Ok(i) = node.open_input::<GyroSample>(&args.service) {
-        Tapped::Gyro(i)
-    } else if let Ok(i) = node.open_input::<RawSample>(&args.service) {
-        Tapped::Raw(i)
-    } else if let Ok(i) = node.open_input::<StatsSnapshot>(&args.service) {
-        if args.format == Format::Csv && !args.hz {
-            return Err(no_csv_for_stats(&args.service));
-        }
-        Tapped::Stats(i)
-    } else if let Some(m) = node.version_mismatch(&args.service) {
-        return Err(CliError::input(m));
-    } else {
-        // Nothing to read is a run-time failure (exit 1), as for `stats`: the name may be right.
-        return Err(CliError::internal(format!(
-            "no service {:?} of a driftless type under prefix {prefix:?} (is the pipeline running?)",
-            args.service
-        )));
-    };
+    let input = open(args, &node, prefix)?;
     let stop = crate::cli::signals::stop_flag();
     let mut printer = Printer {
         format: args.format,
@@ -392,69 +451,37 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
     let give_up = args.timeout.map(|d| Instant::now() + d);
     // With --count, a publisher seen and then gone ends the tap (once its samples are read).
     let mut had_publisher = false;
-    let (mut total, mut window, mut gaps) = (0u64, 0u64, 0u64);
-    let mut intervals = Intervals::default();
-    // (epoch, seq, timestamp ns) of the last sample; epoch and seq are None for stats.
-    let mut last: Option<(Option<(u32, u64)>, u64)> = None;
+    let mut seen = Seen::default();
     let mut tick = Instant::now();
     while !stop.load(Ordering::Relaxed) && end.is_none_or(|e| Instant::now() < e) {
-        match tapped.receive() {
+        match receive(&input) {
             Some(item) => {
-                total += 1;
-                window += 1;
-                let (seq, t_ns) = item.stamp();
-                // Sequence numbers and timestamps count within one epoch (a daemon or source
-                // restart starts another).
-                if let Some((prev_seq, prev_t)) = last {
-                    let same_epoch = match (seq, prev_seq) {
-                        (Some((e, _)), Some((pe, _))) => e == pe,
-                        _ => true,
-                    };
-                    if same_epoch {
-                        if let (Some((_, s)), Some((_, p))) = (seq, prev_seq) {
-                            if s > p + 1 {
-                                gaps += s - p - 1;
-                            }
-                        }
-                        intervals.add(t_ns.wrapping_sub(prev_t) as i64 as f64 * 1e-9);
-                    }
+                seen.add(&item);
+                if !args.hz && !printer.print(&mut out, &item)? {
+                    return Ok(()); // the reader went away (e.g. `| head`)
                 }
-                last = Some((seq, t_ns));
-                if !args.hz {
-                    if !printer.header_done {
-                        printer.header_done = true;
-                        if let Some(h) = printer.header(&item) {
-                            if writeln!(out, "{h}").is_err() {
-                                return Ok(());
-                            }
-                        }
-                    }
-                    let line = printer.line(&item)?;
-                    if writeln!(out, "{line}").is_err() {
-                        return Ok(()); // the reader went away (e.g. `| head`)
-                    }
-                }
-                if args.count.is_some_and(|c| total >= c) {
+                if args.count.is_some_and(|c| seen.total >= c) {
                     break;
                 }
             }
             None => {
                 if let Some(count) = args.count {
-                    let publishers = tapped.publishers();
+                    let publishers = input.publishers();
                     had_publisher |= publishers > 0;
-                    let mut short = |why: String| {
-                        let _ = out.flush();
-                        Err(CliError::internal(format!(
-                            "{}: {total} of {count} samples: {why}",
-                            args.service
-                        )))
-                    };
-                    if had_publisher && publishers == 0 {
-                        return short("its publisher left".into());
-                    }
-                    if give_up.is_some_and(|g| Instant::now() >= g) {
+                    let why = if had_publisher && publishers == 0 {
+                        Some("its publisher left".to_string())
+                    } else if give_up.is_some_and(|g| Instant::now() >= g) {
                         let t = args.timeout.unwrap_or_default();
-                        return short(format!("--timeout {t:?} passed"));
+                        Some(format!("--timeout {t:?} passed"))
+                    } else {
+                        None
+                    };
+                    if let Some(why) = why {
+                        let _ = out.flush();
+                        return Err(CliError::internal(format!(
+                            "{}: {} of {count} samples: {why}",
+                            args.service, seen.total
+                        )));
                     }
                 }
                 std::thread::sleep(Duration::from_micros(500));
@@ -462,14 +489,7 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
         }
         let dt = tick.elapsed();
         if dt >= Duration::from_secs(1) {
-            let rate = format!(
-                "{}: {:.1} Hz ({}), {} samples, {} missing (sequence gaps)",
-                args.service,
-                window as f64 / dt.as_secs_f64(),
-                intervals.describe(),
-                total,
-                gaps
-            );
+            let rate = seen.rate_line(&args.service, dt);
             // With --hz the rate is the data asked for (stdout); beside samples, a message.
             if args.hz {
                 if writeln!(out, "{rate}").and_then(|()| out.flush()).is_err() {
@@ -478,8 +498,6 @@ fn tap(args: &Args, prefix: &str) -> Result<(), CliError> {
             } else {
                 eprintln!("{rate}");
             }
-            window = 0;
-            intervals = Intervals::default();
             tick = Instant::now();
         }
     }

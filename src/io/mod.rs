@@ -1,6 +1,7 @@
 //! Files and terminals: what an input file holds (by its content, [`content`]), CSV tables with
 //! positioned errors, atomic output, progress bars, plots, truth files for the heading
-//! benchmark, ROS 2 bags, and rate logs read from either.
+//! benchmark, ROS 2 bags, rate logs read from either, and recordings (MCAP: [`recording`],
+//! and the [`recorder`] of `driftless record`).
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 //!
@@ -19,6 +20,7 @@ pub mod model_file;
 pub mod plot;
 pub mod progress;
 pub mod rate_log;
+pub mod recorder;
 pub mod recording;
 pub mod ros2;
 pub mod truth;

@@ -41,8 +41,10 @@ pub const STATS_SCHEMA: &str = "driftless.StatsSnapshot";
 pub const METADATA_NAME: &str = "driftless.recording";
 /// Channel metadata key naming the units of a raw channel's `rate`.
 pub const RATE_UNITS_KEY: &str = "rate_units";
-/// The recording format's version, in the metadata record.
-pub const FORMAT_VERSION: &str = "1";
+/// The recording format's version, in the metadata record. 2: statistics channels hold
+/// [`StatsMessage`] (times in ns, as `driftless stats --json`); 1: they held times in s, ms
+/// and us (`uptime_s`, `end_to_end_us`, ...).
+pub const FORMAT_VERSION: &str = "2";
 
 /// The MCAP topic of a service: `/` and the service name (Foxglove's convention).
 pub fn topic(service: &str) -> String {
@@ -190,29 +192,29 @@ impl From<&GyroMessage> for GyroSample {
     }
 }
 
-/// Latency percentiles in microseconds.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct PercentilesUs {
+/// Latency percentiles, ns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PercentilesNs {
     /// Values recorded.
     pub count: u64,
-    /// Median, us.
-    pub p50: f64,
-    /// 99th percentile, us.
-    pub p99: f64,
-    /// 99.9th percentile, us.
-    pub p999: f64,
-    /// Maximum, us.
-    pub max: f64,
+    /// Median, ns.
+    pub p50: u64,
+    /// 99th percentile, ns.
+    pub p99: u64,
+    /// 99.9th percentile, ns.
+    pub p999: u64,
+    /// Maximum, ns.
+    pub max: u64,
 }
 
-impl From<&Percentiles> for PercentilesUs {
+impl From<&Percentiles> for PercentilesNs {
     fn from(p: &Percentiles) -> Self {
-        PercentilesUs {
+        PercentilesNs {
             count: p.count,
-            p50: p.p50 as f64 * 1e-3,
-            p99: p.p99 as f64 * 1e-3,
-            p999: p.p999 as f64 * 1e-3,
-            max: p.max as f64 * 1e-3,
+            p50: p.p50,
+            p99: p.p99,
+            p999: p.p999,
+            max: p.max,
         }
     }
 }
@@ -228,106 +230,111 @@ pub struct StageMessage {
     pub samples_out: u64,
     /// Samples subscribers of its output lost.
     pub lost: u64,
-    /// Time per sample (compute and the publish of the output), us.
-    pub compute_us: PercentilesUs,
-}
-
-/// A [`StatsSnapshot`] as recorded (times in explicit units).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct StatsMessage {
-    /// Seconds since the pipeline started.
-    pub uptime_s: f64,
-    /// Samples ingested.
-    pub samples_in: u64,
-    /// Samples published by the final stage.
-    pub samples_out: u64,
-    /// Ingest rate over the last interval, Hz.
-    pub rate_hz: f64,
-    /// Outputs later than the deadline.
-    pub deadline_misses: u64,
-    /// Samples lost by subscribers of any service.
-    pub lost: u64,
-    /// Samples flagged.
-    pub flagged: u64,
-    /// Sequence numbers missing in the input.
-    pub gap_samples: u64,
-    /// Metric records dropped.
-    pub metric_drops: u64,
-    /// The deadline, us.
-    pub deadline_us: f64,
-    /// Algorithmic delay of the chain, ms.
-    pub algorithmic_delay_ms: f64,
-    /// End-to-end latency, us.
-    pub end_to_end_us: PercentilesUs,
-    /// Per-stage statistics.
-    pub stages: Vec<StageMessage>,
-    /// Of `deadline_misses`, those the kernel explains (absent in recordings made before
-    /// `StatsSnapshot` v2).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub deadline_misses_explained: Option<u64>,
-    /// The latest miss (absent before the first, and before `StatsSnapshot` v2).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub last_miss: Option<LastMissMessage>,
-    /// Of `flagged`, samples whose stamp was not believed (absent before `StatsSnapshot` v3).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stamp_faults: Option<u64>,
-    /// How the state-keeping stage started, in words (absent before `StatsSnapshot` v3).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub warm_start: Option<String>,
+    /// Time per sample (compute and the publish of the output), ns.
+    pub compute_ns: PercentilesNs,
 }
 
 /// The latest deadline miss of a [`StatsMessage`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LastMissMessage {
-    /// When, seconds since the pipeline started.
-    pub uptime_s: f64,
-    /// Its end-to-end latency, us.
-    pub e2e_us: f64,
-    /// The hot thread's time off a CPU meanwhile, us (absent: not measured).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub off_cpu_us: Option<f64>,
+    /// When, ns since the pipeline started.
+    pub uptime_ns: u64,
+    /// Its end-to-end latency, ns.
+    pub e2e_ns: u64,
+    /// The hot thread's time off a CPU meanwhile, ns (`null`: not measured).
+    pub off_cpu_ns: Option<u64>,
     /// Whether the kernel explains it.
     pub explained: bool,
+}
+
+/// A [`StatsSnapshot`] as JSON, the one form: what `driftless stats --json` and `tap --format
+/// json` print (`stats` adds `pipeline`) and what a recording's statistics channel holds
+/// (since recording format 2; format 1 had times in s, ms and us). Every field; times in ns;
+/// `null` where there is nothing (`last_miss` before the first miss, `off_cpu_ns` not
+/// measured, a non-finite `rate_hz`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatsMessage {
+    /// Nanoseconds since the pipeline started.
+    pub uptime_ns: u64,
+    /// Samples ingested.
+    pub samples_in: u64,
+    /// Samples published by the final stage.
+    pub samples_out: u64,
+    /// Ingest rate over the last interval, Hz.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub rate_hz: f64,
+    /// The deadline, ns.
+    pub deadline_ns: u64,
+    /// Outputs later than the deadline.
+    pub deadline_misses: u64,
+    /// Of `deadline_misses`, those the kernel explains.
+    pub deadline_misses_explained: u64,
+    /// The latest miss (`null` before the first).
+    pub last_miss: Option<LastMissMessage>,
+    /// Samples lost by subscribers of any service.
+    pub lost: u64,
+    /// Samples flagged.
+    pub flagged: u64,
+    /// Of `flagged`, samples whose stamp was not believed.
+    pub stamp_faults: u64,
+    /// How the state-keeping stage started, in words.
+    pub warm_start: String,
+    /// Sequence numbers missing in the input.
+    pub gap_samples: u64,
+    /// Metric records dropped.
+    pub metric_drops: u64,
+    /// Algorithmic delay of the chain, ns.
+    pub algorithmic_delay_ns: u64,
+    /// End-to-end latency, ns.
+    pub end_to_end_ns: PercentilesNs,
+    /// Per-stage statistics.
+    pub stages: Vec<StageMessage>,
 }
 
 impl From<&StatsSnapshot> for StatsMessage {
     fn from(s: &StatsSnapshot) -> Self {
         let n = (s.stage_count as usize).min(s.stages.len());
         StatsMessage {
-            uptime_s: s.uptime_ns as f64 * 1e-9,
+            uptime_ns: s.uptime_ns,
             samples_in: s.samples_in,
             samples_out: s.samples_out,
             rate_hz: s.rate_hz,
+            deadline_ns: s.deadline_ns,
             deadline_misses: s.deadline_misses,
+            deadline_misses_explained: s.deadline_misses_explained,
+            last_miss: s.last_miss_explained().map(|explained| LastMissMessage {
+                uptime_ns: s.last_miss_uptime_ns,
+                e2e_ns: s.last_miss_e2e_ns,
+                off_cpu_ns: s.last_miss_off_cpu(),
+                explained,
+            }),
             lost: s.lost,
             flagged: s.flagged,
+            stamp_faults: s.stamp_faults,
+            warm_start: crate::transport::warm_start_name(s.warm_start).to_string(),
             gap_samples: s.gap_samples,
             metric_drops: s.metric_drops,
-            deadline_us: s.deadline_ns as f64 * 1e-3,
-            algorithmic_delay_ms: s.algorithmic_delay_ns as f64 * 1e-6,
-            end_to_end_us: (&s.end_to_end).into(),
+            algorithmic_delay_ns: s.algorithmic_delay_ns,
+            end_to_end_ns: (&s.end_to_end).into(),
             stages: s.stages[..n]
                 .iter()
                 .map(|st| StageMessage {
-                    name: String::from_utf8_lossy(&st.name)
-                        .trim_end_matches('\0')
-                        .to_string(),
+                    name: st.name_text(),
                     samples_in: st.samples_in,
                     samples_out: st.samples_out,
                     lost: st.lost,
-                    compute_us: (&st.compute).into(),
+                    compute_ns: (&st.compute).into(),
                 })
                 .collect(),
-            deadline_misses_explained: Some(s.deadline_misses_explained),
-            last_miss: s.last_miss_explained().map(|explained| LastMissMessage {
-                uptime_s: s.last_miss_uptime_ns as f64 * 1e-9,
-                e2e_us: s.last_miss_e2e_ns as f64 * 1e-3,
-                off_cpu_us: s.last_miss_off_cpu().map(|ns| ns as f64 * 1e-3),
-                explained,
-            }),
-            stamp_faults: Some(s.stamp_faults),
-            warm_start: Some(crate::transport::warm_start_name(s.warm_start).to_string()),
         }
+    }
+}
+
+impl StatsMessage {
+    /// `s` as a JSON value (`stats --json` adds the pipeline's name to it).
+    pub fn json(s: &StatsSnapshot) -> serde_json::Value {
+        // Plain numbers and strings: serde_json cannot refuse them (a NaN becomes null).
+        serde_json::to_value(StatsMessage::from(s)).unwrap_or_default()
     }
 }
 
@@ -349,9 +356,9 @@ pub fn gyro_schema() -> String {
 
 /// The JSON Schema of statistics channels.
 pub fn stats_schema() -> String {
-    const P: &str = r#"{"type":"object","properties":{"count":{"type":"integer"},"p50":{"type":"number"},"p99":{"type":"number"},"p999":{"type":"number"},"max":{"type":"number"}}}"#;
+    const P: &str = r#"{"type":"object","properties":{"count":{"type":"integer"},"p50":{"type":"integer"},"p99":{"type":"integer"},"p999":{"type":"integer"},"max":{"type":"integer"}}}"#;
     format!(
-        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot; times in the unit their name ends with","type":"object","properties":{{"uptime_s":{{"type":"number"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":"number"}},"deadline_misses":{{"type":"integer"}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"deadline_us":{{"type":"number"}},"algorithmic_delay_ms":{{"type":"number"}},"end_to_end_us":{P},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":"object","description":"the latest deadline miss","properties":{{"uptime_s":{{"type":"number"}},"e2e_us":{{"type":"number"}},"off_cpu_us":{{"type":"number","description":"absent: not measured"}},"explained":{{"type":"boolean"}}}}}},"stamp_faults":{{"type":"integer","description":"of flagged, samples whose stamp was not believed"}},"warm_start":{{"type":"string","description":"how the state-keeping stage started"}},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_us":{P}}}}}}}}}}}"#
+        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot, as driftless stats --json prints it; times in ns","type":"object","properties":{{"uptime_ns":{{"type":"integer"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":["number","null"]}},"deadline_ns":{{"type":"integer"}},"deadline_misses":{{"type":"integer"}},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":["object","null"],"description":"the latest deadline miss; null before the first","properties":{{"uptime_ns":{{"type":"integer"}},"e2e_ns":{{"type":"integer"}},"off_cpu_ns":{{"type":["integer","null"],"description":"null: not measured"}},"explained":{{"type":"boolean"}}}}}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"stamp_faults":{{"type":"integer","description":"of flagged, samples whose stamp was not believed"}},"warm_start":{{"type":"string","description":"how the state-keeping stage started"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"algorithmic_delay_ns":{{"type":"integer"}},"end_to_end_ns":{P},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_ns":{P}}}}}}}}}}}"#
     )
 }
 
@@ -657,6 +664,74 @@ mod tests {
         );
         let back: RawMessage = serde_json::from_str(&text).unwrap();
         assert!(back.rate.x.is_nan() && back.rate.y.is_nan());
+    }
+
+    #[test]
+    fn the_stats_form_is_what_stats_json_printed_and_reads_back() {
+        use crate::transport::{StageStats, WARM_START_WARM};
+        let pct = |base: u64| Percentiles {
+            count: base,
+            p50: base + 1,
+            p99: base + 2,
+            p999: base + 3,
+            max: base + 4,
+        };
+        let mut name = [0u8; 32];
+        name[..7].copy_from_slice(b"denoise");
+        let mut s = StatsSnapshot {
+            uptime_ns: 1_500_000_000,
+            samples_in: 10,
+            samples_out: 9,
+            rate_hz: 999.5,
+            deadline_misses: 2,
+            lost: 3,
+            flagged: 4,
+            gap_samples: 5,
+            metric_drops: 6,
+            deadline_ns: 1_000_000,
+            algorithmic_delay_ns: 64_000_000,
+            end_to_end: pct(100),
+            stage_count: 1,
+            deadline_misses_explained: 1,
+            last_miss_uptime_ns: 1_200_000_000,
+            last_miss_e2e_ns: 1_800_000,
+            last_miss_off_cpu_ns: crate::transport::OFF_CPU_NOT_MEASURED,
+            stamp_faults: 7,
+            warm_start: WARM_START_WARM,
+            ..StatsSnapshot::default()
+        };
+        s.stages[0] = StageStats {
+            name,
+            samples_in: 10,
+            samples_out: 9,
+            lost: 0,
+            compute: pct(200),
+        };
+        // What `metrics::snapshot_json` printed for `stats --json` before this form.
+        let p = |b: u64| serde_json::json!({"count": b, "p50": b + 1, "p99": b + 2, "p999": b + 3, "max": b + 4});
+        let was = serde_json::json!({
+            "uptime_ns": 1_500_000_000u64, "samples_in": 10, "samples_out": 9, "rate_hz": 999.5,
+            "deadline_ns": 1_000_000, "deadline_misses": 2, "deadline_misses_explained": 1,
+            "last_miss": {"uptime_ns": 1_200_000_000u64, "e2e_ns": 1_800_000, "off_cpu_ns": null,
+                          "explained": false},
+            "lost": 3, "flagged": 4, "stamp_faults": 7, "warm_start": "warm", "gap_samples": 5,
+            "metric_drops": 6, "algorithmic_delay_ns": 64_000_000, "end_to_end_ns": p(100),
+            "stages": [{"name": "denoise", "samples_in": 10, "samples_out": 9, "lost": 0,
+                        "compute_ns": p(200)}],
+        });
+        assert_eq!(StatsMessage::json(&s), was);
+        // A recording's message reads back to the same.
+        let text = serde_json::to_string(&StatsMessage::from(&s)).unwrap();
+        let back: StatsMessage = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, StatsMessage::from(&s));
+        // Before the first miss, and a rate that is not finite: null.
+        s.last_miss_uptime_ns = 0;
+        s.rate_hz = f64::NAN;
+        let v = StatsMessage::json(&s);
+        assert_eq!(v["last_miss"], serde_json::Value::Null);
+        assert_eq!(v["rate_hz"], serde_json::Value::Null);
+        let back: StatsMessage = serde_json::from_str(&v.to_string()).unwrap();
+        assert!(back.rate_hz.is_nan() && back.last_miss.is_none());
     }
 
     #[test]

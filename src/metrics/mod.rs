@@ -572,48 +572,6 @@ impl Reporter {
     }
 }
 
-/// Decode a stage name from a snapshot.
-pub fn stage_name(s: &StageStats) -> String {
-    let end = s.name.iter().position(|&b| b == 0).unwrap_or(s.name.len());
-    String::from_utf8_lossy(&s.name[..end]).into_owned()
-}
-
-/// A snapshot as JSON (`stats --json`, `tap --format json`): every field, times in ns.
-pub fn snapshot_json(s: &StatsSnapshot) -> serde_json::Value {
-    let pct = |p: &Percentiles| serde_json::json!({"count": p.count, "p50": p.p50, "p99": p.p99, "p999": p.p999, "max": p.max});
-    let n = (s.stage_count as usize).min(MAX_STATS_STAGES);
-    serde_json::json!({
-        "uptime_ns": s.uptime_ns,
-        "samples_in": s.samples_in,
-        "samples_out": s.samples_out,
-        "rate_hz": s.rate_hz,
-        "deadline_ns": s.deadline_ns,
-        "deadline_misses": s.deadline_misses,
-        "deadline_misses_explained": s.deadline_misses_explained,
-        "last_miss": s.last_miss_explained().map(|explained| serde_json::json!({
-            "uptime_ns": s.last_miss_uptime_ns,
-            "e2e_ns": s.last_miss_e2e_ns,
-            "off_cpu_ns": s.last_miss_off_cpu(),
-            "explained": explained,
-        })),
-        "lost": s.lost,
-        "flagged": s.flagged,
-        "stamp_faults": s.stamp_faults,
-        "warm_start": crate::transport::warm_start_name(s.warm_start),
-        "gap_samples": s.gap_samples,
-        "metric_drops": s.metric_drops,
-        "algorithmic_delay_ns": s.algorithmic_delay_ns,
-        "end_to_end_ns": pct(&s.end_to_end),
-        "stages": s.stages[..n].iter().map(|st| serde_json::json!({
-            "name": stage_name(st),
-            "samples_in": st.samples_in,
-            "samples_out": st.samples_out,
-            "lost": st.lost,
-            "compute_ns": pct(&st.compute),
-        })).collect::<Vec<_>>(),
-    })
-}
-
 /// `, 3 stamp faults` when there were any (they are in `flagged`, never in `lost`).
 fn stamp_faults_text(n: u64) -> String {
     match n {
@@ -696,7 +654,7 @@ pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
         row(
             &mut out,
             [
-                &stage_name(st),
+                &st.name_text(),
                 &st.samples_in.to_string(),
                 &st.samples_out.to_string(),
                 &st.lost.to_string(),
@@ -822,7 +780,7 @@ mod tests {
         let s = r.snapshot(0.0);
         assert_eq!(s.last_miss_off_cpu_ns, OFF_CPU_NOT_MEASURED);
         assert_eq!(s.last_miss_explained(), Some(false));
-        let json = snapshot_json(&s);
+        let json = crate::io::recording::StatsMessage::json(&s);
         assert_eq!(json["last_miss"]["off_cpu_ns"], serde_json::Value::Null);
         assert_eq!(json["last_miss"]["explained"], false);
     }

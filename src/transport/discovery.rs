@@ -15,10 +15,9 @@ use super::error::TransportError;
 use super::node::Transport;
 use super::permissions::{process_owner, setup};
 use super::trust::{listing_config, node_config};
-use super::wire::{
-    GyroSample, RawSample, StatsSnapshot, StopSignal, GYRO_TYPE_NAME, RAW_TYPE_NAME,
-    STATS_TYPE_NAME, STOP_TYPE_NAME,
-};
+use super::wire::{GyroSample, RawSample, StatsSnapshot, StopSignal};
+use super::wire_type::WireType;
+use super::ZeroCopySend;
 
 /// A live iceoryx2 node as the node list describes it: which process, whose, since when.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -114,61 +113,6 @@ pub struct ListedNode {
     pub life: NodeLife,
     /// Process, user and age, as far as they are known.
     pub holder: Option<NodeHolder>,
-}
-
-/// Which of our wire types a publish-subscribe service carries.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum WireType {
-    /// [`RawSample`].
-    Raw,
-    /// [`GyroSample`].
-    Gyro,
-    /// [`StatsSnapshot`].
-    Stats,
-    /// [`StopSignal`].
-    Stop,
-}
-
-impl WireType {
-    /// The type's name without the crate: `RawSample`, `GyroSample`, `StatsSnapshot`,
-    /// `StopSignal`.
-    pub fn short_name(self) -> &'static str {
-        match self {
-            WireType::Raw => "RawSample",
-            WireType::Gyro => "GyroSample",
-            WireType::Stats => "StatsSnapshot",
-            WireType::Stop => "StopSignal",
-        }
-    }
-
-    /// Ours if both the type name and the size are those of one of our types.
-    fn of(type_name: &str, size: usize) -> Option<WireType> {
-        [
-            (
-                WireType::Raw,
-                RAW_TYPE_NAME,
-                std::mem::size_of::<RawSample>(),
-            ),
-            (
-                WireType::Gyro,
-                GYRO_TYPE_NAME,
-                std::mem::size_of::<GyroSample>(),
-            ),
-            (
-                WireType::Stats,
-                STATS_TYPE_NAME,
-                std::mem::size_of::<StatsSnapshot>(),
-            ),
-            (
-                WireType::Stop,
-                STOP_TYPE_NAME,
-                std::mem::size_of::<StopSignal>(),
-            ),
-        ]
-        .into_iter()
-        .find(|&(_, name, bytes)| name == type_name && bytes == size)
-        .map(|(w, _, _)| w)
-    }
 }
 
 /// The messaging pattern of a listed service.

@@ -1,7 +1,7 @@
 //! Everything iceoryx2: the wire types, where its files live, node and port set-up, discovery,
 //! clean-up and waking on other processes.
 //!
-//! This is the only module that imports `iceoryx2` (and its submodule `zenoh` the only one that
+//! This is the only module that imports `iceoryx2` (and its submodule `zenoh/` the only one that
 //! imports `zenoh`, feature `zenoh`); the rest of the crate sees plain Rust types
 //! ([`RawSample`], [`GyroSample`], [`StatsSnapshot`]) and the small port wrappers
 //! ([`Output`], [`Input`], [`Waker`], [`WakeSet`]). Everything public is re-exported here, so
@@ -10,6 +10,7 @@
 //! | file | concern |
 //! |---|---|
 //! | `wire.rs` | the wire types, their flags and type names, the clock of their stamps |
+//! | `wire_type.rs` | [`WireType`]: which of them a service carries, and [`AnyInput`] of it |
 //! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`], the service flavour |
 //! | `node.rs` | [`Transport`]: one node and the services and ports it sets up |
 //! | `ports.rs` | [`Output`] and [`Input`] |
@@ -18,6 +19,7 @@
 //! | `names.rs` | iceoryx2's file names, and the prefixes we allow ([`check_prefix`]) |
 //! | `shm_space.rs` | room in `/dev/shm`: segments reserved whole, the SIGBUS guard |
 //! | `ros2/` | ROS 2 messages, and live topics over DDS (feature `ros2`) |
+//! | `zenoh/` | Zenoh sessions, and the bridge of our services over them (feature `zenoh`) |
 //! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
 //! | `trust.rs` | the root directory checked before iceoryx2 uses it: none another user controls; every node's and listing's `Config` |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
@@ -49,6 +51,7 @@ mod shm_space;
 mod trust;
 mod wake;
 mod wire;
+mod wire_type;
 
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
@@ -62,7 +65,7 @@ pub use config::{
     DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
 };
 pub use discovery::{
-    display_name, ListedNode, ListedService, Listing, NodeHolder, NodeLife, ServiceKind, WireType,
+    display_name, ListedNode, ListedService, Listing, NodeHolder, NodeLife, ServiceKind,
 };
 pub use discovery::{remove_prefix_leftovers, remove_prefix_leftovers_settled};
 pub use error::TransportError;
@@ -73,6 +76,7 @@ pub use ports::{Input, Losses, Output};
 pub use shm_space::{install_sigbus_guard, shared_memory_trouble, ShmTrouble};
 pub use wake::{WakeSet, Waker};
 pub use wire::*;
+pub use wire_type::{AnyInput, Carried, WireType};
 
 /// The clock of the wire's `ingest_ns` stamps (a subscriber reads its "now" on it).
 pub use crate::clock::monotonic_ns;

@@ -486,6 +486,18 @@ pub struct StageStats {
     pub compute: Percentiles,
 }
 
+impl StageStats {
+    /// Its name as text (up to the first NUL).
+    pub fn name_text(&self) -> String {
+        let end = self
+            .name
+            .iter()
+            .position(|&b| b == 0)
+            .unwrap_or(self.name.len());
+        String::from_utf8_lossy(&self.name[..end]).into_owned()
+    }
+}
+
 /// The daemon's statistics, published on the pipeline's stats service every report interval.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]

@@ -1,9 +1,15 @@
 //! Everything Zenoh (feature `zenoh`): the session's configuration, a publisher and a subscriber
-//! of our wire types as their documented little-endian bytes ([`super::WireBytes`]).
+//! of our wire types as their documented little-endian bytes ([`super::WireBytes`]), and the
+//! bridge that carries our services over them (`bridge.rs`, [`run_bridge`]; `driftless bridge`
+//! is its command).
 //!
 //! Only the blocking API (`zenoh::Wait`): zenoh runs its own tokio runtime on its own threads,
 //! so nothing here is async and no zenoh call runs on the daemon's hot thread (the bridge is a
 //! separate process).
+
+mod bridge;
+
+pub use bridge::{run_bridge, BridgeError, BridgeSettings, Event, Route, Stream, StreamCounts};
 
 use std::path::PathBuf;
 use std::time::Duration;
