@@ -8,14 +8,14 @@ use std::time::Duration;
 
 use crossbeam_channel::Sender;
 
-use super::RunError;
+use super::run::RunError;
 use crate::clock::thread_cpu_ns;
 use crate::metrics::{
     miss_explained, Batch, Counters, HeadingTracker, Outputs, Record, BATCH, MAX_STAGES,
 };
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
-use crate::stages::contract::{Role, Side, SideKind, Stage};
+use crate::stages::contract::{Role, Side, SideKind, Source, Stage};
 use crate::stages::WarmStart;
 use crate::transport::{
     monotonic_ns, GyroSample, Input, Losses, Output, Qos, RawSample, StopSignal, Transport,
@@ -584,4 +584,19 @@ pub(super) fn run_segment(
         }
         None => Ok(learnt),
     }
+}
+
+/// The pipeline's ingest, built as a [`Source`] on the hot thread's `transport`.
+pub(super) fn build_source(
+    p: &Pipeline,
+    transport: &Transport,
+) -> Result<Box<dyn Source>, RunError> {
+    let spec = &p.stages[0];
+    let err = |message: String| RunError::Stage {
+        stage: spec.name.clone(),
+        message,
+    };
+    spec.params
+        .source(&p.context(), transport, spec.input.as_deref())
+        .map_err(err)
 }

@@ -9,8 +9,9 @@ use std::time::Duration;
 
 use crossbeam_channel::bounded;
 
+use super::chain::build_source;
 use super::chain::{build_segment, run_segment, segments, Chain, Ready, SetOnDrop};
-use super::{build_source, node_name, stats_node_name, RunError, RunOptions, METRICS_CAPACITY};
+use super::run::{node_name, stats_node_name, RunError, RunOptions};
 use crate::metrics::{run_all, Batch, Counters, Layout, Publish, Report, Reporter};
 use crate::pipeline::config::Pipeline;
 use crate::stages::contract::{Poll, Source};
@@ -18,6 +19,9 @@ use crate::stages::WarmStart;
 use crate::transport::{
     monotonic_ns, Losses, Qos, RawSample, StatsSnapshot, Transport, TransportError, WakeSet, Waker,
 };
+
+/// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
+const METRICS_CAPACITY: usize = 1 << 12;
 
 /// under one prefix, or different settings for the one hot thread.
 pub fn check_group(members: &[(&Pipeline, String)]) -> Result<(), RunError> {

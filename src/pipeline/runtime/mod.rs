@@ -40,93 +40,28 @@
 //! chain's stages run in-thread (segments, their threads when a stage is external, flushing);
 //! `group.rs` is the hot thread that serves every pipeline of the daemon (waking, pacing,
 //! failing alone) and the checks that let pipelines share it; `sides.rs` starts and stops
-//! what runs beside the pipelines (`[ros2]`...), each on a thread of its own.
+//! what runs beside the pipelines (`[ros2]`...), each on a thread of its own; `run.rs`, below
+//! them all, is what they share (options, errors, node names).
 
 mod chain;
 mod group;
+mod run;
 mod sides;
 
 pub use chain::EXTERNAL_GRACE;
 pub use group::check_group;
+pub use run::{node_name, stats_node_name, RunError, RunOptions};
 pub use sides::announcement_service;
 
 use group::{hot_settings, schedule_hot_thread, serve, spawn_reporter, Notified, Running};
 
 use std::io::Write as _;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 use std::time::Duration;
 
 use crate::metrics::Report;
 use crate::pipeline::config::Pipeline;
 use crate::stages::contract::Role;
-use crate::stages::contract::Source;
-use crate::transport::{remove_prefix_leftovers, NodeHolder, Transport, TransportError};
-
-/// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
-const METRICS_CAPACITY: usize = 1 << 12;
-
-/// How a run is started.
-#[derive(Debug, Clone)]
-pub struct RunOptions {
-    /// Stop by itself after this long.
-    pub duration: Option<Duration>,
-    /// Set to stop (signal handlers set it).
-    pub stop: Arc<AtomicBool>,
-    /// Print the periodic summary on stderr.
-    pub print_summary: bool,
-}
-
-/// Why a run could not start or had to stop.
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// A daemon for this pipeline is already running under this prefix.
-    #[error(
-        "pipeline {pipeline:?} is already running (prefix {prefix:?}), held by {}",
-        describe_holders(.holders)
-    )]
-    AlreadyRunning {
-        /// Pipeline name.
-        pipeline: String,
-        /// iceoryx2 prefix.
-        prefix: String,
-        /// Who holds it, as iceoryx2's node list tells (at least one).
-        holders: Vec<NodeHolder>,
-    },
-    /// iceoryx2 set-up or I/O.
-    #[error("{0}")]
-    Transport(#[from] TransportError),
-    /// The pipelines given cannot share one daemon.
-    #[error("{0}")]
-    Group(String),
-    /// A stage could not be built.
-    #[error("stage {stage:?}: {message}")]
-    Stage {
-        /// Stage name.
-        stage: String,
-        /// What is wrong.
-        message: String,
-    },
-}
-
-fn describe_holders(holders: &[NodeHolder]) -> String {
-    holders
-        .iter()
-        .map(ToString::to_string)
-        .collect::<Vec<_>>()
-        .join(" and ")
-}
-
-/// The node name of a pipeline's daemon (one per pipeline and prefix).
-pub fn node_name(pipeline: &str) -> String {
-    format!("driftless-{pipeline}")
-}
-
-/// The node of a daemon's reporting thread, which publishes the stats snapshots: the daemon's
-/// node name (see [`node_name`]) with `-stats`. `driftless list` knows a pipeline by the pair.
-pub fn stats_node_name(daemon_node: &str) -> String {
-    format!("{daemon_node}-stats")
-}
+use crate::transport::{remove_prefix_leftovers, Transport};
 
 /// The start line: the services this daemon publishes, with their types, and how to watch them.
 pub fn services_line(p: &Pipeline, prefix: &str) -> String {
@@ -146,17 +81,6 @@ pub fn services_line(p: &Pipeline, prefix: &str) -> String {
         p.iceoryx2.stats_service,
         p.path.display()
     )
-}
-
-fn build_source(p: &Pipeline, transport: &Transport) -> Result<Box<dyn Source>, RunError> {
-    let spec = &p.stages[0];
-    let err = |message: String| RunError::Stage {
-        stage: spec.name.clone(),
-        message,
-    };
-    spec.params
-        .source(&p.context(), transport, spec.input.as_deref())
-        .map_err(err)
 }
 
 /// Run a validated pipeline under `prefix` until stopped; returns the final report.

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use crossbeam_channel::bounded;
 
-use super::RunError;
+use super::run::{node_name, RunError};
 use crate::pipeline::config::Pipeline;
 use crate::sides::Start;
 use crate::transport::Qos;
@@ -68,7 +68,7 @@ impl Sides {
         let side = Arc::clone(&spec.side);
         let stop = Arc::clone(&self.stop);
         let (pipeline, prefix, rate_hz) = (p.name.clone(), prefix.to_string(), p.rate_hz);
-        let node = format!("{}-{table}", super::node_name(&p.name));
+        let node = format!("{}-{table}", node_name(&p.name));
         let announce_as = announcement_service(&p.name, table);
         let qos = Qos {
             buffer_size: p.iceoryx2.buffer_size,
