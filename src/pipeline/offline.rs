@@ -7,7 +7,7 @@
 
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
-use crate::stages::contract::{Role, Side, SideKind, Stage};
+use crate::stages::contract::{Role, SideInput, SideValue, Stage};
 use crate::transport::{GyroSample, RawSample, StopSignal};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
@@ -18,7 +18,7 @@ pub struct Offline {
     guard: Guard,
     stages: Vec<Box<dyn Stage>>,
     /// Per stage, what its side inputs carry, by slot.
-    sides: Vec<Vec<SideKind>>,
+    sides: Vec<Vec<SideInput>>,
 }
 
 impl Offline {
@@ -57,9 +57,9 @@ impl Offline {
 
     /// Hand `value` to every side input that carries its kind, as the daemon does when a new
     /// value arrives on the service: offline, the caller publishes the side inputs.
-    pub fn side(&mut self, value: &Side) {
+    pub fn side(&mut self, value: &SideValue) {
         let kind = match value {
-            Side::Stop(_) => SideKind::Stop { by_speed: false },
+            SideValue::Stop(_) => SideInput::Stop { by_speed: false },
         };
         for (stage, kinds) in self.stages.iter_mut().zip(&self.sides) {
             for (slot, k) in kinds.iter().enumerate() {
@@ -133,7 +133,7 @@ impl Offline {
                     epoch: 0,
                 };
                 if let Some(stopped) = stops.and_then(|s| s.get(k)) {
-                    off.side(&Side::Stop(StopSignal {
+                    off.side(&SideValue::Stop(StopSignal {
                         t_ns: raw.t_ns.max(1),
                         speed_m_s: f64::NAN,
                         stopped: u32::from(*stopped),

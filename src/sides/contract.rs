@@ -12,7 +12,7 @@ use std::fmt::Debug;
 use std::sync::atomic::AtomicBool;
 
 use crate::io::InputError;
-use crate::stages::contract::{SideKind, StageSpec};
+use crate::stages::contract::{SideInput, StageSpec};
 use crate::stages::schema::{Context, Key, Table};
 use crate::transport::Qos;
 
@@ -61,7 +61,7 @@ impl Chain<'_> {
     }
 
     /// The stages that read `service` beside their chain input, with what they read it as.
-    pub fn side_readers(&self, service: &str) -> Vec<(&StageSpec, SideKind)> {
+    pub fn side_readers(&self, service: &str) -> Vec<(&StageSpec, SideInput)> {
         self.stages
             .iter()
             .flat_map(|s| {

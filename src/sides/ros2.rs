@@ -9,7 +9,7 @@ use toml::Spanned;
 
 use super::contract::{Chain, Kind, Ready, Side, Start};
 use crate::io::InputError;
-use crate::stages::contract::SideKind;
+use crate::stages::contract::SideInput;
 use crate::stages::schema::{DefaultValue, Key, Table, Type, Units};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::{Direction, MotionKind, Ros2Settings, IMU_TYPE};
@@ -193,7 +193,7 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
             // stands flag alone, every signal would be unknown.
             let by_stands = readers
                 .iter()
-                .find(|(_, kind)| *kind == SideKind::Stop { by_speed: false });
+                .find(|(_, kind)| *kind == SideInput::Stop { by_speed: false });
             if let Some((stage, _)) = by_stands {
                 let stage = &stage.name;
                 return Err(src.span(

@@ -19,7 +19,7 @@ use crate::transport::{GyroSample, RawSample, StopSignal};
 /// What a side input carries: a service a stage reads beside its chain input
 /// ([`Params::side_inputs`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SideKind {
+pub enum SideInput {
     /// [`StopSignal`]: whether the vehicle stands; `by_speed` when the stage judges it by the
     /// signal's speed (it has a `stop_speed`), so a signal that says only a speed can feed it.
     Stop {
@@ -30,7 +30,7 @@ pub enum SideKind {
 
 /// The newest value of a side input ([`Stage::side`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Side {
+pub enum SideValue {
     /// A [`StopSignal`].
     Stop(StopSignal),
 }
@@ -72,7 +72,7 @@ pub trait Stage {
     /// The newest value of side input `slot` (the index in [`Params::side_inputs`]), handed
     /// over before the sample it precedes whenever a new one arrived; never waited for. Must
     /// not allocate. Default: ignored.
-    fn side(&mut self, _slot: usize, _value: &Side) {}
+    fn side(&mut self, _slot: usize, _value: &SideValue) {}
 }
 
 /// What a source has for the runtime.
@@ -175,7 +175,7 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     /// The services this stage reads beside its input, and what each carries: the runtime
     /// subscribes to them and hands the stage the newest value ([`Stage::side`]). Another
     /// process publishes them (a vehicle's stop signal). Default: none.
-    fn side_inputs(&self) -> Vec<(String, SideKind)> {
+    fn side_inputs(&self) -> Vec<(String, SideInput)> {
         Vec::new()
     }
 

@@ -51,7 +51,7 @@ pub mod replay;
 pub mod stop_rule;
 
 pub use bias_state::WarmStart;
-pub use contract::{Kind, Params, Poll, Role, Side, SideKind, Source, Stage};
+pub use contract::{Kind, Params, Poll, Role, SideInput, SideValue, Source, Stage};
 
 /// Every stage kind, in the order listed in messages and documentation.
 pub const KINDS: &[&Kind] = &[

@@ -31,7 +31,7 @@ use crate::drift::bias::{
 use crate::io::InputError;
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
 use crate::stages::contract::{Kind, Params, Role, Stage};
-use crate::stages::contract::{Side, SideKind};
+use crate::stages::contract::{SideInput, SideValue};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::transport::{
@@ -421,12 +421,12 @@ impl Params for BiasParams {
         }))
     }
 
-    fn side_inputs(&self) -> Vec<(String, SideKind)> {
+    fn side_inputs(&self) -> Vec<(String, SideInput)> {
         self.stop
             .iter()
             .map(|s| {
                 let by_speed = s.rule.speed_m_s.is_some();
-                (s.service.clone(), SideKind::Stop { by_speed })
+                (s.service.clone(), SideInput::Stop { by_speed })
             })
             .collect()
     }
@@ -634,8 +634,8 @@ impl Stage for BiasStage {
             .collect()
     }
 
-    fn side(&mut self, _slot: usize, value: &Side) {
-        let Side::Stop(s) = value;
+    fn side(&mut self, _slot: usize, value: &SideValue) {
+        let SideValue::Stop(s) = value;
         self.signal = Some(*s);
     }
 

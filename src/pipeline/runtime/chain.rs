@@ -15,7 +15,7 @@ use crate::metrics::{
 };
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
-use crate::stages::contract::{Role, Side, SideKind, Source, Stage};
+use crate::stages::contract::{Role, SideInput, SideValue, Source, Stage};
 use crate::stages::WarmStart;
 use crate::transport::{
     monotonic_ns, GyroSample, Input, Losses, Output, Qos, RawSample, StopSignal, Transport,
@@ -28,22 +28,22 @@ pub(super) enum SidePort {
 }
 
 impl SidePort {
-    fn open(transport: &Transport, name: &str, kind: SideKind) -> Result<Self, TransportError> {
+    fn open(transport: &Transport, name: &str, kind: SideInput) -> Result<Self, TransportError> {
         Ok(match kind {
-            SideKind::Stop { .. } => SidePort::Stop(transport.input::<StopSignal>(name)?),
+            SideInput::Stop { .. } => SidePort::Stop(transport.input::<StopSignal>(name)?),
         })
     }
 
     /// The newest value waiting, if any (the older ones are read and dropped: a side input
     /// is a state, not a stream).
-    fn newest(&self) -> Result<Option<Side>, TransportError> {
+    fn newest(&self) -> Result<Option<SideValue>, TransportError> {
         match self {
             SidePort::Stop(input) => {
                 let mut newest = None;
                 while let Some(v) = input.receive()? {
                     newest = Some(v);
                 }
-                Ok(newest.map(Side::Stop))
+                Ok(newest.map(SideValue::Stop))
             }
         }
     }
