@@ -24,7 +24,8 @@ const LAYERS: &[(&str, u32)] = &[
     ("metrics", 6),
     ("stages", 7),
     ("pipeline", 8),
-    ("cli", 9),
+    ("nav_eval", 9),
+    ("cli", 10),
 ];
 
 /// The maths: pure computation, usable as a library without a daemon.
