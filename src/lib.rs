@@ -12,7 +12,8 @@
 //! the maths ([`wavelet`], [`allan`], [`sim`], [`drift`], [`nav`], ...: no I/O, no transport,
 //! usable as a library) -> [`transport`] (the only module that touches iceoryx2) -> [`io`]
 //! (files) -> [`metrics`] -> [`stages`] (the stage contract and every stage kind) ->
-//! [`pipeline`] (the pipeline file, the runtime) -> [`cli`]. Each imports only from below.
+//! [`sides`] (what runs beside a chain) -> [`pipeline`] (the pipeline file, the runtime) -> [`nav_eval`] (the heading benchmark on the
+//! daemon's stages) -> [`cli`]. Each imports only from below.
 
 #![warn(missing_docs)]
 
@@ -24,6 +25,7 @@ pub mod drift;
 pub mod io;
 pub mod metrics;
 pub mod nav;
+pub mod nav_eval;
 pub mod pipeline;
 pub mod quality;
 pub mod sides;

@@ -1,8 +1,9 @@
 //! The house rules of ARCHITECTURE.md, checked on the source tree: each top-level module imports
 //! only modules of a lower layer, and inside one no files import each other in a loop; only
 //! `transport` touches iceoryx2 (and only its `zenoh/` folder touches Zenoh, only its
-//! `ros2/dds.rs` ros2-client), the maths does no I/O, and no source file holds more than 1,000
-//! lines of non-test code (the generated filter bank excepted).
+//! `ros2/dds.rs` ros2-client), the maths does no I/O, no source file holds more than 1,000
+//! lines of non-test code (the generated filter bank excepted), and no function of a command
+//! (`src/cli/`) is over 120 lines.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -25,7 +26,8 @@ const LAYERS: &[(&str, u32)] = &[
     ("stages", 7),
     ("sides", 8),
     ("pipeline", 9),
-    ("cli", 10),
+    ("nav_eval", 10),
+    ("cli", 11),
 ];
 
 /// The maths: pure computation, usable as a library without a daemon.
@@ -711,6 +713,82 @@ fn no_source_file_holds_over_1000_lines_of_code() {
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
+/// The longest function a command's file may hold, lines from its `fn` line to its closing
+/// brace: `cli` parses, calls the library and prints; a longer function is doing the library's
+/// work, or printing what wants a function of its own.
+const CLI_FN_MAX_LINES: usize = 120;
+
+/// Each function with a body before the unit tests: its name, its first line (1-based) and its
+/// length in lines, from the `fn` line to the closing brace at the `fn` line's indentation (as
+/// rustfmt writes it).
+fn functions(text: &str) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = text
+        .lines()
+        .take_while(|l| !l.trim_start().starts_with("#[cfg(test)]"))
+        .collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let t = line.trim_start();
+        let indent = &line[..line.len() - t.len()];
+        let mut words = t.split_whitespace().peekable();
+        while words
+            .peek()
+            .is_some_and(|w| w.starts_with("pub") || ["const", "async", "unsafe"].contains(w))
+        {
+            words.next();
+        }
+        if words.next() != Some("fn") {
+            continue;
+        }
+        let Some(name) = words.next().map(|w| {
+            w.chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect::<String>()
+        }) else {
+            continue;
+        };
+        // The signature ends at its body's `{`, or at a `;` (no body: a trait's declaration).
+        let Some(open) = (i..lines.len())
+            .find(|&j| lines[j].contains('{') || lines[j].trim_end().ends_with(';'))
+        else {
+            continue;
+        };
+        if !lines[open].contains('{') {
+            continue;
+        }
+        let closing = format!("{indent}}}");
+        let one_line = lines[open].matches('{').count() == lines[open].matches('}').count();
+        let end = if one_line {
+            Some(open)
+        } else {
+            (open + 1..lines.len()).find(|&j| lines[j] == closing)
+        };
+        if let Some(end) = end {
+            out.push((name, i + 1, end - i + 1));
+        }
+    }
+    out
+}
+
+#[test]
+fn no_function_of_a_command_is_over_120_lines() {
+    let mut wrong = Vec::new();
+    for (path, text) in files() {
+        let r = rel(&path);
+        if !r.starts_with("src/cli/") {
+            continue;
+        }
+        for (name, line, len) in functions(&text) {
+            if len > CLI_FN_MAX_LINES {
+                wrong.push(format!(
+                    "{r}:{line}: fn {name} is {len} lines (at most {CLI_FN_MAX_LINES}): move its computation below cli, or split it"
+                ));
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
 #[test]
 fn the_checks_see_what_they_check() {
     assert_eq!(
@@ -760,4 +838,13 @@ fn the_checks_see_what_they_check() {
     assert_eq!(at("super::GyroSample"), Some(path("transport::wire")));
     assert_eq!(at("super::ros2::Imu"), Some(path("transport::ros2::imu")));
     assert_eq!(at("std::fmt::Debug"), None);
+    let text = "pub fn a(\n    x: u8,\n) -> u8 {\n    x\n}\nfn b() {}\ntrait T {\n    fn c();\n    fn d(&self) {\n        let _ = 1;\n    }\n}\n#[cfg(test)]\nfn e() {\n}\n";
+    assert_eq!(
+        functions(text),
+        [
+            ("a".to_string(), 1, 5),
+            ("b".to_string(), 6, 1),
+            ("d".to_string(), 9, 3)
+        ]
+    );
 }

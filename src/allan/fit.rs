@@ -35,7 +35,7 @@
 //! deviations in deg/s.
 
 use super::chi2;
-use super::deviation::AllanPoint;
+use super::deviation::{AllanPoint, NoiseId};
 pub use super::units::Term;
 
 /// Correlation between the variance estimates of points one octave apart (rho^octaves between
@@ -76,6 +76,16 @@ pub struct TermFit {
 }
 
 impl TermFit {
+    /// The length of record, s, that would identify the term where one of `secs` s fell short
+    /// of [`MIN_NU`]: its significance grows about as the square root of the length, so the
+    /// length scales with the square of the shortfall, with a quarter more for chance. None
+    /// where the fit did not get as far as a significance.
+    pub fn record_to_identify(&self, secs: f64) -> Option<f64> {
+        let z = self.sigmas.filter(|&z| z > 0.0)?;
+        let z_min = (MIN_NU / 2.0).sqrt();
+        Some((secs * (z_min / z).powi(2) * 1.25).ceil())
+    }
+
     fn none(term: Term, reason: String) -> Self {
         TermFit {
             term,
@@ -109,6 +119,35 @@ impl NoiseFit {
     pub fn model_variance(&self, tau: f64) -> f64 {
         model(&self.theta, tau)
     }
+
+    /// The terms whose read-off ([`read_offs`], in the same order) lies outside the fitted
+    /// term's interval.
+    pub fn read_offs_outside(&self, read_offs: &[TermFit]) -> Vec<Term> {
+        self.terms
+            .iter()
+            .zip(read_offs)
+            .filter(|(f, r)| match (f.estimate, r.estimate) {
+                (Some(f), Some(r)) => r.value < f.lo || r.value > f.hi,
+                _ => false,
+            })
+            .map(|(f, _)| f.term)
+            .collect()
+    }
+}
+
+/// The point the B read-off of `read_offs` was taken at (the curve's lowest, as [`read_offs`]
+/// takes it), when the noise type there could not be identified: the lowest of scattered points
+/// can sit low by chance, and there the scatter is largest. None when there is no B read-off or
+/// its point's noise was identified by the slope.
+pub fn b_read_off_unidentified<'a>(
+    points: &'a [AllanPoint],
+    read_offs: &[TermFit],
+) -> Option<&'a AllanPoint> {
+    read_offs
+        .iter()
+        .find(|t| t.term == Term::B && t.estimate.is_some())?;
+    let p = points.iter().min_by(|a, b| a.dev.total_cmp(&b.dev))?;
+    matches!(p.noise_id, NoiseId::Widest { .. }).then_some(p)
 }
 
 /// Why no fit was possible.

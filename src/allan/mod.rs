@@ -11,7 +11,10 @@
 //! * [`fit`]: the IEEE Std 952 terms Q, N, B, K, R by a weighted non-negative least-squares fit,
 //!   with intervals, plus the classic slope-line read-offs.
 //! * [`units`]: rate units in, term units out.
+//! * [`analysis`]: a record's whole analysis as `driftless allan` reports it: the curve asked
+//!   for, the octave curve, the fit and the read-offs, telling its progress.
 
+pub mod analysis;
 pub mod chi2;
 pub mod deviation;
 pub mod edf;

@@ -1,18 +1,21 @@
-//! `driftless allan`: Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
+//! `driftless allan`: Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms
+//! ([`crate::allan::analysis`]); with `--stage`, the `predict.bias` table of the unit's own terms
+//! ([`crate::drift::bias::own_terms`]).
 
 use super::CliError;
-use crate::allan::deviation::{self, add_intervals, AllanPoint, NoiseId};
+use crate::allan::analysis::{self, Curve, Progress};
+use crate::allan::deviation::{AllanPoint, NoiseId};
+use crate::allan::fit::b_read_off_unidentified;
 use crate::allan::{
-    chi2, edf, fit_terms, read_offs, Estimate, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term,
-    TermFit, TermUnits,
+    chi2, edf, Estimate, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit, TermUnits,
 };
 use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
-use crate::drift::bias::{combined_as, own_terms, Choice, ColumnFit};
+use crate::drift::bias::{combined_as, own_terms, stage_key, Choice, ColumnFit, OwnTerms};
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::{progress, write_table};
 use serde_json::{json, Map, Value};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `driftless allan`.
 #[derive(Debug, clap::Args)]
@@ -83,13 +86,11 @@ struct ColumnResult {
 /// Terms a curve sums from which it shows a progress bar (about half a second here).
 const PROGRESS_MIN_TERMS: f64 = 1e9;
 
-/// Terms summed over the averaging factors `ms` of a record of `phase_len` phase points.
-fn work(kind: Kind, phase_len: usize, ms: &[usize]) -> f64 {
-    ms.iter()
-        .map(|&m| deviation::terms(kind, phase_len, m) as f64)
-        .sum()
-}
+/// Terms a grid sums from which it is worth a warning that it will take long.
+const WARN_TERMS: f64 = 2e10;
 
+/// The analysis of the column `name` ([`analysis::analyse`]), with a progress bar for each
+/// long curve.
 fn analyse(
     y: &[f64],
     rate: f64,
@@ -98,74 +99,50 @@ fn analyse(
     to_deg: f64,
     name: &str,
 ) -> Result<ColumnResult, crate::allan::AllanError> {
-    let ci = chi2::ONE_SIGMA;
-    let too_short = crate::allan::AllanError::TooShort {
-        samples: y.len(),
-        kind,
-        needed: if kind == Kind::Hdev { 4 } else { 3 },
-    };
-    if y.len() < 3 {
-        return Err(too_short);
-    }
-    let x = deviation::frequency_to_phase(y, rate);
-    let curve = |kind: Kind, grid: &TauGrid, msg: &str| {
-        let ms = deviation::averaging_factors(grid, x.len(), rate);
-        let long = work(kind, x.len(), &ms) >= PROGRESS_MIN_TERMS;
-        let bar = progress::bar(ms.len() as u64, if long { 0 } else { u64::MAX }, msg);
-        let mut out = Vec::with_capacity(ms.len());
-        for chunk in ms.chunks(8) {
-            let devs = deviation::deviations(kind, &x, rate, chunk);
-            for (&m, (dev, n)) in chunk.iter().zip(devs) {
-                if n > 1 {
-                    out.push(AllanPoint::bare(m, rate, dev, n));
+    let mut bar = None;
+    let a = analysis::analyse(y, rate, kind, grid, to_deg, &mut |p| match p {
+        Progress::Start {
+            curve,
+            steps,
+            terms,
+        } => {
+            let msg = match curve {
+                Curve::Asked => {
+                    if terms > WARN_TERMS {
+                        eprintln!(
+                            "driftless: warning: {name}: this grid needs {terms:.1e} terms on {} samples and will take long (try --taus log:10)",
+                            y.len()
+                        );
+                    }
+                    format!("{name}: {kind}")
                 }
-            }
-            bar.inc(chunk.len() as u64);
+                Curve::OctaveForFit => format!("{name}: octave oadev for the fit"),
+            };
+            let shown = if terms >= PROGRESS_MIN_TERMS {
+                0
+            } else {
+                u64::MAX
+            };
+            bar = Some(progress::bar(steps as u64, shown, &msg));
         }
-        bar.finish_and_clear();
-        add_intervals(kind, &mut out, x.len(), ci);
-        out
-    };
-    let work = work(
-        kind,
-        x.len(),
-        &deviation::averaging_factors(grid, x.len(), rate),
-    );
-    if work > 2e10 {
-        eprintln!(
-            "driftless: warning: {name}: this grid needs {work:.1e} terms on {} samples and will take long (try --taus log:10)",
-            y.len()
-        );
-    }
-    let points = curve(kind, grid, &format!("{name}: {kind}"));
-    if points.is_empty() {
-        return Err(too_short);
-    }
-    let octave = if kind == Kind::Oadev && *grid == TauGrid::Octave {
-        points.clone()
-    } else {
-        curve(
-            Kind::Oadev,
-            &TauGrid::Octave,
-            &format!("{name}: octave oadev for the fit"),
-        )
-    };
-    let in_deg: Vec<AllanPoint> = octave
-        .iter()
-        .map(|p| AllanPoint {
-            dev: p.dev * to_deg,
-            lo: p.lo * to_deg,
-            hi: p.hi * to_deg,
-            ..*p
-        })
-        .collect();
+        Progress::Step(n) => {
+            if let Some(b) = &bar {
+                b.inc(n as u64);
+            }
+        }
+        Progress::Done => {
+            if let Some(b) = bar.take() {
+                b.finish_and_clear();
+            }
+        }
+    })?;
     Ok(ColumnResult {
         name: name.to_string(),
-        samples: y.len(),
-        points,
-        fit: fit_terms(&in_deg, ci),
-        read_offs: read_offs(&in_deg),
-        octave: in_deg,
+        samples: a.samples,
+        points: a.points,
+        fit: a.fit,
+        read_offs: a.read_offs,
+        octave: a.octave,
     })
 }
 
@@ -212,36 +189,6 @@ const TRUST_FIT: &str = "trust the fitted terms, not the read-offs: the fit uses
 /// The same line when no fit was possible.
 const TRUST_NONE: &str = "no fit, so no term to trust: a read-off takes one point or segment as it is, other terms' share and chance included";
 
-/// Terms whose read-off lies outside the fitted term's interval.
-fn read_offs_outside_fit(fit: &Result<NoiseFit, FitError>, read_offs: &[TermFit]) -> Vec<Term> {
-    let Ok(fit) = fit else { return Vec::new() };
-    fit.terms
-        .iter()
-        .zip(read_offs)
-        .filter(|(f, r)| match (f.estimate, r.estimate) {
-            (Some(f), Some(r)) => r.value < f.lo || r.value > f.hi,
-            _ => false,
-        })
-        .map(|(f, _)| f.term)
-        .collect()
-}
-
-/// The caveat for a B read-off taken at a point whose noise type could not be identified: the
-/// lowest of scattered points sits low by chance, and there the scatter is largest.
-fn b_read_off_caveat(octave: &[AllanPoint], read_offs: &[TermFit]) -> Option<String> {
-    read_offs
-        .iter()
-        .find(|t| t.term == Term::B && t.estimate.is_some())?;
-    // The same point as fit::read_offs: the curve's minimum.
-    let p = octave.iter().min_by(|a, b| a.dev.total_cmp(&b.dev))?;
-    matches!(p.noise_id, NoiseId::Widest { .. }).then(|| {
-        format!(
-            "the B read-off is the curve's lowest point, at tau {} s with EDF {:.1} and too few tau-spans to identify the noise: the lowest of scattered points can sit low by chance",
-            p.tau, p.edf
-        )
-    })
-}
-
 /// Which to trust and why: the line printed (and JSON `trust.why`) and the terms whose read-off
 /// lies outside the fit's interval.
 fn trust(
@@ -250,7 +197,10 @@ fn trust(
     octave: &[AllanPoint],
 ) -> (String, Vec<Term>) {
     let mut line = String::from(if fit.is_ok() { TRUST_FIT } else { TRUST_NONE });
-    let outside = read_offs_outside_fit(fit, read_offs);
+    let outside = match fit {
+        Ok(f) => f.read_offs_outside(read_offs),
+        Err(_) => Vec::new(),
+    };
     if !outside.is_empty() {
         let names: Vec<&str> = outside.iter().map(|t| t.name()).collect();
         line += &format!(
@@ -258,9 +208,11 @@ fn trust(
             names.join(", ")
         );
     }
-    if let Some(c) = b_read_off_caveat(octave, read_offs) {
-        line += "; ";
-        line += &c;
+    if let Some(p) = b_read_off_unidentified(octave, read_offs) {
+        line += &format!(
+            "; the B read-off is the curve's lowest point, at tau {} s with EDF {:.1} and too few tau-spans to identify the noise: the lowest of scattered points can sit low by chance",
+            p.tau, p.edf
+        );
     }
     (line, outside)
 }
@@ -306,7 +258,46 @@ fn stage_table(
     lsb: f64,
 ) -> Result<String, CliError> {
     let shown = args.input.display();
-    // Each column's fit and terms, or the reason the record cannot give them.
+    let fits = column_fits(results, &shown.to_string(), rate)?;
+    if fits.is_empty() {
+        return Err(CliError::input(format!("{shown}: no column to analyse")));
+    }
+    let own = own_terms(&fits, lsb * unit.to_deg_per_s()).map_err(|e| {
+        CliError::input(format!(
+            "{shown}: {e}: the record cannot give predict.bias its terms"
+        ))
+    })?;
+    let notes = term_notes(&own);
+    let mut terms = own.terms;
+    // The stage reads lsb in the pipeline's input units, which are the log's here.
+    terms.lsb = lsb;
+    let columns: Vec<&str> = results.iter().map(|r| r.name.as_str()).collect();
+    let samples = results.first().map_or(0, |r| r.samples);
+    let mut out = format!(
+        "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {unit}),\n\
+         # from `driftless allan ... --stage`. One set for every axis; each term says how it was\n\
+         # taken. Every key is given, so no sensor's defaults fill in. The pipeline's\n\
+         # input_units must be {unit} (lsb is in them). Set input and output to your chain's services.\n",
+        columns.join(", ")
+    );
+    for n in notes {
+        out.push_str(&n);
+        out.push('\n');
+    }
+    out.push_str(&format!(
+        "[[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"nav/denoised\"\noutput = \"nav/predicted\"\n{}\n",
+        terms.stage_keys()
+    ));
+    Ok(out)
+}
+
+/// Each column's fit, for [`own_terms`]: refused where a column has none, or no N (then saying
+/// how long a record would give it).
+fn column_fits<'a>(
+    results: &'a [ColumnResult],
+    shown: &str,
+    rate: f64,
+) -> Result<Vec<ColumnFit<'a>>, CliError> {
     let mut fits = Vec::with_capacity(results.len());
     for r in results {
         let fit = r.fit.as_ref().map_err(|e| {
@@ -319,17 +310,12 @@ fn stage_table(
         let n = fit.get(Term::N);
         if n.estimate.is_none() {
             let secs = r.samples as f64 / rate;
-            let needed = match n.sigmas {
-                // Its significance grows about as the square root of the length.
-                Some(z) if z > 0.0 => {
-                    let z_min = (crate::allan::fit::MIN_NU / 2.0).sqrt();
-                    let s = (secs * (z_min / z).powi(2) * 1.25).ceil();
-                    format!(
-                        "about {} of still data",
-                        humantime::format_duration(std::time::Duration::from_secs(s as u64))
-                    )
-                }
-                _ => "a longer stretch of still data".to_string(),
+            let needed = match n.record_to_identify(secs) {
+                Some(s) => format!(
+                    "about {} of still data",
+                    humantime::format_duration(std::time::Duration::from_secs(s as u64))
+                ),
+                None => "a longer stretch of still data".to_string(),
             };
             return Err(CliError::input(format!(
                 "{shown}: column '{}': {} of data cannot identify the angle random walk N ({}): \
@@ -347,30 +333,16 @@ fn stage_table(
             points: &r.octave,
         });
     }
-    if fits.is_empty() {
-        return Err(CliError::input(format!("{shown}: no column to analyse")));
-    }
-    let own = own_terms(&fits, lsb * unit.to_deg_per_s()).map_err(|e| {
-        CliError::input(format!(
-            "{shown}: {e}: the record cannot give predict.bias its terms"
-        ))
-    })?;
-    let mut terms = own.terms;
+    Ok(fits)
+}
+
+/// The `--stage` table's comments: per term, the value taken and how the columns were
+/// combined, and per column what it gave.
+fn term_notes(own: &OwnTerms) -> Vec<String> {
     let mut notes = Vec::new();
     for (term, columns) in &own.choices {
-        let key = match term {
-            Term::N => "arw",
-            Term::B => "bias_instability",
-            Term::K => "rrw",
-            _ => "quantization",
-        };
+        let (key, taken) = stage_key(&own.terms, *term);
         let (u, f) = term.unit_in(TermUnits::Datasheet);
-        let taken = match term {
-            Term::N => terms.n,
-            Term::B => terms.b,
-            Term::K => terms.k,
-            _ => terms.q,
-        };
         notes.push(format!(
             "#   {term} ({key}) = {} {u}: {}",
             sig(taken * f, 5),
@@ -403,26 +375,7 @@ fn stage_table(
             notes.push(format!("#     {name}: {what}"));
         }
     }
-    // The stage reads lsb in the pipeline's input units, which are the log's here.
-    terms.lsb = lsb;
-    let columns: Vec<&str> = results.iter().map(|r| r.name.as_str()).collect();
-    let samples = results.first().map_or(0, |r| r.samples);
-    let mut out = format!(
-        "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {unit}),\n\
-         # from `driftless allan ... --stage`. One set for every axis; each term says how it was\n\
-         # taken. Every key is given, so no sensor's defaults fill in. The pipeline's\n\
-         # input_units must be {unit} (lsb is in them). Set input and output to your chain's services.\n",
-        columns.join(", ")
-    );
-    for n in notes {
-        out.push_str(&n);
-        out.push('\n');
-    }
-    out.push_str(&format!(
-        "[[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"nav/denoised\"\noutput = \"nav/predicted\"\n{}\n",
-        terms.stage_keys()
-    ));
-    Ok(out)
+    notes
 }
 
 /// Run `driftless allan`.
@@ -458,29 +411,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
             .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
         results.push(r);
     }
-    // Every column has the same grid (it depends only on the length), so one tau column serves.
     if let Some(out) = &args.output {
-        let mut names = vec!["tau_s".to_string()];
-        let mut cols: Vec<Vec<f64>> = vec![results[0].points.iter().map(|p| p.tau).collect()];
-        for r in &results {
-            for (suffix, f) in [
-                ("dev", (|p: &AllanPoint| p.dev) as fn(&AllanPoint) -> f64),
-                ("lo", |p| p.lo),
-                ("hi", |p| p.hi),
-                ("n", |p| p.n as f64),
-                ("edf", |p| p.edf),
-                ("alpha", |p| f64::from(p.alpha)),
-                // 1 where the slope identified alpha, 0 where it is the widest plausible one.
-                ("identified", |p| {
-                    f64::from(u8::from(matches!(p.noise_id, NoiseId::Slope)))
-                }),
-            ] {
-                names.push(format!("{}_{suffix}", r.name));
-                cols.push(r.points.iter().map(f).collect());
-            }
-        }
-        let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
-        write_table(out, &names, &refs)?;
+        write_csv(out, &results)?;
     }
     if let Some(path) = &args.plot {
         plot::write_loglog(path, &chart(&results, kind, unit)).map_err(CliError::input)?;
@@ -499,96 +431,134 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if args.json {
         let columns: Vec<Value> = results
             .iter()
-            .map(|r| {
-                let points: Vec<Value> = r
-                    .points
-                    .iter()
-                    .map(|p| {
-                        let (noise_id, plausible) = match p.noise_id {
-                            NoiseId::Slope => ("slope", Value::Null),
-                            NoiseId::Widest { lo, hi } => ("widest", json!([lo, hi])),
-                        };
-                        json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi,
-                               "edf": p.edf, "alpha": p.alpha, "noise_id": noise_id,
-                               "alpha_plausible": plausible})
-                    })
-                    .collect();
-                let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit));
-                let (ro, _) = terms_json(&r.read_offs);
-                let (why, outside) = trust(&r.fit, &r.read_offs, &r.octave);
-                let outside: Vec<&str> = outside.iter().map(|t| t.name()).collect();
-                let trust = json!({
-                    "use": if r.fit.is_ok() { "terms" } else { "none" },
-                    "why": why,
-                    "read_offs_outside_fit_interval": outside,
-                });
-                json!({"name": r.name, "samples": r.samples, "rate": rate, "kind": kind.to_string(),
-                       "unit": unit.to_string(), "ci": chi2::ONE_SIGMA, "points": points,
-                       "terms": terms, "not_identified": reasons, "read_offs": ro,
-                       "trust": trust})
-            })
+            .map(|r| column_json(r, rate, kind, unit))
             .collect();
         println!("{}", json!({ "columns": columns }));
         return Ok(());
     }
     for r in &results {
-        println!(
-            "{} ({} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
-            r.name, r.samples, rate, chi2::ONE_SIGMA * 100.0
-        );
-        println!(
-            "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10} {:>6}",
-            "tau (s)", "dev", "lo", "hi", "n", "edf", "alpha"
-        );
-        let mut widest = None;
-        for p in &r.points {
-            let alpha = match p.noise_id {
-                NoiseId::Slope => p.alpha.to_string(),
-                NoiseId::Widest { lo, hi } => {
-                    widest.get_or_insert((lo, hi));
-                    format!("{}*", p.alpha)
-                }
-            };
-            println!(
-                "{:>12.6} {:>14} {:>14} {:>14} {:>10} {:>10.1} {:>6}",
-                p.tau,
-                sig(p.dev, 7),
-                sig(p.lo, 7),
-                sig(p.hi, 7),
-                p.n,
-                p.edf,
-                alpha
-            );
-        }
-        if let Some((lo, hi)) = widest {
-            println!(
-                "* noise type not identified (fewer than {} tau-spans at about 2 tau): of alpha {lo}..{hi} (the floor up to the last one identified), the one with the widest interval",
-                edf::MIN_SPANS
-            );
-        }
-        let fitted = fit_terms_or_reason(&r.fit);
-        match &r.fit {
-            Ok(f) => println!(
-                "IEEE 952 terms (weighted NNLS fit of octave OADEV, tau {} s to {} s) | slope read-off:",
-                f.tau_range.0, f.tau_range.1
-            ),
-            Err(_) => println!("IEEE 952 terms | slope read-off:"),
-        }
-        for (t, ro) in fitted.iter().zip(&r.read_offs) {
-            println!(
-                "  {}  {}  | {}",
-                t.term,
-                format_term(t, args.term_units),
-                format_term(ro, args.term_units)
-            );
-        }
-        println!(
-            "Which to trust: {}",
-            trust(&r.fit, &r.read_offs, &r.octave).0
-        );
-        println!();
+        print_column(r, rate, kind, unit, args.term_units);
     }
     Ok(())
+}
+
+/// `-o`: the tau table as CSV. Every column has the same grid (it depends only on the length),
+/// so one tau column serves.
+fn write_csv(out: &Path, results: &[ColumnResult]) -> Result<(), CliError> {
+    let mut names = vec!["tau_s".to_string()];
+    let mut cols: Vec<Vec<f64>> = vec![results[0].points.iter().map(|p| p.tau).collect()];
+    for r in results {
+        for (suffix, f) in [
+            ("dev", (|p: &AllanPoint| p.dev) as fn(&AllanPoint) -> f64),
+            ("lo", |p| p.lo),
+            ("hi", |p| p.hi),
+            ("n", |p| p.n as f64),
+            ("edf", |p| p.edf),
+            ("alpha", |p| f64::from(p.alpha)),
+            // 1 where the slope identified alpha, 0 where it is the widest plausible one.
+            ("identified", |p| {
+                f64::from(u8::from(matches!(p.noise_id, NoiseId::Slope)))
+            }),
+        ] {
+            names.push(format!("{}_{suffix}", r.name));
+            cols.push(r.points.iter().map(f).collect());
+        }
+    }
+    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+    write_table(out, &names, &refs)?;
+    Ok(())
+}
+
+/// One column's object of `--json`.
+fn column_json(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit) -> Value {
+    let points: Vec<Value> = r
+        .points
+        .iter()
+        .map(|p| {
+            let (noise_id, plausible) = match p.noise_id {
+                NoiseId::Slope => ("slope", Value::Null),
+                NoiseId::Widest { lo, hi } => ("widest", json!([lo, hi])),
+            };
+            json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi,
+                   "edf": p.edf, "alpha": p.alpha, "noise_id": noise_id,
+                   "alpha_plausible": plausible})
+        })
+        .collect();
+    let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit));
+    let (ro, _) = terms_json(&r.read_offs);
+    let (why, outside) = trust(&r.fit, &r.read_offs, &r.octave);
+    let outside: Vec<&str> = outside.iter().map(|t| t.name()).collect();
+    let trust = json!({
+        "use": if r.fit.is_ok() { "terms" } else { "none" },
+        "why": why,
+        "read_offs_outside_fit_interval": outside,
+    });
+    json!({"name": r.name, "samples": r.samples, "rate": rate, "kind": kind.to_string(),
+           "unit": unit.to_string(), "ci": chi2::ONE_SIGMA, "points": points,
+           "terms": terms, "not_identified": reasons, "read_offs": ro,
+           "trust": trust})
+}
+
+/// One column's tables: the curve, the fitted terms beside the read-offs, which to trust.
+fn print_column(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit, term_units: TermUnits) {
+    println!(
+        "{} ({} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
+        r.name,
+        r.samples,
+        rate,
+        chi2::ONE_SIGMA * 100.0
+    );
+    println!(
+        "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10} {:>6}",
+        "tau (s)", "dev", "lo", "hi", "n", "edf", "alpha"
+    );
+    let mut widest = None;
+    for p in &r.points {
+        let alpha = match p.noise_id {
+            NoiseId::Slope => p.alpha.to_string(),
+            NoiseId::Widest { lo, hi } => {
+                widest.get_or_insert((lo, hi));
+                format!("{}*", p.alpha)
+            }
+        };
+        println!(
+            "{:>12.6} {:>14} {:>14} {:>14} {:>10} {:>10.1} {:>6}",
+            p.tau,
+            sig(p.dev, 7),
+            sig(p.lo, 7),
+            sig(p.hi, 7),
+            p.n,
+            p.edf,
+            alpha
+        );
+    }
+    if let Some((lo, hi)) = widest {
+        println!(
+            "* noise type not identified (fewer than {} tau-spans at about 2 tau): of alpha {lo}..{hi} (the floor up to the last one identified), the one with the widest interval",
+            edf::MIN_SPANS
+        );
+    }
+    let fitted = fit_terms_or_reason(&r.fit);
+    match &r.fit {
+        Ok(f) => println!(
+            "IEEE 952 terms (weighted NNLS fit of octave OADEV, tau {} s to {} s) | slope read-off:",
+            f.tau_range.0, f.tau_range.1
+        ),
+        Err(_) => println!("IEEE 952 terms | slope read-off:"),
+    }
+    for (t, ro) in fitted.iter().zip(&r.read_offs) {
+        println!(
+            "  {}  {}  | {}",
+            t.term,
+            format_term(t, term_units),
+            format_term(ro, term_units)
+        );
+    }
+    println!(
+        "Which to trust: {}",
+        trust(&r.fit, &r.read_offs, &r.octave).0
+    );
+    println!();
 }
 
 fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {

@@ -1,23 +1,21 @@
 //! `driftless eval`: run the daemon's stages offline on a log (streaming denoiser, then the live
 //! compensator with the model, and with the AR and persistence baselines in its place), and
-//! print the paper's Table 3: the Allan terms of the raw, denoised and compensated rates.
+//! print the paper's Table 3: the Allan terms of the raw, denoised and compensated rates
+//! ([`crate::drift::evaluation`]).
 
-use super::train::{check_rate, read_column};
+use super::train::{check_rate, read_column, Column};
 use super::CliError;
-use crate::allan::{self, chi2, Kind, TauGrid, Term, TermUnits};
+use crate::allan::TermUnits;
 use crate::cli::log_input::BagArgs;
 use crate::cli::num::sig;
-use crate::drift::baselines::{self, Mean, Persistence, Predictor, Score};
-use crate::drift::compensator::{Compensator, Mode};
+use crate::drift::baselines::Score;
+use crate::drift::evaluation::{evaluate, Evaluation, Terms, MIN_SAMPLES, PAPER_RATIOS, TERMS};
 use crate::drift::model::DriftModel;
-use crate::drift::separation::separate_causal;
 use crate::io::model_file::{read_model, sha256_file};
 use crate::io::plot::{write_panels, Panel, PanelStyle, Series};
 use serde::Serialize;
-use std::path::PathBuf;
-
-/// The paper's Table 3 ratios (compensated / raw) for Q, N, B.
-pub const PAPER_RATIOS: [(Term, f64); 3] = [(Term::Q, 0.46), (Term::N, 0.69), (Term::B, 0.61)];
+use std::ops::Range;
+use std::path::{Path, PathBuf};
 
 /// Points per plotted line at most.
 const PLOT_POINTS: usize = 4000;
@@ -64,21 +62,6 @@ pub struct Args {
     term_units: TermUnits,
 }
 
-/// One signal's Allan terms (base units; None: the fit failed).
-#[derive(Debug, Clone, Serialize)]
-pub struct Terms {
-    /// Signal name.
-    pub signal: String,
-    /// Q, N, B, K from the IEEE 952 fit (sqrt of the fitted squares; 0 when absent).
-    pub values: [f64; 4],
-    /// Whether the fit identified each term (its share of the variance is large enough).
-    pub identified: [bool; 4],
-    /// Fraction of samples in still, moving and warming-up mode (compensated signals).
-    pub modes: Option<[f64; 3]>,
-    /// The octave OADEV curve the terms were fitted to: (tau s, deviation).
-    pub oadev: Vec<(f64, f64)>,
-}
-
 /// The whole evaluation.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -102,60 +85,6 @@ pub struct Report {
     pub table: Vec<Terms>,
     /// One-step and free-running drift prediction scores on the scored range.
     pub prediction: Vec<Score>,
-}
-
-const TERMS: [Term; 4] = [Term::Q, Term::N, Term::B, Term::K];
-
-fn allan_terms(signal: &str, y: &[f64], rate: f64) -> Result<Terms, CliError> {
-    let pts = allan::allan(y, rate, Kind::Oadev, &TauGrid::Octave, chi2::ONE_SIGMA)
-        .map_err(|e| CliError::input(format!("Allan deviation of {signal}: {e}")))?;
-    let fit = allan::fit_terms(&pts, chi2::ONE_SIGMA)
-        .map_err(|e| CliError::input(format!("IEEE 952 fit of {signal}: {e}")))?;
-    let mut values = [0.0; 4];
-    let mut identified = [false; 4];
-    for (i, t) in TERMS.iter().enumerate() {
-        values[i] = fit.theta[*t as usize].max(0.0).sqrt();
-        identified[i] = fit.get(*t).estimate.is_some();
-    }
-    Ok(Terms {
-        signal: signal.into(),
-        values,
-        identified,
-        modes: None,
-        oadev: pts.iter().map(|p| (p.tau, p.dev)).collect(),
-    })
-}
-
-/// One compensator's output over a record: rate, drift subtracted, mode.
-type Compensated = (Vec<f64>, Vec<f64>, Vec<Mode>);
-
-fn compensate<P: Predictor>(
-    p: P,
-    m: &DriftModel,
-    denoised: &[f64],
-) -> Result<Compensated, CliError> {
-    let lb = m.lowband().map_err(CliError::input)?;
-    let mut c = Compensator::new(p, lb, m.stillness, m.max_step).map_err(CliError::input)?;
-    let mut rate = Vec::with_capacity(denoised.len());
-    let mut drift = Vec::with_capacity(denoised.len());
-    let mut modes = Vec::with_capacity(denoised.len());
-    for &x in denoised {
-        let s = c.push(x);
-        rate.push(s.rate);
-        drift.push(s.drift);
-        modes.push(s.mode);
-    }
-    Ok((rate, drift, modes))
-}
-
-fn mode_fractions(modes: &[Mode]) -> [f64; 3] {
-    let n = modes.len().max(1) as f64;
-    let count = |m: Mode| modes.iter().filter(|&&v| v == m).count() as f64 / n;
-    [
-        count(Mode::Still),
-        count(Mode::Moving),
-        count(Mode::Warming),
-    ]
 }
 
 fn thin(x0: f64, dt: f64, y: &[f64]) -> Vec<(f64, f64)> {
@@ -189,6 +118,58 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
+    let (col, column) = read_log(&args, &model)?;
+    let n = col.values.len();
+    let hash = sha256_file(&args.input).map_err(CliError::input)?;
+    let training_file = hash == model.provenance.sha256 && column == model.provenance.column;
+    let held_out = model.provenance.train_start + model.provenance.train_len;
+    let from = args
+        .from
+        .unwrap_or(if training_file { held_out } else { 0 });
+    let to = args.to.unwrap_or(n).min(n);
+    if to < from + MIN_SAMPLES {
+        return Err(CliError::input(format!(
+            "samples {from}..{to} of {} ({n} samples) are too few to evaluate (need at least \
+             {MIN_SAMPLES}; the model's training range ends at {held_out})",
+            args.input.display()
+        )));
+    }
+    if training_file && from < held_out {
+        eprintln!(
+            "driftless: warning: samples {from}..{held_out} were used to train the model: \
+             scores there are in-sample"
+        );
+    }
+    let e = evaluate(&model, &col.values, from..to).map_err(CliError::input)?;
+    if let Some(path) = &args.plot {
+        write_plot(path, &model, &col.values, &e, from..to)?;
+    }
+    let report = Report {
+        file: args.input.display().to_string(),
+        column: col.name.clone(),
+        rate_hz: rate,
+        units: model.units.clone(),
+        from,
+        to,
+        training_file,
+        in_sample: training_file && from < held_out,
+        table: e.table,
+        prediction: e.prediction,
+    };
+    if args.json {
+        let text =
+            serde_json::to_string_pretty(&report).map_err(|e| CliError::internal(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print_report(&report, args.term_units);
+    }
+    Ok(())
+}
+
+/// The log's column (`--column`, else the model's axis; a bag's x) and its name as asked; a
+/// bag's rate and units must be the model's.
+fn read_log(args: &Args, model: &DriftModel) -> Result<(Column, String), CliError> {
+    let rate = model.rate_hz;
     let is_bag = crate::io::rate_log::is_bag(&args.input);
     let column = match &args.column {
         Some(c) => c.clone(),
@@ -214,149 +195,83 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    let n = col.values.len();
-    let hash = sha256_file(&args.input).map_err(CliError::input)?;
-    let training_file = hash == model.provenance.sha256 && column == model.provenance.column;
-    let held_out = model.provenance.train_start + model.provenance.train_len;
-    let from = args
-        .from
-        .unwrap_or(if training_file { held_out } else { 0 });
-    let to = args.to.unwrap_or(n).min(n);
-    let min_len = 16usize;
-    if to < from + min_len {
-        return Err(CliError::input(format!(
-            "samples {from}..{to} of {} ({n} samples) are too few to evaluate (need at least \
-             {min_len}; the model's training range ends at {held_out})",
-            args.input.display()
-        )));
-    }
-    if training_file && from < held_out {
-        eprintln!(
-            "driftless: warning: samples {from}..{held_out} were used to train the model: \
-             scores there are in-sample"
-        );
-    }
-    // The daemon's stages, offline: streaming denoiser, then the compensator.
-    let sep = separate_causal(
-        &col.values,
-        &model.separation.denoise,
-        &model.separation.lowband,
-    )
-    .map_err(CliError::input)?;
-    let net = &model.network;
-    let ar = &model.baselines.ar;
-    let (rbf_rate, rbf_drift, rbf_modes) = compensate(net, &model, &sep.denoised)?;
-    let (ar_rate, _, ar_modes) = compensate(ar, &model, &sep.denoised)?;
-    let (p_rate, _, p_modes) = compensate(Persistence, &model, &sep.denoised)?;
-    let r = from..to;
-    let mut table = vec![
-        allan_terms("raw", &col.values[r.clone()], rate)?,
-        allan_terms("denoised", &sep.denoised[r.clone()], rate)?,
+    Ok((col, column))
+}
+
+/// The paper's Figures 9-11 into the SVG at `path`: the RBF's drift prediction, the raw and
+/// compensated rate, and their Allan deviations, on the judged range `r` of `raw`.
+fn write_plot(
+    path: &Path,
+    model: &DriftModel,
+    raw: &[f64],
+    e: &Evaluation,
+    r: Range<usize>,
+) -> Result<(), CliError> {
+    let dt = 1.0 / model.rate_hz;
+    let (from, to) = (r.start, r.end);
+    let t0 = from as f64 * dt;
+    // Table 3's curves of the raw and the RBF-compensated rate, on the same range.
+    let allan_series = [(&e.table[0], "raw"), (&e.table[2], "compensated (RBF)")]
+        .into_iter()
+        .map(|(t, name)| Series {
+            name: format!("{name}: log10 OADEV"),
+            points: t
+                .oadev
+                .iter()
+                .filter(|p| p.1 > 0.0)
+                .map(|p| (p.0.log10(), p.1.log10()))
+                .collect(),
+        })
+        .collect();
+    // Figure 9 as the paper: the last 1,000 predictions, where the two lines can be told apart.
+    let f9 = to.saturating_sub(1000).max(from)..to;
+    let t9 = f9.start as f64 * dt;
+    let panels = [
+        Panel {
+            title: format!(
+                "Figure 9: RBF drift prediction against the measured drift (last {} samples)",
+                f9.len()
+            ),
+            x_label: "time (s)".into(),
+            y_label: model.units.clone(),
+            series: vec![
+                Series {
+                    name: "measured drift (causal low band)".into(),
+                    points: thin(t9, dt, &e.separated.drift[f9.clone()]),
+                },
+                Series {
+                    name: "RBF prediction".into(),
+                    points: thin(t9, dt, &e.rbf.drift[f9.clone()]),
+                },
+            ],
+            style: PanelStyle::default(),
+        },
+        Panel {
+            title: "Figure 10: raw and compensated rate".into(),
+            x_label: "time (s)".into(),
+            y_label: model.units.clone(),
+            series: vec![
+                Series {
+                    name: "raw".into(),
+                    points: thin(t0, dt, &raw[r.clone()]),
+                },
+                Series {
+                    name: "compensated (RBF)".into(),
+                    points: thin(t0, dt, &e.rbf.rate[r.clone()]),
+                },
+            ],
+            style: PanelStyle::default(),
+        },
+        Panel {
+            title: "Figure 11: Allan deviation, raw and compensated".into(),
+            x_label: "log10 tau (s)".into(),
+            y_label: format!("log10 OADEV ({})", model.units),
+            series: allan_series,
+            style: PanelStyle::default(),
+        },
     ];
-    for (name, y, modes) in [
-        ("compensated (RBF)", &rbf_rate, &rbf_modes),
-        ("compensated (AR)", &ar_rate, &ar_modes),
-        ("compensated (persistence)", &p_rate, &p_modes),
-    ] {
-        let mut t = allan_terms(name, &y[r.clone()], rate)?;
-        t.modes = Some(mode_fractions(&modes[r.clone()]));
-        table.push(t);
-    }
-    let horizon = rate.round().max(1.0) as usize;
-    let prediction: Vec<Score> = [
-        ("persistence", &Persistence as &dyn Predictor),
-        ("mean", &Mean(model.baselines.mean)),
-        (&format!("AR({})", ar.coef.len()), ar),
-        (&format!("RBF({} centres)", net.centre_count()), net),
-    ]
-    .iter()
-    .map(|(name, p)| baselines::score(name, *p, &sep.drift, from, to, horizon))
-    .collect();
-    let report = Report {
-        file: args.input.display().to_string(),
-        column: col.name.clone(),
-        rate_hz: rate,
-        units: model.units.clone(),
-        from,
-        to,
-        training_file,
-        in_sample: training_file && from < held_out,
-        table,
-        prediction,
-    };
-    if let Some(path) = &args.plot {
-        let dt = 1.0 / rate;
-        let t0 = from as f64 * dt;
-        let mut allan_series = Vec::new();
-        for (name, y) in [("raw", &col.values), ("compensated (RBF)", &rbf_rate)] {
-            let pts = allan::allan(&y[r.clone()], rate, Kind::Oadev, &TauGrid::Octave, 0.683)
-                .map_err(|e| CliError::input(e.to_string()))?;
-            allan_series.push(Series {
-                name: format!("{name}: log10 OADEV"),
-                points: pts
-                    .iter()
-                    .filter(|p| p.dev > 0.0)
-                    .map(|p| (p.tau.log10(), p.dev.log10()))
-                    .collect(),
-            });
-        }
-        // Figure 9 as the paper: the last 1,000 predictions, where the two lines can be told apart.
-        let f9 = to.saturating_sub(1000).max(from)..to;
-        let t9 = f9.start as f64 * dt;
-        let panels = [
-            Panel {
-                title: format!(
-                    "Figure 9: RBF drift prediction against the measured drift (last {} samples)",
-                    f9.len()
-                ),
-                x_label: "time (s)".into(),
-                y_label: model.units.clone(),
-                series: vec![
-                    Series {
-                        name: "measured drift (causal low band)".into(),
-                        points: thin(t9, dt, &sep.drift[f9.clone()]),
-                    },
-                    Series {
-                        name: "RBF prediction".into(),
-                        points: thin(t9, dt, &rbf_drift[f9.clone()]),
-                    },
-                ],
-                style: PanelStyle::default(),
-            },
-            Panel {
-                title: "Figure 10: raw and compensated rate".into(),
-                x_label: "time (s)".into(),
-                y_label: model.units.clone(),
-                series: vec![
-                    Series {
-                        name: "raw".into(),
-                        points: thin(t0, dt, &col.values[r.clone()]),
-                    },
-                    Series {
-                        name: "compensated (RBF)".into(),
-                        points: thin(t0, dt, &rbf_rate[r.clone()]),
-                    },
-                ],
-                style: PanelStyle::default(),
-            },
-            Panel {
-                title: "Figure 11: Allan deviation, raw and compensated".into(),
-                x_label: "log10 tau (s)".into(),
-                y_label: format!("log10 OADEV ({})", model.units),
-                series: allan_series,
-                style: PanelStyle::default(),
-            },
-        ];
-        write_panels(path, &panels).map_err(CliError::input)?;
-        eprintln!("wrote {}", path.display());
-    }
-    if args.json {
-        let text =
-            serde_json::to_string_pretty(&report).map_err(|e| CliError::internal(e.to_string()))?;
-        println!("{text}");
-    } else {
-        print_report(&report, args.term_units);
-    }
+    write_panels(path, &panels).map_err(CliError::input)?;
+    eprintln!("wrote {}", path.display());
     Ok(())
 }
 

@@ -1,20 +1,16 @@
 //! `driftless train`: separate the drift of a static log causally, train the RBF network on the
-//! first part, score it and the baselines on the held-out part, and write the model file.
+//! first part, score it and the baselines on the held-out part ([`crate::drift::fit`]), and write
+//! the model file.
 
 use super::duration::parse_seconds;
 use super::CliError;
 use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
-use crate::drift::baselines::{self, Ar, Mean, Persistence, Score};
-use crate::drift::model::{
-    Baselines, DenoiseSettings, DriftModel, LowbandSettings, Provenance, Separation, FORMAT, UNITS,
-    VERSION,
-};
+use crate::drift::baselines::Score;
+use crate::drift::fit::{fit_model, FitError, FitSpec};
+use crate::drift::model::{DenoiseSettings, LowbandSettings, Provenance, Separation, UNITS};
 use crate::drift::rbf::{InputForm, Target};
-use crate::drift::separation::{separate_causal, train_end};
-use crate::drift::stillness::StillnessConfig;
-use crate::drift::training::{self, AdamConfig, CentreMethod, TrainConfig};
-use crate::drift::Predictor;
+use crate::drift::training::{AdamConfig, CentreMethod, TrainConfig};
 use crate::io::model_file::{sha256_file, write_model};
 use crate::io::rate_log::{LogOrigin, RateLog};
 use std::path::{Path, PathBuf};
@@ -194,6 +190,89 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .units(args.units.as_deref())
         .map_err(CliError::input)?
         .to_string();
+    let spec = fit_spec(&args, rate)?;
+    let n = col.values.len();
+    let end = args.start + args.train + args.test;
+    if end > n {
+        return Err(CliError::input(format!(
+            "{} has {n} samples; --start {} --train {} --test {} needs {end}",
+            args.input.display(),
+            args.start,
+            args.train,
+            args.test
+        )));
+    }
+    if args.test == 0 {
+        return Err(CliError::input("--test must be at least 1"));
+    }
+    let bar = crate::io::progress::bar(1000, 0, "training");
+    let fitted = fit_model(&col.values[args.start..end], &spec, &mut |f| {
+        bar.set_position((f * 1000.0) as u64)
+    });
+    bar.finish_and_clear();
+    let fitted = fitted.map_err(|e| match e {
+        FitError::TooLittleData {
+            train,
+            lags,
+            centres,
+            warm_up,
+            lag,
+            needed,
+        } => CliError::input(format!(
+            "--train {train} is too little data for {lags} lags and {centres} centres after the \
+             {warm_up}-sample warm-up and the {lag}-sample denoiser lag (need at least {needed})"
+        )),
+        e => CliError::input(e.to_string()),
+    })?;
+    let (warm, t_end) = (fitted.warm_up, fitted.train_end);
+    let provenance = Provenance {
+        file: args.input.display().to_string(),
+        sha256: sha256_file(&args.input).map_err(CliError::input)?,
+        column: col.name.clone(),
+        train_start: args.start,
+        train_len: args.train,
+        test_len: args.test,
+        seed: args.seed,
+        driftless: env!("CARGO_PKG_VERSION").into(),
+    };
+    let model = fitted.into_model(&spec, rate, col.name.clone(), units.clone(), provenance);
+    model.check().map_err(CliError::internal)?;
+    write_model(&args.output, &model).map_err(CliError::input)?;
+    let (t0, t1) = (args.train, args.train + args.test);
+    println!(
+        "{}: column {}, {} Hz; trained on samples {}..{} (drift {}..{} after warm-up and lag), \
+         held out {}..{}",
+        args.input.display(),
+        col.name,
+        rate,
+        args.start,
+        args.start + args.train,
+        args.start + warm,
+        args.start + t_end,
+        args.start + t0,
+        args.start + t1
+    );
+    let scores = &model.scores;
+    print_scores(scores, &units, args.horizon);
+    let rbf = &scores[3];
+    let ar_s = &scores[2];
+    println!(
+        "model skill vs persistence: {:+.4}; vs AR({}): {}",
+        rbf.skill,
+        spec.training.lags,
+        if rbf.rmse < ar_s.rmse {
+            "better"
+        } else {
+            "NOT better (AR is at least as good on this data)"
+        }
+    );
+    eprintln!("wrote {}", args.output.display());
+    Ok(())
+}
+
+/// The fit's settings from the options, checked (horizon and stillness window in samples at
+/// `rate`).
+fn fit_spec(args: &Args, rate: f64) -> Result<FitSpec, CliError> {
     for (name, v) in [
         ("horizon", args.horizon),
         ("still-window", args.still_window),
@@ -215,7 +294,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if !(args.still_margin.is_finite() && args.still_margin >= 1.0) {
         return Err(CliError::input("--still-margin must be >= 1"));
     }
-    let cfg = TrainConfig {
+    let training = TrainConfig {
         lags: args.lags,
         centres: args.centres,
         method: parse::<CentreMethod>("method", &args.method)?,
@@ -232,135 +311,28 @@ pub fn run(args: Args) -> Result<(), CliError> {
         seed: args.seed,
         ..TrainConfig::default()
     };
-    let denoise = DenoiseSettings {
-        wavelet: args.wavelet.clone(),
-        level: args.level,
-        threshold: args.threshold.clone(),
-        window: args.window,
-        lag: args.lag,
-    };
-    let lowband = LowbandSettings {
-        wavelet: args.wavelet.clone(),
-        level: args.drift_level,
-    };
-    let n = col.values.len();
-    let end = args.start + args.train + args.test;
-    if end > n {
-        return Err(CliError::input(format!(
-            "{} has {n} samples; --start {} --train {} --test {} needs {end}",
-            args.input.display(),
-            args.start,
-            args.train,
-            args.test
-        )));
-    }
-    if args.test == 0 {
-        return Err(CliError::input("--test must be at least 1"));
-    }
-    let bar = crate::io::progress::bar(1000, 0, "training");
-    // Separation: causal, over the training and test ranges only.
-    let x = &col.values[args.start..end];
-    let sep = separate_causal(x, &denoise, &lowband).map_err(CliError::input)?;
-    bar.set_position(100);
-    let warm = sep.warm_up;
-    let t_end = train_end(args.train, &denoise);
-    let needed = warm + training::samples_needed(cfg.lags, cfg.centres) + denoise.lag;
-    if args.train < needed {
-        return Err(CliError::input(format!(
-            "--train {} is too little data for {} lags and {} centres after the {warm}-sample \
-             warm-up and the {}-sample denoiser lag (need at least {needed})",
-            args.train, cfg.lags, cfg.centres, denoise.lag
-        )));
-    }
-    let train_drift = &sep.drift[warm..t_end];
-    let model_net = training::train(train_drift, &cfg, &mut |f| {
-        bar.set_position(100 + (f * 900.0) as u64)
-    })
-    .map_err(|e| CliError::input(e.to_string()))?;
-    bar.finish_and_clear();
-    let ar = Ar::fit(train_drift, cfg.lags).ok_or_else(|| {
-        CliError::input("the training drift is constant: AR baseline has no solution")
-    })?;
-    let mean = train_drift.iter().sum::<f64>() / train_drift.len() as f64;
-    let (t0, t1) = (args.train, args.train + args.test);
-    let scores: Vec<Score> = [
-        ("persistence", &Persistence as &dyn Predictor),
-        ("mean", &Mean(mean)),
-        (&format!("AR({})", cfg.lags), &ar),
-        (&format!("RBF({} centres)", cfg.centres), &model_net),
-    ]
-    .iter()
-    .map(|(name, p)| baselines::score(name, *p, &sep.drift, t0, t1, horizon))
-    .collect();
-    let max_step = 2.0
-        * train_drift
-            .windows(2)
-            .map(|w| (w[1] - w[0]).abs())
-            .fold(0.0, f64::max)
-            .max(1e-12);
-    let stillness = StillnessConfig::calibrate(
-        &sep.denoised[..t_end],
-        &sep.drift[..t_end],
-        still_window,
-        crate::drift::LowBand::new(&lowband.wavelet, lowband.level)
-            .map_err(|e| CliError::input(e.to_string()))?
-            .span(),
-        args.still_margin,
-    );
-    let model = DriftModel {
-        format: FORMAT.into(),
-        version: VERSION,
-        rate_hz: rate,
-        axis: col.name.clone(),
-        units: units.clone(),
-        separation: Separation { denoise, lowband },
-        stillness,
-        max_step,
-        network: model_net,
-        baselines: Baselines { ar, mean },
-        training: cfg.clone(),
-        scores: scores.clone(),
-        provenance: Provenance {
-            file: args.input.display().to_string(),
-            sha256: sha256_file(&args.input).map_err(CliError::input)?,
-            column: col.name.clone(),
-            train_start: args.start,
-            train_len: args.train,
-            test_len: args.test,
-            seed: args.seed,
-            driftless: env!("CARGO_PKG_VERSION").into(),
+    let separation = Separation {
+        denoise: DenoiseSettings {
+            wavelet: args.wavelet.clone(),
+            level: args.level,
+            threshold: args.threshold.clone(),
+            window: args.window,
+            lag: args.lag,
+        },
+        lowband: LowbandSettings {
+            wavelet: args.wavelet.clone(),
+            level: args.drift_level,
         },
     };
-    model.check().map_err(CliError::internal)?;
-    write_model(&args.output, &model).map_err(CliError::input)?;
-    println!(
-        "{}: column {}, {} Hz; trained on samples {}..{} (drift {}..{} after warm-up and lag), \
-         held out {}..{}",
-        args.input.display(),
-        col.name,
-        rate,
-        args.start,
-        args.start + args.train,
-        args.start + warm,
-        args.start + t_end,
-        args.start + t0,
-        args.start + t1
-    );
-    print_scores(&scores, &units, args.horizon);
-    let rbf = &scores[3];
-    let ar_s = &scores[2];
-    println!(
-        "model skill vs persistence: {:+.4}; vs AR({}): {}",
-        rbf.skill,
-        cfg.lags,
-        if rbf.rmse < ar_s.rmse {
-            "better"
-        } else {
-            "NOT better (AR is at least as good on this data)"
-        }
-    );
-    eprintln!("wrote {}", args.output.display());
-    Ok(())
+    Ok(FitSpec {
+        separation,
+        training,
+        train: args.train,
+        test: args.test,
+        horizon,
+        still_window,
+        still_margin: args.still_margin,
+    })
 }
 
 /// The baselines table.

@@ -9,6 +9,8 @@
 //! - [`model`]: the versioned model file (JSON) with its checks.
 //! - [`stillness`]: the stillness detector that decides when the low band is drift.
 //! - [`compensator`]: per-sample live compensation, anchored only while still.
+//! - [`evaluation`]: a model on a record, the paper's Table 3 (`driftless eval`).
+//! - [`fit`]: a model from a static record, scored on its held-out part (`driftless train`).
 //! - [`bias`]: a Kalman filter on the bias with noise from the Allan terms, updated only while
 //!   confirmed still (the estimator judged by heading error in [`crate::nav`]).
 //!
@@ -24,6 +26,8 @@
 pub mod baselines;
 pub mod bias;
 pub mod compensator;
+pub mod evaluation;
+pub mod fit;
 pub mod lowband;
 pub mod model;
 pub mod rbf;

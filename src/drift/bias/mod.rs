@@ -63,7 +63,7 @@ mod tracker;
 mod walk;
 
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
-pub use own_terms::{combined_as, own_terms, Choice, ColumnFit, OwnTerms};
+pub use own_terms::{combined_as, own_terms, stage_key, Choice, ColumnFit, OwnTerms};
 pub use tracker::{
     default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,
     TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,

@@ -89,6 +89,17 @@ pub fn combined_as(term: Term) -> &'static str {
     }
 }
 
+/// The `predict.bias` key that takes `term` ([`BiasTerms::stage_keys`]), and its value in
+/// `terms` (base units).
+pub fn stage_key(terms: &BiasTerms, term: Term) -> (&'static str, f64) {
+    match term {
+        Term::N => ("arw", terms.n),
+        Term::B => ("bias_instability", terms.b),
+        Term::K => ("rrw", terms.k),
+        _ => ("quantization", terms.q),
+    }
+}
+
 /// The terms of [the module's rules](self) from each column's fit; `lsb` in deg/s.
 pub fn own_terms(columns: &[ColumnFit<'_>], lsb: f64) -> Result<OwnTerms, BiasError> {
     let mut choices = [Term::N, Term::B, Term::K, Term::Q].map(|t| (t, Vec::new()));

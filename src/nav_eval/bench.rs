@@ -1,0 +1,372 @@
+//! The window loop: every motion, every window, every axis; each method corrects the noise
+//! plus the motion, and is judged by the heading error of the integrated rate.
+
+use super::{Chain, NavEvalError, Source};
+use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
+use crate::io::truth::Truth;
+use crate::nav::{
+    evaluate, fusion, generate, heading_error, summarize_methods, BiasEstimator,
+    HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile, Setup, Zaru,
+};
+use crate::pipeline::offline::Offline;
+
+/// The column of x-io Fusion's gyroscope bias algorithm ([`fusion`]).
+pub const FUSION_LABEL: &str = "x-io Fusion bias (imufusion defaults)";
+
+/// Points per heading error trace at most (keeps an SVG small).
+const TRACE_POINTS: usize = 4000;
+
+/// The motion added to the windows: a built-in profile, drawn anew for each window and axis
+/// (seed `3 w + axis`), or a truth file's motion, the same for every window.
+#[derive(Debug, Clone)]
+pub enum Motion {
+    /// A built-in profile.
+    Profile(Profile),
+    /// A truth file's motion.
+    Truth {
+        /// `truth FILE`.
+        label: String,
+        /// One per axis.
+        traces: Vec<MotionTrace>,
+    },
+}
+
+impl Motion {
+    /// A truth file's motion for `axes` axes at `rate` Hz, labelled by its file name.
+    pub fn truth(t: &Truth, axes: usize, rate: f64) -> Result<Motion, NavEvalError> {
+        Ok(Motion::Truth {
+            label: format!(
+                "truth {}",
+                t.path.file_name().map_or_else(
+                    || t.path.display().to_string(),
+                    |f| f.to_string_lossy().into_owned()
+                )
+            ),
+            traces: t.traces(axes, rate)?,
+        })
+    }
+
+    /// Its name in the tables: the profile's, or `truth FILE`.
+    pub fn label(&self) -> String {
+        match self {
+            Motion::Profile(p) => p.to_string(),
+            Motion::Truth { label, .. } => label.clone(),
+        }
+    }
+
+    /// The motion of each of `axes` axes in window `w`.
+    fn traces(
+        &self,
+        rate: f64,
+        window_s: f64,
+        w: usize,
+        axes: usize,
+    ) -> Result<Vec<MotionTrace>, NavEvalError> {
+        match self {
+            Motion::Profile(p) => (0..axes)
+                .map(|a| generate(*p, rate, window_s, (w * 3 + a) as u64))
+                .collect::<Result<_, _>>()
+                .map_err(|e| NavEvalError::Internal(e.to_string())),
+            Motion::Truth { traces, .. } => Ok(traces.clone()),
+        }
+    }
+}
+
+/// What the benchmark judges, and on what.
+#[derive(Debug)]
+pub struct Bench {
+    /// The static noise.
+    pub source: Source,
+    /// The estimators' noise terms, one set per axis.
+    pub terms: Vec<BiasTerms>,
+    /// Samples per window.
+    pub window: usize,
+    /// The motions added, each a section of the tables.
+    pub motions: Vec<Motion>,
+    /// The methods that run a pipeline's stages, after the built-in ones.
+    pub chains: Vec<Chain>,
+}
+
+/// One evaluated case: a window of one axis under one motion.
+#[derive(Debug, Clone)]
+pub struct Case {
+    /// Index into [`Bench::motions`].
+    pub motion: usize,
+    /// Window number, from 0.
+    pub window: usize,
+    /// Index into the source's axes.
+    pub axis: usize,
+    /// One per column ([`Outcome::labels`]).
+    pub metrics: Vec<HeadingMetrics>,
+}
+
+/// One table: every method summarised over a set of cases, against ZARU with the true stops.
+#[derive(Debug, Clone)]
+pub struct Section {
+    /// The motion's label, or `all profiles`.
+    pub title: String,
+    /// One per column ([`Outcome::labels`]).
+    pub rows: Vec<MethodSummary>,
+}
+
+/// Heading error over time of one case, thinned to a few thousand points.
+#[derive(Debug, Clone)]
+pub struct HeadingTraces {
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Per method: its name and its heading error, deg, at `t`.
+    pub series: Vec<(String, Vec<f64>)>,
+}
+
+/// What the benchmark found.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The columns: the built-in methods, x-io Fusion's, then each chain's.
+    pub labels: Vec<String>,
+    /// Windows per axis and motion.
+    pub windows: usize,
+    /// Every case, by motion, window and axis.
+    pub cases: Vec<Case>,
+    /// One section per motion, and one of all cases when there are several motions.
+    pub sections: Vec<Section>,
+    /// When asked for: the heading error traces of the first case (power-on, ZARU oracle,
+    /// ZARU detected, then each chain).
+    pub traces: Option<HeadingTraces>,
+}
+
+impl Bench {
+    /// The built-in methods, in column order (the floor only where the true noise model is
+    /// known: the simulator).
+    pub fn methods(&self) -> Vec<Method> {
+        let mut methods = vec![
+            Method::Raw,
+            Method::PowerOn,
+            Method::ZaruOracle,
+            Method::ZaruDetected,
+            Method::ZaruDenoised,
+            Method::KfDetected,
+            Method::KfOracle,
+            Method::KfOracleFixed,
+        ];
+        if self.source.floor.is_some() {
+            methods.push(Method::Floor);
+        }
+        methods
+    }
+
+    /// Window length, s (whole samples).
+    pub fn window_s(&self) -> f64 {
+        self.window as f64 / self.source.rate
+    }
+
+    /// The first sample of window `w`.
+    pub fn window_start(&self, w: usize) -> usize {
+        self.source.first_window + w * self.window
+    }
+
+    /// Run every method on every case; with `traces`, keep the first case's heading error
+    /// over time.
+    pub fn run(&self, traces: bool) -> Result<Outcome, NavEvalError> {
+        let methods = self.methods();
+        let mut labels: Vec<String> = methods.iter().map(|m| m.label().to_string()).collect();
+        labels.push(FUSION_LABEL.into());
+        labels.extend(self.chains.iter().map(|c| c.label.clone()));
+        let src = &self.source;
+        let windows = src.windows(self.window);
+        let mut cases: Vec<Case> = Vec::new();
+        let mut first: Option<HeadingTraces> = None;
+        for (mi, motion) in self.motions.iter().enumerate() {
+            for w in 0..windows {
+                let motion_traces = motion.traces(src.rate, self.window_s(), w, src.axes.len())?;
+                let measured = self.measured(w, &motion_traces);
+                // Each axis alone, the others still: nav-eval gives every axis its own motion,
+                // so a case is one axis of a vehicle whose stops are that axis's (Fusion waits
+                // for all three axes to be still; other axes' unrelated motion would only
+                // handicap it).
+                let fusion_out: Vec<Vec<f64>> = measured
+                    .iter()
+                    .map(|y| fusion::correct(&[y], src.rate).remove(0))
+                    .collect();
+                let chain_out = self.run_chains(&measured, &motion_traces)?;
+                for (a, m) in motion_traces.iter().enumerate() {
+                    let setup = self.setup(a)?;
+                    let mut metrics = evaluate(&measured[a], &m.truth, &m.still, &setup, &methods)
+                        .map_err(|e| NavEvalError::Input(format!("{}: {e}", src.name)))?;
+                    let dt = 1.0 / src.rate;
+                    metrics.push(metrics_of(&fusion_out[a], &m.truth, dt));
+                    for out in &chain_out {
+                        metrics.push(metrics_of(&out[a], &m.truth, dt));
+                    }
+                    if first.is_none() && traces {
+                        first = Some(self.traces(&measured[a], m, &chain_out, a, &setup)?);
+                    }
+                    cases.push(Case {
+                        motion: mi,
+                        window: w,
+                        axis: a,
+                        metrics,
+                    });
+                }
+            }
+        }
+        let sections = self.sections(&cases, &methods, labels.len());
+        Ok(Outcome {
+            labels,
+            windows,
+            cases,
+            sections,
+            traces: first,
+        })
+    }
+
+    /// Window `w` of each axis' noise plus its motion.
+    fn measured(&self, w: usize, motion: &[MotionTrace]) -> Vec<Vec<f64>> {
+        let start = self.window_start(w);
+        self.source
+            .axes
+            .iter()
+            .zip(motion)
+            .map(|((_, y), m)| {
+                y[start..start + self.window]
+                    .iter()
+                    .zip(&m.truth)
+                    .map(|(x, t)| x + t)
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Each chain's output, per axis: per-axis pipelines one axis at a time, a file's all axes
+    /// at once. A chain reading a stop signal gets each axis's true stops, so it runs each axis
+    /// alone (the axes' motions, and so their stops, differ).
+    fn run_chains(
+        &self,
+        measured: &[Vec<f64>],
+        motion: &[MotionTrace],
+    ) -> Result<Vec<Vec<Vec<f64>>>, NavEvalError> {
+        let mut chain_out: Vec<Vec<Vec<f64>>> = Vec::with_capacity(self.chains.len());
+        for c in &self.chains {
+            let reads_stops = c.reads_stops();
+            if c.pipelines.len() > 1 || reads_stops {
+                let mut per_axis = Vec::with_capacity(measured.len());
+                for (a, y) in measured.iter().enumerate() {
+                    let p = &c.pipelines[a.min(c.pipelines.len() - 1)];
+                    let stops = reads_stops.then_some(motion[a].still.as_slice());
+                    per_axis
+                        .extend(Offline::run_series(p, &[y], stops).map_err(NavEvalError::Input)?);
+                }
+                chain_out.push(per_axis);
+            } else {
+                let inputs: Vec<&[f64]> = measured.iter().map(Vec::as_slice).collect();
+                chain_out.push(
+                    Offline::run_series(&c.pipelines[0], &inputs, None)
+                        .map_err(NavEvalError::Input)?,
+                );
+            }
+        }
+        Ok(chain_out)
+    }
+
+    /// The built-in methods' setup for axis `a`: its terms, and on the simulator its true
+    /// noise model.
+    fn setup(&self, a: usize) -> Result<Setup, NavEvalError> {
+        let mut setup = Setup::new(self.terms[a], self.source.rate);
+        if let Some(cfg) = &self.source.floor {
+            setup.floor = Some(
+                BiasModel::simulator_truth(cfg, setup.terms.initial_sd)
+                    .map_err(|e| NavEvalError::Internal(e.to_string()))?,
+            );
+        }
+        Ok(setup)
+    }
+
+    /// One section per motion, and one of all cases when there are several.
+    fn sections(&self, cases: &[Case], methods: &[Method], columns: usize) -> Vec<Section> {
+        let table = |title: String, sel: &dyn Fn(&Case) -> bool| -> Section {
+            let res: Vec<Vec<HeadingMetrics>> = cases
+                .iter()
+                .filter(|c| sel(c))
+                .map(|c| c.metrics.clone())
+                .collect();
+            // Chain columns have no `Method`: a placeholder that is never the reference,
+            // relabelled on output.
+            let all: Vec<Method> = (0..columns)
+                .map(|i| methods.get(i).copied().unwrap_or(Method::KfDenoised))
+                .collect();
+            Section {
+                title,
+                rows: summarize_methods(&all, &res, Method::ZaruOracle),
+            }
+        };
+        let mut sections: Vec<Section> = self
+            .motions
+            .iter()
+            .enumerate()
+            .map(|(i, m)| table(m.label(), &|c: &Case| c.motion == i))
+            .collect();
+        if self.motions.len() > 1 {
+            sections.push(table("all profiles".into(), &|_| true));
+        }
+        sections
+    }
+
+    /// Heading error traces of one case: power-on, ZARU oracle, ZARU detected, then each
+    /// chain.
+    fn traces(
+        &self,
+        measured: &[f64],
+        m: &MotionTrace,
+        chains: &[Vec<Vec<f64>>],
+        axis: usize,
+        setup: &Setup,
+    ) -> Result<HeadingTraces, NavEvalError> {
+        let dt = 1.0 / setup.rate_hz;
+        let min = (setup.zaru_min_s * setup.rate_hz).round().max(1.0) as usize;
+        let step = (measured.len() / TRACE_POINTS).max(1);
+        let thin = |c: &[f64]| -> Vec<f64> {
+            heading_error(c, &m.truth, dt)
+                .into_iter()
+                .step_by(step)
+                .collect()
+        };
+        let t: Vec<f64> = (0..measured.len())
+            .step_by(step)
+            .map(|k| k as f64 * dt)
+            .collect();
+        let correct = |mut est: Zaru| -> Vec<f64> {
+            measured
+                .iter()
+                .zip(&m.still)
+                .map(|(&x, &s)| x - est.push(x, s))
+                .collect()
+        };
+        let detector = stillness_from_terms(&setup.terms, setup.rate_hz, &setup.tracker)
+            .map_err(|e| NavEvalError::Input(e.to_string()))?;
+        let mut series = vec![
+            ("power-on".to_string(), thin(&correct(Zaru::power_on(min)))),
+            ("ZARU oracle".into(), thin(&correct(Zaru::oracle(min)))),
+            (
+                "ZARU detected".into(),
+                thin(&correct(Zaru::detected(min, detector))),
+            ),
+        ];
+        series.extend(
+            self.chains
+                .iter()
+                .zip(chains)
+                .map(|(c, out)| (c.label.clone(), thin(&out[axis]))),
+        );
+        Ok(HeadingTraces { t, series })
+    }
+}
+
+/// The heading figures of a corrected rate against the truth.
+fn metrics_of(corrected: &[f64], truth: &[f64], dt: f64) -> HeadingMetrics {
+    let mut acc = HeadingAccumulator::new(dt);
+    for (&c, &t) in corrected.iter().zip(truth) {
+        // A sample a stage never published (it cannot happen with the shipped stages) counts
+        // as uncorrected zero rate, not as silently skipped.
+        acc.push(if c.is_finite() { c } else { 0.0 }, t);
+    }
+    acc.metrics()
+}

@@ -1,0 +1,119 @@
+//! The static noise the motion is added to: a log's rates after the part the Allan fit
+//! characterises, or the simulator's noise; and the noise terms the estimators are given.
+
+use super::NavEvalError;
+use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
+use crate::drift::bias::{own_terms, BiasTerms, ColumnFit};
+use crate::io::rate_log::RateLog;
+use crate::sim::{SimConfig, SimError, Simulator};
+
+/// The static noise: one series per axis, deg/s, and where the windows may start.
+#[derive(Debug, Clone)]
+pub struct Source {
+    /// What it is: the log's path, or `simulated SENSOR`.
+    pub name: String,
+    /// Sample rate, Hz.
+    pub rate: f64,
+    /// One series per axis: its name and its rates, deg/s.
+    pub axes: Vec<(String, Vec<f64>)>,
+    /// The first sample a window may start at: a log's windows come after the part the Allan
+    /// fit characterises ([`Source::fit_terms`]), so they are held out.
+    pub first_window: usize,
+    /// The simulator's configuration when simulated: its true noise model gives the floor
+    /// method ([`crate::nav::Method::Floor`]).
+    pub floor: Option<SimConfig>,
+}
+
+impl Source {
+    /// A log's rates (a bag's, rad/s, in deg/s) at `rate` Hz: its first `characterise` rows are
+    /// the part the fit characterises, the windows of `window` samples come after. Refused when
+    /// it has no room for one window.
+    pub fn from_log(
+        log: RateLog,
+        rate: f64,
+        characterise: usize,
+        window: usize,
+    ) -> Result<Source, NavEvalError> {
+        let mut table = log.table;
+        let path = table.path.clone();
+        if log.origin.bag.is_some() {
+            // A bag's rates are rad/s; the navigation and its terms here are in deg/s.
+            for c in &mut table.columns {
+                c.iter_mut().for_each(|v| *v = v.to_degrees());
+            }
+        }
+        let rows = table.rows();
+        if rows < characterise + window {
+            return Err(NavEvalError::Input(format!(
+                "{}: {rows} rows, but the characterisation ({characterise}) and one window ({window}) need {}",
+                path.display(),
+                characterise + window
+            )));
+        }
+        Ok(Source {
+            name: path.display().to_string(),
+            rate,
+            axes: table.names.into_iter().zip(table.columns).collect(),
+            first_window: characterise,
+            floor: None,
+        })
+    }
+
+    /// `samples` samples per axis of the simulator's noise for `cfg` (at its rate, with its
+    /// axes), named after `sensor`.
+    pub fn simulated(sensor: &str, cfg: &SimConfig, samples: usize) -> Result<Source, SimError> {
+        let mut axes: Vec<(String, Vec<f64>)> = (0..cfg.axes)
+            .map(|a| (format!("sim axis {a}"), Vec::with_capacity(samples)))
+            .collect();
+        let mut sim = Simulator::new(cfg)?;
+        for _ in 0..samples {
+            let s = sim.next_sample();
+            for (a, (_, y)) in axes.iter_mut().enumerate() {
+                y.push(s.measured[a]);
+            }
+        }
+        Ok(Source {
+            name: format!("simulated {sensor}"),
+            rate: cfg.rate_hz,
+            axes,
+            first_window: 0,
+            floor: Some(cfg.clone()),
+        })
+    }
+
+    /// The noise terms of the characterisation part: what `driftless allan --stage` writes for
+    /// that record (one set for every axis), with the output step `lsb`, deg/s.
+    pub fn fit_terms(&self, lsb: f64) -> Result<BiasTerms, NavEvalError> {
+        let characterise = self.first_window;
+        let mut fitted = Vec::with_capacity(self.axes.len());
+        for (name, y) in &self.axes {
+            let points = allan(
+                &y[..characterise],
+                self.rate,
+                Kind::Oadev,
+                &TauGrid::Octave,
+                ONE_SIGMA,
+            )
+            .map_err(|e| NavEvalError::Input(format!("{}: {name}: {e}", self.name)))?;
+            let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
+                NavEvalError::Input(format!(
+                    "{}: {name}: no noise terms from the first {characterise} rows ({e}); give --terms adis16405 or a longer --characterise",
+                    self.name
+                ))
+            })?;
+            fitted.push((name.as_str(), fit, points));
+        }
+        let columns: Vec<ColumnFit> = fitted
+            .iter()
+            .map(|(name, fit, points)| ColumnFit { name, fit, points })
+            .collect();
+        let own = own_terms(&columns, lsb)
+            .map_err(|e| NavEvalError::Input(format!("{}: {e}", self.name)))?;
+        Ok(own.terms)
+    }
+
+    /// Whole windows of `window` samples per axis after [`Source::first_window`].
+    pub fn windows(&self, window: usize) -> usize {
+        (self.axes[0].1.len() - self.first_window) / window
+    }
+}
