@@ -112,9 +112,10 @@ pub trait Side: Debug + Send + Sync {
         Ok(())
     }
 
-    /// Run on the thread the runtime gave it until `start.stop`: say [`Ready`] once set up (the
-    /// pipeline does not run without it), then serve. Returns one line of what it carried, or
-    /// why it failed.
+    /// Run on the thread the runtime gave it until `start.stop`: set up its own iceoryx2 node
+    /// (`start.node`), announce what it does on `start.announce_as` (attributes `driftless
+    /// list` shows), say [`Ready`] once set up (the pipeline does not run without it), then
+    /// serve. Returns one line of what it carried, or why it failed.
     fn run(&self, start: &Start<'_>, ready: Ready<'_>) -> Result<String, String>;
 }
 
