@@ -46,8 +46,8 @@ use crate::pipeline::registry::{self, Entry};
 use crate::sides::{Chain, SideSpec, SIDES};
 use crate::stages::contract::Role;
 pub use crate::stages::contract::StageSpec;
+use crate::stages::schema::{sort_entries, DefaultValue, Entries, Key, Src, Table, Type};
 pub use crate::stages::schema::{Context, Units};
-use crate::stages::schema::{DefaultValue, Key, Src, Table, Type};
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,6 +63,16 @@ pub struct Iceoryx2Settings {
     pub max_subscribers: usize,
     /// The statistics service.
     pub stats_service: String,
+}
+
+impl Iceoryx2Settings {
+    /// The one `Qos` every service of the pipeline, and of its sides, is built from.
+    pub fn qos(&self) -> crate::transport::Qos {
+        crate::transport::Qos {
+            buffer_size: self.buffer_size,
+            max_subscribers: self.max_subscribers,
+        }
+    }
 }
 
 /// A validated pipeline, stages in chain order (the ingest first, the publish last).
@@ -225,7 +235,7 @@ pub const ICEORYX2_KEYS: &[Key] = &[
     STATS_SERVICE,
 ];
 
-/// The top-level tables that are the pipeline's own (the sides' tables and `[[stage]]` aside).
+/// The one top-level table that is the pipeline's own (the sides' tables and `[[stage]]` aside).
 const ICEORYX2_TABLE: &str = "iceoryx2";
 
 /// Split a table's entries by the keys declared for it: an undeclared key is an error at its
@@ -234,16 +244,9 @@ fn split<'i>(
     src: &Src<'_>,
     table: DeTable<'i>,
     valid: &[&'static str],
-) -> Result<Vec<(&'static str, Spanned<DeValue<'i>>)>, InputError> {
-    let mut out = Vec::new();
-    let mut strays: Vec<(String, usize)> = Vec::new();
-    for (k, v) in table {
-        match valid.iter().find(|n| **n == k.get_ref().as_ref()) {
-            Some(&n) => out.push((n, v)),
-            None => strays.push((k.get_ref().to_string(), k.span().start)),
-        }
-    }
-    match strays.iter().min_by_key(|(_, at)| *at) {
+) -> Result<Entries<'i>, InputError> {
+    let (declared, strays) = sort_entries(table, valid);
+    match strays.first() {
         Some((key, at)) => {
             let listed: Vec<String> = valid.iter().map(|k| format!("`{k}`")).collect();
             Err(src.at(
@@ -254,7 +257,7 @@ fn split<'i>(
                 ),
             ))
         }
-        None => Ok(out),
+        None => Ok(declared),
     }
 }
 

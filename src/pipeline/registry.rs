@@ -11,7 +11,7 @@ use toml::Spanned;
 
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, StageSpec};
-use crate::stages::schema::{Context, Src, Table};
+use crate::stages::schema::{sort_entries, Context, Src, Table};
 pub use crate::stages::KINDS;
 
 /// The kind called `name` in pipeline files.
@@ -117,18 +117,9 @@ pub(crate) fn stage(
         ));
     };
     // Sort the keys: the common ones, the kind's own, and strays (an error, at the first).
-    let valid = accepted(kind);
-    let mut common: Vec<(&str, Spanned<DeValue<'_>>)> = Vec::new();
-    let mut own = Vec::new();
-    let mut strays: Vec<(String, usize)> = Vec::new();
-    for (k, v) in table {
-        match valid.iter().find(|n| **n == k.get_ref().as_ref()) {
-            Some(&n) if COMMON.contains(&n) => common.push((n, v)),
-            Some(&n) => own.push((n, v)),
-            None => strays.push((k.get_ref().to_string(), k.span().start)),
-        }
-    }
-    strays.sort_by_key(|(_, at)| *at);
+    let (declared, strays) = sort_entries(table, &accepted(kind));
+    let (mut common, own): (Vec<_>, Vec<_>) =
+        declared.into_iter().partition(|(n, _)| COMMON.contains(n));
     if let Some(((first, at), rest)) = strays.split_first() {
         let others: Vec<String> = rest.iter().map(|(k, _)| k.clone()).collect();
         return Err(src.at(*at, stray_key(kind, first, &others)));

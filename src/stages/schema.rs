@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::Deserialize;
-use toml::de::DeValue;
+use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 use crate::io::InputError;
@@ -456,6 +456,27 @@ fn expect(key: &Key, reading: Reading) {
         "{}: default {:?} read as {reading:?}",
         key.name, key.default
     );
+}
+
+/// A table's declared entries: each key by its declaration's name, with its value.
+pub(crate) type Entries<'i> = Vec<(&'static str, Spanned<DeValue<'i>>)>;
+
+/// A table's entries sorted by the keys declared for it: the declared ones (named by their
+/// declaration), and the strays (key, offset) in the file's order, for the caller to refuse.
+pub(crate) fn sort_entries<'i>(
+    table: DeTable<'i>,
+    valid: &[&'static str],
+) -> (Entries<'i>, Vec<(String, usize)>) {
+    let mut declared = Vec::new();
+    let mut strays: Vec<(String, usize)> = Vec::new();
+    for (k, v) in table {
+        match valid.iter().find(|n| **n == k.get_ref().as_ref()) {
+            Some(&n) => declared.push((n, v)),
+            None => strays.push((k.get_ref().to_string(), k.span().start)),
+        }
+    }
+    strays.sort_by_key(|(_, at)| *at);
+    (declared, strays)
 }
 
 /// One table of the pipeline file, its keys already sorted against their declarations: a stage

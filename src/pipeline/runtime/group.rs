@@ -234,10 +234,7 @@ impl<'a> Running<'a> {
         print_summary: bool,
     ) -> Result<Self, RunError> {
         let name = node_name(&p.name);
-        let qos = Qos {
-            buffer_size: p.iceoryx2.buffer_size,
-            max_subscribers: p.iceoryx2.max_subscribers,
-        };
+        let qos = p.iceoryx2.qos();
         let transport = Transport::new(prefix, &name, qos)?;
         let source = build_source(p, &transport)?;
         let raw_service = &p.stages[0].output;

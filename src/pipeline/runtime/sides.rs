@@ -13,7 +13,6 @@ use crossbeam_channel::bounded;
 use super::run::{node_name, RunError};
 use crate::pipeline::config::Pipeline;
 use crate::sides::Start;
-use crate::transport::Qos;
 
 /// The event service on which a side of pipeline `pipeline` says what it does (as
 /// attributes), for `driftless list`.
@@ -70,10 +69,7 @@ impl Sides {
         let (pipeline, prefix, rate_hz) = (p.name.clone(), prefix.to_string(), p.rate_hz);
         let node = format!("{}-{table}", node_name(&p.name));
         let announce_as = announcement_service(&p.name, table);
-        let qos = Qos {
-            buffer_size: p.iceoryx2.buffer_size,
-            max_subscribers: p.iceoryx2.max_subscribers,
-        };
+        let qos = p.iceoryx2.qos();
         let handle = std::thread::Builder::new()
             .name(format!("driftless-{table}"))
             .spawn(move || {
