@@ -118,13 +118,8 @@ docs/reference/pipeline-file.md` or `DRIFTLESS_BLESS=1 cargo test --release --te
 pub fn kinds(markdown: bool) -> String {
     let mut out = String::new();
     let common = "`name` (unique), `kind`, `output` (a service name), and `input` where noted";
-    let md = |text: &str| {
-        if markdown {
-            text.to_string()
-        } else {
-            text.replace('`', "")
-        }
-    };
+    // The text form drops Markdown's code quotes.
+    let plain = |text: &str| text.replace('`', "");
     if markdown {
         out.push_str(MARKDOWN_HEADER);
         out.push_str("\n\n# The pipeline file\n\n");
@@ -157,7 +152,7 @@ pub fn kinds(markdown: bool) -> String {
         if markdown {
             out.push_str(&format!("\n## {title}\n\n{}.\n", capitalised(summary)));
         } else {
-            out.push_str(&format!("{}: {}\n", md(&title), md(summary)));
+            out.push_str(&format!("{}: {}\n", plain(&title), plain(summary)));
         }
         keys_of(keys, markdown, &mut out);
         if !markdown {
@@ -168,7 +163,7 @@ pub fn kinds(markdown: bool) -> String {
         out.push_str("\n# Stage kinds\n\n");
         out.push_str(&format!("Every `[[stage]]` has {common}.\n"));
     } else {
-        out.push_str(&format!("Every [[stage]] has {}.\n", md(common)));
+        out.push_str(&format!("Every [[stage]] has {}.\n", plain(common)));
     }
     for kind in crate::stages::KINDS {
         if markdown {
