@@ -1116,7 +1116,13 @@ fn run_names_its_services_counts_what_it_published_and_ends_with_a_verdict() {
         ("flushed", FLAG_FLUSHED),
     ] {
         assert_eq!(outputs[key], count(flag), "{key}: {outputs}");
-        assert!(count(flag) > 0, "stop-and-go motion shows {key}");
+        // Its first 3 s are the first stop (60 s): taken as a rest from the first sample,
+        // warming up until the detector's window confirms it, and never moving.
+        if flag == FLAG_MOVING {
+            assert_eq!(count(flag), 0, "the first stop shows no motion");
+        } else {
+            assert!(count(flag) > 0, "stop-and-go motion shows {key}");
+        }
     }
     let (still, moving) = (count(FLAG_STILL), count(FLAG_MOVING));
     let neither = N as u64 - still - moving;

@@ -8,6 +8,8 @@
 //! - [`baselines`]: persistence, mean and AR(p) predictors; one-step and free-running scores.
 //! - [`model`]: the versioned model file (JSON) with its checks.
 //! - [`stillness`]: the stillness detector that decides when the low band is drift.
+//! - [`accel_rest`]: the accelerometer's half of the rest test (has the force stayed constant,
+//!   and since when), beside the gyro's.
 //! - [`compensator`]: per-sample live compensation, anchored only while still.
 //! - [`evaluation`]: a model on a record, the paper's Table 3 (`driftless eval`).
 //! - [`fit`]: a model from a static record, scored on its held-out part (`driftless train`).
@@ -23,6 +25,7 @@
 //! denoiser's output passed through the causal low band ([`lowband::LowBand`]). A training row
 //! at sample t only depends on samples <= t.
 
+pub mod accel_rest;
 pub mod baselines;
 pub mod bias;
 pub mod compensator;

@@ -15,6 +15,14 @@
 //! again. The detector starts "moving": it must see `settle` quiet samples before the first
 //! anchoring.
 //!
+//! **A window that grows** ([`Growth`]): with thresholds for fewer samples than `window`, the
+//! detector judges a window that is still filling (at start-up, from the first sample) or one
+//! cut back to the samples since another sensor saw the body come to rest
+//! ([`StillnessDetector::restart`]). The thresholds for n samples are those of the full window
+//! with n in its place: chi-square quantiles (Wilson-Hilferty) of the variance and the spread of
+//! an n-sample mean. A failed test (or a veto) ends that: the rest's start is refuted, and the
+//! detector waits for a full window again, as without [`Growth`].
+//!
 //! Rotation slower than the drift band itself (a turn building up over minutes) cannot be told
 //! from drift by any test on the rate alone.
 
@@ -102,10 +110,91 @@ impl StillnessConfig {
     }
 }
 
+/// Log-likelihood ratio of "moving" (a mean shift and a variance rise of unknown sizes) against
+/// "still" for `n` standardised residuals of sum `sum` and sum of squares `sum2` (residual over
+/// the still model's standard deviation). A variance *below* the model's counts as still, as a
+/// band-limited real sensor's is.
+pub fn moving_llr(n: f64, sum: f64, sum2: f64) -> f64 {
+    let mean = sum / n;
+    let s2 = sum2 / n - mean * mean;
+    if s2 > 1.0 {
+        0.5 * (sum2 - n - n * s2.ln())
+    } else {
+        0.5 * sum * mean
+    }
+}
+
+/// Another sensor's verdict on the whole body at a sample (the accelerometer's,
+/// [`crate::drift::accel_rest`]), beside a gyro axis's own detector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Aid {
+    /// No verdict: the gyro alone decides.
+    Unknown,
+    /// Quiet: no sign of motion for `since` samples, this one included (its own estimate of
+    /// when the body came to rest).
+    Quiet {
+        /// Samples since the rest began.
+        since: usize,
+    },
+    /// Moving, since `age` samples before this one (its own estimate of the onset).
+    Moving {
+        /// Samples since the onset (0: this sample).
+        age: usize,
+    },
+}
+
+/// Thresholds for a window of fewer samples than the full one (see the module documentation),
+/// from the same noise model as the full window's: the still per-sample variance `var`, and
+/// the variance of an n-sample mean `mean_white / n + mean_pair / n^2`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Growth {
+    /// Variance of one still sample.
+    pub var: f64,
+    /// Part of an n-sample mean's variance that falls as 1/n (white noise and what acts like it).
+    pub mean_white: f64,
+    /// Part that falls as 1/n^2 (quantisation noise: a differenced white angle telescopes).
+    pub mean_pair: f64,
+    /// Standard deviations (of a normal tail) above the still value: the exit thresholds.
+    pub var_sigmas: f64,
+    /// The same for the mean-shift test.
+    pub mean_sigmas: f64,
+    /// Enter thresholds are this many times as far (>= 1).
+    pub hysteresis: f64,
+}
+
+/// Upper quantile of chi-square with `k` degrees of freedom, divided by `k`, at the tail
+/// probability of `z` standard deviations of a normal (Wilson and Hilferty 1931): for large k
+/// it is 1 + z sqrt(2/k), the full window's rule; for small k it follows the chi-square's long
+/// right tail, so a short window does not see motion in noise.
+pub fn chi2_ratio(k: f64, z: f64) -> f64 {
+    let k = k.max(1.0);
+    let c = 2.0 / (9.0 * k);
+    (1.0 - c + z * c.sqrt()).max(0.0).powi(3)
+}
+
+impl Growth {
+    /// (variance exit, variance enter, mean exit, mean enter) for a window of `n` samples.
+    fn thresholds(&self, n: usize) -> (f64, f64, f64, f64) {
+        let k = n.saturating_sub(1).max(1) as f64;
+        let nf = n.max(1) as f64;
+        let mean_sd = (self.mean_white / nf + self.mean_pair / (nf * nf)).sqrt();
+        (
+            self.var * chi2_ratio(k, self.var_sigmas),
+            self.var * chi2_ratio(k, self.hysteresis * self.var_sigmas),
+            self.mean_sigmas * mean_sd,
+            self.hysteresis * self.mean_sigmas * mean_sd,
+        )
+    }
+}
+
 /// The detector's state (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct StillnessDetector {
     cfg: StillnessConfig,
+    growth: Option<Growth>,
+    /// The window began at a rest's start (a reset, or [`StillnessDetector::restart`]) and no
+    /// test has failed since: a window still filling is judged with the [`Growth`] thresholds.
+    growing: bool,
     ring: Vec<f64>,
     pos: usize,
     filled: usize,
@@ -123,6 +212,8 @@ impl StillnessDetector {
         StillnessDetector {
             ring: vec![0.0; cfg.window.max(2)],
             cfg,
+            growth: None,
+            growing: true,
             pos: 0,
             filled: 0,
             origin: 0.0,
@@ -132,6 +223,13 @@ impl StillnessDetector {
             quiet: 0,
             anchor: f64::NAN,
         }
+    }
+
+    /// The same detector judging windows that are still filling too, with `growth`'s
+    /// thresholds for fewer samples than the full window.
+    pub fn with_growth(mut self, growth: Growth) -> Self {
+        self.growth = Some(growth);
+        self
     }
 
     /// The thresholds.
@@ -161,11 +259,44 @@ impl StillnessDetector {
         self.filled == self.ring.len()
     }
 
+    /// Samples in the window now.
+    pub fn filled(&self) -> usize {
+        self.filled
+    }
+
+    /// Whether the last update passed the exit tests (still, or on its way there: settling).
+    pub fn is_quiet(&self) -> bool {
+        self.still || self.quiet > 0
+    }
+
     /// The window's samples, oldest first (as many as it holds).
     pub fn window(&self) -> impl Iterator<Item = f64> + '_ {
         let w = self.ring.len();
-        let start = if self.filled == w { self.pos } else { 0 };
+        let start = (self.pos + w - self.filled) % w;
         (0..self.filled).map(move |i| self.origin + self.ring[(start + i) % w])
+    }
+
+    /// Cut the window back to its newest `keep` samples (another sensor saw the body come to
+    /// rest that long ago), and judge their variance at once with the [`Growth`] thresholds: if
+    /// it passes, they count as quiet samples towards `settle` (the next update still tests
+    /// their mean). Nothing without [`Growth`], when still, or if the window holds no more than
+    /// `keep`. O(window) once.
+    pub fn restart(&mut self, keep: usize) {
+        let Some(g) = self.growth else { return };
+        if keep >= self.filled || keep == 0 || self.still {
+            return;
+        }
+        let w = self.ring.len();
+        let start = (self.pos + w - self.filled) % w;
+        for i in 0..self.filled - keep {
+            let old = self.ring[(start + i) % w];
+            self.sum -= old;
+            self.sum2 -= old * old;
+        }
+        self.filled = keep;
+        let (var_exit, ..) = g.thresholds(keep);
+        self.growing = self.variance() <= var_exit;
+        self.quiet = if self.growing { keep } else { 0 };
     }
 
     /// Back to the initial (moving, empty) state.
@@ -177,6 +308,7 @@ impl StillnessDetector {
         self.still = false;
         self.quiet = 0;
         self.anchor = f64::NAN;
+        self.growing = true;
     }
 
     /// Take one rate sample and the current drift estimate (NaN: none yet); returns whether the
@@ -191,6 +323,13 @@ impl StillnessDetector {
     /// else a poor first estimate could never be corrected (the sensor would never be still
     /// again). A non-finite or negative tolerance counts as 0.
     pub fn update_with_tolerance(&mut self, x: f64, reference: f64, tolerance: f64) -> bool {
+        self.update_vetoed(x, reference, tolerance, false)
+    }
+
+    /// As [`update_with_tolerance`](Self::update_with_tolerance), with `veto`: another sensor
+    /// says the body moves. The window takes the sample; the detector turns (or stays) moving
+    /// and must settle again.
+    pub fn update_vetoed(&mut self, x: f64, reference: f64, tolerance: f64, veto: bool) -> bool {
         let tol = if tolerance.is_finite() && tolerance > 0.0 {
             tolerance
         } else {
@@ -213,11 +352,29 @@ impl StillnessDetector {
         self.pos = if self.pos + 1 == w { 0 } else { self.pos + 1 };
         self.sum += v;
         self.sum2 += v * v;
-        if self.filled < w {
+        if veto {
             self.still = false;
             self.quiet = 0;
+            self.growing = false;
             return false;
         }
+        let (var_exit, var_enter, mean_exit, mean_enter) = if self.filled < w {
+            match self.growth {
+                Some(g) if self.growing => g.thresholds(self.filled),
+                _ => {
+                    self.still = false;
+                    self.quiet = 0;
+                    return false;
+                }
+            }
+        } else {
+            (
+                self.cfg.var_exit,
+                self.cfg.var_enter,
+                self.cfg.mean_exit,
+                self.cfg.mean_enter,
+            )
+        };
         let var = self.variance();
         // With no reference from outside, a stop is its own: the window mean when it began.
         // Without it, a constant-rate turn that starts inside a first stop would never end it
@@ -233,11 +390,11 @@ impl StillnessDetector {
             0.0
         };
         if self.still {
-            if var > self.cfg.var_enter || shift > self.cfg.mean_enter + tol {
+            if var > var_enter || shift > mean_enter + tol {
                 self.still = false;
                 self.quiet = 0;
             }
-        } else if var <= self.cfg.var_exit && shift <= self.cfg.mean_exit + tol {
+        } else if var <= var_exit && shift <= mean_exit + tol {
             self.quiet += 1;
             if self.quiet >= self.cfg.settle {
                 self.still = true;
@@ -245,6 +402,7 @@ impl StillnessDetector {
             }
         } else {
             self.quiet = 0;
+            self.growing = false;
         }
         self.still
     }
@@ -350,5 +508,83 @@ mod tests {
             d.update(5.0 + (i % 2) as f64 * 0.1, f64::NAN);
         }
         assert!(d.is_still(), "a reset forgets the old stop");
+    }
+    fn growth() -> Growth {
+        // Unit variance per sample; a mean of n samples has variance 1/n.
+        Growth {
+            var: 1.0,
+            mean_white: 1.0,
+            mean_pair: 0.0,
+            var_sigmas: 4.0,
+            mean_sigmas: 4.0,
+            hysteresis: 1.5,
+        }
+    }
+
+    #[test]
+    fn chi_square_bounds_follow_the_tail() {
+        // k = 2: the survival function is exp(-x/2), so the exact bound at the tail of 4 normal
+        // standard deviations (3.167e-5) is -2 ln(3.167e-5) / 2 = 10.36 per degree of freedom.
+        let exact = -2.0 * 3.167e-5f64.ln() / 2.0;
+        let wh = chi2_ratio(2.0, 4.0);
+        assert!((wh / exact - 1.0).abs() < 0.1, "{wh} vs {exact}");
+        // Many degrees of freedom: the normal rule of the full window.
+        let k = 1.0e4;
+        assert!((chi2_ratio(k, 4.0) - (1.0 + 4.0 * (2.0 / k).sqrt())).abs() < 2e-3);
+        assert!(chi2_ratio(10.0, 6.0) > chi2_ratio(10.0, 4.0));
+    }
+
+    #[test]
+    fn a_growing_window_is_judged_and_a_failure_ends_it() {
+        let mut d = StillnessDetector::new(cfg()).with_growth(Growth {
+            var: 0.01,
+            mean_white: 0.01,
+            ..growth()
+        });
+        // From a reset the window is judged while it fills: still after `settle` samples.
+        let states: Vec<bool> = (0..6)
+            .map(|i| d.update(1.0 + (i % 2) as f64 * 0.1, 1.0))
+            .collect();
+        assert!(!states[3] && states[4], "{states:?}");
+        // A failed test refutes the rest: the next still waits for a full window.
+        d.reset();
+        d.update(1.0, 1.0);
+        d.update(9.0, 1.0);
+        assert!(!d.is_quiet());
+        let back: Vec<bool> = (0..20).map(|_| d.update(1.0, 1.0)).collect();
+        let first = back.iter().position(|&s| s).unwrap();
+        assert!(first >= 8 + 5 - 1, "still after {first}");
+    }
+
+    #[test]
+    fn a_restart_judges_the_samples_since_the_rest_began() {
+        let mut d = StillnessDetector::new(cfg()).with_growth(Growth {
+            var: 0.01,
+            mean_white: 0.01,
+            ..growth()
+        });
+        // Motion fills the window, then 6 quiet samples: the full window is not still yet.
+        for i in 0..10 {
+            d.update(5.0 * (i % 2) as f64, f64::NAN);
+        }
+        for _ in 0..6 {
+            assert!(!d.update(1.0, f64::NAN));
+        }
+        // Another sensor says the rest began 7 samples ago (6 in the window and this one).
+        d.restart(6);
+        assert_eq!(d.filled(), 6);
+        assert!((d.mean() - 1.0).abs() < 1e-12 && d.variance() < 1e-12);
+        assert!(
+            d.update(1.0, f64::NAN),
+            "quiet since the rest began: settled"
+        );
+        assert_eq!(d.window().count(), 7);
+        // Without growth a restart does nothing.
+        let mut plain = StillnessDetector::new(cfg());
+        for i in 0..10 {
+            plain.update(5.0 * (i % 2) as f64, f64::NAN);
+        }
+        plain.restart(3);
+        assert_eq!(plain.filled(), 10);
     }
 }

@@ -44,12 +44,34 @@
 //!   `onset_guard_s` enter the filter, the rest are dropped. A "stop" confirmed for less than
 //!   `min_stop_s` is dropped whole: more likely a lull within a movement than a stop.
 //!
+//! # Start-up
+//! A vehicle stands at power-up. From the first sample the tracker takes that rest as given
+//! while no test refutes it: each sample waits in the delay window as a still one would, so the
+//! output is the estimate so far (the prior combined with every sample seen) from the first
+//! sample on, never the raw rate. The detector judges its filling window with thresholds for
+//! the samples it holds ([`crate::drift::stillness::Growth`]), and its mean test takes the prior
+//! as the reference: a turn at power-up beyond `estimate_sigmas` times `initial_sd` is not a
+//! rest. A failed test ends the start-up as the end of any stop ends (the onset estimated,
+//! a rest shorter than `min_stop_s` dropped); the full window's confirmation ends it as a stop.
+//!
+//! # With the accelerometer ([`Aid`], [`BiasTracker::push_with`])
+//! The accelerometer's rest test ([`crate::drift::accel_rest`]) judges the whole body. Its
+//! "moving" vetoes every axis's stillness and dates the motion's onset: a stop ends there, the
+//! samples before it enter the filter. Its "quiet since n samples" cuts the gyro detector's
+//! window back to those n samples
+//! ([`restart`](crate::drift::stillness::StillnessDetector::restart)): the stop is confirmed when
+//! the accelerometer has settled (0.25 s), if the gyro's own tests pass on the samples since
+//! the rest began, and is measured from its start. A steady turn at a steady speed does not
+//! change the force: the gyro's mean test against the estimate still sees it.
+//!
 //! # Flags
 //! [`BiasMode::Still`]: the detector (or the gate) says still. [`BiasMode::Moving`]: it says
-//! moving, before the first stop too. [`BiasMode::Warming`]: the detector's first window is not
-//! full yet, so it cannot tell. Apart from the mode, [`BiasStep::informed`] says whether the
-//! estimate rests on any still sample (taken or waiting); until then it is the prior (0) with
-//! the prior's standard deviation, and a stage flags "warming up": nothing to go on.
+//! moving, before the first stop too. [`BiasMode::Warming`]: the start-up rest is not confirmed
+//! yet (the gyro alone: until its first window is full; with a quiet accelerometer: until it
+//! has settled), or the detector's first window is not full and the start-up was refuted, so
+//! it cannot tell. Apart from the mode, [`BiasStep::informed`] says whether the estimate rests
+//! on any still sample (taken or waiting); until then it is the prior (0) with the prior's
+//! standard deviation, and a stage flags "warming up": nothing to go on.
 //!
 //! Files: this one holds the terms and the errors; `filter.rs` the Kalman filter itself
 //! ([`BiasModel`], [`BiasFilter`]); `tracker.rs` what feeds it ([`BiasTracker`]: stillness, the
@@ -65,8 +87,8 @@ mod walk;
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
 pub use own_terms::{combined_as, own_terms, stage_key, Choice, ColumnFit, OwnTerms};
 pub use tracker::{
-    default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,
-    TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
+    default_walk_bounds, growth_from_terms, stillness_from_terms, Aid, BiasMode, BiasStep,
+    BiasTracker, LearnWalk, TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
 };
 pub use walk::{LearnerSnapshot, WalkConfig, WalkLearner, WalkReport, GRID};
 
@@ -418,12 +440,18 @@ mod tests {
         for k in 0..5200 {
             steps.push(tr.push(bias + still_then_ramp(k)));
         }
+        // Start-up: from the first sample the body is taken to stand; the estimate so far is
+        // subtracted, flagged warming until the detector's window is full and still.
         assert_eq!(steps[0].mode, BiasMode::Warming);
-        assert!(!steps[0].informed);
-        assert_eq!(steps[0].bias, 0.0);
-        // Window full (1 s) and still, but not yet settled: moving, nothing to go on.
-        assert_eq!(steps[110].mode, BiasMode::Moving);
-        assert!(!steps[110].informed);
+        assert!(steps[0].informed);
+        assert!(
+            steps[0].bias > 0.0 && steps[0].bias < bias,
+            "{:?}",
+            steps[0]
+        );
+        assert_eq!(steps[50].mode, BiasMode::Warming);
+        assert!((steps[50].bias - bias).abs() < 1e-2, "{:?}", steps[50]);
+        assert_eq!(steps[110].mode, BiasMode::Still);
         assert!(steps[2999].informed);
         assert_eq!(steps[2999].mode, BiasMode::Still);
         assert!((steps[2999].bias - bias).abs() < 1e-3);
@@ -463,6 +491,8 @@ mod tests {
         // 10 s still then a turn (0.5 s ramp to 10 deg/s); the signal says "stands" for the
         // still part and "moves" from the turn's first sample.
         let (x, n_still) = stop_then_turn(10.0, 5);
+        // From the stop on: a stop signal decides from its first word.
+        let x = &x[LEAD..];
         let mut tr = BiasTracker::new(&t, 100.0, &cfg).unwrap();
         let mut flagged = 0;
         for (k, &v) in x.iter().enumerate() {
@@ -483,7 +513,7 @@ mod tests {
         let mut liar = BiasTracker::new(&t, 100.0, &cfg).unwrap();
         let mut flagged = 0;
         let mut last = None;
-        for &v in &x {
+        for &v in x {
             let s = liar.push_signal(v, Some(true));
             flagged += usize::from(s.contradicted);
             last = Some(s);
@@ -502,7 +532,7 @@ mod tests {
         // Unknown (stale) throughout: exactly our detector's verdicts.
         let mut stale = BiasTracker::new(&t, 100.0, &cfg).unwrap();
         let mut own = BiasTracker::new(&t, 100.0, &cfg).unwrap();
-        for &v in &x {
+        for &v in x {
             assert_eq!(stale.push_signal(v, None), own.push(v));
         }
     }
@@ -541,13 +571,28 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn a_stop_is_measured_from_its_start() {
-        // Still from the first sample: when the detector confirms the stop, the window's samples
-        // before it wait with it (backfill), so the provisional estimate rests on all of them.
+    /// Samples of the turn that [`stop_then_turn`] and [`turn_then_still`] start with: the body
+    /// moves at power-up, so the stops they test are not the start-up's.
+    const LEAD: usize = 200;
+
+    /// [`LEAD`] samples of a swaying turn (10 deg/s at 0.5 Hz), then `n` still, white noise of
+    /// the terms around 0.4.
+    fn turn_then_still(n: usize, seed: u64) -> Vec<f64> {
         let t = terms();
         let sd = (t.n * t.n * 100.0).sqrt();
-        let x = noisy(0.4, sd, 400, 1);
+        let mut x = noisy(0.4, sd, LEAD + n, seed);
+        for (k, v) in x[..LEAD].iter_mut().enumerate() {
+            *v += 10.0 * (std::f64::consts::PI * k as f64 / 100.0).cos();
+        }
+        x
+    }
+
+    #[test]
+    fn a_stop_is_measured_from_its_start() {
+        // Still after a turn: when the detector confirms the stop, the window's samples before
+        // it wait with it (backfill), so the provisional estimate rests on all of them.
+        let t = terms();
+        let x = turn_then_still(400, 1);
         let cfg = TrackerConfig::default();
         let mut with = BiasTracker::new(&t, 100.0, &cfg).unwrap();
         let mut without = BiasTracker::new(
@@ -578,14 +623,14 @@ mod tests {
         assert_eq!(with.delay(), 100);
     }
 
-    /// A stop of `still_s` then a 10 deg/s turn through a 0.5 s raised-cosine ramp.
+    /// A turn ([`LEAD`] samples), a stop of `still_s`, then a 10 deg/s turn through a 0.5 s
+    /// raised-cosine ramp; and the stop's length in samples.
     fn stop_then_turn(still_s: f64, seed: u64) -> (Vec<f64>, usize) {
-        let t = terms();
-        let sd = (t.n * t.n * 100.0).sqrt();
         let n_still = (still_s * 100.0) as usize;
-        let mut x = noisy(0.4, sd, n_still + 300, seed);
-        for (k, v) in x.iter_mut().enumerate().skip(n_still) {
-            let tt = (k - n_still) as f64 / 100.0;
+        let mut x = turn_then_still(n_still + 300, seed);
+        let end = LEAD + n_still;
+        for (k, v) in x.iter_mut().enumerate().skip(end) {
+            let tt = (k - end) as f64 / 100.0;
             let ramp = if tt < 0.5 {
                 0.5 * (1.0 - (std::f64::consts::PI * tt / 0.5).cos())
             } else {
@@ -648,6 +693,121 @@ mod tests {
         }
         assert!(still > 0 && still < 50, "{still}");
         assert_eq!(tr.filter().updates(), 0);
+    }
+
+    #[test]
+    fn a_start_up_rest_is_corrected_from_the_first_sample() {
+        // Still at power-up: every output carries the estimate so far, flagged warming, until
+        // the gyro's full window confirms the rest (1 s + one sample), never the prior's 0.
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let x = noisy(0.4, sd, 300, 7);
+        let mut tr = BiasTracker::new(&t, 100.0, &TrackerConfig::default()).unwrap();
+        let steps: Vec<BiasStep> = x.iter().map(|&v| tr.push(v)).collect();
+        for (k, s) in steps.iter().enumerate().take(99) {
+            assert_eq!((s.mode, s.informed), (BiasMode::Warming, true), "{k}");
+            // The estimate is the mean so far (with the prior's small pull to 0).
+            let mean = x[..=k].iter().sum::<f64>() / (k + 1) as f64;
+            assert!(
+                (s.bias - mean).abs() < 0.4 * (1.0 / (k as f64 + 1.0)).sqrt(),
+                "{k}: {s:?}"
+            );
+        }
+        assert_eq!(steps[100].mode, BiasMode::Still);
+        assert!((steps[299].bias - 0.4).abs() < 4.0 * t.n / 3f64.sqrt());
+    }
+
+    #[test]
+    fn a_turn_at_power_up_is_not_taken_for_the_bias() {
+        // A steady 10 deg/s turn from the first sample: its variance is a still sensor's, but
+        // the turn-on bias's prior (1 deg/s) cannot explain it; nothing is subtracted.
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let x = noisy(10.4, sd, 300, 8);
+        let mut tr = BiasTracker::new(&t, 100.0, &TrackerConfig::default()).unwrap();
+        for (k, &v) in x.iter().enumerate().take(100) {
+            let s = tr.push(v);
+            assert!(!s.informed && s.bias == 0.0, "{k}: {s:?}");
+        }
+    }
+
+    #[test]
+    fn motion_during_the_start_up_ends_it_and_keeps_what_came_before() {
+        // 0.8 s still, then a 10 deg/s turn through a 0.5 s ramp.
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let mut x = noisy(0.4, sd, 400, 9);
+        for (k, v) in x.iter_mut().enumerate().skip(80) {
+            let tt = (k - 80) as f64 / 100.0;
+            *v += 10.0 * 0.5 * (1.0 - (std::f64::consts::PI * (tt / 0.5).min(1.0)).cos());
+        }
+        let mut tr = BiasTracker::new(&t, 100.0, &TrackerConfig::default()).unwrap();
+        let steps: Vec<BiasStep> = x.iter().map(|&v| tr.push(v)).collect();
+        let end = steps
+            .iter()
+            .position(|s| s.mode != BiasMode::Warming)
+            .unwrap();
+        assert!((80..140).contains(&end), "start-up ended at {end}");
+        assert_eq!(steps[399].mode, BiasMode::Moving);
+        // The still part (beyond min_stop_s) entered the filter, the turn did not.
+        let used = tr.filter().updates() as usize;
+        assert!(used > 0 && used <= 80, "{used}");
+        assert!((steps[399].bias - 0.4).abs() < 4.0 * t.n / (used as f64 / 100.0).sqrt());
+    }
+
+    #[test]
+    fn a_quiet_accelerometer_confirms_a_stop_from_its_start_and_dates_its_end() {
+        let t = terms();
+        let cfg = TrackerConfig::default();
+        // A swaying turn, 10 s still, a turn: the accelerometer (here, the truth) is quiet
+        // from the stop's first sample and sees the turn begin.
+        let (x, n_still) = stop_then_turn(10.0, 11);
+        let (start, end) = (LEAD, LEAD + n_still);
+        let settle = 25;
+        let aid = |k: usize| {
+            if (start..end).contains(&k) && k - start + 1 >= settle {
+                Aid::Quiet {
+                    since: k - start + 1,
+                }
+            } else if k >= end {
+                Aid::Moving { age: k - end }
+            } else {
+                Aid::Moving { age: 0 }
+            }
+        };
+        let mut aided = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut alone = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        let mut first = (None, None);
+        for (k, &v) in x.iter().enumerate() {
+            let a = aided.push_with(v, aid(k));
+            let g = alone.push(v);
+            if a.mode == BiasMode::Still && first.0.is_none() {
+                first.0 = Some(k);
+            }
+            if g.mode == BiasMode::Still && first.1.is_none() && k > LEAD {
+                first.1 = Some(k);
+            }
+        }
+        // Confirmed when the accelerometer has settled (0.25 s), not after the gyro's window.
+        assert_eq!(first.0, Some(start + settle - 1));
+        assert!(first.1.unwrap() >= start + 100, "{first:?}");
+        // The whole stop but its first sample's wait measured the bias, and the turn did not.
+        let used = aided.filter().updates() as usize;
+        assert!(
+            used + 1 >= n_still && used <= n_still,
+            "{used} of {n_still}"
+        );
+        assert!(alone.filter().updates() < aided.filter().updates());
+        let sd_mean = t.n / 10f64.sqrt();
+        assert!((aided.filter().estimate() - 0.4).abs() < 4.0 * sd_mean);
+        // The accelerometer's "moving" vetoes a still gyro.
+        let mut vetoed = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+        for &v in &x[start..end] {
+            assert_ne!(
+                vetoed.push_with(v, Aid::Moving { age: 0 }).mode,
+                BiasMode::Still
+            );
+        }
     }
 
     #[test]

@@ -2,7 +2,8 @@
 //! the delay window, the recovered ends of a stop) and what the stage outputs meanwhile.
 
 use super::*;
-use crate::drift::stillness::{StillnessConfig, StillnessDetector};
+pub use crate::drift::stillness::Aid;
+use crate::drift::stillness::{moving_llr, Growth, StillnessConfig, StillnessDetector};
 
 /// Settings of the stillness gating and delay of a [`BiasTracker`], in seconds and in standard
 /// deviations of the still statistics (thresholds from the noise terms, see
@@ -59,6 +60,10 @@ pub enum LearnWalk {
     GivenStops,
     /// Learn from every stop, detected ones too.
     Always,
+    /// Learn from stops given from outside and from stops both sensors confirm: the
+    /// accelerometer quiet throughout ([`Aid::Quiet`]). Without an accelerometer, the same as
+    /// [`LearnWalk::GivenStops`].
+    ConfirmedStops,
 }
 
 impl LearnWalk {
@@ -68,6 +73,7 @@ impl LearnWalk {
             LearnWalk::Off => "off",
             LearnWalk::GivenStops => "given-stops",
             LearnWalk::Always => "always",
+            LearnWalk::ConfirmedStops => "confirmed-stops",
         }
     }
 }
@@ -187,6 +193,31 @@ pub fn stillness_from_terms(
     Ok(c)
 }
 
+/// The thresholds of [`stillness_from_terms`] for a window of fewer samples ([`Growth`]): the
+/// same still variance, mean spread and factors, with the window's length left open.
+pub fn growth_from_terms(terms: &BiasTerms, rate_hz: f64, cfg: &TrackerConfig) -> Growth {
+    let var = terms.sample_variance(rate_hz);
+    let white = terms.n * terms.n * rate_hz;
+    let quant = 2.0 * terms.q * terms.q * rate_hz * rate_hz;
+    Growth {
+        var,
+        mean_white: white + (var - white - quant).max(0.0),
+        mean_pair: quant,
+        var_sigmas: cfg.var_sigmas,
+        mean_sigmas: cfg.mean_sigmas,
+        hysteresis: cfg.hysteresis,
+    }
+}
+
+/// How a stop ends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum End {
+    /// The gyro's detector saw it: estimate the onset among the waiting samples.
+    Estimate,
+    /// Another sensor saw it begin this many samples ago.
+    Since(usize),
+}
+
 /// What the tracker knows at a sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BiasMode {
@@ -213,20 +244,6 @@ pub struct BiasStep {
     /// A stop signal said "stands" while the gyro clearly turned: not trusted
     /// ([`BiasTracker::push_signal`]).
     pub contradicted: bool,
-}
-
-/// Log-likelihood ratio of "moving" (a mean shift and a variance rise of unknown sizes) against
-/// "still" for `n` standardised residuals of sum `sum` and sum of squares `sum2` (residual over
-/// the still model's standard deviation). A variance *below* the model's counts as still, as a
-/// band-limited real sensor's is.
-fn moving_llr(n: f64, sum: f64, sum2: f64) -> f64 {
-    let mean = sum / n;
-    let s2 = sum2 / n - mean * mean;
-    if s2 > 1.0 {
-        0.5 * (sum2 - n - n * s2.ln())
-    } else {
-        0.5 * sum * mean
-    }
 }
 
 /// How many of `samples`, counted from the first, form the run most likely moving (the largest
@@ -338,6 +355,17 @@ impl DelayWindow {
         self.clear();
     }
 
+    /// Put every waiting sample but the newest `newest` into `filter`, oldest first; drop the
+    /// rest.
+    fn release_older_than(&mut self, newest: usize, filter: &mut BiasFilter) {
+        let d = self.ring.len();
+        let oldest = (self.head + d - self.pending) % d.max(1);
+        for i in 0..self.pending.saturating_sub(newest) {
+            filter.update(self.ring[(oldest + i) % d]);
+        }
+        self.clear();
+    }
+
     /// Put every waiting sample into `filter`, oldest first.
     fn release_all(&mut self, filter: &mut BiasFilter) {
         let d = self.ring.len();
@@ -379,8 +407,14 @@ pub struct BiasTracker {
     /// Whether a still sample of the current stop came from the tracker's own detector (such a
     /// stop does not teach the walk under [`LearnWalk::GivenStops`]).
     stop_detected: bool,
+    /// Whether a still sample of the current stop was judged by the gyro alone (no stop signal,
+    /// no quiet accelerometer).
+    stop_gyro_only: bool,
     /// The newest samples, for the check of a stop signal against the gyro.
     recent: RecentMean,
+    /// Start-up: from the first sample until the detector's first verdict, the body is taken
+    /// to stand (it does at power-up) while no test says otherwise.
+    startup: bool,
 }
 
 /// A stop signal is not trusted while the mean of the last [`CHECK_S`] of rate lies more than
@@ -472,7 +506,8 @@ impl BiasTracker {
         let backfill = samples("backfill_s", cfg.backfill_s, rate_hz)?.min(still.window);
         Ok(BiasTracker {
             filter: BiasFilter::new(model),
-            detector: StillnessDetector::new(still),
+            detector: StillnessDetector::new(still)
+                .with_growth(growth_from_terms(terms, rate_hz, cfg)),
             estimate_sigmas: cfg.estimate_sigmas,
             backfill,
             guard: samples("onset_guard_s", cfg.onset_guard_s, rate_hz)?,
@@ -484,7 +519,9 @@ impl BiasTracker {
             mode: BiasMode::Warming,
             learn: cfg.learn_walk,
             stop_detected: false,
+            stop_gyro_only: false,
             recent: RecentMean::new(samples("check", CHECK_S, rate_hz)?),
+            startup: true,
         })
     }
 
@@ -538,20 +575,66 @@ impl BiasTracker {
         self.run = 0;
         self.mode = BiasMode::Warming;
         self.stop_detected = false;
+        self.stop_gyro_only = false;
         self.recent.clear();
+        self.startup = true;
     }
 
     /// One rate sample (deg/s) with the tracker's own stillness detection.
     pub fn push(&mut self, x: f64) -> BiasStep {
-        let still = self.detect(x, true);
-        let known = self.detector.is_ready();
-        self.step(x, still, known, false)
+        self.push_with(x, Aid::Unknown)
+    }
+
+    /// One rate sample (deg/s) with the tracker's own stillness detection, aided by another
+    /// sensor's verdict on the whole body ([`Aid`]): its "moving" vetoes stillness and says
+    /// where the motion began; its "quiet since" lets the detector judge only the samples since
+    /// the body came to rest, so a stop is confirmed (and measured) from its start.
+    pub fn push_with(&mut self, x: f64, aid: Aid) -> BiasStep {
+        if let Aid::Quiet { since } = aid {
+            if self.run == 0 {
+                // The window holds the samples before this one: `since - 1` of them are the rest's.
+                self.detector.restart(since.saturating_sub(1));
+            }
+        }
+        let moving = matches!(aid, Aid::Moving { .. });
+        let still = self.detect(x, true, moving);
+        let end = match aid {
+            Aid::Moving { age } => End::Since(age),
+            _ => End::Estimate,
+        };
+        self.own_step(x, still, moving, matches!(aid, Aid::Quiet { .. }), end)
+    }
+
+    /// The step of our own detector's verdict `still` on `x` (`vetoed`: another sensor says
+    /// moving). At start-up a quiet sample counts as still (provisional, flagged warming) until
+    /// the detector confirms or a test fails.
+    fn own_step(&mut self, x: f64, still: bool, vetoed: bool, sure: bool, end: End) -> BiasStep {
+        // At start-up a stop is confirmed on a window shorter than the detector's only when a
+        // second sensor is quiet too; the gyro alone waits for its full window, as it always has.
+        let confirmed = still && (!self.startup || sure || self.detector.is_ready());
+        let provisional =
+            self.startup && !confirmed && !vetoed && x.is_finite() && self.detector.is_quiet();
+        if self.startup && !provisional {
+            self.startup = false;
+        }
+        let mode = if provisional {
+            BiasMode::Warming
+        } else if confirmed {
+            BiasMode::Still
+        } else if self.detector.is_ready() || !self.startup {
+            BiasMode::Moving
+        } else {
+            BiasMode::Warming
+        };
+        self.step_end(x, confirmed || provisional, mode, false, sure, end)
     }
 
     /// Our detector's verdict on `x`; when it turns still and `backfill`, the stop's start
     /// joins it (not when stillness comes from outside: the window before may be motion).
-    fn detect(&mut self, x: f64, backfill: bool) -> bool {
-        let (reference, tol) = if self.filter.updates() > 0 {
+    fn detect(&mut self, x: f64, backfill: bool, veto: bool) -> bool {
+        // At start-up the prior is the reference: a turn at power-up far beyond the turn-on
+        // bias's spread (`initial_sd`) is not a rest.
+        let (reference, tol) = if self.filter.updates() > 0 || self.startup {
             (
                 self.filter.estimate(),
                 self.estimate_sigmas * self.filter.variance().sqrt(),
@@ -560,7 +643,7 @@ impl BiasTracker {
             (f64::NAN, 0.0)
         };
         let was_still = self.detector.is_still();
-        let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
+        let still = x.is_finite() && self.detector.update_vetoed(x, reference, tol, veto);
         if backfill && still && !was_still && self.backfill > 0 && self.run == 0 {
             self.backfill_stop();
         }
@@ -574,7 +657,10 @@ impl BiasTracker {
     /// window's newest half, if that prefix is evidence of movement at all
     /// ([`MOVING_EVIDENCE`]). O(window) once per stop, no allocation.
     fn backfill_stop(&mut self) {
-        let w = self.detector.config().window;
+        let w = self.detector.filled();
+        if w < 2 {
+            return;
+        }
         let half = (w / 2).max(1);
         let bias = self.detector.window().skip(w - half).sum::<f64>() / half as f64;
         let inv_sd = 1.0 / self.still_var.sqrt();
@@ -608,28 +694,33 @@ impl BiasTracker {
     /// the last [`CHECK_S`] beyond [`CHECK_SIGMAS`] from the estimate) is not trusted: the
     /// sample counts as moving and [`BiasStep::contradicted`] says so. "Moves" is trusted.
     pub fn push_signal(&mut self, x: f64, stopped: Option<bool>) -> BiasStep {
+        self.push_signal_with(x, stopped, Aid::Unknown)
+    }
+
+    /// [`push_signal`](Self::push_signal) with another sensor's verdict, which aids our
+    /// detector while the signal is unknown ([`push_with`](Self::push_with)).
+    pub fn push_signal_with(&mut self, x: f64, stopped: Option<bool>, aid: Aid) -> BiasStep {
         self.recent.push(x);
-        let detected = self.detect(x, stopped.is_none());
-        match stopped {
-            None => {
-                let known = self.detector.is_ready();
-                self.step(x, detected, known, false)
-            }
-            Some(false) => self.step(x, false, true, true),
-            Some(true) => {
-                let (estimate, var) = self.output();
-                let spread = (self.still_var / self.recent.filled.max(1) as f64).sqrt();
-                let limit = CHECK_SIGMAS * spread + self.estimate_sigmas * var.sqrt();
-                let turning = self
-                    .recent
-                    .mean()
-                    .is_some_and(|m| (m - estimate).abs() > limit);
-                // A contradicted sample's verdict is ours, not the signal's.
-                let mut step = self.step(x, !turning, true, !turning);
-                step.contradicted = turning;
-                step
-            }
+        let Some(stands) = stopped else {
+            return self.push_with(x, aid);
+        };
+        // The signal decides from its first word: no start-up guess.
+        self.startup = false;
+        self.detect(x, false, matches!(aid, Aid::Moving { .. }));
+        if !stands {
+            return self.step(x, false, true, true);
         }
+        let (estimate, var) = self.output();
+        let spread = (self.still_var / self.recent.filled.max(1) as f64).sqrt();
+        let limit = CHECK_SIGMAS * spread + self.estimate_sigmas * var.sqrt();
+        let turning = self
+            .recent
+            .mean()
+            .is_some_and(|m| (m - estimate).abs() > limit);
+        // A contradicted sample's verdict is ours, not the signal's.
+        let mut step = self.step(x, !turning, true, !turning);
+        step.contradicted = turning;
+        step
     }
 
     /// The estimate and its variance as output now: the filter's, with the waiting samples'
@@ -644,12 +735,35 @@ impl BiasTracker {
     /// `known`: whether "not still" means moving (false while the detector's window fills);
     /// `given`: whether stillness came from outside.
     fn step(&mut self, x: f64, still: bool, known: bool, given: bool) -> BiasStep {
+        let mode = if still && x.is_finite() {
+            BiasMode::Still
+        } else if known {
+            BiasMode::Moving
+        } else {
+            BiasMode::Warming
+        };
+        self.step_end(x, still, mode, given, given, End::Estimate)
+    }
+
+    /// `still`: the sample measures the bias (it waits, then enters the filter); `mode`: what
+    /// the step says; `given`: stillness came from outside; `sure`: from outside or confirmed
+    /// by a second sensor; `end`: how a stop that ends here is cut.
+    fn step_end(
+        &mut self,
+        x: f64,
+        still: bool,
+        mode: BiasMode,
+        given: bool,
+        sure: bool,
+        end: End,
+    ) -> BiasStep {
         self.filter.predict();
         let still = still && x.is_finite();
         if still {
             self.delay.push(x, &mut self.filter);
             self.run += 1;
             self.stop_detected |= !given;
+            self.stop_gyro_only |= !sure;
         } else {
             match self.delay.mean() {
                 // A stop confirmed for less than `min_run` is more likely a lull within a
@@ -658,6 +772,10 @@ impl BiasTracker {
                 // still (our detector sees an end late, so its onset is estimated).
                 Some(_) if self.run >= self.min_run && given && !self.stop_detected => {
                     self.delay.release_all(&mut self.filter)
+                }
+                Some(_) if self.run >= self.min_run && matches!(end, End::Since(_)) => {
+                    let End::Since(age) = end else { unreachable!() };
+                    self.delay.release_older_than(age, &mut self.filter)
                 }
                 Some((mean, count)) if self.run >= self.min_run => {
                     let (bias, _) = self.filter.with_mean(mean, count);
@@ -677,20 +795,16 @@ impl BiasTracker {
                     LearnWalk::Off => false,
                     LearnWalk::GivenStops => !self.stop_detected,
                     LearnWalk::Always => true,
+                    LearnWalk::ConfirmedStops => !self.stop_gyro_only,
                 };
                 self.filter.end_stop(teaches);
             }
             self.run = 0;
             self.stop_detected = false;
+            self.stop_gyro_only = false;
         }
         let (bias, var) = self.output();
-        self.mode = if still {
-            BiasMode::Still
-        } else if known {
-            BiasMode::Moving
-        } else {
-            BiasMode::Warming
-        };
+        self.mode = mode;
         BiasStep {
             bias,
             std: var.sqrt(),
