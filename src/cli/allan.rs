@@ -15,6 +15,7 @@ use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
 use crate::drift::bias::{
     accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,
+    TermChoices,
 };
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::rate_log::{self, RateLog};
@@ -36,8 +37,8 @@ pub struct Args {
     #[command(flatten)]
     pub bag: BagArgs,
     /// Gyro column to analyse (repeat for several; default: every numeric column but a time
-    /// column named t, t_s, time, time_s or timestamp, and but the --accel-column ones; a bag's
-    /// x, y, z).
+    /// column named t, t_s, time, time_s or timestamp and the --accel-column ones; a bag's x,
+    /// y, z).
     #[arg(long = "column", value_name = "NAME")]
     pub columns: Vec<String>,
     /// Accelerometer column to analyse (repeat for several): velocity random walk N
@@ -398,7 +399,7 @@ fn column_fits<'a>(
 /// stage key and value) and how the columns were combined, and per column what it gave.
 fn term_notes(
     sensor: Sensor,
-    choices: &[(Term, Vec<(String, Choice)>)],
+    choices: &[TermChoices],
     key: impl Fn(Term) -> (&'static str, f64),
 ) -> Vec<String> {
     let mut notes = Vec::new();

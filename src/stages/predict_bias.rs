@@ -15,8 +15,8 @@
 //! # bias_instability = 34.0    # B, deg/h
 //! # rrw = 0.0                  # K, deg/h/sqrt(h)
 //! # lsb = 0.05                 # output step of the raw rate, input units (0: none)
-//! # accel_vrw = 0.2            # the accelerometer's N, m/s/sqrt(h) (`allan --stage` with
-//! # accel_bias_instability = 0.2  # --accel-column writes both), B in mg
+//! # accel_vrw = 0.2            # the accelerometer's N, m/s/sqrt(h), and B, mg (`allan
+//! # accel_bias_instability = 0.3  # --stage` with --accel-column writes both)
 //! ```
 //!
 //! The published rate is the denoised rate minus the estimate. Flags: [`FLAG_STILL`] when every

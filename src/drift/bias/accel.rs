@@ -29,8 +29,10 @@ pub const MG_PER_M_S2: f64 = 1000.0 / STANDARD_GRAVITY;
 /// NaveGo's ADIS16405 profile takes too). Not fitted to our log: a default no test data chose.
 pub const ADIS16405_VRW_PER_HOUR: f64 = 0.2;
 
-/// The ADIS16405 data sheet's accelerometer in-run bias stability, mg.
-pub const ADIS16405_BIAS_INSTABILITY_MG: f64 = 0.2;
+/// The ADIS16405 data sheet's accelerometer bias instability B, mg: its in-run bias stability
+/// of 0.2 mg is the Allan deviation's floor, which is 0.664 B ([`super::B_FLOOR`]), so B is
+/// 0.2 / 0.664 = 0.30 mg, rounded.
+pub const ADIS16405_BIAS_INSTABILITY_MG: f64 = 0.3;
 
 impl AccelTerms {
     /// The ADIS16405 data sheet's accelerometer ([`ADIS16405_VRW_PER_HOUR`],
@@ -108,7 +110,8 @@ mod tests {
     fn the_data_sheet_default_is_in_the_data_sheet_units() {
         let t = AccelTerms::ADIS16405;
         assert!((t.vrw * 60.0 - 0.2).abs() < 1e-12);
-        // 0.2 mg = 0.00196 m/s^2.
-        assert!((t.b - 0.2e-3 * 9.80665).abs() < 1e-15);
+        // The data sheet's floor of 0.2 mg as B: 0.2 / 0.664 mg, 0.00295 m/s^2.
+        let b = 0.2e-3 * 9.80665 / super::super::B_FLOOR;
+        assert!((t.b / b - 1.0).abs() < 0.005, "{} vs {b}", t.b);
     }
 }

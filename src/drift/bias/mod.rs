@@ -70,7 +70,7 @@ pub use accel::{
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
 pub use own_terms::{
     accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,
-    OwnAccelTerms, OwnTerms,
+    OwnAccelTerms, OwnTerms, TermChoices,
 };
 pub use tracker::{
     default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,

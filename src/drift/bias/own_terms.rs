@@ -75,13 +75,16 @@ impl Choice {
     }
 }
 
+/// One term's choice in every column: the term, and per column its name and what was taken.
+pub type TermChoices = (Term, Vec<(String, Choice)>);
+
 /// A unit's terms from its still record, with every choice behind them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OwnTerms {
     /// The terms, one set for every axis (`lsb` as given).
     pub terms: BiasTerms,
     /// Per term (N, B, K, Q), per column: the column's name and what was taken.
-    pub choices: [(Term, Vec<(String, Choice)>); 4],
+    pub choices: [TermChoices; 4],
 }
 
 /// How the columns' values of each term are combined (for saying so).
@@ -120,7 +123,7 @@ pub struct OwnAccelTerms {
     /// The terms, one set for every axis.
     pub terms: AccelTerms,
     /// Per term (N, B), per column: the column's name and what was taken.
-    pub choices: [(Term, Vec<(String, Choice)>); 2],
+    pub choices: [TermChoices; 2],
 }
 
 /// What [the module's rules](self) take of `term` in one column (`no_n`: the error when N is
@@ -149,7 +152,7 @@ fn choices<const T: usize>(
     columns: &[ColumnFit<'_>],
     terms: [Term; T],
     no_n: fn(String) -> BiasError,
-) -> Result<[(Term, Vec<(String, Choice)>); T], BiasError> {
+) -> Result<[TermChoices; T], BiasError> {
     let mut choices = terms.map(|t| (t, Vec::new()));
     for c in columns {
         for (term, list) in &mut choices {
@@ -159,7 +162,7 @@ fn choices<const T: usize>(
     Ok(choices)
 }
 
-fn values(choices: &(Term, Vec<(String, Choice)>)) -> Vec<f64> {
+fn values(choices: &TermChoices) -> Vec<f64> {
     choices.1.iter().map(|(_, c)| c.value()).collect()
 }
 
