@@ -42,9 +42,10 @@ pub fn body_acceleration(trace: &MotionTrace, speed: SpeedProfile) -> Vec<[f64; 
             .unwrap_or(n);
         if !trace.still[start] {
             let len = (end - start) as f64 * dt;
-            for k in start..end {
-                let (v, dv) = speed.at((k - start) as f64 * dt + 0.5 * dt, len);
-                out[k] = level_vehicle_acceleration(v, dv, trace.truth[k].to_radians());
+            let stretch = out[start..end].iter_mut().zip(&trace.truth[start..end]);
+            for (i, (a, rate)) in stretch.enumerate() {
+                let (v, dv) = speed.at((i as f64 + 0.5) * dt, len);
+                *a = level_vehicle_acceleration(v, dv, rate.to_radians());
             }
         }
         start = end;

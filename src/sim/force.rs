@@ -561,7 +561,7 @@ mod tests {
         // Seeded: the same seed gives the same readings, another seed others.
         let mut again = Accelerometer::new(&ADIS16405_ACCEL, rate, 5).unwrap();
         assert_eq!(again.measure(g), reads[0]);
-        let mut other = Accelerometer::new(&ADIS16405_ACCEL, rate, 6).unwrap();
+        let other = Accelerometer::new(&ADIS16405_ACCEL, rate, 6).unwrap();
         assert_ne!(other.turn_on_bias(), acc.turn_on_bias());
     }
 
