@@ -61,7 +61,9 @@ pub struct NoiseTerms {
     pub bias: f64,
 }
 
-/// The true motion under the noise.
+/// The true motion under the noise. For the accelerometer ([`force`]): `none`, `sines`, `steps`
+/// and `turn` turn the sensor about its own origin, as a rate table does (no translation);
+/// `stop-and-go` is a ground vehicle at [`force::VEHICLE_SPEED`] while moving.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Motion {
     /// A static gyro: truth is zero.
