@@ -49,7 +49,7 @@ impl Offline {
             );
         }
         Ok(Offline {
-            guard: Guard::new(p.input_units, p.axes, OFFLINE_EPOCH),
+            guard: Guard::new(p.input_units, p.accel_units, p.axes, OFFLINE_EPOCH),
             stages,
             sides,
         })
@@ -142,8 +142,7 @@ impl Offline {
                     t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
                     seq: k as u64,
                     rate,
-                    flags: 0,
-                    epoch: 0,
+                    ..RawSample::default()
                 };
                 if let Some(stopped) = stops.and_then(|s| s.get(k)) {
                     off.side(&SideValue::Stop(StopSignal {

@@ -74,7 +74,7 @@ mod tests {
 
     use super::*;
     use crate::io::InputError;
-    use crate::stages::schema::{Context, DefaultValue, Src, Table, Type, Units};
+    use crate::stages::schema::{AccelUnits, Context, DefaultValue, Src, Table, Type, Units};
 
     /// Every kind's keys: a typed default is a value of the key's own type and range, and an
     /// `Either` names another key of the same kind.
@@ -118,6 +118,7 @@ mod tests {
             rate_hz: 100.0,
             axes: 3,
             units: Units::DegPerSec,
+            accel_units: AccelUnits::MPerS2,
         };
         let mut t = Table::new(&src, cx, 0, 0, Some("in/raw"), ("keys", "s"), entries);
         (kind.parse)(&mut t)
