@@ -497,6 +497,9 @@ pub struct ImuMapping {
     /// Samples mapped whose value a stage held or replaced (flagged input_invalid or
     /// output_repaired; a raw sample marked invalid): an Imu message cannot say it.
     pub held: u64,
+    /// Accelerometer readings mapped with an unknown covariance (all zeros: neither the
+    /// sample, the `accel_noise` setting nor the input gave one).
+    pub accel_unknown: u64,
 }
 
 impl ImuMapping {
@@ -515,6 +518,7 @@ impl ImuMapping {
             accel_noise_var: None,
             accel_cov_in: None,
             held: 0,
+            accel_unknown: 0,
         }
     }
 
@@ -555,19 +559,25 @@ impl ImuMapping {
     /// The covariance of a reading whose white noise per axis is `std` (m/s^2, negative
     /// where not provided): see [`ImuMapping`].
     pub fn accel_covariance(&self, std: [f64; 3]) -> [f64; 9] {
-        let mut cov = [0.0; 9];
+        self.accel_covariance_known(std).unwrap_or([0.0; 9])
+    }
+
+    /// [`ImuMapping::accel_covariance`], None where it is unknown.
+    fn accel_covariance_known(&self, std: [f64; 3]) -> Option<[f64; 9]> {
+        let diag = |v: [f64; 3]| {
+            let mut cov = [0.0; 9];
+            for a in 0..3 {
+                cov[4 * a] = v[a];
+            }
+            cov
+        };
         if std.iter().all(|s| s.is_finite() && *s >= 0.0) {
-            for a in 0..3 {
-                cov[4 * a] = std[a] * std[a];
-            }
+            Some(diag(std.map(|s| s * s)))
         } else if let Some(var) = self.accel_noise_var {
-            for a in 0..3 {
-                cov[4 * a] = var;
-            }
-        } else if let Some(c) = self.accel_cov_in {
-            cov = c;
+            Some(diag([var; 3]))
+        } else {
+            self.accel_cov_in
         }
-        cov
     }
 
     /// The message of a sample at `t_ns` with `rate` (in the samples' units), where a stage
@@ -600,7 +610,11 @@ impl ImuMapping {
             self.imu.linear_acceleration,
             self.imu.linear_acceleration_covariance,
         ) = match accel {
-            Some(a) => (a.value, self.accel_covariance(a.std)),
+            Some(a) => {
+                let cov = self.accel_covariance_known(a.std);
+                self.accel_unknown += u64::from(cov.is_none());
+                (a.value, cov.unwrap_or([0.0; 9]))
+            }
             None => ([0.0; 3], NOT_PROVIDED),
         };
         self.held += u64::from(held);
