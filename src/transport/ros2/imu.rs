@@ -892,6 +892,9 @@ mod tests {
             [0.0; 9],
             "a NaN covariance is none"
         );
+        let imu = m.fill(5, [0.1; 3], [-1.0; 3], Some(none), false).unwrap();
+        assert_eq!(imu.linear_acceleration_covariance, [0.0; 9]);
+        assert_eq!(m.accel_unknown, 1, "counted, so that record can say it");
         // The sample's own noise wins over both.
         assert_eq!(diag(&m.accel_covariance([0.0, 0.5, 2.0])), [0.0, 0.25, 4.0]);
     }
