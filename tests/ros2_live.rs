@@ -1057,3 +1057,65 @@ fn validate_checks_the_bias_and_diagnostics_tables_against_the_chain() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("diagnostics_period_s"), "{err}");
 }
+
+/// The driver's specific force of message `i` (tests/ros2/imu_peer.py `accel`, the same IEEE
+/// operations in the same order: the same bits).
+fn peer_accel(i: usize) -> [f64; 3] {
+    let i = i as u64;
+    [
+        (i * 7919 % 1009) as f64 / 1009.0 * 0.3 - 0.15,
+        -0.2 + (i * 104729 % 997) as f64 / 997.0 * 0.1,
+        9.80665 + i as f64 / 3.0e4,
+    ]
+}
+
+#[test]
+fn a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covariance() {
+    if !in_netns(
+        "a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covariance",
+    ) {
+        return;
+    }
+    let d = daemon("accel");
+    let mut nav = navigator(N);
+    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_ACCEL", "1")]);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(d);
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), N, "every message through: {err}");
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    for (i, m) in msgs.iter().enumerate() {
+        assert_eq!(
+            m["stamp"][1],
+            (i % 1000) as i64 * 1_000_000,
+            "{i}: in order"
+        );
+        assert_eq!(m["frame_id"], "peer_imu", "{i}: the driver's frame");
+        let a = floats(&m["linear_acceleration"]);
+        assert_eq!(
+            a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            peer_accel(i).map(f64::to_bits),
+            "{i}: linear_acceleration bit for bit"
+        );
+        for key in [
+            "linear_acceleration_covariance",
+            "angular_velocity_covariance",
+        ] {
+            let c = floats(&m[key]);
+            assert!(c.iter().all(|x| x.is_finite()), "{i}: {key} {c:?}");
+            assert!(
+                c[0] >= 0.0 && c[4] >= 0.0 && c[8] >= 0.0,
+                "{i}: {key} {c:?}"
+            );
+        }
+        assert_eq!(m["orientation_covariance"][0], -1.0, "{i}: no orientation");
+    }
+}

@@ -569,6 +569,18 @@ pub fn run_bridge(
 ) -> Result<BridgeCounts, TransportError> {
     let setup = || -> Result<_, TransportError> {
         let transport = Transport::new(prefix, node_name, qos)?;
+        // EXPERIMENT: pin this thread (and the DDS threads it starts) to a CPU.
+        if let Some(cpu) = std::env::var("DRIFTLESS_X_ROS2_CPU")
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+        {
+            // SAFETY: a zeroed cpu_set_t is valid; cpu < 1024.
+            unsafe {
+                let mut set: libc::cpu_set_t = std::mem::zeroed();
+                libc::CPU_SET(cpu, &mut set);
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+            }
+        }
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
         let announced = transport.announce(announce_as, &announcement(settings, &node))?;
         let mut watched = Vec::new();
@@ -739,6 +751,13 @@ pub fn run_bridge(
     } else {
         POLL
     };
+    // EXPERIMENT: spin this long for the corrected sample after handing one in.
+    let x_spin = Duration::from_micros(
+        std::env::var("DRIFTLESS_X_ROS2_SPIN_US")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0),
+    );
     while !stop.load(Ordering::Relaxed) {
         // Edge-triggered: take the wake-ups first, then everything there is, then sleep.
         readiness.clear();
@@ -747,6 +766,7 @@ pub fn run_bridge(
                 let _ = w.drain();
             }
         }
+        let before = counts.imu_in;
         if let Some(i) = &mut imu_in {
             i.pump(&mut counts);
         }
@@ -756,8 +776,18 @@ pub fn run_bridge(
             _ => None,
         };
         let accel_covariance = imu_in.as_ref().and_then(|i| i.accel_covariance.as_ref());
-        for o in &mut outs {
-            o.serve(frame, accel_covariance, realtime, &mut counts);
+        let until = (counts.imu_in > before && !x_spin.is_zero()).then(|| Instant::now() + x_spin);
+        loop {
+            let served_before = counts.imu_out;
+            for o in &mut outs {
+                o.serve(frame, accel_covariance, realtime, &mut counts);
+            }
+            match until {
+                Some(u) if counts.imu_out == served_before && Instant::now() < u => {
+                    std::hint::spin_loop()
+                }
+                _ => break,
+            }
         }
         if let Some(m) = &mut motion {
             loop {
