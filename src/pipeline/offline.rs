@@ -8,7 +8,7 @@
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, SideInput, SideValue, Stage};
-use crate::transport::{GyroSample, RawSample, StopSignal};
+use crate::transport::{GyroSample, RawSample, StopSignal, RAW_ACCEL};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
 pub const OFFLINE_EPOCH: u32 = 1;
@@ -49,7 +49,7 @@ impl Offline {
             );
         }
         Ok(Offline {
-            guard: Guard::new(p.input_units, p.axes, OFFLINE_EPOCH),
+            guard: Guard::new(p.input_units, p.accel_units, p.axes, OFFLINE_EPOCH),
             stages,
             sides,
         })
@@ -104,9 +104,22 @@ impl Offline {
         inputs: &[&[f64]],
         stops: Option<&[bool]>,
     ) -> Result<Vec<Vec<f64>>, String> {
+        Offline::run_imu_series(p, inputs, None, stops)
+    }
+
+    /// [`Offline::run_series`] with the accelerometer: `accel`, when given, is the specific
+    /// force (m/s²) at each sample, carried in every raw sample beside its rates (in the
+    /// pipeline's `accel_units`); without it the samples carry none, as a gyro-only source's.
+    pub fn run_imu_series(
+        p: &Pipeline,
+        inputs: &[&[f64]],
+        accel: Option<&[[f64; 3]]>,
+        stops: Option<&[bool]>,
+    ) -> Result<Vec<Vec<f64>>, String> {
         let lanes = p.axes;
         let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
         let n = inputs.first().map_or(0, |x| x.len());
+        let to_accel_units = 1.0 / p.accel_units.to_m_per_s2();
         let mut out = Vec::with_capacity(inputs.len());
         for chunk in inputs.chunks(lanes) {
             let mut off = Offline::new(p)?;
@@ -125,13 +138,16 @@ impl Offline {
                     // Unused lanes repeat the first axis (their output is not read).
                     *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
                 }
-                let raw = RawSample {
+                let mut raw = RawSample {
                     t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
                     seq: k as u64,
                     rate,
-                    flags: 0,
-                    epoch: 0,
+                    ..RawSample::default()
                 };
+                if let Some(f) = accel.and_then(|a| a.get(k)) {
+                    raw.accel = f.map(|v| v * to_accel_units);
+                    raw.flags |= RAW_ACCEL;
+                }
                 if let Some(stopped) = stops.and_then(|s| s.get(k)) {
                     off.side(&SideValue::Stop(StopSignal {
                         t_ns: raw.t_ns.max(1),
