@@ -65,15 +65,13 @@ pub struct AccelRestConfig {
 
 impl AccelRestConfig {
     /// The thresholds from an accelerometer's noise terms at `rate_hz`: velocity random walk
-    /// `vrw` (m/s/sqrt(s); one sample's white variance is vrw^2 rate), bias instability `b`
-    /// (m/s^2; the flicker floor of the Allan variance is (2 ln 2 / pi) b^2) and output step
-    /// `lsb` (m/s^2, 0: none; rounding adds lsb^2/12), over windows of `window` samples,
-    /// reported quiet after `settle`.
-    #[allow(clippy::too_many_arguments)]
+    /// `vrw` (m/s/sqrt(s); one sample's white variance is vrw^2 rate, its rounding included as
+    /// `allan` fits a real unit's) and bias instability `b` (m/s^2; the flicker floor of the
+    /// Allan variance is (2 ln 2 / pi) b^2), over windows of `window` samples, reported quiet
+    /// after `settle`.
     pub fn from_terms(
         vrw: f64,
         b: f64,
-        lsb: f64,
         rate_hz: f64,
         window: usize,
         settle: usize,
@@ -87,12 +85,10 @@ impl AccelRestConfig {
                 ));
             }
         }
-        for (name, v) in [("bias instability", b), ("lsb", lsb)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!(
-                    "accelerometer {name} must be a number >= 0, not {v}"
-                ));
-            }
+        if !(b.is_finite() && b >= 0.0) {
+            return Err(format!(
+                "accelerometer bias instability must be a number >= 0, not {b}"
+            ));
         }
         if !(sigmas.is_finite() && sigmas > 0.0) {
             return Err(format!(
@@ -105,12 +101,12 @@ impl AccelRestConfig {
             ));
         }
         let window = window.max(2);
-        // As the gyro's [`crate::drift::bias::BiasTerms::sample_variance`]: white, rounding,
-        // and the flicker's b^2 ln2/pi per octave faster than a second.
+        // As the gyro's [`crate::drift::bias::BiasTerms::sample_variance`]: white, and the
+        // flicker's b^2 ln2/pi per octave faster than a second.
         let fast_octaves = rate_hz.max(1.0).log2().ceil() + 1.0;
-        let var = vrw * vrw * rate_hz + lsb * lsb / 12.0 + fast_octaves * b * b * LN_2 / PI;
-        let avar =
-            (vrw * vrw * rate_hz + lsb * lsb / 12.0) / window as f64 + 2.0 * LN_2 / PI * b * b;
+        let white = vrw * vrw * rate_hz;
+        let var = white + fast_octaves * b * b * LN_2 / PI;
+        let avar = white / window as f64 + 2.0 * LN_2 / PI * b * b;
         Ok(AccelRestConfig {
             window,
             settle: settle.max(1),
@@ -183,6 +179,13 @@ pub struct AccelRest {
     since_onset: usize,
     /// The last sample was a lone jolt, held out of the run.
     suspect: bool,
+    /// The rest noise learnt so far over the terms' (>= 1; see [`AccelRest::push`]).
+    scale: f64,
+    /// Windows learnt from and the sum of their variances.
+    learnt: usize,
+    learnt_sum: f64,
+    /// Consecutive samples the gyro has judged still.
+    gyro_run: usize,
 }
 
 impl AccelRest {
@@ -201,6 +204,10 @@ impl AccelRest {
             seen_motion: false,
             since_onset: 0,
             suspect: false,
+            scale: 1.0,
+            learnt: 0,
+            learnt_sum: 0.0,
+            gyro_run: 0,
         }
     }
 
@@ -223,12 +230,23 @@ impl AccelRest {
         self.run.n
     }
 
+    /// The per-axis variance of one still sample in force now: the terms', or more, as learnt.
+    pub fn rest_variance(&self) -> f64 {
+        self.cfg.var * self.scale
+    }
+
     /// One accelerometer sample (m/s^2, specific force; `None`: absent or invalid, which
-    /// leaves the state as it is) and the verdict.
-    pub fn push(&mut self, a: Option<[f64; 3]>) -> Aid {
+    /// leaves the state as it is) and the verdict. `gyro_still`: the gyro alone judges the body
+    /// still (every axis's own test on its full window). Each whole window of such samples
+    /// teaches the rest noise: its variance, if a rest's could be that large (within the
+    /// variance test's bound, which keeps a spike or a shake out), joins a running mean, and the
+    /// bounds use that mean where it exceeds the terms' (a unit noisier than its data sheet, or
+    /// an engine idling at a stop). See the module documentation.
+    pub fn push(&mut self, a: Option<[f64; 3]>, gyro_still: bool) -> Aid {
         let Some(a) = a.filter(|a| a.iter().all(|v| v.is_finite())) else {
             return Aid::Unknown;
         };
+        self.learn(&a, gyro_still);
         let z = if self.run.n >= self.cfg.settle {
             self.cfg.hysteresis * self.cfg.sigmas
         } else {
@@ -280,6 +298,34 @@ impl AccelRest {
         }
     }
 
+    /// Learn the rest noise from whole windows the gyro judges still (see [`AccelRest::push`]).
+    fn learn(&mut self, a: &[f64; 3], gyro_still: bool) {
+        self.gyro_run = if gyro_still { self.gyro_run + 1 } else { 0 };
+        let w = self.ring.len();
+        if self.gyro_run < w || self.filled < w {
+            return;
+        }
+        // The ring holds the window up to the previous sample; take this one's place in it.
+        let (mut sum, mut sum2) = ([0.0f64; 3], [0.0f64; 3]);
+        for v in self.newest().take(w - 1).chain(std::iter::once(*a)) {
+            for i in 0..3 {
+                let d = v[i] - self.ring_origin[i];
+                sum[i] += d;
+                sum2[i] += d * d;
+            }
+        }
+        let n = w as f64;
+        let dof = 3.0 * (n - 1.0);
+        let scatter: f64 = (0..3).map(|i| (sum2[i] - sum[i] * sum[i] / n).max(0.0)).sum();
+        let v = scatter / dof;
+        if v <= self.rest_variance() * chi2_ratio(dof, self.cfg.hysteresis * self.cfg.sigmas) {
+            self.learnt += 1;
+            self.learnt_sum += v;
+            self.scale = (self.learnt_sum / self.learnt as f64 / self.cfg.var).max(1.0);
+        }
+        self.gyro_run = 0;
+    }
+
     fn push_ring(&mut self, a: &[f64; 3]) {
         let w = self.ring.len();
         if self.filled == 0 {
@@ -321,7 +367,7 @@ impl AccelRest {
         }
         let m = self.run.mean();
         let d2: f64 = (0..3).map(|i| (a[i] - m[i]).powi(2)).sum::<f64>();
-        d2 / (self.cfg.var * (1.0 + 1.0 / n as f64)) > 3.0 * chi2_ratio(3.0, z)
+        d2 / (self.rest_variance() * (1.0 + 1.0 / n as f64)) > 3.0 * chi2_ratio(3.0, z)
     }
 
     /// Whether `a` (already in the ring, not yet in the run) makes the run's variance or drift
@@ -345,7 +391,7 @@ impl AccelRest {
             (self.filled, s)
         };
         let dof = 3.0 * (count as f64 - 1.0);
-        if dof > 0.0 && scatter / c.var > dof * chi2_ratio(dof, z) {
+        if dof > 0.0 && scatter / self.rest_variance() > dof * chi2_ratio(dof, z) {
             return true;
         }
         // Drift: the newest window's mean against the run's first window's.
@@ -355,7 +401,7 @@ impl AccelRest {
                 let d2: f64 = (0..3)
                     .map(|i| (self.ring_origin[i] + self.ring_sum[i] / w - anchor[i]).powi(2))
                     .sum();
-                if d2 / c.drift_var > 3.0 * chi2_ratio(3.0, z) {
+                if d2 / (c.drift_var * self.scale) > 3.0 * chi2_ratio(3.0, z) {
                     return true;
                 }
             }
@@ -366,7 +412,7 @@ impl AccelRest {
     /// Samples since the onset of the motion just detected: the most likely moving suffix of
     /// the run's newest samples and this one, against rest at `mean` (0: this sample).
     fn onset(&self, mean: &[f64; 3]) -> usize {
-        let inv_sd = 1.0 / self.cfg.var.sqrt();
+        let inv_sd = 1.0 / self.rest_variance().sqrt();
         let span = (self.run.n + 1).min(self.filled);
         let (mut sum, mut sum2) = ([0.0f64; 3], [0.0f64; 3]);
         let (mut best, mut len) = (f64::NEG_INFINITY, 1);
@@ -397,7 +443,7 @@ mod tests {
 
     fn cfg() -> AccelRestConfig {
         // 0.2 m/s/sqrt(h) (the ADIS16405 data sheet) at 100 Hz: 0.033 m/s^2 per sample.
-        AccelRestConfig::from_terms(0.2 / 60.0, 0.002, 0.0, 100.0, 100, 25, 4.0, 1.5).unwrap()
+        AccelRestConfig::from_terms(0.2 / 60.0, 0.002, 100.0, 100, 25, 4.0, 1.5).unwrap()
     }
 
     fn noise(n: usize, sd: f64, seed: u64) -> Vec<[f64; 3]> {
@@ -417,7 +463,7 @@ mod tests {
         let c = cfg();
         let mut r = AccelRest::new(c);
         let x = noise(60_000, c.var.sqrt(), 1);
-        let mut verdicts = x.iter().map(|a| r.push(Some(*a)));
+        let mut verdicts = x.iter().map(|a| r.push(Some(*a), false));
         // Nothing known before `settle` samples, with no evidence.
         for _ in 0..24 {
             assert_eq!(verdicts.next(), Some(Aid::Unknown));
@@ -441,7 +487,7 @@ mod tests {
         }
         let mut seen = None;
         for (k, a) in x.iter().enumerate() {
-            if let Aid::Moving { age } = r.push(Some(*a)) {
+            if let Aid::Moving { age } = r.push(Some(*a), false) {
                 seen = Some((k, age));
                 break;
             }
@@ -465,7 +511,7 @@ mod tests {
                 a[1] += 0.5;
             }
         }
-        let v: Vec<Aid> = x.iter().map(|a| r.push(Some(*a))).collect();
+        let v: Vec<Aid> = x.iter().map(|a| r.push(Some(*a), false)).collect();
         assert!(v[150..2000].iter().all(|a| matches!(a, Aid::Moving { .. })));
         let first = (2000..3000)
             .find(|&k| matches!(v[k], Aid::Quiet { .. }))
@@ -487,7 +533,7 @@ mod tests {
         }
         let k = x
             .iter()
-            .position(|a| matches!(r.push(Some(*a)), Aid::Moving { .. }))
+            .position(|a| matches!(r.push(Some(*a), false), Aid::Moving { .. }))
             .unwrap();
         assert!((1000..2500).contains(&k), "{k}");
     }
@@ -495,11 +541,42 @@ mod tests {
     #[test]
     fn no_reading_is_unknown_and_bad_terms_are_refused() {
         let mut r = AccelRest::new(cfg());
-        assert_eq!(r.push(None), Aid::Unknown);
-        assert_eq!(r.push(Some([f64::NAN, 0.0, 9.8])), Aid::Unknown);
+        assert_eq!(r.push(None, false), Aid::Unknown);
+        assert_eq!(r.push(Some([f64::NAN, 0.0, 9.8]), false), Aid::Unknown);
         assert_eq!(r.run(), 0);
-        assert!(AccelRestConfig::from_terms(0.0, 0.0, 0.0, 100.0, 100, 25, 4.0, 1.5).is_err());
-        assert!(AccelRestConfig::from_terms(0.1, -1.0, 0.0, 100.0, 100, 25, 4.0, 1.5).is_err());
-        assert!(AccelRestConfig::from_terms(0.1, 0.0, 0.0, 100.0, 100, 25, 4.0, 0.5).is_err());
+        assert!(AccelRestConfig::from_terms(0.0, 0.0, 100.0, 100, 25, 4.0, 1.5).is_err());
+        assert!(AccelRestConfig::from_terms(0.1, -1.0, 100.0, 100, 25, 4.0, 1.5).is_err());
+        assert!(AccelRestConfig::from_terms(0.1, 0.0, 100.0, 100, 25, 4.0, 0.5).is_err());
+    }
+    #[test]
+    fn a_unit_noisier_than_its_terms_is_learnt_at_the_gyros_rests() {
+        // The unit's noise is 1.4 times the terms' in variance (the real ADIS16405 against its
+        // data sheet): its bounds cut a rest often; learnt at the gyro's rests, rarely.
+        let c = cfg();
+        let x = noise(60_000, (1.4 * c.var).sqrt(), 5);
+        let cuts = |learn: bool| {
+            let mut r = AccelRest::new(c);
+            let mut quiet = false;
+            let mut cuts = 0;
+            for a in &x {
+                let q = matches!(r.push(Some(*a), learn), Aid::Quiet { .. });
+                cuts += usize::from(quiet && !q);
+                quiet = q;
+            }
+            (cuts, r.rest_variance() / c.var)
+        };
+        let (blind, scale) = cuts(false);
+        assert_eq!(scale, 1.0);
+        let (learnt, scale) = cuts(true);
+        assert!((scale - 1.4).abs() < 0.05, "learnt {scale}");
+        assert!(blind >= 10 && learnt <= 1, "{blind} cuts with the terms, {learnt} learnt");
+        // A shake the gyro missed does not teach it: its windows are beyond a rest's bound.
+        let mut r = AccelRest::new(c);
+        let shaken: Vec<[f64; 3]> = noise(5_000, (10.0 * c.var).sqrt(), 6);
+        for a in &shaken {
+            r.push(Some(*a), true);
+        }
+        assert_eq!(r.rest_variance(), c.var);
     }
 }
+

@@ -20,8 +20,8 @@
 //! cut back to the samples since another sensor saw the body come to rest
 //! ([`StillnessDetector::restart`]). The thresholds for n samples are those of the full window
 //! with n in its place: chi-square quantiles (Wilson-Hilferty) of the variance and the spread of
-//! an n-sample mean. A failed test (or a veto) ends that: the rest's start is refuted, and the
-//! detector waits for a full window again, as without [`Growth`].
+//! an n-sample mean. A failed test ends that: the rest's start is refuted, and the detector
+//! waits for a full window again, as without [`Growth`].
 //!
 //! Rotation slower than the drift band itself (a turn building up over minutes) cannot be told
 //! from drift by any test on the rate alone.
@@ -323,13 +323,6 @@ impl StillnessDetector {
     /// else a poor first estimate could never be corrected (the sensor would never be still
     /// again). A non-finite or negative tolerance counts as 0.
     pub fn update_with_tolerance(&mut self, x: f64, reference: f64, tolerance: f64) -> bool {
-        self.update_vetoed(x, reference, tolerance, false)
-    }
-
-    /// As [`update_with_tolerance`](Self::update_with_tolerance), with `veto`: another sensor
-    /// says the body moves. The window takes the sample; the detector turns (or stays) moving
-    /// and must settle again.
-    pub fn update_vetoed(&mut self, x: f64, reference: f64, tolerance: f64, veto: bool) -> bool {
         let tol = if tolerance.is_finite() && tolerance > 0.0 {
             tolerance
         } else {
@@ -352,12 +345,6 @@ impl StillnessDetector {
         self.pos = if self.pos + 1 == w { 0 } else { self.pos + 1 };
         self.sum += v;
         self.sum2 += v * v;
-        if veto {
-            self.still = false;
-            self.quiet = 0;
-            self.growing = false;
-            return false;
-        }
         let (var_exit, var_enter, mean_exit, mean_enter) = if self.filled < w {
             match self.growth {
                 Some(g) if self.growing => g.thresholds(self.filled),

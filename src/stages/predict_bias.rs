@@ -27,9 +27,10 @@
 
 use super::accel_terms::{self, ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
 use super::predict::motion_flags;
+use crate::drift::accel_rest::AccelRest;
 use crate::drift::bias::{
-    default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms, BiasTracker, Instability,
-    LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
+    accel_rest_from_terms, default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms,
+    BiasTracker, Instability, LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
@@ -99,9 +100,9 @@ const DELAY_S: Key = Key {
 
 const LEARN_WALK: Key = Key {
     name: "learn_walk",
-    ty: Type::Choice(&["given-stops", "always", "off"]),
+    ty: Type::Choice(&["given-stops", "confirmed-stops", "always", "off"]),
     default: DefaultValue::Word(TrackerConfig::DEFAULT_LEARN_WALK.name()),
-    doc: "which stops teach the filter how fast this unit's bias wanders: stops given from outside, every stop (our detector's too), or none (keep the terms' walk)",
+    doc: "which stops teach the filter how fast this unit's bias wanders: stops given from outside (given-stops), those and the stops both sensors confirm (confirmed-stops: the accelerometer quiet throughout; without one, the same as given-stops), every stop (always: our gyro detector's too), or none (off: keep the terms' walk)",
 };
 const WALK_MIN: Key = Key {
     name: "walk_min",
@@ -297,7 +298,12 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         ..TrackerConfig::default()
     };
     let learn_walk = t.choice_or_default(&LEARN_WALK, "learn_walk", false)?;
-    for l in [LearnWalk::Off, LearnWalk::GivenStops, LearnWalk::Always] {
+    for l in [
+        LearnWalk::Off,
+        LearnWalk::GivenStops,
+        LearnWalk::ConfirmedStops,
+        LearnWalk::Always,
+    ] {
         if l.name() == learn_walk {
             tracker.learn_walk = l;
         }
@@ -380,6 +386,8 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     };
     BiasTracker::new(&params.terms, t.cx.rate_hz, &params.tracker)
         .map_err(|e| t.error(format!("predict.bias: {e}")))?;
+    accel_rest_from_terms(&params.accel, t.cx.rate_hz, &params.tracker)
+        .map_err(|e| t.error(format!("predict.bias: {e}")))?;
     Ok(Box::new(params))
 }
 
@@ -417,8 +425,12 @@ impl Params for BiasParams {
                 st.every,
             ));
         }
+        let rest = accel_rest_from_terms(&self.accel, cx.rate_hz, &self.tracker)
+            .map_err(|e| e.to_string())?;
         Ok(Box::new(BiasStage {
             trackers,
+            rest: AccelRest::new(rest),
+            accel_seen: false,
             learn: self.tracker.learn_walk,
             stop: self.stop.clone(),
             signal: None,
@@ -582,6 +594,10 @@ fn cold_unusable(path: &std::path::Path, u: &bias_state::Unusable) -> WarmStart 
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
 pub struct BiasStage {
     trackers: Vec<BiasTracker>,
+    /// The accelerometer's rest test, for the whole body (its verdict aids every axis).
+    rest: AccelRest,
+    /// Whether a sample carried a valid accelerometer reading.
+    accel_seen: bool,
     learn: LearnWalk,
     stop: Option<StopConfig>,
     /// The newest stop signal.
@@ -620,8 +636,15 @@ impl Stage for BiasStage {
     }
 
     fn learnt(&self) -> Vec<String> {
-        // Stops given from outside teach it: without a stop signal it cannot learn.
-        if self.learn == LearnWalk::GivenStops && self.stop.is_none() && !self.logged_stops {
+        // Stops given from outside teach it (and, confirmed-stops, those the accelerometer
+        // confirms): without a stop signal (or an accelerometer) it cannot learn.
+        let given = self.stop.is_some() || self.logged_stops;
+        let can = match self.learn {
+            LearnWalk::GivenStops => given,
+            LearnWalk::ConfirmedStops => given || self.accel_seen,
+            LearnWalk::Always | LearnWalk::Off => true,
+        };
+        if !can {
             return Vec::new();
         }
         self.trackers
@@ -666,12 +689,19 @@ impl Stage for BiasStage {
             _ => None,
         });
         let given = self.stop.is_some() || self.logged_stops;
+        // Absent or invalid: unknown, and the gyro alone decides.
+        let accel = input.accel_reading();
+        self.accel_seen |= accel.is_some();
+        // The gyro's own verdict (each axis's full-window test, before this sample) teaches the
+        // accelerometer its rest noise.
+        let gyro_still = self.trackers.iter().all(BiasTracker::gyro_still);
+        let aid = self.rest.push(accel, gyro_still);
         for (axis, tr) in self.trackers.iter_mut().enumerate() {
             let x = input.denoised[axis].to_degrees();
             let step = if given {
-                tr.push_signal(x, stopped)
+                tr.push_signal_with(x, stopped, aid)
             } else {
-                tr.push(x)
+                tr.push_with(x, aid)
             };
             if step.contradicted {
                 out.flags |= FLAG_STOP_CONTRADICTED;

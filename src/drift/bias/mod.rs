@@ -95,8 +95,8 @@ pub use own_terms::{
     OwnAccelTerms, OwnTerms, TermChoices,
 };
 pub use tracker::{
-    default_walk_bounds, growth_from_terms, stillness_from_terms, Aid, BiasMode, BiasStep,
-    BiasTracker, LearnWalk, TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
+    accel_rest_from_terms, default_walk_bounds, growth_from_terms, stillness_from_terms, Aid,
+    BiasMode, BiasStep, BiasTracker, LearnWalk, TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
 };
 pub use walk::{LearnerSnapshot, WalkConfig, WalkLearner, WalkReport, GRID};
 

@@ -2,6 +2,7 @@
 //! the delay window, the recovered ends of a stop) and what the stage outputs meanwhile.
 
 use super::*;
+use crate::drift::accel_rest::AccelRestConfig;
 pub use crate::drift::stillness::Aid;
 use crate::drift::stillness::{moving_llr, Growth, StillnessConfig, StillnessDetector};
 
@@ -207,6 +208,32 @@ pub fn growth_from_terms(terms: &BiasTerms, rate_hz: f64, cfg: &TrackerConfig) -
         mean_sigmas: cfg.mean_sigmas,
         hysteresis: cfg.hysteresis,
     }
+}
+
+/// The accelerometer's rest test ([`AccelRestConfig`]) for `accel`'s terms at `rate_hz`, on
+/// the gyro's time scales and tails: its window (`window_s`) and settling (`settle_s`), the
+/// tail of `mean_sigmas` standard deviations, `hysteresis` times as far once quiet.
+pub fn accel_rest_from_terms(
+    accel: &AccelTerms,
+    rate_hz: f64,
+    cfg: &TrackerConfig,
+) -> Result<AccelRestConfig, BiasError> {
+    accel.check()?;
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(BiasError::BadRate(rate_hz));
+    }
+    let window = samples("window_s", cfg.window_s, rate_hz)?.max(2);
+    let settle = samples("settle_s", cfg.settle_s, rate_hz)?.max(1);
+    AccelRestConfig::from_terms(
+        accel.vrw,
+        accel.b,
+        rate_hz,
+        window,
+        settle,
+        cfg.mean_sigmas,
+        cfg.hysteresis,
+    )
+    .map_err(BiasError::Stillness)
 }
 
 /// How a stop ends.
@@ -596,13 +623,29 @@ impl BiasTracker {
                 self.detector.restart(since.saturating_sub(1));
             }
         }
-        let moving = matches!(aid, Aid::Moving { .. });
-        let still = self.detect(x, true, moving);
+        let (gyro, turned) = self.detect(x);
+        let vetoed = matches!(aid, Aid::Moving { .. });
+        let still = gyro && !vetoed;
+        if still && self.run == 0 && self.backfill > 0 {
+            match aid {
+                // The gyro's stop begins now, or the accelerometer's quiet lets it resume: the
+                // samples since the rest began (as the accelerometer dates it) join it.
+                Aid::Quiet { since } => self.backfill_stop(since.saturating_sub(1)),
+                Aid::Unknown if turned => self.backfill_stop(usize::MAX),
+                _ => {}
+            }
+        }
         let end = match aid {
             Aid::Moving { age } => End::Since(age),
             _ => End::Estimate,
         };
-        self.own_step(x, still, moving, matches!(aid, Aid::Quiet { .. }), end)
+        self.own_step(x, still, vetoed, matches!(aid, Aid::Quiet { .. }), end)
+    }
+
+    /// Whether the gyro alone (this axis's detector on its full window) says still, whatever
+    /// another sensor says.
+    pub fn gyro_still(&self) -> bool {
+        self.detector.is_still() && self.detector.is_ready()
     }
 
     /// The step of our own detector's verdict `still` on `x` (`vetoed`: another sensor says
@@ -631,7 +674,8 @@ impl BiasTracker {
 
     /// Our detector's verdict on `x`; when it turns still and `backfill`, the stop's start
     /// joins it (not when stillness comes from outside: the window before may be motion).
-    fn detect(&mut self, x: f64, backfill: bool, veto: bool) -> bool {
+    /// Our detector's verdict on `x`, and whether it has just turned still.
+    fn detect(&mut self, x: f64) -> (bool, bool) {
         // At start-up the prior is the reference: a turn at power-up far beyond the turn-on
         // bias's spread (`initial_sd`) is not a rest.
         let (reference, tol) = if self.filter.updates() > 0 || self.startup {
@@ -643,20 +687,17 @@ impl BiasTracker {
             (f64::NAN, 0.0)
         };
         let was_still = self.detector.is_still();
-        let still = x.is_finite() && self.detector.update_vetoed(x, reference, tol, veto);
-        if backfill && still && !was_still && self.backfill > 0 && self.run == 0 {
-            self.backfill_stop();
-        }
-        still
+        let still = x.is_finite() && self.detector.update_with_tolerance(x, reference, tol);
+        (still, still && !was_still)
     }
 
     /// The stop began before the detector confirmed it: the last `backfill` samples of its
-    /// window before this one join it (the filter's time update already ran for them), all but
+    /// window before this one (at most `limit`: the accelerometer's rest may be younger) join it (the filter's time update already ran for them), all but
     /// those up to `guard` after the end of a movement still in the window. That end is the
     /// end of the most likely moving prefix under [`moving_llr`] against the mean of the
     /// window's newest half, if that prefix is evidence of movement at all
     /// ([`MOVING_EVIDENCE`]). O(window) once per stop, no allocation.
-    fn backfill_stop(&mut self) {
+    fn backfill_stop(&mut self, limit: usize) {
         let w = self.detector.filled();
         if w < 2 {
             return;
@@ -671,7 +712,7 @@ impl BiasTracker {
             MOVING_EVIDENCE,
         )
         .map_or(0, |len| len + self.guard);
-        let first = first.max((w - 1).saturating_sub(self.backfill));
+        let first = first.max((w - 1).saturating_sub(self.backfill.min(limit)));
         for v in self
             .detector
             .window()
@@ -706,7 +747,7 @@ impl BiasTracker {
         };
         // The signal decides from its first word: no start-up guess.
         self.startup = false;
-        self.detect(x, false, matches!(aid, Aid::Moving { .. }));
+        self.detect(x);
         if !stands {
             return self.step(x, false, true, true);
         }
