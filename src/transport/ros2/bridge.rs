@@ -40,7 +40,7 @@ use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
 use crate::transport::{
     GyroSample, Input, Output, Qos, RawSample, StatsSnapshot, StopSignal, Transport,
-    TransportError, WakeSet, Waker, RAW_INVALID, RAW_STAMP_FAULT,
+    TransportError, WakeSet, Waker, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
 };
 
 /// How long a topic may go unmatched before stderr says so.
@@ -328,13 +328,14 @@ impl ImuIn {
             if fault.is_some() {
                 flags |= RAW_STAMP_FAULT;
             }
+            let accel = imu.accel_reading();
             let raw = RawSample {
                 t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
-                flags,
+                flags: flags | accel.map_or(0, |_| RAW_ACCEL),
                 epoch: self.epoch,
-                // The accelerometer: the ROS 2 side's scope (issue 49) maps it.
+                accel: accel.unwrap_or_default(),
                 ..RawSample::default()
             };
             self.next_seq += 1;

@@ -321,6 +321,12 @@ impl<'a> Cursor<'a> {
 }
 
 impl Imu {
+    /// The accelerometer reading (m/s², REP 103), unless the message marks it not provided
+    /// (REP 145: `linear_acceleration_covariance[0]` is -1).
+    pub fn accel_reading(&self) -> Option<[f64; 3]> {
+        (self.linear_acceleration_covariance[0] != -1.0).then_some(self.linear_acceleration)
+    }
+
     /// Decode a CDR message (encapsulation header included). Never panics: any bytes that are
     /// not an Imu message are an error naming what is wrong and where.
     pub fn from_cdr(bytes: &[u8]) -> Result<Imu, CdrError> {
