@@ -551,13 +551,21 @@ impl ImuMapping {
     /// A raw sample's message.
     pub fn raw(&mut self, s: &RawSample) -> Result<&Imu, String> {
         let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
-        self.fill(s.t_ns, s.rate, [-1.0; 3], None, held)
+        let accel = s.accel_reading().map(|value| AccelReading {
+            value,
+            std: [-1.0; 3],
+        });
+        self.fill(s.t_ns, s.rate, [-1.0; 3], accel, held)
     }
 
     /// A gyro sample's message.
     pub fn gyro(&mut self, s: &GyroSample) -> Result<&Imu, String> {
         let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-        self.fill(s.t_ns, s.rate, s.drift_std, None, held)
+        let accel = s.accel_reading().map(|value| AccelReading {
+            value,
+            std: s.accel_std,
+        });
+        self.fill(s.t_ns, s.rate, s.drift_std, accel, held)
     }
 
     /// The covariance of a reading whose white noise per axis is `std` (m/s^2, negative
