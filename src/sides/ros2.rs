@@ -414,6 +414,7 @@ impl Side for Ros2Side {
             start.announce_as,
             start.qos,
             start.rate_hz,
+            start.cpu,
             start.stop,
             ready,
         )

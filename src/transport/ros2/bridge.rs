@@ -348,6 +348,7 @@ impl ImuIn {
             // A send error is a lost sample the daemon counts as a gap.
             let _ = self.out.send(&raw);
             self.out.notify();
+            x_trace::sent(raw.seq);
         }
     }
 }
@@ -406,7 +407,9 @@ impl ServiceOut {
                 s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
             }
             for (publisher, mapping) in &mut self.imu {
+                let t_recv = monotonic_ns();
                 let sent = mapping.gyro(&s).and_then(|imu| publisher.publish(imu));
+                x_trace::out(s.seq, s.ingest_ns, t_recv);
                 match sent {
                     Ok(()) => counts.imu_out += 1,
                     Err(e) => {
@@ -552,10 +555,30 @@ fn announcement(settings: &Ros2Settings, node: &Ros2Node) -> Vec<(&'static str, 
     out
 }
 
+/// Pin the calling thread to `cpu`, the hot thread's, before it starts the DDS threads (they
+/// inherit it): each hand-over between them and the hot thread then wakes a thread on the CPU
+/// that is running, never an idle one (on a VM, waking an idle vCPU costs tens of us). A
+/// failure is said and costs only that.
+fn beside_the_hot_thread(cpu: usize) {
+    // SAFETY: a zeroed cpu_set_t is valid; CPU_SET stays in bounds (cpu < 1024 = CPU_SETSIZE).
+    let rc = unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
+    };
+    if rc != 0 {
+        say(format_args!(
+            "cannot run beside the hot thread on CPU {cpu}: {}",
+            std::io::Error::last_os_error()
+        ));
+    }
+}
+
 /// Run the ROS 2 side of a pipeline until `stop`: `settings` under iceoryx2 `prefix` with the
 /// pipeline's `qos` and rate, on the iceoryx2 node `node_name`, announced on the event service
-/// `announce_as` (what `driftless list` shows). `started` hears once whether it set up (so the
-/// daemon can refuse to run without it); then it runs, and returns what it carried.
+/// `announce_as` (what `driftless list` shows); beside the hot thread on its `cpu` when the
+/// pipeline pins it. `started` hears once whether it set up (so the daemon can refuse to run
+/// without it); then it runs, and returns what it carried.
 #[allow(clippy::too_many_arguments)]
 pub fn run_bridge(
     settings: &Ros2Settings,
@@ -564,22 +587,14 @@ pub fn run_bridge(
     announce_as: &str,
     qos: Qos,
     rate_hz: f64,
+    cpu: Option<usize>,
     stop: &AtomicBool,
     started: impl FnOnce(Result<(), String>),
 ) -> Result<BridgeCounts, TransportError> {
     let setup = || -> Result<_, TransportError> {
         let transport = Transport::new(prefix, node_name, qos)?;
-        // EXPERIMENT: pin this thread (and the DDS threads it starts) to a CPU.
-        if let Some(cpu) = std::env::var("DRIFTLESS_X_ROS2_CPU")
-            .ok()
-            .and_then(|v| v.parse::<usize>().ok())
-        {
-            // SAFETY: a zeroed cpu_set_t is valid; cpu < 1024.
-            unsafe {
-                let mut set: libc::cpu_set_t = std::mem::zeroed();
-                libc::CPU_SET(cpu, &mut set);
-                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-            }
+        if let Some(cpu) = cpu {
+            beside_the_hot_thread(cpu);
         }
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
         let announced = transport.announce(announce_as, &announcement(settings, &node))?;
@@ -831,5 +846,60 @@ pub fn run_bridge(
         let _ = wake.wait(None, sleep, |_| {});
     }
     drop((announced, transport));
+    x_trace::dump();
     Ok(counts)
+}
+
+/// EXPERIMENT: hand-over times, by seq.
+mod x_trace {
+    use std::sync::Mutex;
+    static SENT: Mutex<Vec<(u64, u64)>> = Mutex::new(Vec::new());
+    static OUT: Mutex<Vec<(u64, u64, u64, u64)>> = Mutex::new(Vec::new());
+    fn on() -> bool {
+        std::env::var_os("DRIFTLESS_X_TRACE").is_some()
+    }
+    pub fn sent(seq: u64) {
+        if on() {
+            SENT.lock().unwrap().push((seq, crate::clock::monotonic_ns()));
+        }
+    }
+    pub fn out(seq: u64, ingest: u64, recv: u64) {
+        if on() {
+            OUT.lock()
+                .unwrap()
+                .push((seq, ingest, recv, crate::clock::monotonic_ns()));
+        }
+    }
+    pub fn dump() {
+        let Some(path) = std::env::var_os("DRIFTLESS_X_TRACE") else {
+            return;
+        };
+        let sent: std::collections::HashMap<u64, u64> =
+            SENT.lock().unwrap().iter().copied().collect();
+        let (mut w2, mut w3, mut dds) = (Vec::new(), Vec::new(), Vec::new());
+        for &(seq, ingest, recv, done) in OUT.lock().unwrap().iter() {
+            if let Some(&t) = sent.get(&seq) {
+                w2.push(ingest.saturating_sub(t) as f64 / 1e3);
+            }
+            w3.push(recv.saturating_sub(ingest) as f64 / 1e3);
+            dds.push(done.saturating_sub(recv) as f64 / 1e3);
+        }
+        let pct = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            let q = |x: f64| v.get((x * v.len() as f64) as usize).copied().unwrap_or(f64::NAN);
+            format!("p50 {:.1} p90 {:.1} p99 {:.1}", q(0.5), q(0.9), q(0.99))
+        };
+        let text = format!(
+            "sent->ingest (wake of the hot thread) {}\ningest->received (stages + wake back) {}\nDDS publish {}\n",
+            pct(&mut w2),
+            pct(&mut w3),
+            pct(&mut dds)
+        );
+        if !w3.is_empty() {
+            use std::io::Write as _;
+            if let Ok(mut f) = std::fs::OpenOptions::new().append(true).create(true).open(path) {
+                let _ = f.write_all(text.as_bytes());
+            }
+        }
+    }
 }
