@@ -48,6 +48,7 @@ use support::{
 
 use driftless::transport::{
     monotonic_ns, GyroSample, Qos, RawSample, StatsSnapshot, Transport, WakeSet, FLAG_FLUSHED,
+    RAW_ACCEL,
 };
 use hdrhistogram::Histogram;
 use serde_json::Value;
@@ -916,12 +917,14 @@ fn drivers_row(label: &str, n: usize, groups: &[Vec<&Path>], secs: f64, dir: &Pa
             let rate = [(t + i as f64).sin(), (2.0 * t).cos(), 0.1 * (t * 7.0).sin()];
             let t_ns = monotonic_ns();
             sent[i * ticks as usize + k as usize].store(t_ns, Ordering::Relaxed);
+            // Six axes: the accelerometer rides beside the rates, as a real IMU's does.
             let sample = RawSample {
                 t_ns,
                 seq: k,
                 rate,
-                flags: 0,
-                epoch: 0,
+                flags: RAW_ACCEL,
+                accel: [0.01 * rate[0], 0.02 * rate[1], -9.81],
+                ..RawSample::default()
             };
             let _ = out.send(&sample);
             out.notify();
@@ -1091,8 +1094,9 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
             t_ns,
             seq: k as u64,
             rate: [t.sin(), (2.0 * t).cos(), 0.1 * (7.0 * t).sin()],
-            flags: 0,
-            epoch: 0,
+            flags: RAW_ACCEL,
+            accel: [0.01 * t.sin(), 0.02 * t.cos(), -9.81],
+            ..RawSample::default()
         });
         out.notify();
     }

@@ -117,8 +117,8 @@ fn publish(
             t_ns: (k as f64 * 1e9 / rate).round() as u64,
             seq: k,
             rate: s.measured,
-            flags: 0,
             epoch,
+            ..RawSample::default()
         };
         out.send(&raw).map_err(|e| e.to_string())?;
         out.notify();

@@ -43,8 +43,9 @@ pub fn check_pipeline_toml(data: &[u8]) {
             t_ns: seq * 1_000_000,
             seq,
             rate: [0.01, -0.02, 0.03],
-            flags: 0,
-            epoch: 0,
+            flags: driftless::transport::RAW_ACCEL,
+            accel: [0.1, -0.2, 9.8],
+            ..RawSample::default()
         };
         offline.push(&raw, &mut |_| out += 1);
     }

@@ -8,7 +8,7 @@
 //! commands characterise a gyro (Allan deviation, IEEE 952 noise terms), denoise logs, train and
 //! evaluate the drift model, and judge every method by the heading error a navigator would see.
 //!
-//! Layers, from the ground up (ARCHITECTURE.md; `tests/layers.rs` checks them): [`clock`] and
+//! Layers, from the ground up (ARCHITECTURE.md; `tests/layers.rs` checks them): [`clock`], [`wire`] (the types that cross shared memory) and
 //! the maths ([`wavelet`], [`allan`], [`sim`], [`drift`], [`nav`], ...: no I/O, no transport,
 //! usable as a library) -> [`transport`] (the only module that touches iceoryx2) -> [`io`]
 //! (files) -> [`metrics`] -> [`stages`] (the stage contract and every stage kind) ->
@@ -34,3 +34,4 @@ pub mod stages;
 pub mod synthetic;
 pub mod transport;
 pub mod wavelet;
+pub mod wire;

@@ -27,6 +27,10 @@
 //! The stream is ChaCha8 (rand_chacha), one stream per axis from the seed, standard normals by
 //! rand_distr's ziggurat: the same seed gives the same samples on every platform. `next_sample` is
 //! O(1) and allocation-free.
+//!
+//! The same sensor's accelerometer, and the specific force of each motion: [`force`].
+
+pub mod force;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -57,7 +61,9 @@ pub struct NoiseTerms {
     pub bias: f64,
 }
 
-/// The true motion under the noise.
+/// The true motion under the noise. For the accelerometer ([`force`]): `none`, `sines`, `steps`
+/// and `turn` turn the sensor about its own origin, as a rate table does (no translation);
+/// `stop-and-go` is a ground vehicle at [`force::VEHICLE_SPEED`] while moving.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Motion {
     /// A static gyro: truth is zero.
@@ -132,26 +138,32 @@ impl Motion {
     }
 }
 
-/// The stop-and-go profile: (envelope in 0..=1, time since the start of the current moving
-/// stretch), or None while still.
+/// The stop-and-go motion's timing, s: still until FIRST, then cycles of MOVE moving and the
+/// rest of CYCLE still, the rate ramped over RAMP at each end of a moving stretch.
+const SG_FIRST: f64 = 60.0;
+const SG_MOVE: f64 = 40.0;
+const SG_CYCLE: f64 = 60.0;
+const SG_RAMP: f64 = 2.0;
+
+/// The stop-and-go profile: its envelope in 0..=1, or None while still.
 fn stop_and_go(t: f64) -> Option<f64> {
-    const FIRST: f64 = 60.0;
-    const MOVE: f64 = 40.0;
-    const CYCLE: f64 = 60.0;
-    const RAMP: f64 = 2.0;
-    if t < FIRST {
-        return None;
-    }
-    let c = (t - FIRST).rem_euclid(CYCLE);
-    if c >= MOVE {
-        return None;
-    }
-    let edge = c.min(MOVE - c);
-    Some(if edge >= RAMP {
+    let (c, _) = stop_and_go_stretch(t)?;
+    let edge = c.min(SG_MOVE - c);
+    Some(if edge >= SG_RAMP {
         1.0
     } else {
-        0.5 * (1.0 - (PI * edge / RAMP).cos())
+        0.5 * (1.0 - (PI * edge / SG_RAMP).cos())
     })
+}
+
+/// Where `t` falls in the stop-and-go motion's moving stretch: (time since its start, its
+/// length), s; None while still.
+fn stop_and_go_stretch(t: f64) -> Option<(f64, f64)> {
+    if t < SG_FIRST {
+        return None;
+    }
+    let c = (t - SG_FIRST).rem_euclid(SG_CYCLE);
+    (c < SG_MOVE).then_some((c, SG_MOVE))
 }
 
 impl FromStr for Motion {
@@ -336,12 +348,19 @@ pub struct Simulator {
 impl Simulator {
     /// A simulator at t = 0 for `cfg` (checked: rate > 0, 1..=3 axes, terms >= 0, lsb > 0).
     pub fn new(cfg: &SimConfig) -> Result<Simulator, SimError> {
+        Simulator::on_streams(cfg, 0)
+    }
+
+    /// [`Simulator::new`] drawing axis a from the seed's stream `first_stream + a`: the gyro
+    /// takes streams 0-2, the accelerometer ([`force::Accelerometer`]) the next ones, so adding
+    /// it changes no gyro sample.
+    fn on_streams(cfg: &SimConfig, first_stream: u64) -> Result<Simulator, SimError> {
         cfg.validate()?;
         let dt = 1.0 / cfg.rate_hz;
         let t = cfg.terms;
         let mut rng: [ChaCha8Rng; 3] = std::array::from_fn(|a| {
             let mut r = ChaCha8Rng::seed_from_u64(cfg.seed);
-            r.set_stream(a as u64);
+            r.set_stream(first_stream + a as u64);
             r
         });
         let quant_half_width = t.q * 3f64.sqrt();

@@ -179,7 +179,7 @@ impl Bridge {
 
 /// Decoded at the offsets docs/wire-types.md documents (not with the crate's own decoder).
 fn decode_gyro(b: &[u8]) -> GyroSample {
-    assert_eq!(b.len(), 128, "a GyroSample (layout v2) is 128 bytes");
+    assert_eq!(b.len(), 208, "a GyroSample (layout v3) is 208 bytes");
     let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
     let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
     let f3 = |o: usize| [0, 1, 2].map(|i| f64::from_bits(u64_at(o + 8 * i)));
@@ -193,6 +193,11 @@ fn decode_gyro(b: &[u8]) -> GyroSample {
         flags: u32_at(96),
         epoch: u32_at(100),
         drift_std: f3(104),
+        accel: f3(128),
+        accel_std: f3(152),
+        mag: f3(176),
+        sensors: u32_at(200),
+        reserved: u32_at(204),
     }
 }
 
@@ -304,7 +309,7 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
         ],
     );
     bridge.wait_for(
-        "bridge: ready: t/corrected (driftless::GyroSample.v2) -> driftless/t/corrected",
+        "bridge: ready: t/corrected (driftless::GyroSample.v3) -> driftless/t/corrected",
         Duration::from_secs(20),
     );
     bridge.wait_for("a Zenoh subscriber matches", Duration::from_secs(20));
@@ -352,7 +357,7 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
         assert_eq!(key, "driftless/t/corrected");
         assert_eq!(
             encoding,
-            "application/octet-stream;driftless::GyroSample.v2"
+            "application/octet-stream;driftless::GyroSample.v3"
         );
         let s = decode_gyro(payload);
         assert_eq!(
@@ -671,7 +676,7 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
         ],
     );
     bridge.wait_for(
-        "bridge: ready: remote/raw (driftless::RawSample) -> t/sensor",
+        "bridge: ready: remote/raw (driftless::RawSample.v2) -> t/sensor",
         Duration::from_secs(20),
     );
     let me = Transport::new(&prefix.0, "test", qos(4096)).expect("node");
@@ -683,7 +688,7 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
     let publisher = zs
         .declare_publisher("remote/raw")
         .encoding(
-            zenoh::bytes::Encoding::APPLICATION_OCTET_STREAM.with_schema("driftless::RawSample"),
+            zenoh::bytes::Encoding::APPLICATION_OCTET_STREAM.with_schema("driftless::RawSample.v2"),
         )
         .wait()
         .unwrap();
@@ -706,7 +711,7 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
     let t0 = Instant::now();
     for (i, r) in input.iter().enumerate() {
         // docs/wire-types.md's layout, written by hand as another language would.
-        let mut b = Vec::with_capacity(48);
+        let mut b = Vec::with_capacity(96);
         b.extend_from_slice(&(i as u64 * 1_000_000).to_le_bytes());
         b.extend_from_slice(&(i as u64).to_le_bytes());
         for v in r {
@@ -714,6 +719,8 @@ fn raw_samples_from_zenoh_feed_the_daemons_iceoryx2_ingest() {
         }
         b.extend_from_slice(&0u32.to_le_bytes());
         b.extend_from_slice(&7u32.to_le_bytes());
+        // No accelerometer, no magnetometer (flags 0x10, 0x20 clear): 48 bytes of zeros.
+        b.extend_from_slice(&[0u8; 48]);
         publisher.put(b).wait().unwrap();
         pace(t0, i);
     }

@@ -230,6 +230,103 @@ fn with_a_model_the_rbf_and_its_ar_are_judged_side_by_side() {
     );
 }
 
+/// A log with the accelerometer beside the gyro (3 axes of the simulated ADIS16405 in deg/s,
+/// its accelerometer in g, at rest): its columns are split off the rates and every case
+/// carries them plus its motion's own force. The product's chain is judged twice, gyro only
+/// and gyro+accel; the gyro-only figures do not change for the accelerometer's presence.
+#[test]
+fn an_accelerometer_log_is_judged_gyro_only_and_with_the_accelerometer() {
+    use driftless::sim::force::{specific_force, Accelerometer, Attitude, ADIS16405_ACCEL};
+    use driftless::sim::{SimConfig, Simulator};
+    use std::fmt::Write as _;
+    let dir = Dir::new();
+    let cfg = SimConfig {
+        seed: 11,
+        ..SimConfig::profile("adis16405").unwrap()
+    };
+    let mut gyro = Simulator::new(&cfg).unwrap();
+    let mut acc = Accelerometer::new(&ADIS16405_ACCEL, 100.0, 11).unwrap();
+    let rest = specific_force(&Attitude::LEVEL, [0.0; 3]);
+    let mut text = String::from("t,gyro_x,gyro_y,gyro_z,accel_x_g,accel_y_g,accel_z_g\n");
+    for k in 0..30_000 {
+        let g = gyro.next_sample().measured;
+        let a = acc.measure(rest).map(|v| v / 9.80665);
+        writeln!(
+            text,
+            "{},{},{},{},{},{},{}",
+            k as f64 / 100.0,
+            g[0],
+            g[1],
+            g[2],
+            a[0],
+            a[1],
+            a[2]
+        )
+        .unwrap();
+    }
+    let log = dir.write("six.csv", &text);
+    let common_args = [
+        log.to_str().unwrap(),
+        "--rate",
+        "100",
+        "--terms",
+        "adis16405",
+        "--characterise",
+        "1min",
+        "--window",
+        "2min",
+        "--motion",
+        "stop-and-go",
+        "--json",
+    ];
+    let accel = [
+        "--accel-column",
+        "accel_x_g",
+        "--accel-column",
+        "accel_y_g",
+        "--accel-column",
+        "accel_z_g",
+        "--accel-units",
+        "g",
+    ];
+    let columns = [
+        "--column", "gyro_x", "--column", "gyro_y", "--column", "gyro_z",
+    ];
+    let with_accel = json(&nav_eval(&[&common_args[..], &accel[..]].concat()));
+    let named = json(&nav_eval(
+        &[&common_args[..], &columns[..], &accel[..]].concat(),
+    ));
+    let gyro_only = json(&nav_eval(&[&common_args[..], &columns[..]].concat()));
+    assert_eq!(with_accel["axes"], 3, "the accelerometer is no gyro axis");
+    assert_eq!(with_accel["sections"], named["sections"]);
+    let s = &with_accel["sections"][0];
+    let g = &gyro_only["sections"][0];
+    let imu = method(s, "denoise.wavelet -> predict.bias (stages, gyro+accel)");
+    for key in ["rms_heading_deg", "final_heading_deg", "rms_rate_degps"] {
+        assert_eq!(
+            med(method(s, "denoise.wavelet -> predict.bias (stages)"), key),
+            med(method(g, "denoise.wavelet -> predict.bias (stages)"), key),
+            "{key}"
+        );
+        assert!(med(imu, key).is_finite(), "{key}");
+    }
+    let labels = |v: &Value| -> Vec<String> {
+        v["sections"][0]["methods"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["method"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert!(!labels(&gyro_only).iter().any(|l| l.contains("gyro+accel")));
+    let l = labels(&with_accel);
+    let at = l.iter().position(|x| x.ends_with("(stages)")).unwrap();
+    assert!(
+        l[at + 1].ends_with("(stages, gyro+accel)"),
+        "side by side: {l:?}"
+    );
+}
+
 #[test]
 fn bad_input_is_one_line_and_exit_2() {
     let dir = Dir::new();
@@ -273,6 +370,40 @@ fn bad_input_is_one_line_and_exit_2() {
         (
             vec!["--sim", "adis16405", "--terms", "nope"],
             "--terms: no default bias terms for 'nope'".into(),
+        ),
+        (
+            vec!["--sim", "adis16405", "--accel-column", "ax"],
+            "--accel-column: give the accelerometer's 3 columns (x, y, z), not 1".into(),
+        ),
+        (
+            vec![
+                short.to_str().unwrap(),
+                "--rate",
+                "100",
+                "--accel-column",
+                "x",
+                "--accel-column",
+                "nope",
+                "--accel-column",
+                "x",
+            ],
+            "no column \"nope\" (--accel-column)".into(),
+        ),
+        (
+            vec![
+                short.to_str().unwrap(),
+                "--rate",
+                "100",
+                "--accel-column",
+                "x",
+                "--accel-column",
+                "x",
+                "--accel-column",
+                "x",
+                "--accel-units",
+                "mg",
+            ],
+            "--accel-units mg: m/s^2 or g".into(),
         ),
     ];
     for (args, want) in cases {

@@ -75,8 +75,7 @@ fn sim_log(seed: u64, n: usize, time_column: bool) -> (String, Vec<RawSample>) {
             t_ns: i as u64 * 1_000_000,
             seq: i as u64,
             rate: [v[0], v[1], v[2]],
-            flags: 0,
-            epoch: 0,
+            ..RawSample::default()
         });
         if time_column {
             text.push_str(&format!("{:.3},", i as f64 * 1e-3));

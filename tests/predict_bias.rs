@@ -75,8 +75,7 @@ fn run(
             t_ns: (i as f64 * 1e9 / RATE).round() as u64,
             seq: i as u64,
             rate: s.measured,
-            flags: 0,
-            epoch: 0,
+            ..RawSample::default()
         };
         let [m0, m1, m2] = s.measured;
         let [t0, t1, t2] = s.truth;

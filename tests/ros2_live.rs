@@ -266,8 +266,8 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
             t_ns: 1_700_000_000_000_000_000 + i as u64 * 1_000_000,
             seq: i as u64,
             rate: [0.001 * i as f64, -0.002 * i as f64, 0.5],
-            flags: 0,
             epoch: 1,
+            ..Default::default()
         };
         offline.push(&raw, &mut |s| want.push(mapping.gyro(&s).unwrap().clone()));
     }

@@ -1,15 +1,16 @@
-//! The layout versions of `GyroSample` and `StatsSnapshot` between real processes: a service of
-//! the version 1 layout (as a driftless before `drift_std`, or before the misses'
-//! explanation, publishes it) is refused by name by `tap`, `record`, `stats` and the transport,
-//! and a subscriber built for version 1 cannot open our version 2 service (iceoryx2 refuses
-//! it: it is never handed bytes it would misread).
+//! The layout versions of `RawSample`, `GyroSample` and `StatsSnapshot` between real processes:
+//! a service of an older layout (as a driftless before `drift_std`, or before the misses'
+//! explanation, publishes it; or a driver built before the accelerometer) is refused by name by
+//! `run`, `tap`, `record`, `stats` and the transport, and a subscriber built for version 1
+//! cannot open our current service (iceoryx2 refuses it: it is never handed bytes it would
+//! misread).
 
 mod common;
 
 use common::{text, Prefix};
 use driftless::transport::{
     GyroSample, Qos, StatsSnapshot, Transport, TransportError, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME,
-    STATS_V1_SIZE, STATS_V1_TYPE_NAME,
+    RAW_V1_SIZE, RAW_V1_TYPE_NAME, STATS_V1_SIZE, STATS_V1_TYPE_NAME,
 };
 use iceoryx2::prelude::*;
 
@@ -24,6 +25,19 @@ struct GyroSampleV1 {
     rate: [f64; 3],
     drift: [f64; 3],
     denoised: [f64; 3],
+    flags: u32,
+    epoch: u32,
+}
+
+/// `RawSample` as a driver built before the accelerometer publishes it (layout version 1, 48
+/// bytes).
+#[derive(Debug, Clone, Copy, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::RawSample")]
+struct RawSampleV1 {
+    t_ns: u64,
+    seq: u64,
+    rate: [f64; 3],
     flags: u32,
     epoch: u32,
 }
@@ -66,9 +80,9 @@ fn listed(prefix: &Prefix, name: &str) -> serde_json::Value {
 fn refusal(service: &str) -> String {
     format!(
         "service {service:?} carries driftless::GyroSample (layout v1, 104 bytes, from an older \
-         driftless); this driftless reads driftless::GyroSample.v2 (layout v2, 128 bytes, with \
-         drift_std): run the daemon and its subscribers from one release \
-         (docs/wire-types.md#versions)"
+         driftless); this driftless reads driftless::GyroSample.v3 (layout v3, 208 bytes, with \
+         the accelerometer and the magnetometer): run the daemon and its subscribers from one \
+         release (docs/wire-types.md#versions)"
     )
 }
 
@@ -207,5 +221,64 @@ fn an_old_stats_service_is_refused_by_name_by_stats_tap_and_list() {
         Ok(_) => panic!("a version 1 stats service was opened as version 2"),
     }
     drop((_old_publisher, old_service, old, me));
+    driftless::transport::remove_prefix_leftovers(&prefix.0);
+}
+
+#[test]
+fn a_driver_of_the_old_raw_layout_is_refused_by_name_before_the_run_starts() {
+    assert_eq!(std::mem::size_of::<RawSampleV1>(), RAW_V1_SIZE);
+    // SAFETY: type_name only returns the static string of the derive attribute.
+    assert_eq!(unsafe { RawSampleV1::type_name() }, RAW_V1_TYPE_NAME);
+    let prefix = Prefix::new("rawver");
+    let dir = common::Dir::new();
+    let driver = node(&prefix, "old-driver");
+    let service = driver
+        .service_builder(&"sensor/raw".try_into().expect("name"))
+        .publish_subscribe::<RawSampleV1>()
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .subscriber_max_buffer_size(256)
+        .max_publishers(1)
+        .open_or_create()
+        .expect("old driver's service");
+    let _publisher = service.publisher_builder().create().expect("publisher");
+    let file = dir.write(
+        "old-driver.toml",
+        r#"name = "olddrv"
+rate_hz = 100.0
+input_units = "rad/s"
+
+[[stage]]
+name = "sensor"
+kind = "ingest.iceoryx2"
+input = "sensor/raw"
+output = "olddrv/raw"
+
+[[stage]]
+name = "out"
+kind = "publish"
+input = "olddrv/raw"
+output = "olddrv/corrected"
+"#,
+    );
+    let o = common::driftless(&[
+        "run",
+        file.to_str().unwrap(),
+        "--prefix",
+        &prefix.0,
+        "--duration",
+        "5s",
+    ]);
+    let (_, err) = text(&o);
+    assert_ne!(o.status.code(), Some(0), "run: {err}");
+    assert!(
+        err.contains(
+            "service \"sensor/raw\" carries driftless::RawSample (layout v1, 48 bytes, from an \
+             older driftless); this driftless reads driftless::RawSample.v2 (layout v2, 96 \
+             bytes, with the accelerometer and the magnetometer)"
+        ),
+        "{err}"
+    );
+    drop((_publisher, service, driver));
     driftless::transport::remove_prefix_leftovers(&prefix.0);
 }

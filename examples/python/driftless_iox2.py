@@ -59,34 +59,49 @@ FLAG_STAMP_FAULT = 1 << 11
 FLAGS_BAD = (FLAG_INPUT_INVALID | FLAG_GAP_BEFORE | FLAG_TIME_BACKWARDS | FLAG_OUTPUT_REPAIRED
              | FLAG_STAMP_FAULT)
 
+# Raw-sample flags (transport::RAW_*): the sample carries an accelerometer / magnetometer reading.
+RAW_ACCEL = 1 << 4
+RAW_MAG = 1 << 5
+# GyroSample.sensors (transport::SENSOR_*): which readings are present, which were held.
+SENSOR_ACCEL = 1
+SENSOR_MAG = 1 << 1
+SENSOR_ACCEL_INVALID = 1 << 2
+SENSOR_MAG_INVALID = 1 << 3
+
 # GyroSample.drift_std where no stage estimates the drift's uncertainty (predict.none,
 # predict.rbf, no predict stage): transport::DRIFT_STD_NOT_PROVIDED. Never NaN.
 DRIFT_STD_NOT_PROVIDED = -1.0
 
 
 class RawSample(ctypes.Structure):
-    """`driftless::RawSample`, 48 bytes: what a driver publishes for `ingest.iceoryx2`."""
+    """`driftless::RawSample.v2`, 96 bytes: what a driver publishes for `ingest.iceoryx2`.
+
+    Layout version 2 (transport::RAW_VERSION): version 1 (`driftless::RawSample`, 48 bytes)
+    ended at `epoch`. A gyro-only driver leaves RAW_ACCEL and RAW_MAG clear."""
 
     _fields_ = [
         ("t_ns", ctypes.c_uint64),  # 0: sensor timestamp, ns
         ("seq", ctypes.c_uint64),  # 8: +1 per sample
         ("rate", ctypes.c_double * 3),  # 16: x, y, z in the pipeline's input_units
-        ("flags", ctypes.c_uint32),  # 40: bit 0 invalid
+        ("flags", ctypes.c_uint32),  # 40: bit 0 invalid, RAW_ACCEL, RAW_MAG, ...
         ("epoch", ctypes.c_uint32),  # 44: the driver's run id (non-zero per start)
+        ("accel", ctypes.c_double * 3),  # 48: specific force in the pipeline's accel_units
+        ("mag", ctypes.c_double * 3),  # 72: magnetic field, tesla
     ]
 
     @staticmethod
     def type_name() -> str:
-        """iceoryx2's type name (Rust `#[type_name("driftless::RawSample")]`)."""
-        return "driftless::RawSample"
+        """iceoryx2's type name (Rust `transport::RAW_TYPE_NAME`)."""
+        return "driftless::RawSample.v2"
 
 
 class GyroSample(ctypes.Structure):
-    """`driftless::GyroSample.v2`, 128 bytes: every hop after the ingest, and the public output.
+    """`driftless::GyroSample.v3`, 208 bytes: every hop after the ingest, and the public output.
 
-    Layout version 2 (transport::GYRO_VERSION): version 1 (`driftless::GyroSample`, 104 bytes)
-    ended at `epoch`. A service of the other version is refused by iceoryx2 with
-    IncompatibleTypes: run the daemon and this subscriber from one release."""
+    Layout version 3 (transport::GYRO_VERSION): version 2 (`driftless::GyroSample.v2`, 128
+    bytes) ended at `drift_std`, version 1 (`driftless::GyroSample`, 104 bytes) at `epoch`. A
+    service of another version is refused by iceoryx2 with IncompatibleTypes: run the daemon
+    and this subscriber from one release."""
 
     _fields_ = [
         ("t_ns", ctypes.c_uint64),  # 0: sensor timestamp of this sample
@@ -98,19 +113,26 @@ class GyroSample(ctypes.Structure):
         ("flags", ctypes.c_uint32),  # 96: FLAG_*
         ("epoch", ctypes.c_uint32),  # 100: the stream's run id
         ("drift_std", ctypes.c_double * 3),  # 104: 1-sigma of drift, rad/s; -1: not provided
+        ("accel", ctypes.c_double * 3),  # 128: specific force, m/s^2 (with SENSOR_ACCEL)
+        ("accel_std", ctypes.c_double * 3),  # 152: 1-sigma of one accel sample; -1: not provided
+        ("mag", ctypes.c_double * 3),  # 176: magnetic field, tesla (with SENSOR_MAG)
+        ("sensors", ctypes.c_uint32),  # 200: SENSOR_*
+        ("reserved", ctypes.c_uint32),  # 204: 0
     ]
 
     @staticmethod
     def type_name() -> str:
-        """iceoryx2's type name (Rust `#[type_name("driftless::GyroSample.v2")]`)."""
-        return "driftless::GyroSample.v2"
+        """iceoryx2's type name (Rust `transport::GYRO_TYPE_NAME`)."""
+        return "driftless::GyroSample.v3"
 
 
 # The documented layouts, checked once: a wrong field order or type fails here, not on the wire.
 for _t, _size, _offsets in (
-    (RawSample, 48, {"t_ns": 0, "seq": 8, "rate": 16, "flags": 40, "epoch": 44}),
-    (GyroSample, 128, {"t_ns": 0, "seq": 8, "ingest_ns": 16, "rate": 24, "drift": 48,
-                       "denoised": 72, "flags": 96, "epoch": 100, "drift_std": 104}),
+    (RawSample, 96, {"t_ns": 0, "seq": 8, "rate": 16, "flags": 40, "epoch": 44, "accel": 48,
+                     "mag": 72}),
+    (GyroSample, 208, {"t_ns": 0, "seq": 8, "ingest_ns": 16, "rate": 24, "drift": 48,
+                       "denoised": 72, "flags": 96, "epoch": 100, "drift_std": 104,
+                       "accel": 128, "accel_std": 152, "mag": 176, "sensors": 200}),
 ):
     assert ctypes.sizeof(_t) == _size and ctypes.alignment(_t) == 8, _t
     assert {f: getattr(_t, f).offset for f in _offsets} == _offsets, _t
@@ -128,6 +150,12 @@ def pattern(seq: int) -> tuple:
     """The rate driver.py sends at `seq`, deg/s per axis."""
     d = PATTERN_DITHER_DEG_S * (((seq * 7) % PATTERN_PERIOD) - 8) / 8
     return tuple(b + (d if i % 2 == 0 else -d) for i, b in enumerate(PATTERN_BASE_DEG_S))
+
+
+def accel_pattern(seq: int) -> tuple:
+    """The specific force driver.py sends at `seq`, m/s^2: gravity on z and a small tilt that
+    changes with seq, so that a subscriber can tell each sample's reading from its neighbours'."""
+    return (0.001 * (seq % 101), -0.002 * (seq % 53), -9.80665)
 
 
 def t_ns_of(seq: int, rate_hz: float) -> int:

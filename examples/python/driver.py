@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
-"""A stand-in sensor driver in Python, like examples/raw_driver.rs: publishes driftless::RawSample
-(deg/s) on an iceoryx2 service at a fixed rate and notifies the event service of the same name
+"""A stand-in sensor driver in Python, like examples/raw_driver.rs: publishes driftless::RawSample.v2
+(rates in deg/s, the accelerometer in m/s^2) on an iceoryx2 service at a fixed rate and notifies the event service of the same name
 after each sample, as `ingest.iceoryx2` expects.
 
     driftless run pipelines/external-sensor.toml &
     python3 examples/python/driver.py --service sensor/raw --rate 1000 --count 5000
 
 The samples are deterministic (driftless_iox2.pattern): seq 0, 1, 2, ...; t_ns = seq / rate;
-rate = (1.5, -2.0, 10.0) deg/s plus a zero-mean dither of +-0.05 deg/s with period 17; flags 0;
+rate = (1.5, -2.0, 10.0) deg/s plus a zero-mean dither of +-0.05 deg/s with period 17; the
+accelerometer driftless_iox2.accel_pattern (gravity on z, a tilt that changes with seq); flags
+RAW_ACCEL;
 epoch random non-zero per start (or --epoch). subscriber.py --expect-pattern checks them.
 
 The service is opened with the daemon's QoS (history 0, safe overflow off, subscriber buffer
@@ -104,8 +106,9 @@ def publish(args, prefix: str, root: str, epoch: int, stop: list) -> int:
                     t_ns=dl.t_ns_of(k, args.rate),
                     seq=k,
                     rate=(ctypes.c_double * 3)(x, y, z),
-                    flags=0,
+                    flags=dl.RAW_ACCEL,
                     epoch=epoch,
+                    accel=(ctypes.c_double * 3)(*dl.accel_pattern(k)),
                 )
                 publisher.loan_uninit().write_payload(raw).send()
                 notifier.notify()

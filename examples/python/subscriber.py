@@ -127,6 +127,12 @@ class Checker:
                 bad.append(f"axis {i}: denoised {d:+.4f} deg/s, expected {base:+.4f} +- {RATE_TOL_DEG_S}")
             if s.rate[i] != s.denoised[i] - s.drift[i]:
                 bad.append(f"axis {i}: rate != denoised - drift")
+        # The accelerometer rides beside the rate, time-aligned and untouched (m/s^2 in, m/s^2
+        # out: bit for bit).
+        if s.sensors & (dl.SENSOR_ACCEL | dl.SENSOR_ACCEL_INVALID) != dl.SENSOR_ACCEL:
+            bad.append(f"sensors {s.sensors:#x}: no valid accelerometer reading")
+        elif tuple(s.accel) != dl.accel_pattern(s.seq):
+            bad.append(f"accel {tuple(s.accel)} != {dl.accel_pattern(s.seq)} sent with it")
         if bad:
             self.pattern_errors += 1
             self.problem(f"seq {s.seq}: " + "; ".join(bad))
@@ -188,9 +194,10 @@ def open_ports(node, service: str, wait_s: float, stop: list):
                 raise RuntimeError(
                     f"cannot open {service!r}: IncompatibleTypes: it does not carry "
                     f"{dl.GyroSample.type_name()} ({ctypes.sizeof(dl.GyroSample)} bytes), which "
-                    "this subscriber reads; a driftless before GyroSample v2 publishes "
-                    "driftless::GyroSample (104 bytes): run the daemon and this subscriber from "
-                    "one release (docs/wire-types.md#versions)") from e
+                    "this subscriber reads; an older driftless publishes "
+                    "driftless::GyroSample.v2 (128 bytes) or driftless::GyroSample (104 bytes): "
+                    "run the daemon and this subscriber from one release "
+                    "(docs/wire-types.md#versions)") from e
             if stop[0] or time.monotonic() >= give_up:
                 raise RuntimeError(f"cannot open {service!r}: {type(e).__name__}: {e} "
                                    "(is the pipeline running, with this prefix and root?)") from e

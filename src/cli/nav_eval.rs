@@ -22,6 +22,7 @@ use crate::io::rate_log::RateLog;
 use crate::io::truth::{read_truth, Truth};
 use crate::nav::{format_table_labelled, MethodSummary, Profile};
 use crate::nav_eval::{Bench, Chain, HeadingTraces, Motion, NavEvalError, Outcome, Source};
+use crate::sim::force::STANDARD_GRAVITY;
 use crate::sim::SimConfig;
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -39,9 +40,20 @@ pub struct Args {
     /// `--sim`: default 100).
     #[arg(long, allow_hyphen_values = true)]
     pub rate: Option<String>,
-    /// Columns to use, one axis each (repeatable; default: every numeric column but time).
+    /// Columns to use, one axis each (repeatable; default: every numeric column but time and
+    /// the accelerometer's).
     #[arg(long = "column", value_name = "NAME")]
     pub columns: Vec<String>,
+    /// The accelerometer's columns, x, y, z (give it three times; a CSV log): the unit's static
+    /// specific force, time-aligned with the rates. Each motion adds its own force
+    /// (longitudinal at starts and stops, centripetal in turns, from the profile's stated
+    /// speed), and the product's chain runs a second time on samples that carry it
+    /// (gyro+accel), beside the gyro-only one. `--sim adis16405` has its accelerometer built in.
+    #[arg(long = "accel-column", value_name = "NAME")]
+    pub accel_columns: Vec<String>,
+    /// Units of the accelerometer's columns: m/s^2 or g (9.80665 m/s²).
+    #[arg(long, default_value = "m/s^2")]
+    pub accel_units: String,
     /// Instead of a log: the simulator's noise of this sensor (adis16405, adxrs450), 3 axes.
     #[arg(long, value_name = "SENSOR")]
     pub sim: Option<String>,
@@ -116,13 +128,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Some(r) => Some(parse_number("--rate", r)?),
         None => None,
     };
+    if !(args.accel_columns.is_empty() || args.accel_columns.len() == 3) {
+        return Err(CliError::input(format!(
+            "--accel-column: give the accelerometer's 3 columns (x, y, z), not {}",
+            args.accel_columns.len()
+        )));
+    }
     let input = match (&args.input, &args.sim) {
-        (Some(p), None) => Input::Log(Box::new(log_input::open(
-            p,
-            &args.columns,
-            &args.bag,
-            false,
-        )?)),
+        (Some(p), None) => {
+            // The accelerometer's columns are read with the rates, then split off.
+            let mut wanted = args.columns.clone();
+            if !wanted.is_empty() {
+                wanted.extend(args.accel_columns.iter().cloned());
+            }
+            Input::Log(Box::new(log_input::open(p, &wanted, &args.bag, false)?))
+        }
         (None, Some(s)) => Input::Sim(s),
         (Some(_), Some(_)) => return Err(CliError::input("give a log or --sim, not both")),
         (None, None) => return Err(CliError::input("give a static log, or --sim SENSOR")),
@@ -158,10 +178,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Some(t) => vec![Motion::truth(t, source.axes.len(), rate)?],
         None => profiles.into_iter().map(Motion::Profile).collect(),
     };
-    let mut chains = vec![
-        Chain::bias(rate, &terms)?,
-        Chain::stop_signal(rate, &terms)?,
-    ];
+    let mut chains = vec![Chain::bias(rate, &terms)?];
+    if source.accel.is_some() {
+        chains.push(Chain::bias_imu(rate, &terms)?);
+    }
+    chains.push(Chain::stop_signal(rate, &terms)?);
     if !args.models.is_empty() {
         let axes = source.axes.len();
         chains.push(Chain::rbf(rate, axes, &args.models, PredictorKind::Rbf)?);
@@ -218,13 +239,15 @@ fn window_samples(args: &Args, truth: Option<&Truth>, rate: f64) -> Result<usize
 }
 
 /// A log's noise after `--characterise`, and the estimators' terms: the Allan fit of that part
-/// (`--terms fit`) or a sensor profile's, one set for every axis.
+/// (`--terms fit`) or a sensor profile's, one set for every axis. The accelerometer's columns,
+/// when given, are split off the rates.
 fn log_source(
-    log: RateLog,
+    mut log: RateLog,
     args: &Args,
     rate: f64,
     window: usize,
 ) -> Result<(Source, Vec<BiasTerms>), CliError> {
+    let accel = split_accel(&mut log, args)?;
     let characterise = (parse_seconds(&args.characterise)
         .map_err(|e| CliError::input(format!("--characterise {e}")))?
         * rate)
@@ -236,7 +259,10 @@ fn log_source(
             args.lsb
         )));
     }
-    let source = Source::from_log(log, rate, characterise, window)?;
+    let mut source = Source::from_log(log, rate, characterise, window)?;
+    if let Some(a) = accel {
+        source = source.with_accel(a)?;
+    }
     let terms = if args.terms == "fit" {
         // What `driftless allan --stage` writes for this record: the user's path itself.
         source.fit_terms(lsb)?
@@ -245,6 +271,51 @@ fn log_source(
     };
     let axes = source.axes.len();
     Ok((source, vec![terms; axes]))
+}
+
+/// The accelerometer's columns (`--accel-column`), taken out of the log's table, in m/s².
+fn split_accel(log: &mut RateLog, args: &Args) -> Result<Option<Vec<[f64; 3]>>, CliError> {
+    if args.accel_columns.is_empty() {
+        return Ok(None);
+    }
+    if log.origin.bag.is_some() {
+        return Err(CliError::input(
+            "--accel-column: nav-eval reads the accelerometer from a CSV log, not from a bag",
+        ));
+    }
+    let scale = match args.accel_units.as_str() {
+        "m/s^2" => 1.0,
+        "g" => STANDARD_GRAVITY,
+        other => {
+            return Err(CliError::input(format!(
+                "--accel-units {other}: m/s^2 or g"
+            )))
+        }
+    };
+    let table = &mut log.table;
+    let mut cols = Vec::with_capacity(3);
+    for name in &args.accel_columns {
+        let Some(i) = table.names.iter().position(|n| n == name) else {
+            return Err(CliError::input(format!(
+                "{}: no column {name:?} (--accel-column); it has {}",
+                table.path.display(),
+                table.names.join(", ")
+            )));
+        };
+        table.names.remove(i);
+        cols.push(table.columns.remove(i));
+    }
+    if table.columns.is_empty() {
+        return Err(CliError::input(format!(
+            "{}: no rate column left beside the accelerometer's",
+            table.path.display()
+        )));
+    }
+    Ok(Some(
+        (0..cols[0].len())
+            .map(|k| std::array::from_fn(|a| cols[a][k] * scale))
+            .collect(),
+    ))
 }
 
 /// The simulator's noise of `sensor`, 3 axes of `--windows` windows, and its terms (`--terms
@@ -406,6 +477,9 @@ fn print_text(args: &Args, bench: &Bench, out: &Outcome) {
             t.k * 216_000.0,
             t.lsb
         );
+    }
+    if src.accel.is_some() {
+        println!("  accelerometer: the source's own at rest, plus each case's vehicle acceleration (longitudinal at starts and stops, centripetal in turns; 10 m/s, 5 s ramps; walking 1.4 m/s, 1 s ramps)");
     }
     println!();
     let names: Vec<&str> = out.labels.iter().map(String::as_str).collect();

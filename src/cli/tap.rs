@@ -126,6 +126,18 @@ impl Item {
 }
 
 /// The refusal of `--format csv` on a stats service (checked at start, and by the printer).
+/// ` accel [x y z] units` for a text line, or nothing when the sample has no accelerometer.
+fn accel_text(accel: Option<[f64; 3]>, units: &str) -> String {
+    accel.map_or(String::new(), |a| {
+        format!(" accel [{:+.6} {:+.6} {:+.6}] {units}", a[0], a[1], a[2])
+    })
+}
+
+/// Three CSV cells: the values, or empty where the sample has no accelerometer (never 0).
+fn accel_cells(v: Option<[f64; 3]>) -> String {
+    v.map_or(",,".to_string(), |v| v.map(|x| x.to_string()).join(","))
+}
+
 fn no_csv_for_stats(service: &str) -> CliError {
     CliError::input(format!(
         "{service} carries statistics snapshots, which have no CSV form: use --format text or json"
@@ -185,14 +197,20 @@ impl Printer {
             Item::Gyro(_) => {
                 let u = self.units.suffix();
                 format!(
-                    "epoch,seq,t_s,{},{},{},flags,flag_names,{}",
+                    "epoch,seq,t_s,{},{},{},flags,flag_names,{},{},{},sensors",
                     axes("rate", u),
                     axes("drift", u),
                     axes("denoised", u),
-                    axes("drift_std", u)
+                    axes("drift_std", u),
+                    axes("accel", "ms2"),
+                    axes("accel_std", "ms2"),
                 )
             }
-            Item::Raw(_) => format!("epoch,seq,t_s,{},flags,flag_names", axes("rate", "input")),
+            Item::Raw(_) => format!(
+                "epoch,seq,t_s,{},flags,flag_names,{}",
+                axes("rate", "input"),
+                axes("accel", "input")
+            ),
             Item::Stats(_) => return None,
         })
     }
@@ -220,23 +238,25 @@ impl Printer {
                 let sd = self.std_text(s.drift_std);
                 format!(
                     "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] drift [{:+.6} {:+.6} {:+.6}] \
-                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {} flags {}",
+                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {}{} flags {}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
                     r[0], r[1], r[2], d[0], d[1], d[2], sd[0], sd[1], sd[2], n[0], n[1], n[2],
                     self.units.name(),
+                    accel_text((s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel), "m/s²"),
                     joined(&transport::flag_names(s.flags), ",")
                 )
             }
             (Format::Text, Item::Raw(s)) => format!(
-                "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] (input units) flags {}",
+                "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] (input units){} flags {}",
                 s.epoch,
                 s.seq,
                 s.t_ns as f64 * 1e-9,
                 s.rate[0],
                 s.rate[1],
                 s.rate[2],
+                accel_text(s.accel_reading(), "(input units)"),
                 joined(&transport::raw_flag_names(s.flags), ",")
             ),
             (Format::Text, Item::Stats(s)) => crate::metrics::format_snapshot(&self.service, s),
@@ -249,19 +269,23 @@ impl Printer {
                     .collect();
                 // Not provided stays -1 in every unit (a sentinel, not a rate).
                 let sd = self.std_values(s.drift_std).map(|v| v.to_string());
+                let accel = s.sensors & transport::SENSOR_ACCEL != 0;
                 format!(
-                    "{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
                     cells.join(","),
                     s.flags,
                     joined(&transport::flag_names(s.flags), "|"),
-                    sd.join(",")
+                    sd.join(","),
+                    accel_cells(accel.then_some(s.accel)),
+                    accel_cells(accel.then_some(s.accel_std)),
+                    joined(&transport::sensor_names(s.sensors), "|")
                 )
             }
             (Format::Csv, Item::Raw(s)) => format!(
-                "{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{}",
                 s.epoch,
                 s.seq,
                 s.t_ns as f64 * 1e-9,
@@ -269,7 +293,8 @@ impl Printer {
                 s.rate[1],
                 s.rate[2],
                 s.flags,
-                joined(&transport::raw_flag_names(s.flags), "|")
+                joined(&transport::raw_flag_names(s.flags), "|"),
+                accel_cells(s.accel_reading())
             ),
             (Format::Csv, Item::Stats(_)) => return Err(no_csv_for_stats(&self.service)),
             (Format::Json, Item::Gyro(s)) => serde_json::json!({
@@ -284,6 +309,9 @@ impl Printer {
                 "drift_std": self.std_values(s.drift_std),
                 "flags": s.flags,
                 "flag_names": transport::flag_names(s.flags),
+                "accel": (s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel),
+                "accel_std": (s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel_std),
+                "sensors": transport::sensor_names(s.sensors),
             })
             .to_string(),
             (Format::Json, Item::Raw(s)) => serde_json::json!({
@@ -294,6 +322,7 @@ impl Printer {
                 "rate": s.rate,
                 "flags": s.flags,
                 "flag_names": transport::raw_flag_names(s.flags),
+                "accel": s.accel_reading(),
             })
             .to_string(),
             (Format::Json, Item::Stats(s)) => {
@@ -561,14 +590,31 @@ mod tests {
             rad.header(&item).unwrap(),
             "epoch,seq,t_s,rate_x_rads,rate_y_rads,rate_z_rads,drift_x_rads,drift_y_rads,\
              drift_z_rads,denoised_x_rads,denoised_y_rads,denoised_z_rads,flags,flag_names,\
-             drift_std_x_rads,drift_std_y_rads,drift_std_z_rads"
+             drift_std_x_rads,drift_std_y_rads,drift_std_z_rads,accel_x_ms2,accel_y_ms2,\
+             accel_z_ms2,accel_std_x_ms2,accel_std_y_ms2,accel_std_z_ms2,sensors"
         );
+        // No accelerometer: empty cells, never zeros.
         assert_eq!(
             rad.line(&item).unwrap(),
             format!(
-                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still,0.25,-1,0",
+                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still,0.25,-1,0,,,,,,,-",
                 std::f64::consts::PI
             )
+        );
+        assert_eq!(json["accel"], serde_json::Value::Null);
+        let with = Item::Gyro(GyroSample {
+            accel: [0.5, -0.25, 9.75],
+            sensors: crate::transport::SENSOR_ACCEL,
+            ..s
+        });
+        assert!(rad
+            .line(&with)
+            .unwrap()
+            .ends_with(",0.5,-0.25,9.75,-1,-1,-1,accel"));
+        let text = printer(Format::Text, RateUnits::DegS).line(&with).unwrap();
+        assert!(
+            text.contains("accel [+0.500000 -0.250000 +9.750000] m/s² flags still"),
+            "{text}"
         );
         let text = printer(Format::Text, RateUnits::DegS).line(&item).unwrap();
         assert!(

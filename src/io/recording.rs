@@ -23,7 +23,10 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::transport::{GyroSample, Percentiles, RawSample, StatsSnapshot, DRIFT_STD_NOT_PROVIDED};
+use crate::transport::{
+    GyroSample, Percentiles, RawSample, StatsSnapshot, DRIFT_STD_NOT_PROVIDED, RAW_ACCEL, RAW_MAG,
+    SENSOR_ACCEL, SENSOR_MAG,
+};
 
 use super::mcap_file::{limited_reader, map_mcap, McapOpenError};
 
@@ -102,6 +105,13 @@ pub struct RawMessage {
     pub rate: Xyz,
     /// Raw flags (bit 0: invalid).
     pub flags: u32,
+    /// The accelerometer in the pipeline's `accel_units`; present exactly when `flags` has
+    /// `RAW_ACCEL` (absent in gyro-only samples and in recordings of `RawSample` v1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel: Option<Xyz>,
+    /// The magnetometer, tesla; present exactly when `flags` has `RAW_MAG`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mag_t: Option<Xyz>,
 }
 
 impl From<&RawSample> for RawMessage {
@@ -113,6 +123,8 @@ impl From<&RawSample> for RawMessage {
             t_s: s.t_ns as f64 * 1e-9,
             rate: s.rate.into(),
             flags: s.flags,
+            accel: s.accel_reading().map(Into::into),
+            mag_t: s.mag_reading().map(Into::into),
         }
     }
 }
@@ -123,8 +135,13 @@ impl From<&RawMessage> for RawSample {
             t_ns: m.t_ns,
             seq: m.seq,
             rate: m.rate.into(),
-            flags: m.flags,
+            // The readings say what is present, whatever the flags claimed.
+            flags: (m.flags & !(RAW_ACCEL | RAW_MAG))
+                | m.accel.map_or(0, |_| RAW_ACCEL)
+                | m.mag_t.map_or(0, |_| RAW_MAG),
             epoch: m.epoch,
+            accel: m.accel.map_or([0.0; 3], Into::into),
+            mag: m.mag_t.map_or([0.0; 3], Into::into),
         }
     }
 }
@@ -155,6 +172,24 @@ pub struct GyroMessage {
     /// before `GyroSample` carried it (read as `None`, and as "not provided" on the wire).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drift_std_rad_s: Option<Xyz>,
+    /// The accelerometer, m/s²; present exactly when `sensors` has `SENSOR_ACCEL` (absent in
+    /// gyro-only streams and in recordings before `GyroSample` v3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_m_s2: Option<Xyz>,
+    /// 1-sigma white noise of one accelerometer sample, m/s² (-1: not provided); with
+    /// `accel_m_s2`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_std_m_s2: Option<Xyz>,
+    /// The magnetometer, tesla; present exactly when `sensors` has `SENSOR_MAG`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mag_t: Option<Xyz>,
+    /// The sensors word (`SENSOR_*`): which readings are present, which were held.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub sensors: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 impl From<&GyroSample> for GyroMessage {
@@ -170,6 +205,10 @@ impl From<&GyroSample> for GyroMessage {
             denoised_rad_s: s.denoised.into(),
             flags: s.flags,
             drift_std_rad_s: Some(s.drift_std.into()),
+            accel_m_s2: (s.sensors & SENSOR_ACCEL != 0).then(|| s.accel.into()),
+            accel_std_m_s2: (s.sensors & SENSOR_ACCEL != 0).then(|| s.accel_std.into()),
+            mag_t: (s.sensors & SENSOR_MAG != 0).then(|| s.mag.into()),
+            sensors: s.sensors,
         }
     }
 }
@@ -188,6 +227,16 @@ impl From<&GyroMessage> for GyroSample {
             drift_std: m
                 .drift_std_rad_s
                 .map_or([DRIFT_STD_NOT_PROVIDED; 3], Into::into),
+            accel: m.accel_m_s2.map_or([0.0; 3], Into::into),
+            accel_std: m
+                .accel_std_m_s2
+                .map_or([DRIFT_STD_NOT_PROVIDED; 3], Into::into),
+            mag: m.mag_t.map_or([0.0; 3], Into::into),
+            // The readings say what is present, whatever the word claimed.
+            sensors: (m.sensors & !(SENSOR_ACCEL | SENSOR_MAG))
+                | m.accel_m_s2.map_or(0, |_| SENSOR_ACCEL)
+                | m.mag_t.map_or(0, |_| SENSOR_MAG),
+            reserved: 0,
         }
     }
 }
@@ -343,14 +392,14 @@ const XYZ_DEF: &str = r#"{"type":"object","properties":{"x":{"type":["number","n
 /// The JSON Schema of raw-sample channels.
 pub fn raw_schema() -> String {
     format!(
-        r#"{{"title":"{RAW_SCHEMA}","description":"A raw gyro sample as the ingest published it; rate in the pipeline's input_units (channel metadata rate_units); null = not finite","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, +1 per sample within an epoch"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"rate":{XYZ_DEF},"flags":{{"type":"integer","description":"bit 0: invalid"}}}},"required":["seq","epoch","t_ns","t_s","rate","flags"]}}"#
+        r#"{{"title":"{RAW_SCHEMA}","description":"A raw IMU sample as the ingest published it; rate in the pipeline's input_units (channel metadata rate_units); null = not finite","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, +1 per sample within an epoch"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"rate":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 invalid, 0x2 vehicle stopped, 0x4 vehicle moving, 0x8 stamp fault, 0x10 accel present, 0x20 mag present"}},"accel":{{"description":"the accelerometer in the pipeline's accel_units; absent: no accelerometer","allOf":[{XYZ_DEF}]}},"mag_t":{{"description":"the magnetometer, tesla; absent: none","allOf":[{XYZ_DEF}]}}}},"required":["seq","epoch","t_ns","t_s","rate","flags"]}}"#
     )
 }
 
 /// The JSON Schema of processed-sample channels.
 pub fn gyro_schema() -> String {
     format!(
-        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed gyro sample (denoised, drift, corrected), rates in rad/s","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted"}},"drift_std_rad_s":{{"description":"1-sigma of the drift estimate per axis, rad/s; -1: not provided (absent in recordings of GyroSample v1)","allOf":[{XYZ_DEF}]}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
+        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed IMU sample (denoised, drift, corrected rates in rad/s; the accelerometer beside them in m/s²)","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted, 0x200 vehicle stopped, 0x400 vehicle moving, 0x800 stamp fault"}},"drift_std_rad_s":{{"description":"1-sigma of the drift estimate per axis, rad/s; -1: not provided (absent in recordings of GyroSample v1)","allOf":[{XYZ_DEF}]}},"accel_m_s2":{{"description":"the accelerometer, m/s²; absent: no accelerometer","allOf":[{XYZ_DEF}]}},"accel_std_m_s2":{{"description":"1-sigma white noise of one accelerometer sample, m/s²; -1: not provided","allOf":[{XYZ_DEF}]}},"mag_t":{{"description":"the magnetometer, tesla; absent: none","allOf":[{XYZ_DEF}]}},"sensors":{{"type":"integer","description":"0x1 accel present, 0x2 mag present, 0x4 accel held (input not finite), 0x8 mag held; absent: 0"}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
     )
 }
 
@@ -607,8 +656,10 @@ mod tests {
             t_ns: u64::MAX - 3,
             seq: 1 << 60,
             rate: [0.1 + 0.2, -0.0, f64::MIN_POSITIVE / 3.0],
-            flags: 1,
+            flags: 1 | RAW_ACCEL,
             epoch: u32::MAX,
+            accel: [0.1 + 0.7, -9.80665, 1e-310],
+            mag: [0.0; 3],
         };
         let text = serde_json::to_string(&RawMessage::from(&raw)).unwrap();
         let back: RawMessage = serde_json::from_str(&text).unwrap();
@@ -618,6 +669,9 @@ mod tests {
         for (a, b) in back.rate.iter().zip(&raw.rate) {
             assert_eq!(a.to_bits(), b.to_bits(), "{text}");
         }
+        assert_eq!(back.flags, raw.flags);
+        assert_eq!(back.accel.map(f64::to_bits), raw.accel.map(f64::to_bits));
+        assert_eq!(back.mag_reading(), None);
         let g = GyroSample {
             t_ns: 5,
             seq: 6,
@@ -628,11 +682,17 @@ mod tests {
             flags: 0x41,
             epoch: 9,
             drift_std: [2.5e-5, DRIFT_STD_NOT_PROVIDED, 1.0 / 9.0],
+            accel: [0.3, -0.1, 9.81],
+            accel_std: [1e-3, 2e-3, DRIFT_STD_NOT_PROVIDED],
+            mag: [2e-5, 0.0, -4e-5],
+            sensors: SENSOR_ACCEL | SENSOR_MAG,
+            reserved: 0,
         };
         let text = serde_json::to_string(&GyroMessage::from(&g)).unwrap();
         let back: GyroMessage = serde_json::from_str(&text).unwrap();
         assert_eq!(GyroSample::from(&back), g);
-        // A recording made before the field: read, the uncertainty not provided.
+        // A recording made before the field (and before the accelerometer): read, the
+        // uncertainty not provided, gyro-only.
         let old = text
             .split(r#","drift_std_rad_s""#)
             .next()
@@ -646,6 +706,10 @@ mod tests {
             GyroSample::from(&back),
             GyroSample {
                 drift_std: [DRIFT_STD_NOT_PROVIDED; 3],
+                accel: [0.0; 3],
+                accel_std: [DRIFT_STD_NOT_PROVIDED; 3],
+                mag: [0.0; 3],
+                sensors: 0,
                 ..g
             }
         );

@@ -216,6 +216,8 @@ pub struct Counters {
     pub missing: AtomicU64,
     /// Stamps not believed ([`crate::clock::StampCheck`]).
     pub stamp_faults: AtomicU64,
+    /// Samples whose accelerometer or magnetometer reading was not finite (held, flagged).
+    pub sensors_invalid: AtomicU64,
     /// Outputs repaired by the publish guard.
     pub repaired: AtomicU64,
     /// The stream's first epoch (set once before the segments start).
@@ -471,6 +473,7 @@ impl Reporter {
             gaps: get(&c.gaps),
             missing: get(&c.missing),
             stamp_faults: get(&c.stamp_faults),
+            sensors_invalid: get(&c.sensors_invalid),
             repaired_outputs: get(&c.repaired),
         }
     }
@@ -498,7 +501,7 @@ impl Reporter {
             rate_hz,
             deadline_misses: get(&c.deadline_misses),
             lost: self.lost_total(),
-            flagged: f.invalid + f.gaps + f.stamp_faults + f.repaired_outputs,
+            flagged: f.invalid + f.gaps + f.stamp_faults + f.sensors_invalid + f.repaired_outputs,
             gap_samples: f.missing,
             metric_drops: get(&c.metric_drops),
             deadline_ns: self.layout.deadline.as_nanos() as u64,

@@ -81,6 +81,9 @@ pub struct Flagged {
     /// Stamps not believed: back, a leap over 10 s, or unset ([`crate::clock::StampCheck`]);
     /// never counted as lost.
     pub stamp_faults: u64,
+    /// Samples whose accelerometer or magnetometer reading was not finite (the last good one
+    /// held and flagged; the rate may be good).
+    pub sensors_invalid: u64,
     /// Outputs with a non-finite value replaced by 0.
     pub repaired_outputs: u64,
 }
@@ -295,8 +298,8 @@ impl Report {
         }
         let f = &self.flagged;
         s.push_str(&format!(
-            "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} stamp faults (not lost), {} repaired; metric drops {}\n",
-            f.invalid, f.gaps, f.missing, f.stamp_faults, f.repaired_outputs, self.metric_drops
+            "flagged: {} invalid, {} gaps ({} missing from the source, counted as lost), {} stamp faults (not lost), {} accelerometer or magnetometer readings held, {} repaired; metric drops {}\n",
+            f.invalid, f.gaps, f.missing, f.stamp_faults, f.sensors_invalid, f.repaired_outputs, self.metric_drops
         ));
         s.push_str(&self.outputs_line());
         s.push_str(&self.misses_lines());

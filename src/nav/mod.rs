@@ -8,6 +8,8 @@
 //! - [`baselines`]: causal per-sample bias estimators behind [`baselines::BiasEstimator`]: raw,
 //!   power-on bias, ZARU with oracle or detected stops, and the new estimator
 //!   ([`crate::drift::bias::BiasTracker`]).
+//! - [`force`]: the accelerometer's side of a profile: the vehicle's body acceleration at each
+//!   sample (longitudinal at starts and stops, centripetal in turns) from its stated speed.
 //! - [`fusion`]: x-io Fusion's gyroscope bias algorithm, three axes at once, as deployed.
 //! - [`eval`]: every method on one window, and summaries against a reference (oracle ZARU).
 //!
@@ -16,6 +18,7 @@
 
 pub mod baselines;
 pub mod eval;
+pub mod force;
 pub mod fusion;
 pub mod metrics;
 pub mod profiles;
@@ -25,6 +28,7 @@ pub use eval::{
     evaluate, format_table, format_table_labelled, summarize_methods, EvalError, Method,
     MethodSummary, Setup,
 };
+pub use force::body_acceleration;
 pub use metrics::{
     heading_error, heading_metrics, summarize, HeadingAccumulator, HeadingMetrics, Summary,
 };

@@ -6,7 +6,9 @@
 //! Moving segments start and end with raised-cosine ramps (0.5 s, or half the segment if
 //! shorter), as real motion does: a detector sees a slow onset late, which is what the delay
 //! window of [`crate::drift::bias`] is for. The still mask is true exactly on the still segments.
-//! The same profile is used for every axis; vary the seed per axis and window.
+//! The same profile is used for every axis; vary the seed per axis and window. Each profile
+//! also states the vehicle's speed ([`Profile::speed`]), from which [`crate::nav::force`] gives
+//! the accelerometer its physically consistent force.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -5,7 +5,7 @@ use super::{Chain, NavEvalError, Source};
 use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
 use crate::io::truth::Truth;
 use crate::nav::{
-    evaluate, fusion, generate, heading_error, summarize_methods, BiasEstimator,
+    body_acceleration, evaluate, fusion, generate, heading_error, summarize_methods, BiasEstimator,
     HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile, Setup, Zaru,
 };
 use crate::pipeline::offline::Offline;
@@ -68,6 +68,16 @@ impl Motion {
                 .collect::<Result<_, _>>()
                 .map_err(|e| NavEvalError::Internal(e.to_string())),
             Motion::Truth { traces, .. } => Ok(traces.clone()),
+        }
+    }
+
+    /// The body acceleration (m/s², gravity not included) of `trace`: a profile's vehicle
+    /// moving at its stated speed ([`crate::nav::force`]); a truth file's motion turns in place
+    /// (no translation), so none.
+    fn body_acceleration(&self, trace: &MotionTrace) -> Vec<[f64; 3]> {
+        match self {
+            Motion::Profile(p) => body_acceleration(trace, p.speed()),
+            Motion::Truth { .. } => vec![[0.0; 3]; trace.truth.len()],
         }
     }
 }
@@ -179,6 +189,7 @@ impl Bench {
             for w in 0..windows {
                 let motion_traces = motion.traces(src.rate, self.window_s(), w, src.axes.len())?;
                 let measured = self.measured(w, &motion_traces);
+                let accel = self.accel(w, motion, &motion_traces);
                 // Each axis alone, the others still: nav-eval gives every axis its own motion,
                 // so a case is one axis of a vehicle whose stops are that axis's (Fusion waits
                 // for all three axes to be still; other axes' unrelated motion would only
@@ -187,7 +198,7 @@ impl Bench {
                     .iter()
                     .map(|y| fusion::correct(&[y], src.rate).remove(0))
                     .collect();
-                let chain_out = self.run_chains(&measured, &motion_traces)?;
+                let chain_out = self.run_chains(&measured, &motion_traces, accel.as_deref())?;
                 for (a, m) in motion_traces.iter().enumerate() {
                     let setup = self.setup(a)?;
                     let mut metrics = evaluate(&measured[a], &m.truth, &m.still, &setup, &methods)
@@ -236,24 +247,55 @@ impl Bench {
             .collect()
     }
 
+    /// Window `w`'s specific force for each axis's case, when the source has an accelerometer:
+    /// the source's static force (time-aligned with the rates) plus that axis's motion's body
+    /// acceleration. Each case is a vehicle whose yaw axis is that gyro axis.
+    fn accel(
+        &self,
+        w: usize,
+        motion: &Motion,
+        traces: &[MotionTrace],
+    ) -> Option<Vec<Vec<[f64; 3]>>> {
+        let start = self.window_start(w);
+        let still = &self.source.accel.as_ref()?[start..start + self.window];
+        Some(
+            traces
+                .iter()
+                .map(|m| {
+                    still
+                        .iter()
+                        .zip(motion.body_acceleration(m))
+                        .map(|(s, a)| std::array::from_fn(|i| s[i] + a[i]))
+                        .collect()
+                })
+                .collect(),
+        )
+    }
+
     /// Each chain's output, per axis: per-axis pipelines one axis at a time, a file's all axes
-    /// at once. A chain reading a stop signal gets each axis's true stops, so it runs each axis
-    /// alone (the axes' motions, and so their stops, differ).
+    /// at once. A chain reading a stop signal gets each axis's true stops, and a chain fed the
+    /// accelerometer each axis's specific force, so it runs each axis alone (the axes'
+    /// motions, and so their stops and forces, differ).
     fn run_chains(
         &self,
         measured: &[Vec<f64>],
         motion: &[MotionTrace],
+        accel: Option<&[Vec<[f64; 3]>]>,
     ) -> Result<Vec<Vec<Vec<f64>>>, NavEvalError> {
         let mut chain_out: Vec<Vec<Vec<f64>>> = Vec::with_capacity(self.chains.len());
         for c in &self.chains {
             let reads_stops = c.reads_stops();
-            if c.pipelines.len() > 1 || reads_stops {
+            let fed = accel.filter(|_| c.accel);
+            if c.pipelines.len() > 1 || reads_stops || fed.is_some() {
                 let mut per_axis = Vec::with_capacity(measured.len());
                 for (a, y) in measured.iter().enumerate() {
                     let p = &c.pipelines[a.min(c.pipelines.len() - 1)];
                     let stops = reads_stops.then_some(motion[a].still.as_slice());
-                    per_axis
-                        .extend(Offline::run_series(p, &[y], stops).map_err(NavEvalError::Input)?);
+                    let force = fed.map(|f| f[a].as_slice());
+                    per_axis.extend(
+                        Offline::run_imu_series(p, &[y], force, stops)
+                            .map_err(NavEvalError::Input)?,
+                    );
                 }
                 chain_out.push(per_axis);
             } else {

@@ -19,6 +19,9 @@ pub struct Chain {
     pub label: String,
     /// One per axis (each run alone), or one for all axes (a user's file, run lane by lane).
     pub pipelines: Vec<Pipeline>,
+    /// Whether its samples carry the accelerometer, when the source has one. Then each axis
+    /// runs alone, with its own motion's specific force.
+    pub accel: bool,
 }
 
 impl Chain {
@@ -35,6 +38,17 @@ impl Chain {
         Ok(Chain {
             label: "denoise.wavelet -> predict.bias (stages)".into(),
             pipelines,
+            accel: false,
+        })
+    }
+
+    /// The product's chain ([`Chain::bias`]) on samples that carry the accelerometer: what
+    /// the daemon runs when the sensor gives both.
+    pub fn bias_imu(rate: f64, terms: &[BiasTerms]) -> Result<Chain, NavEvalError> {
+        Ok(Chain {
+            label: "denoise.wavelet -> predict.bias (stages, gyro+accel)".into(),
+            accel: true,
+            ..Chain::bias(rate, terms)?
         })
     }
 
@@ -60,6 +74,7 @@ impl Chain {
         Ok(Chain {
             label: "denoise.none -> predict.bias (stages; stop signal: the true stops)".into(),
             pipelines,
+            accel: false,
         })
     }
 
@@ -97,11 +112,13 @@ impl Chain {
                 PredictorKind::Ar => "denoise.wavelet -> predict.rbf, predictor ar (stages)".into(),
             },
             pipelines,
+            accel: false,
         })
     }
 
     /// A pipeline file's stages after its ingest, all axes at once: its rate must be `rate`,
-    /// and it must run offline (no `external` stage).
+    /// and it must run offline (no `external` stage). Its samples carry the accelerometer when
+    /// the source has one, as the daemon's would.
     pub fn file(path: &Path, rate: f64) -> Result<Chain, NavEvalError> {
         let p = config::load(path)?;
         if (p.rate_hz - rate).abs() > 1e-9 * rate {
@@ -141,6 +158,7 @@ impl Chain {
                 }
             ),
             pipelines: vec![p],
+            accel: true,
         })
     }
 

@@ -1,10 +1,13 @@
 //! The static noise the motion is added to: a log's rates after the part the Allan fit
-//! characterises, or the simulator's noise; and the noise terms the estimators are given.
+//! characterises, or the simulator's noise; and the noise terms the estimators are given. With
+//! an accelerometer, its static specific force too (the log's own, gravity, noise and bias
+//! included, or the simulated sensor's), time-aligned with the rates.
 
 use super::NavEvalError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
 use crate::drift::bias::{own_terms, BiasTerms, ColumnFit};
 use crate::io::rate_log::RateLog;
+use crate::sim::force::{specific_force, AccelTerms, Accelerometer, Attitude};
 use crate::sim::{SimConfig, SimError, Simulator};
 
 /// The static noise: one series per axis, deg/s, and where the windows may start.
@@ -22,6 +25,10 @@ pub struct Source {
     /// The simulator's configuration when simulated: its true noise model gives the floor
     /// method ([`crate::nav::Method::Floor`]).
     pub floor: Option<SimConfig>,
+    /// The accelerometer's static specific force at each sample (m/s²; the sensor at rest, so
+    /// gravity with the accelerometer's noise and bias), when the source has one. The motion's
+    /// own force is added per case ([`crate::nav::force`]).
+    pub accel: Option<Vec<[f64; 3]>>,
 }
 
 impl Source {
@@ -56,11 +63,28 @@ impl Source {
             axes: table.names.into_iter().zip(table.columns).collect(),
             first_window: characterise,
             floor: None,
+            accel: None,
         })
     }
 
+    /// The same source with the accelerometer's static specific force, m/s², one per sample
+    /// (refused unless there is one for every sample of the rates).
+    pub fn with_accel(mut self, accel: Vec<[f64; 3]>) -> Result<Source, NavEvalError> {
+        let rows = self.axes.first().map_or(0, |(_, y)| y.len());
+        if accel.len() != rows {
+            return Err(NavEvalError::Input(format!(
+                "{}: {} accelerometer samples for {rows} rate samples",
+                self.name,
+                accel.len()
+            )));
+        }
+        self.accel = Some(accel);
+        Ok(self)
+    }
+
     /// `samples` samples per axis of the simulator's noise for `cfg` (at its rate, with its
-    /// axes), named after `sensor`.
+    /// axes), named after `sensor`; with the sensor's accelerometer, if it has one
+    /// ([`AccelTerms::profile`]), at rest and level (its streams of the same seed).
     pub fn simulated(sensor: &str, cfg: &SimConfig, samples: usize) -> Result<Source, SimError> {
         let mut axes: Vec<(String, Vec<f64>)> = (0..cfg.axes)
             .map(|a| (format!("sim axis {a}"), Vec::with_capacity(samples)))
@@ -72,12 +96,21 @@ impl Source {
                 y.push(s.measured[a]);
             }
         }
+        let accel = match AccelTerms::profile(sensor)? {
+            Some(terms) => {
+                let mut acc = Accelerometer::new(&terms, cfg.rate_hz, cfg.seed)?;
+                let rest = specific_force(&Attitude::LEVEL, [0.0; 3]);
+                Some((0..samples).map(|_| acc.measure(rest)).collect())
+            }
+            None => None,
+        };
         Ok(Source {
             name: format!("simulated {sensor}"),
             rate: cfg.rate_hz,
             axes,
             first_window: 0,
             floor: Some(cfg.clone()),
+            accel,
         })
     }
 

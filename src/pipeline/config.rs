@@ -7,6 +7,7 @@
 //!                            # ingest's pace: a tenth of it at pace = 10.0)
 //! axes = 3                   # 1..=3
 //! input_units = "deg/s"      # "deg/s" or "rad/s"; published rates are always rad/s
+//! accel_units = "m/s^2"      # "m/s^2" or "g"; published accelerometer readings are m/s²
 //! report_interval_s = 2.0    # stderr summary and stats service period
 //! realtime_priority = 50     # optional: SCHED_FIFO priority of the hot thread (1..=99)
 //! cpu = 1                    # optional: pin the hot thread to this CPU
@@ -47,7 +48,7 @@ use crate::sides::{Chain, SideSpec, SIDES};
 use crate::stages::contract::Role;
 pub use crate::stages::contract::StageSpec;
 use crate::stages::schema::{sort_entries, DefaultValue, Entries, Key, Src, Table, Type};
-pub use crate::stages::schema::{Context, Units};
+pub use crate::stages::schema::{AccelUnits, Context, Units};
 
 /// The iceoryx2 settings of a pipeline.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,6 +91,8 @@ pub struct Pipeline {
     pub axes: usize,
     /// Units of the raw input.
     pub input_units: Units,
+    /// Units of the raw accelerometer readings.
+    pub accel_units: AccelUnits,
     /// Period of the stderr summary and stats snapshot.
     pub report_interval: Duration,
     /// SCHED_FIFO priority of the hot thread (None: the default scheduler).
@@ -116,6 +119,7 @@ impl Pipeline {
             rate_hz: self.rate_hz,
             axes: self.axes,
             units: self.input_units,
+            accel_units: self.accel_units,
         }
     }
 }
@@ -154,6 +158,13 @@ const INPUT_UNITS: Key = Key {
     default: DefaultValue::Word("deg/s"),
     doc: "units of the raw rates; published rates are rad/s",
 };
+const ACCEL_UNITS: Key = Key {
+    name: "accel_units",
+    ty: Type::Choice(&["m/s^2", "g"]),
+    default: DefaultValue::Word("m/s^2"),
+    doc: "units of the raw accelerometer readings (`g`: 9.80665 m/s²); published readings are \
+          m/s²",
+};
 const REPORT_INTERVAL_S: Key = Key {
     name: "report_interval_s",
     ty: Type::FloatIn(0.01, 3600.0),
@@ -187,6 +198,7 @@ pub const PIPELINE_KEYS: &[Key] = &[
     DEADLINE_US,
     AXES,
     INPUT_UNITS,
+    ACCEL_UNITS,
     REPORT_INTERVAL_S,
     REALTIME_PRIORITY,
     CPU,
@@ -325,6 +337,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         rate_hz: f64::NAN,
         axes: 0,
         units: Units::DegPerSec,
+        accel_units: AccelUnits::MPerS2,
     };
     let top = split(&src, top, &valid)?;
     let mut t = Table::new(
@@ -358,6 +371,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     {
         "rad/s" => Units::RadPerSec,
         _ => Units::DegPerSec,
+    };
+    let accel_units = match t
+        .choice_or_default(&ACCEL_UNITS, "accel_units", true)?
+        .as_str()
+    {
+        "g" => AccelUnits::G,
+        _ => AccelUnits::MPerS2,
     };
     let report_interval = Duration::from_secs_f64(t.float_or_default(&REPORT_INTERVAL_S)?);
     let realtime_priority = t.int(&REALTIME_PRIORITY)?.map(|p| p as i32);
@@ -407,6 +427,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         rate_hz,
         axes,
         units: input_units,
+        accel_units,
     };
     let mut entries = Vec::new();
     for value in array {
@@ -460,6 +481,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         deadline,
         axes,
         input_units,
+        accel_units,
         report_interval,
         realtime_priority,
         cpu,
@@ -822,7 +844,7 @@ mod tests {
                 .collect()
         };
         let (top, iox) = (written(PIPELINE_KEYS), written(ICEORYX2_KEYS));
-        assert_eq!(top.lines().count(), 4, "{top}");
+        assert_eq!(top.lines().count(), 5, "{top}");
         assert_eq!(iox.lines().count(), 3, "{iox}");
         let chain = format!("{INGEST}{DENOISE}{PUBLISH}");
         let bare = parse_str(&format!("{HEAD}{chain}")).unwrap();

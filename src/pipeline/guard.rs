@@ -8,11 +8,12 @@
 //! epoch, and that sample is flagged and counted as a gap: subscribers count on the rise.
 
 use crate::clock::{StampCheck, StampFault};
-use crate::pipeline::config::Units;
+use crate::pipeline::config::{AccelUnits, Units};
 use crate::transport::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
     FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
-    RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+    RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
+    SENSOR_MAG, SENSOR_MAG_INVALID,
 };
 
 /// Counts of what the guard flagged.
@@ -28,12 +29,41 @@ pub struct GuardCounts {
     pub stamp_faults: u64,
     /// New epochs: source restarts, and sequence numbers that repeated or stepped back.
     pub restarts: u64,
+    /// Samples whose accelerometer or magnetometer reading was not finite (the last good one
+    /// held, [`SENSOR_ACCEL_INVALID`], [`SENSOR_MAG_INVALID`]); the rate may still be good.
+    pub sensors_invalid: u64,
+}
+
+/// One sensor beside the gyro: its units' scale and its last good reading, held in place of
+/// one that is not finite, as the rate's is.
+#[derive(Debug, Clone, Copy)]
+struct Beside {
+    scale: f64,
+    last_good: [f64; 3],
+    present: u32,
+    invalid: u32,
+}
+
+impl Beside {
+    /// `reading` (if any) in the published units, and its `sensors` bits.
+    fn admit(&mut self, reading: Option<[f64; 3]>) -> ([f64; 3], u32) {
+        match reading {
+            None => ([0.0; 3], 0),
+            Some(v) if v.iter().all(|x| x.is_finite()) => {
+                self.last_good = v.map(|x| x * self.scale);
+                (self.last_good, self.present)
+            }
+            Some(_) => (self.last_good, self.present | self.invalid),
+        }
+    }
 }
 
 /// Turns raw samples into [`GyroSample`]s in rad/s.
 #[derive(Debug, Clone)]
 pub struct Guard {
     scale: f64,
+    accel: Beside,
+    mag: Beside,
     axes: usize,
     last_good: [f64; 3],
     last_seq: Option<u64>,
@@ -47,10 +77,23 @@ pub struct Guard {
 }
 
 impl Guard {
-    /// A guard for `axes` axes in `units`, whose stream starts at `epoch` (0 is taken as 1).
-    pub fn new(units: Units, axes: usize, epoch: u32) -> Self {
+    /// A guard for `axes` axes in `units` (the accelerometer in `accel_units`), whose stream
+    /// starts at `epoch` (0 is taken as 1).
+    pub fn new(units: Units, accel_units: AccelUnits, axes: usize, epoch: u32) -> Self {
         Guard {
             scale: units.to_rad_per_sec(),
+            accel: Beside {
+                scale: accel_units.to_m_per_s2(),
+                last_good: [0.0; 3],
+                present: SENSOR_ACCEL,
+                invalid: SENSOR_ACCEL_INVALID,
+            },
+            mag: Beside {
+                scale: 1.0,
+                last_good: [0.0; 3],
+                present: SENSOR_MAG,
+                invalid: SENSOR_MAG_INVALID,
+            },
             axes: axes.clamp(1, 3),
             last_good: [0.0; 3],
             last_seq: None,
@@ -149,6 +192,12 @@ impl Guard {
         } else if raw.flags & RAW_VEHICLE_MOVING != 0 {
             flags |= FLAG_VEHICLE_MOVING;
         }
+        let (accel, accel_bits) = self.accel.admit(raw.accel_reading());
+        let (mag, mag_bits) = self.mag.admit(raw.mag_reading());
+        let sensors = accel_bits | mag_bits;
+        if sensors & (SENSOR_ACCEL_INVALID | SENSOR_MAG_INVALID) != 0 {
+            self.counts.sensors_invalid += 1;
+        }
         GyroSample {
             t_ns: raw.t_ns,
             seq: raw.seq,
@@ -158,8 +207,13 @@ impl Guard {
             denoised: rate,
             flags,
             epoch: raw.epoch,
-            // Nothing estimated the drift yet.
+            // Nothing estimated the drift yet, nor knows the accelerometer's noise.
             drift_std: [DRIFT_STD_NOT_PROVIDED; 3],
+            accel,
+            accel_std: [DRIFT_STD_NOT_PROVIDED; 3],
+            mag,
+            sensors,
+            reserved: 0,
         }
     }
 }
@@ -173,14 +227,13 @@ mod tests {
             t_ns,
             seq,
             rate: [x, 1.0, 2.0],
-            flags: 0,
-            epoch: 0,
+            ..RawSample::default()
         }
     }
 
     #[test]
     fn flags_and_counts_bad_samples() {
-        let mut g = Guard::new(Units::RadPerSec, 3, 7);
+        let mut g = Guard::new(Units::RadPerSec, AccelUnits::MPerS2, 3, 7);
         assert_eq!(g.admit(&raw(0, 10, 1.0), 0).flags, 0);
         let s = g.admit(&raw(1, 20, f64::NAN), 0);
         assert_eq!(s.flags, FLAG_INPUT_INVALID);
@@ -200,6 +253,7 @@ mod tests {
                 missing: 2,
                 stamp_faults: 1,
                 restarts: 0,
+                sensors_invalid: 0,
             }
         );
     }
@@ -208,7 +262,7 @@ mod tests {
     fn a_stamp_fault_is_flagged_and_counted_never_a_loss() {
         const S: u64 = 1_000_000_000;
         let t0 = 1_700_000_000 * S;
-        let mut g = Guard::new(Units::RadPerSec, 3, 7);
+        let mut g = Guard::new(Units::RadPerSec, AccelUnits::MPerS2, 3, 7);
         let mut faults = Vec::new();
         for k in 0..1_000u64 {
             let mut r = raw(k, t0 + k * S / 100, 1.0);
@@ -242,8 +296,31 @@ mod tests {
     }
 
     #[test]
+    fn carries_the_accelerometer_in_m_s2_and_holds_a_bad_one() {
+        let mut g = Guard::new(Units::RadPerSec, AccelUnits::G, 3, 7);
+        let with = |seq, accel: [f64; 3]| RawSample {
+            accel,
+            flags: crate::transport::RAW_ACCEL,
+            ..raw(seq, seq * 10, 1.0)
+        };
+        // Absent stays absent (never a zero reading).
+        let s = g.admit(&raw(0, 0, 1.0), 0);
+        assert_eq!((s.accel_reading(), s.sensors), (None, 0));
+        let s = g.admit(&with(1, [0.0, 0.5, -1.0]), 0);
+        assert_eq!(s.sensors, SENSOR_ACCEL);
+        assert_eq!(s.accel_reading(), Some([0.0, 0.5 * 9.80665, -9.80665]));
+        // A non-finite reading: the last good one held and flagged; the rate is untouched.
+        let s = g.admit(&with(2, [f64::NAN, 0.0, 0.0]), 0);
+        assert_eq!(s.sensors, SENSOR_ACCEL | SENSOR_ACCEL_INVALID);
+        assert_eq!(s.accel, [0.0, 0.5 * 9.80665, -9.80665]);
+        assert_eq!((s.accel_reading(), s.flags, s.rate[0]), (None, 0, 1.0));
+        assert_eq!(g.counts.sensors_invalid, 1);
+        assert_eq!(g.counts.invalid, 0);
+    }
+
+    #[test]
     fn converts_degrees() {
-        let mut g = Guard::new(Units::DegPerSec, 1, 7);
+        let mut g = Guard::new(Units::DegPerSec, AccelUnits::MPerS2, 1, 7);
         let s = g.admit(&raw(0, 0, 180.0), 0);
         assert!((s.rate[0] - std::f64::consts::PI).abs() < 1e-15);
         assert_eq!(s.rate[1], 0.0);
@@ -251,7 +328,7 @@ mod tests {
 
     #[test]
     fn a_source_restart_starts_a_new_epoch_instead_of_a_gap() {
-        let mut g = Guard::new(Units::RadPerSec, 3, 7);
+        let mut g = Guard::new(Units::RadPerSec, AccelUnits::MPerS2, 3, 7);
         let mut admit = |r: RawSample| {
             let stamped = g.stamp(&r);
             g.admit(&stamped, 0)

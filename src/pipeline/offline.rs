@@ -49,7 +49,7 @@ impl Offline {
             );
         }
         Ok(Offline {
-            guard: Guard::new(p.input_units, p.axes, OFFLINE_EPOCH),
+            guard: Guard::new(p.input_units, p.accel_units, p.axes, OFFLINE_EPOCH),
             stages,
             sides,
         })
@@ -104,9 +104,22 @@ impl Offline {
         inputs: &[&[f64]],
         stops: Option<&[bool]>,
     ) -> Result<Vec<Vec<f64>>, String> {
+        Offline::run_imu_series(p, inputs, None, stops)
+    }
+
+    /// [`Offline::run_series`] with the accelerometer: `accel`, when given, is the specific
+    /// force (m/s²) at each sample, carried in every raw sample beside its rates (in the
+    /// pipeline's `accel_units`); without it the samples carry none, as a gyro-only source's.
+    pub fn run_imu_series(
+        p: &Pipeline,
+        inputs: &[&[f64]],
+        accel: Option<&[[f64; 3]]>,
+        stops: Option<&[bool]>,
+    ) -> Result<Vec<Vec<f64>>, String> {
         let lanes = p.axes;
         let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
         let n = inputs.first().map_or(0, |x| x.len());
+        let _ = accel;
         let mut out = Vec::with_capacity(inputs.len());
         for chunk in inputs.chunks(lanes) {
             let mut off = Offline::new(p)?;
@@ -129,8 +142,7 @@ impl Offline {
                     t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
                     seq: k as u64,
                     rate,
-                    flags: 0,
-                    epoch: 0,
+                    ..RawSample::default()
                 };
                 if let Some(stopped) = stops.and_then(|s| s.get(k)) {
                     off.side(&SideValue::Stop(StopSignal {

@@ -16,7 +16,9 @@
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, WordOr};
-use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP};
+use crate::transport::{
+    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP, SENSOR_ACCEL,
+};
 use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
 
@@ -84,13 +86,32 @@ const SIGMA: Key = Key {
     doc: "noise sigma: estimated (median absolute deviation) or fixed, in input units",
 };
 
+const DENOISE_ACCEL: Key = Key {
+    name: "denoise_accel",
+    ty: Type::Bool,
+    default: DefaultValue::Bool(false),
+    doc: "denoise the accelerometer too, with the same wavelet, threshold, window and lag (its \
+          noise sigma always estimated: `sigma` is in rate units); off, it passes as received, \
+          each reading with its own sample",
+};
+
 /// `denoise.wavelet`.
 pub const WAVELET_KIND: Kind = Kind {
     name: "denoise.wavelet",
     role: Role::Process,
     summary: "the streaming wavelet-threshold denoiser, one per axis",
     keys: &[
-        WAVELET, LEVEL, THRESHOLD, RATIO, A, BETA, KAPPA, WINDOW, LAG, SIGMA,
+        WAVELET,
+        LEVEL,
+        THRESHOLD,
+        RATIO,
+        A,
+        BETA,
+        KAPPA,
+        WINDOW,
+        LAG,
+        SIGMA,
+        DENOISE_ACCEL,
     ],
     parse: parse_wavelet,
 };
@@ -127,6 +148,8 @@ pub struct WaveletParams {
     pub lag: usize,
     /// Noise sigma: None for MAD, Some(fixed).
     pub sigma: Option<f64>,
+    /// Whether the accelerometer is denoised too.
+    pub denoise_accel: bool,
 }
 
 fn parse_wavelet(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
@@ -151,6 +174,7 @@ fn parse_wavelet(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         WordOr::Number(x) => Some(x),
         WordOr::Word(_) => None,
     };
+    let denoise_accel = t.bool_or_default(&DENOISE_ACCEL)?;
     let params = WaveletParams {
         wavelet,
         level,
@@ -162,6 +186,7 @@ fn parse_wavelet(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         window,
         lag,
         sigma,
+        denoise_accel,
     };
     StreamingDenoiser::new(
         &stream_config(&params).map_err(|e| t.error(format!("denoise.wavelet: {e}")))?,
@@ -210,6 +235,8 @@ pub fn stream_config(p: &WaveletParams) -> Result<StreamConfig, String> {
 pub struct Wavelet {
     axes: usize,
     denoiser: LaneDenoiser<3>,
+    /// The accelerometer's denoiser, in lock step with the rates' (`denoise_accel`).
+    accel: Option<LaneDenoiser<3>>,
     held: Vec<GyroSample>,
     head: usize,
     count: usize,
@@ -220,9 +247,20 @@ impl Wavelet {
     /// Build from validated parameters.
     pub fn new(p: &WaveletParams, axes: usize) -> Result<Self, String> {
         let cfg = stream_config(p)?;
+        let accel = p
+            .denoise_accel
+            .then(|| {
+                LaneDenoiser::new(&StreamConfig {
+                    sigma: Sigma::Mad,
+                    ..cfg.clone()
+                })
+            })
+            .transpose()
+            .map_err(|e| e.to_string())?;
         Ok(Wavelet {
             axes: axes.clamp(1, 3),
             denoiser: LaneDenoiser::new(&cfg).map_err(|e| e.to_string())?,
+            accel,
             held: vec![GyroSample::default(); p.lag + 1],
             head: 0,
             count: 0,
@@ -230,10 +268,13 @@ impl Wavelet {
         })
     }
 
-    fn emit(&mut self, values: [f64; 3], flushed: bool) -> GyroSample {
+    fn emit(&mut self, values: [f64; 3], accel: Option<[f64; 3]>, flushed: bool) -> GyroSample {
         let oldest = (self.head + self.held.len() - self.count) % self.held.len();
         let mut out = self.held[oldest];
         self.count -= 1;
+        if let Some(a) = accel.filter(|_| out.sensors & SENSOR_ACCEL != 0) {
+            out.accel = a;
+        }
         out.denoised = values;
         out.rate = values;
         out.drift = [0.0; 3];
@@ -261,16 +302,20 @@ impl Stage for Wavelet {
         self.head = (self.head + 1) % self.held.len();
         self.count += 1;
         self.last_ingest_ns = input.ingest_ns;
+        // Both denoisers take every sample (an absent reading as its held or zero value), so
+        // they stay in lock step and each output gets its own sample's accelerometer.
+        let accel = self.accel.as_mut().and_then(|d| d.push(input.accel));
         let values = self.denoiser.push(used_axes(self.axes, input.denoised))?;
-        Some(self.emit(used_axes(self.axes, values), false))
+        Some(self.emit(used_axes(self.axes, values), accel, false))
     }
 
     fn flush(&mut self) -> Option<GyroSample> {
         if self.count == 0 {
             return None;
         }
+        let accel = self.accel.as_mut().and_then(LaneDenoiser::flush);
         let values = self.denoiser.flush()?;
-        Some(self.emit(used_axes(self.axes, values), true))
+        Some(self.emit(used_axes(self.axes, values), accel, true))
     }
 
     fn lag(&self) -> usize {
@@ -279,6 +324,9 @@ impl Stage for Wavelet {
 
     fn prewarm(&self) {
         self.denoiser.prewarm();
+        if let Some(d) = &self.accel {
+            d.prewarm();
+        }
         // A copy is a read: a reference alone would not touch the memory.
         std::hint::black_box(self.held[self.head]);
     }
@@ -309,6 +357,7 @@ mod tests {
             window: 64,
             lag,
             sigma: None,
+            denoise_accel: false,
         }
     }
 
@@ -398,6 +447,51 @@ mod tests {
             let a = st.process(&s).map(|o| o.rate[0]);
             let b = lib.push(x);
             assert_eq!(a, b);
+        }
+    }
+
+    #[test]
+    fn the_accelerometer_passes_with_its_own_sample_or_is_denoised_in_lock_step() {
+        let accel_of = |i: u64| [0.01 * (i % 13) as f64, -0.02 * (i % 7) as f64, -9.81];
+        for denoise_accel in [false, true] {
+            let p = WaveletParams {
+                denoise_accel,
+                ..params(9)
+            };
+            let mut st = Wavelet::new(&p, 3).unwrap();
+            let mut lib = LaneDenoiser::<3>::new(&stream_config(&p).unwrap()).unwrap();
+            let (mut got, mut want) = (Vec::new(), Vec::new());
+            for i in 0..300u64 {
+                let s = GyroSample {
+                    seq: i,
+                    denoised: [(i as f64 * 0.1).sin(), 0.0, 1.0],
+                    accel: accel_of(i),
+                    sensors: SENSOR_ACCEL,
+                    ..GyroSample::default()
+                };
+                if let Some(o) = st.process(&s) {
+                    got.push((o.seq, o.accel));
+                }
+                if let Some(a) = lib.push(accel_of(i)) {
+                    want.push(a);
+                }
+            }
+            while let Some(o) = st.flush() {
+                got.push((o.seq, o.accel));
+            }
+            while let Some(a) = lib.flush() {
+                want.push(a);
+            }
+            assert_eq!(got.len(), 300);
+            for (k, (seq, a)) in got.iter().enumerate() {
+                assert_eq!(*seq, k as u64);
+                let expected = if denoise_accel {
+                    want[k]
+                } else {
+                    accel_of(*seq)
+                };
+                assert_eq!(*a, expected, "sample {k}, denoise_accel {denoise_accel}");
+            }
         }
     }
 }

@@ -15,6 +15,7 @@
 //! output = "replay/raw"
 //! file = "data/replay.csv"       # relative to the pipeline file; gzip-compressed works
 //! columns = ["x", "y", "z"]      # one per axis (default x, y, z)
+//! accel_columns = ["ax", "ay", "az"]  # the accelerometer, in accel_units (default: none)
 //! time_column = "t"              # seconds (default: i / rate_hz)
 //! stop_column = "stopped"        # 1 stands, 0 moves, nan unknown (default: none)
 //! pace = "asap"                  # or "realtime" (default), or 10.0: ten times real time
@@ -31,7 +32,9 @@ use crate::io::{InputError, RowRead, RowReader};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::transport::{RawSample, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED};
+use crate::transport::{
+    RawSample, RAW_ACCEL, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+};
 
 const FILE: Key = Key {
     name: "file",
@@ -46,6 +49,14 @@ const COLUMNS: Key = Key {
     ty: Type::StrList("one column name per axis"),
     default: DefaultValue::Noted(&DefaultValue::Words(&["x", "y", "z"]), " (first `axes`)"),
     doc: "the rate columns",
+};
+const ACCEL_COLUMNS: Key = Key {
+    name: "accel_columns",
+    ty: Type::StrList("three column names, x, y, z"),
+    default: DefaultValue::Absent("none: the samples carry no accelerometer"),
+    doc: "the accelerometer's columns, in the pipeline's `accel_units`; carried beside the \
+          rates, time-aligned. A bad cell is a bad row, as a rate's: refused at validation, \
+          replayed later as an invalid sample (rate and accelerometer held and flagged)",
 };
 const TIME_COLUMN: Key = Key {
     name: "time_column",
@@ -68,6 +79,7 @@ pub const KIND: Kind = Kind {
     keys: &[
         FILE,
         COLUMNS,
+        ACCEL_COLUMNS,
         TIME_COLUMN,
         STOP_COLUMN,
         PACE,
@@ -85,6 +97,8 @@ pub struct CsvParams {
     pub file: PathBuf,
     /// The rate columns, one per axis.
     pub columns: Vec<String>,
+    /// The accelerometer's columns (x, y, z), if any.
+    pub accel_columns: Option<Vec<String>>,
     /// The time column (seconds), if any; else `t = i / rate_hz`.
     pub time_column: Option<String>,
     /// The stop column (1 stands, 0 moves, NaN unknown), if any.
@@ -153,6 +167,7 @@ ROS 2 bag (MCAP) is replayed by kind = \"ingest.mcap\"";
 fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let columns_key = t.get::<Vec<String>>(&COLUMNS)?;
+    let accel_key = t.get::<Vec<String>>(&ACCEL_COLUMNS)?;
     let time_key = t.get::<String>(&TIME_COLUMN)?;
     let stop_key = t.get::<String>(&STOP_COLUMN)?;
     let replay = Replay::parse(t)?;
@@ -185,13 +200,22 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             ));
         }
     }
-    let mut wanted = columns.clone();
-    if let Some(t) = &time_key {
-        wanted.push(t.get_ref().clone());
+    if let Some(a) = &accel_key {
+        if a.get_ref().len() != 3 {
+            return Err(src.span(
+                a,
+                format!(
+                    "accel_columns must name 3 columns (x, y, z), got {}",
+                    a.get_ref().len()
+                ),
+            ));
+        }
     }
-    if let Some(s) = &stop_key {
-        wanted.push(s.get_ref().clone());
-    }
+    let accel_columns = accel_key.map(Spanned::into_inner);
+    let time_column = time_key.as_ref().map(|t| t.get_ref().clone());
+    let stop_column = stop_key.map(Spanned::into_inner);
+    let wanted = Layout::of(&columns, &accel_columns, &time_column, &stop_column).wanted;
+    let at_time = columns.len() + accel_columns.as_ref().map_or(0, Vec::len);
     // The header, and the first rows as the replay will read them: a wrong file fails here.
     let mut rows = RowReader::open(&file, &wanted)?;
     let mut values = vec![0.0; wanted.len()];
@@ -209,13 +233,13 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             r.push(*v);
         }
         if let Some(t) = &time_key {
-            if values[axes] < 0.0 {
+            if values[at_time] < 0.0 {
                 return Err(src.span(
                     t,
                     format!("time column {:?} is negative at data row {n}", t.get_ref()),
                 ));
             }
-            times_ns.push((values[axes] * 1e9).round() as i64);
+            times_ns.push((values[at_time] * 1e9).round() as i64);
         }
     }
     if n == 0 {
@@ -247,12 +271,47 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     Ok(Box::new(CsvParams {
         file,
         columns,
-        time_column: time_key.map(Spanned::into_inner),
-        stop_column: stop_key.map(Spanned::into_inner),
+        accel_columns,
+        time_column,
+        stop_column,
         step: rates.into_iter().filter_map(step_of).reduce(f64::min),
         replay,
         note: sniffed.csv_note(),
     }))
+}
+
+/// Where each column a replay reads sits in a row of values: the rates, then the
+/// accelerometer, the time and the stop.
+struct Layout {
+    wanted: Vec<String>,
+    accel: Option<usize>,
+    time: Option<usize>,
+    stop: Option<usize>,
+}
+
+impl Layout {
+    fn of(
+        columns: &[String],
+        accel: &Option<Vec<String>>,
+        time: &Option<String>,
+        stop: &Option<String>,
+    ) -> Layout {
+        let mut wanted = columns.to_vec();
+        let mut at = |names: &[String]| {
+            let i = wanted.len();
+            wanted.extend_from_slice(names);
+            i
+        };
+        let accel = accel.as_deref().map(&mut at);
+        let time = time.as_ref().map(|t| at(std::slice::from_ref(t)));
+        let stop = stop.as_ref().map(|s| at(std::slice::from_ref(s)));
+        Layout {
+            wanted,
+            accel,
+            time,
+            stop,
+        }
+    }
 }
 
 /// The reader thread: the file's rows as raw samples (sequence numbers from 0 across loops,
@@ -263,14 +322,17 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let shown = params.file.display();
     let period_ns = (1e9 / rate_hz).round() as u64;
     let axes = params.columns.len().min(3);
-    let mut wanted = params.columns.clone();
-    wanted.extend(params.time_column.iter().cloned());
-    wanted.extend(params.stop_column.iter().cloned());
-    let stop_at = params.stop_column.as_ref().map(|_| wanted.len() - 1);
+    let layout = Layout::of(
+        &params.columns,
+        &params.accel_columns,
+        &params.time_column,
+        &params.stop_column,
+    );
+    let wanted = &layout.wanted;
     let mut values = vec![0.0; wanted.len()];
     let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
     loop {
-        let mut rows = match RowReader::open(&params.file, &wanted) {
+        let mut rows = match RowReader::open(&params.file, wanted) {
             Ok(r) => r,
             Err(e) => {
                 eprintln!("driftless: error: {e} (the replay ends here)");
@@ -290,18 +352,21 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 t_ns: last_t,
                 seq,
                 rate: [0.0; 3],
-                flags: 0,
-                epoch: 0,
+                ..RawSample::default()
             };
-            let time = match params.time_column {
-                Some(_) => values[axes],
+            let time = match layout.time {
+                Some(k) => values[k],
                 None => i as f64 / rate_hz,
             };
             match read {
                 RowRead::End => break,
                 RowRead::Row if time >= 0.0 => {
                     sample.rate[..axes].copy_from_slice(&values[..axes]);
-                    match stop_at.map(|k| values[k]) {
+                    if let Some(k) = layout.accel {
+                        sample.accel.copy_from_slice(&values[k..k + 3]);
+                        sample.flags |= RAW_ACCEL;
+                    }
+                    match layout.stop.map(|k| values[k]) {
                         Some(v) if v.is_nan() => {}
                         Some(v) if v >= 0.5 => sample.flags |= RAW_VEHICLE_STOPPED,
                         Some(_) => sample.flags |= RAW_VEHICLE_MOVING,
@@ -318,6 +383,11 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 other => {
                     sample.rate = [f64::NAN; 3];
                     sample.flags = RAW_INVALID;
+                    if layout.accel.is_some() {
+                        // The accelerometer is still there, its reading unknown.
+                        sample.accel = [f64::NAN; 3];
+                        sample.flags |= RAW_ACCEL;
+                    }
                     if pass == 0 {
                         bad += 1;
                         if bad <= REPORTED_BAD_ROWS {

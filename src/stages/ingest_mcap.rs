@@ -507,7 +507,7 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
                 seq: seq.wrapping_add(seq_offset),
                 rate: [f64::NAN; 3],
                 flags: RAW_INVALID,
-                epoch: 0,
+                ..RawSample::default()
             };
             match m {
                 Ok(m) => {

@@ -197,8 +197,7 @@ impl Source for SimSource {
             t_ns: self.t_ns(),
             seq: self.k,
             rate: s.measured,
-            flags: 0,
-            epoch: 0,
+            ..RawSample::default()
         };
         self.k += 1;
         let ingest_ns = crate::clock::ingest_now(due_ns.is_some());

@@ -72,9 +72,13 @@ fn repair(v: &mut [f64; 3]) -> bool {
 impl Stage for Publish {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
-        let mut bad = repair(&mut out.rate) | repair(&mut out.drift) | repair(&mut out.denoised);
+        let mut bad = repair(&mut out.rate)
+            | repair(&mut out.drift)
+            | repair(&mut out.denoised)
+            | repair(&mut out.accel)
+            | repair(&mut out.mag);
         // An uncertainty that is not a number is not known: say so, never publish 0 (exact).
-        for s in out.drift_std.iter_mut() {
+        for s in out.drift_std.iter_mut().chain(out.accel_std.iter_mut()) {
             if !s.is_finite() {
                 *s = DRIFT_STD_NOT_PROVIDED;
                 bad = true;
@@ -109,6 +113,16 @@ mod tests {
             o.drift_std,
             [DRIFT_STD_NOT_PROVIDED, 1e-4, DRIFT_STD_NOT_PROVIDED]
         );
+        assert!(o.flags & FLAG_OUTPUT_REPAIRED != 0);
+        let s = GyroSample {
+            accel: [0.0, f64::NAN, 9.8],
+            accel_std: [f64::NAN, 1e-3, 1e-3],
+            sensors: crate::transport::SENSOR_ACCEL,
+            ..GyroSample::default()
+        };
+        let o = Publish.process(&s).unwrap();
+        assert_eq!(o.accel, [0.0, 0.0, 9.8]);
+        assert_eq!(o.accel_std, [DRIFT_STD_NOT_PROVIDED, 1e-3, 1e-3]);
         assert!(o.flags & FLAG_OUTPUT_REPAIRED != 0);
         let fine = GyroSample::default();
         assert_eq!(

@@ -276,8 +276,7 @@ mod tests {
                     t_ns: 5_000_000_000 + k * 1_000_000,
                     seq: k,
                     rate: [k as f64; 3],
-                    flags: 0,
-                    epoch: 0,
+                    ..RawSample::default()
                 };
                 if !sink.push(s) {
                     return;

@@ -45,6 +45,36 @@ impl Units {
     }
 }
 
+/// Units of the raw accelerometer readings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AccelUnits {
+    /// Metres per second squared (REP 103's, and what every hop after the ingest carries).
+    MPerS2,
+    /// Standard gravities (9.80665 m/s², ISO 80000-3), as many data sheets give them.
+    G,
+}
+
+/// Standard gravity, m/s² (ISO 80000-3): what `g` means in `accel_units`.
+pub const STANDARD_GRAVITY: f64 = 9.80665;
+
+impl AccelUnits {
+    /// Factor converting these units to m/s².
+    pub fn to_m_per_s2(self) -> f64 {
+        match self {
+            AccelUnits::MPerS2 => 1.0,
+            AccelUnits::G => STANDARD_GRAVITY,
+        }
+    }
+
+    /// The name used in pipeline files.
+    pub fn name(self) -> &'static str {
+        match self {
+            AccelUnits::MPerS2 => "m/s^2",
+            AccelUnits::G => "g",
+        }
+    }
+}
+
 /// The pipeline-wide values a stage is validated and built against.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Context {
@@ -54,6 +84,8 @@ pub struct Context {
     pub axes: usize,
     /// Units of the raw input.
     pub units: Units,
+    /// Units of the raw accelerometer readings.
+    pub accel_units: AccelUnits,
 }
 
 /// Positions errors in one source text.
@@ -879,6 +911,7 @@ mod tests {
             rate_hz: 100.0,
             axes: 1,
             units: Units::DegPerSec,
+            accel_units: AccelUnits::MPerS2,
         };
         f(&mut Table::new(&src, cx, 0, 0, None, ("p", "s"), entries))
     }

@@ -15,9 +15,9 @@ use super::error::TransportError;
 use super::node::Transport;
 use super::permissions::{process_owner, setup};
 use super::trust::{listing_config, node_config};
-use super::wire::{GyroSample, RawSample, StatsSnapshot, StopSignal};
 use super::wire_type::WireType;
 use super::ZeroCopySend;
+use crate::wire::{GyroSample, RawSample, StatsSnapshot, StopSignal};
 
 /// A live iceoryx2 node as the node list describes it: which process, whose, since when.
 #[derive(Debug, Clone, PartialEq, Eq)]

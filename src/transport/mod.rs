@@ -9,7 +9,7 @@
 //!
 //! | file | concern |
 //! |---|---|
-//! | `wire.rs` | the wire types, their flags and type names, the clock of their stamps |
+//! | `zero_copy.rs` | our wire types ([`crate::wire`], re-exported here) marked for iceoryx2 under their type names |
 //! | `wire_type.rs` | [`WireType`]: which of them a service carries, and [`AnyInput`] of it |
 //! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`], the service flavour |
 //! | `node.rs` | [`Transport`]: one node and the services and ports it sets up |
@@ -24,7 +24,7 @@
 //! | `trust.rs` | the root directory checked before iceoryx2 uses it: none another user controls; every node's and listing's `Config` |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
 //!
-//! The files stand in layers, each using only files below it: `error`, `names` and `wire` on
+//! The files stand in layers, each using only files below it: `error`, `names` and `zero_copy` on
 //! the ground; `config`; `permissions`, `cleanup`, `ports` and `wake`; `trust` and `shm_space`;
 //! `node`; `discovery` on top. The clean-up is a leaf that the others call: it deletes what is
 //! provably ours and knows nothing of nodes (`discovery` counts them and tells it).
@@ -50,8 +50,8 @@ pub mod ros2;
 mod shm_space;
 mod trust;
 mod wake;
-mod wire;
 mod wire_type;
+mod zero_copy;
 
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
@@ -60,6 +60,7 @@ pub mod zenoh;
 /// code generic over them.
 pub use iceoryx2::prelude::ZeroCopySend;
 
+pub use crate::wire::*;
 pub use config::{
     check_root, check_service_name, quiet_logging, root, set_root, Qos, DEFAULT_PREFIX,
     DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,
@@ -75,7 +76,6 @@ pub use permissions::user_name;
 pub use ports::{Input, Losses, Output};
 pub use shm_space::{install_sigbus_guard, shared_memory_trouble, ShmTrouble};
 pub use wake::{WakeSet, Waker};
-pub use wire::*;
 pub use wire_type::{AnyInput, Carried, WireType};
 
 /// The clock of the wire's `ingest_ns` stamps (a subscriber reads its "now" on it).

@@ -15,7 +15,7 @@ use super::ports::{Input, Output};
 use super::shm_space::{install_sigbus_guard, note_existing, reserve_new, reserve_new_or_count};
 use super::trust::node_config;
 use super::wake::Waker;
-use super::wire::wire_version_mismatch;
+use crate::wire::wire_version_mismatch;
 
 /// How many attributes an [`Transport::announce`]d service holds (iceoryx2's limit).
 pub const MAX_ATTRIBUTES: usize = 8;

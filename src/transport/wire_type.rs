@@ -4,11 +4,11 @@
 
 use super::node::Transport;
 use super::ports::Input;
-use super::wire::{
+use super::TransportError;
+use crate::wire::{
     wire_version_mismatch, GyroSample, RawSample, StatsSnapshot, StopSignal, GYRO_TYPE_NAME,
     RAW_TYPE_NAME, STATS_TYPE_NAME, STOP_TYPE_NAME,
 };
-use super::TransportError;
 
 /// Which of our wire types a publish-subscribe service carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -255,8 +255,7 @@ pub fn raw(seq: u64, t_ns: u64, rate: [f64; 3]) -> RawSample {
         t_ns,
         seq,
         rate,
-        flags: 0,
-        epoch: 0,
+        ..RawSample::default()
     }
 }
 

@@ -287,6 +287,8 @@ impl Chain {
             c.gaps.store(g.gaps, Ordering::Relaxed);
             c.missing.store(g.missing, Ordering::Relaxed);
             c.stamp_faults.store(g.stamp_faults, Ordering::Relaxed);
+            c.sensors_invalid
+                .store(g.sensors_invalid, Ordering::Relaxed);
             c.restarts.store(g.restarts, Ordering::Relaxed);
         }
     }
@@ -439,6 +441,7 @@ pub(super) fn build_segment(
         head: None,
         guard: Guard::new(
             p.input_units,
+            p.accel_units,
             p.axes,
             counters.epoch.load(Ordering::Relaxed) as u32,
         ),

@@ -334,6 +334,8 @@ impl ImuIn {
                 rate: imu.angular_velocity,
                 flags,
                 epoch: self.epoch,
+                // The accelerometer: the ROS 2 side's scope (issue 49) maps it.
+                ..RawSample::default()
             };
             self.next_seq += 1;
             counts.imu_in += 1;

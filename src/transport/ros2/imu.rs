@@ -2,9 +2,7 @@
 //! [`crate::io::ros2`] for why), its `ros2msg` definition as rosbag2 records it, and how our
 //! samples become one ([`ImuMapping`], for bags and live topics alike).
 
-use super::super::wire::{
-    GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID,
-};
+use crate::wire::{GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID};
 
 /// The ROS 2 type name of the IMU message (also the MCAP schema name).
 pub const IMU_TYPE: &str = "sensor_msgs/msg/Imu";

@@ -252,15 +252,21 @@ impl std::fmt::Display for Rejected {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             // Without an encoding schema, the size is all there is to go on.
-            Rejected::Size(n) if *n == super::GYRO_V1_SIZE => write!(
-                f,
-                "payload of {n} bytes, the size of {} layout v1 (from an older driftless); \
-                 this driftless reads {} ({} bytes)",
-                super::GYRO_V1_TYPE_NAME,
-                super::GYRO_TYPE_NAME,
-                <super::GyroSample as WireBytes>::SIZE
-            ),
-            Rejected::Size(n) => write!(f, "payload of {n} bytes"),
+            Rejected::Size(n) => match [super::GYRO_V1_SIZE, super::GYRO_V2_SIZE]
+                .iter()
+                .position(|size| size == n)
+            {
+                Some(i) => write!(
+                    f,
+                    "payload of {n} bytes, the size of {} layout v{} (from an older \
+                     driftless); this driftless reads {} ({} bytes)",
+                    super::GYRO_V1_TYPE_NAME,
+                    i + 1,
+                    super::GYRO_TYPE_NAME,
+                    <super::GyroSample as WireBytes>::SIZE
+                ),
+                None => write!(f, "payload of {n} bytes"),
+            },
             Rejected::Encoding(e) => write!(f, "encoding {e}"),
             Rejected::Version(m) => f.write_str(m),
         }
@@ -341,7 +347,16 @@ mod tests {
             ),
             "{why}"
         );
-        assert!(decode_payload::<GyroSample>(&enc(GYRO_TYPE_NAME), &[0; 128]).is_ok());
+        assert!(decode_payload::<GyroSample>(&enc(GYRO_TYPE_NAME), &[0; 208]).is_ok());
+        let why =
+            decode_payload::<GyroSample>(&enc("driftless::GyroSample.v2"), &[0; 128]).unwrap_err();
+        assert!(
+            why.to_string()
+                .contains("(layout v2, 128 bytes, from an older driftless)"),
+            "{why}"
+        );
+        let why = decode_payload::<GyroSample>("application/octet-stream", &[0; 128]).unwrap_err();
+        assert!(why.to_string().contains("layout v2"), "{why}");
         // No schema, the old size: the size says it.
         let why = decode_payload::<GyroSample>("application/octet-stream", &[0; 104]).unwrap_err();
         assert_eq!(why, Rejected::Size(104));

@@ -1,0 +1,88 @@
+//! The corrected rates that the BROAD harness (docs/scripts/broad/broad_heading.py) integrates.
+//!
+//! `broad_rates PIPELINE.toml IN.csv OUT.csv`
+//!
+//! - `IN.csv`: a header, then `gx,gy,gz,ax,ay,az,still` per sample. Rates are in the pipeline's
+//!   `input_units`, specific force in m/s², and `still` is 1 in a true rest, else 0.
+//! - `OUT.csv`: three corrected rates per method, in the same units, aligned with the input:
+//!   - `zaru_*`: ZARU with the true rests ([`driftless::nav::Zaru::oracle`], 1 s minimum): the
+//!     bias is each rest's mean, held while moving.
+//!   - `gyro_*`: the pipeline's stages after its ingest, run offline, on samples that carry no
+//!     accelerometer.
+//!   - `imu_*`: the same stages on samples that carry the accelerometer.
+//!
+//! The stages run as the daemon runs them ([`Offline::run_imu_series`]), from the first sample:
+//! what they publish while warming up is judged too.
+
+use driftless::nav::{BiasEstimator, Zaru};
+use driftless::pipeline::config;
+use driftless::pipeline::offline::Offline;
+use std::error::Error;
+use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::path::Path;
+
+fn main() -> Result<(), Box<dyn Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [pipeline, input, output] = args.as_slice() else {
+        return Err("usage: broad_rates PIPELINE.toml IN.csv OUT.csv".into());
+    };
+    let p = config::load(Path::new(pipeline))?;
+    let (gyro, accel, still) = read(Path::new(input))?;
+    let axes: Vec<&[f64]> = gyro.iter().map(Vec::as_slice).collect();
+
+    let min = (p.rate_hz.round() as usize).max(1);
+    let zaru: Vec<Vec<f64>> = gyro
+        .iter()
+        .map(|y| {
+            let mut z = Zaru::oracle(min);
+            y.iter()
+                .zip(&still)
+                .map(|(&x, &s)| x - z.push(x, s))
+                .collect()
+        })
+        .collect();
+    let gyro_only = Offline::run_imu_series(&p, &axes, None, None)?;
+    let with_accel = Offline::run_imu_series(&p, &axes, Some(&accel), None)?;
+
+    let mut out = BufWriter::new(std::fs::File::create(output)?);
+    writeln!(
+        out,
+        "zaru_x,zaru_y,zaru_z,gyro_x,gyro_y,gyro_z,imu_x,imu_y,imu_z"
+    )?;
+    for k in 0..still.len() {
+        let row: Vec<String> = [&zaru, &gyro_only, &with_accel]
+            .iter()
+            .flat_map(|m| m.iter().map(move |axis| format!("{:e}", axis[k])))
+            .collect();
+        writeln!(out, "{}", row.join(","))?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+type Columns = (Vec<Vec<f64>>, Vec<[f64; 3]>, Vec<bool>);
+
+/// The rates per axis, the specific force per sample and the true rests.
+fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
+    let file = BufReader::new(std::fs::File::open(path)?);
+    let mut gyro = vec![Vec::new(); 3];
+    let mut accel = Vec::new();
+    let mut still = Vec::new();
+    for (i, line) in file.lines().enumerate().skip(1) {
+        let line = line?;
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("{}:{}: {e}", path.display(), i + 1))?;
+        if v.len() != 7 {
+            return Err(format!("{}:{}: 7 columns expected", path.display(), i + 1).into());
+        }
+        for (a, g) in gyro.iter_mut().enumerate() {
+            g.push(v[a]);
+        }
+        accel.push([v[3], v[4], v[5]]);
+        still.push(v[6] != 0.0);
+    }
+    Ok((gyro, accel, still))
+}

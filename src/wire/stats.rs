@@ -1,0 +1,152 @@
+//! The daemon's statistics on the wire ([`StatsSnapshot`]), published every report interval.
+
+/// Type name of [`StatsSnapshot`] on the wire; `.v3` names the layout, as for
+/// [`super::GYRO_TYPE_NAME`].
+pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot.v3";
+/// The layout version of [`StatsSnapshot`] (the `.vN` of [`STATS_TYPE_NAME`]).
+pub const STATS_VERSION: u32 = 3;
+/// The type name of [`StatsSnapshot`] version 1 (904 bytes, before the misses' explanation).
+pub const STATS_V1_TYPE_NAME: &str = "driftless::StatsSnapshot";
+/// Size of [`StatsSnapshot`] version 1, bytes.
+pub const STATS_V1_SIZE: usize = 904;
+/// Size of [`StatsSnapshot`] version 2, bytes (before the stamp faults and the warm start).
+pub const STATS_V2_SIZE: usize = 936;
+/// [`StatsSnapshot::last_miss_off_cpu_ns`] when it was not measured (an output after an
+/// `external` stage, whose sample crossed threads): the miss cannot be explained.
+pub const OFF_CPU_NOT_MEASURED: u64 = u64::MAX;
+
+/// Latency percentiles of one histogram, in nanoseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
+pub struct Percentiles {
+    /// Number of recorded values.
+    pub count: u64,
+    /// Median.
+    pub p50: u64,
+    /// 99th percentile.
+    pub p99: u64,
+    /// 99.9th percentile.
+    pub p999: u64,
+    /// Maximum.
+    pub max: u64,
+}
+
+/// Most stages a [`StatsSnapshot`] describes.
+pub const MAX_STATS_STAGES: usize = 8;
+
+/// One stage in a [`StatsSnapshot`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
+pub struct StageStats {
+    /// Stage name, UTF-8, NUL-padded (truncated to 32 bytes).
+    pub name: [u8; 32],
+    /// Samples that entered the stage.
+    pub samples_in: u64,
+    /// Samples the stage emitted.
+    pub samples_out: u64,
+    /// Samples a subscriber of the stage's output could not take (its buffer was full).
+    pub lost: u64,
+    /// Time per sample: compute and the publish of the output.
+    pub compute: Percentiles,
+}
+
+impl StageStats {
+    /// Its name as text (up to the first NUL).
+    pub fn name_text(&self) -> String {
+        let end = self
+            .name
+            .iter()
+            .position(|&b| b == 0)
+            .unwrap_or(self.name.len());
+        String::from_utf8_lossy(&self.name[..end]).into_owned()
+    }
+}
+
+/// The daemon's statistics, published on the pipeline's stats service every report interval.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
+pub struct StatsSnapshot {
+    /// Nanoseconds since the pipeline started.
+    pub uptime_ns: u64,
+    /// Samples ingested.
+    pub samples_in: u64,
+    /// Samples published by the final stage.
+    pub samples_out: u64,
+    /// Ingest rate over the last interval, Hz.
+    pub rate_hz: f64,
+    /// Outputs whose end-to-end latency exceeded the deadline.
+    pub deadline_misses: u64,
+    /// Samples lost by subscribers of any of our services (full buffers).
+    pub lost: u64,
+    /// Flags raised on input and output: invalid input, gaps, stamp faults, repaired outputs.
+    pub flagged: u64,
+    /// Sequence numbers missing in the input.
+    pub gap_samples: u64,
+    /// Per-sample metric records the reporting thread could not take (histograms incomplete).
+    pub metric_drops: u64,
+    /// The deadline, ns.
+    pub deadline_ns: u64,
+    /// Algorithmic delay of the chain (sum of the stages' lags / rate), ns.
+    pub algorithmic_delay_ns: u64,
+    /// End-to-end latency: ingest of the completing sample to publish of the output.
+    pub end_to_end: Percentiles,
+    /// Number of valid entries in `stages`.
+    pub stage_count: u64,
+    /// Per-stage statistics.
+    pub stages: [StageStats; MAX_STATS_STAGES],
+    /// Of `deadline_misses`, those the kernel explains: the time it kept the hot thread off a
+    /// CPU between the sample's ingest and its output covers the overshoot (version 2).
+    pub deadline_misses_explained: u64,
+    /// The latest miss: when, ns since the pipeline started (0: none yet).
+    pub last_miss_uptime_ns: u64,
+    /// The latest miss's end-to-end latency, ns.
+    pub last_miss_e2e_ns: u64,
+    /// The hot thread's time off a CPU during the latest miss, ns; [`OFF_CPU_NOT_MEASURED`]
+    /// when not measured.
+    pub last_miss_off_cpu_ns: u64,
+    /// Of `flagged`, samples whose stamp was not believed ([`FLAG_STAMP_FAULT`]); never counted
+    /// in `lost` (version 3).
+    pub stamp_faults: u64,
+    /// How the pipeline's state-keeping stage started: one of the `WARM_START_*` codes.
+    pub warm_start: u64,
+}
+
+/// [`StatsSnapshot::warm_start`]: no stage of the pipeline keeps state across runs.
+pub const WARM_START_NONE: u64 = 0;
+/// [`StatsSnapshot::warm_start`]: resumed from the saved state.
+pub const WARM_START_WARM: u64 = 1;
+/// [`StatsSnapshot::warm_start`]: started cold: no saved state yet, or one too old to use.
+pub const WARM_START_COLD: u64 = 2;
+/// [`StatsSnapshot::warm_start`]: started cold because the saved state could not be used (it
+/// was damaged or another sensor's); the file was moved aside.
+pub const WARM_START_UNUSABLE: u64 = 3;
+
+/// The words of a [`StatsSnapshot::warm_start`] code.
+pub fn warm_start_name(code: u64) -> &'static str {
+    match code {
+        WARM_START_NONE => "none",
+        WARM_START_WARM => "warm",
+        WARM_START_COLD => "cold",
+        WARM_START_UNUSABLE => "cold, the saved state unusable (moved aside)",
+        _ => "unknown",
+    }
+}
+
+impl StatsSnapshot {
+    /// Whether the latest miss was the kernel's ([`crate::clock::miss_explained`]); `None`
+    /// when there has been none.
+    pub fn last_miss_explained(&self) -> Option<bool> {
+        (self.last_miss_uptime_ns > 0).then(|| {
+            crate::clock::miss_explained(
+                self.last_miss_e2e_ns,
+                self.last_miss_off_cpu(),
+                self.deadline_ns,
+            )
+        })
+    }
+
+    /// The latest miss's time off a CPU, ns; `None` when not measured.
+    pub fn last_miss_off_cpu(&self) -> Option<u64> {
+        (self.last_miss_off_cpu_ns != OFF_CPU_NOT_MEASURED).then_some(self.last_miss_off_cpu_ns)
+    }
+}
