@@ -34,13 +34,13 @@ use super::diagnostics::{
     BiasDiagnosticSettings, BiasWindow, DiagnosticArray, PipelineCounts, Vector3Stamped,
     DIAGNOSTIC_ARRAY_TYPE, VECTOR3_STAMPED_TYPE,
 };
-use super::imu::{ImuMapping, Time, IMU_TYPE};
+use super::imu::{accel_provided, ImuMapping, Time, IMU_TYPE};
 use super::motion::MotionKind;
 use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
 use crate::transport::{
     GyroSample, Input, Output, Qos, RawSample, StatsSnapshot, StopSignal, Transport,
-    TransportError, WakeSet, Waker, RAW_INVALID, RAW_STAMP_FAULT,
+    TransportError, WakeSet, Waker, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
 };
 
 /// How long a topic may go unmatched before stderr says so.
@@ -328,13 +328,18 @@ impl ImuIn {
             if fault.is_some() {
                 flags |= RAW_STAMP_FAULT;
             }
+            // The accelerometer, unless the message marks it not provided (a non-finite
+            // reading goes in as it came: the guard flags and holds it, as any driver's).
+            if accel_provided(&imu) {
+                flags |= RAW_ACCEL;
+            }
             let raw = RawSample {
                 t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
                 flags,
                 epoch: self.epoch,
-                // The accelerometer: the ROS 2 side's scope (issue 49) maps it.
+                accel: imu.linear_acceleration,
                 ..RawSample::default()
             };
             self.next_seq += 1;
@@ -862,7 +867,9 @@ mod x_trace {
     }
     pub fn sent(seq: u64) {
         if on() {
-            SENT.lock().unwrap().push((seq, crate::clock::monotonic_ns()));
+            SENT.lock()
+                .unwrap()
+                .push((seq, crate::clock::monotonic_ns()));
         }
     }
     pub fn out(seq: u64, ingest: u64, recv: u64) {
@@ -888,7 +895,11 @@ mod x_trace {
         }
         let pct = |v: &mut Vec<f64>| {
             v.sort_by(f64::total_cmp);
-            let q = |x: f64| v.get((x * v.len() as f64) as usize).copied().unwrap_or(f64::NAN);
+            let q = |x: f64| {
+                v.get((x * v.len() as f64) as usize)
+                    .copied()
+                    .unwrap_or(f64::NAN)
+            };
             format!("p50 {:.1} p90 {:.1} p99 {:.1}", q(0.5), q(0.9), q(0.99))
         };
         let text = format!(
@@ -899,7 +910,11 @@ mod x_trace {
         );
         if !w3.is_empty() {
             use std::io::Write as _;
-            if let Ok(mut f) = std::fs::OpenOptions::new().append(true).create(true).open(path) {
+            if let Ok(mut f) = std::fs::OpenOptions::new()
+                .append(true)
+                .create(true)
+                .open(path)
+            {
                 let _ = f.write_all(text.as_bytes());
             }
         }

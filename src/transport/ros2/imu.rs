@@ -498,6 +498,11 @@ pub struct ImuMapping {
     /// Accelerometer readings mapped with an unknown covariance (all zeros: neither the
     /// sample, the `accel_noise` setting nor the input gave one).
     pub accel_unknown: u64,
+    /// Factor from raw samples' accelerometer units to m/s^2 (None: not known).
+    raw_to_m_s2: Option<f64>,
+    /// Raw samples whose accelerometer reading went out "not provided" because its units were
+    /// not known.
+    pub accel_units_unknown: u64,
 }
 
 impl ImuMapping {
@@ -517,6 +522,8 @@ impl ImuMapping {
             accel_cov_in: None,
             held: 0,
             accel_unknown: 0,
+            raw_to_m_s2: None,
+            accel_units_unknown: 0,
         }
     }
 
@@ -542,16 +549,37 @@ impl ImuMapping {
         }
     }
 
+    /// Raw samples' accelerometer readings times `to_m_s2` are m/s^2 (their pipeline's
+    /// `accel_units`). Without it, a raw sample's reading goes out "not provided", counted in
+    /// [`ImuMapping::accel_units_unknown`]: a reading in unknown units is no reading.
+    pub fn with_raw_accel_units(mut self, to_m_s2: Option<f64>) -> ImuMapping {
+        self.raw_to_m_s2 = to_m_s2;
+        self
+    }
+
     /// A raw sample's message.
     pub fn raw(&mut self, s: &RawSample) -> Result<&Imu, String> {
         let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
-        self.fill(s.t_ns, s.rate, [-1.0; 3], None, held)
+        let reading = s
+            .accel_reading()
+            .filter(|a| a.iter().all(|v| v.is_finite()));
+        self.accel_units_unknown += u64::from(reading.is_some() && self.raw_to_m_s2.is_none());
+        let accel = reading.zip(self.raw_to_m_s2).map(|(a, k)| AccelReading {
+            value: a.map(|v| v * k),
+            std: [-1.0; 3],
+        });
+        self.fill(s.t_ns, s.rate, [-1.0; 3], accel, held)
     }
 
-    /// A gyro sample's message.
+    /// A gyro sample's message: its accelerometer reading where it has a valid one (a held
+    /// one goes out "not provided").
     pub fn gyro(&mut self, s: &GyroSample) -> Result<&Imu, String> {
         let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-        self.fill(s.t_ns, s.rate, s.drift_std, None, held)
+        let accel = s.accel_reading().map(|value| AccelReading {
+            value,
+            std: s.accel_std,
+        });
+        self.fill(s.t_ns, s.rate, s.drift_std, accel, held)
     }
 
     /// The covariance of a reading whose white noise per axis is `std` (m/s^2, negative
