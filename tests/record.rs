@@ -668,7 +668,7 @@ output = "rt/corrected"
 
 #[test]
 fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
-    use driftless::io::ros2::{accel_provided, Bag, Imu};
+    use driftless::io::ros2::{Bag, Imu};
     use driftless::pipeline::{config, offline::Offline};
     // Its accelerometer varies per message; messages 300-309 mark it not provided.
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/accel.mcap");
@@ -687,7 +687,7 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
         .enumerate()
         .map(|(i, m)| {
             let mut r = raw(i as u64, m.stamp.ns() as u64, m.angular_velocity);
-            if accel_provided(m) {
+            if m.accel_reading().is_some() {
                 r.accel = m.linear_acceleration;
                 r.flags |= driftless::transport::RAW_ACCEL;
             }
@@ -695,7 +695,7 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
         })
         .collect();
     assert_eq!(
-        sent.iter().filter(|m| !accel_provided(m)).count(),
+        sent.iter().filter(|m| m.accel_reading().is_none()).count(),
         10,
         "the fixture's stretch without an accelerometer"
     );
@@ -776,7 +776,8 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
         );
         assert_eq!(m.frame_id, "gyro");
         assert_eq!(m.orientation_covariance[0], -1.0, "not provided");
-        same_accel(m, s, "raw");
+        // A raw sample carries no accel_std: --accel-noise's.
+        same_accel(m, s, 0.02, "raw");
         for (i, c) in m.angular_velocity_covariance.iter().enumerate() {
             assert_eq!(
                 *c,
@@ -792,7 +793,16 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
         sent.iter().map(|m| (m.stamp.ns(), m)).collect();
     for (i, (m, w)) in corrected.iter().zip(&want).enumerate() {
         assert_eq!(m.stamp.ns() as u64, w.t_ns, "sample {i}: stamp");
-        same_accel(m, by_stamp[&m.stamp.ns()], &format!("corrected {i}"));
+        // predict.bias gives each reading its white noise (accel_std, from the profile's VRW).
+        let std = w.accel_std[0];
+        if w.accel_reading().is_some() {
+            assert!(
+                std > 0.0 && w.accel_std == [std; 3],
+                "sample {i}: {:?}",
+                w.accel_std
+            );
+        }
+        same_accel(m, by_stamp[&m.stamp.ns()], std, &format!("corrected {i}"));
         assert_eq!(
             m.linear_acceleration.map(f64::to_bits),
             w.accel_reading().unwrap_or([0.0; 3]).map(f64::to_bits),
@@ -825,17 +835,22 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     }
 }
 
-/// `got`'s linear acceleration is `sent`'s bit for bit with the covariance `--accel-noise 0.02`
-/// gives (the samples carry no accel_std), or "not provided" where `sent` did not provide it.
-fn same_accel(got: &driftless::io::ros2::Imu, sent: &driftless::io::ros2::Imu, what: &str) {
+/// `got`'s linear acceleration is `sent`'s bit for bit with the covariance a white noise of
+/// `std` m/s^2 gives, or "not provided" where `sent` did not provide it.
+fn same_accel(
+    got: &driftless::io::ros2::Imu,
+    sent: &driftless::io::ros2::Imu,
+    std: f64,
+    what: &str,
+) {
     let c = got.linear_acceleration_covariance;
-    if driftless::io::ros2::accel_provided(sent) {
+    if sent.accel_reading().is_some() {
         assert_eq!(
             got.linear_acceleration.map(f64::to_bits),
             sent.linear_acceleration.map(f64::to_bits),
             "{what}: linear_acceleration bit for bit"
         );
-        let var = 0.02f64 * 0.02;
+        let var = std * std;
         assert_eq!(c, [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var], "{what}");
     } else {
         assert_eq!(c[0], -1.0, "{what}: not provided");

@@ -8,7 +8,7 @@
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, SideInput, SideValue, Stage};
-use crate::transport::{GyroSample, RawSample, StopSignal};
+use crate::transport::{GyroSample, RawSample, StopSignal, RAW_ACCEL};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
 pub const OFFLINE_EPOCH: u32 = 1;
@@ -119,7 +119,7 @@ impl Offline {
         let lanes = p.axes;
         let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
         let n = inputs.first().map_or(0, |x| x.len());
-        let _ = accel;
+        let to_accel_units = 1.0 / p.accel_units.to_m_per_s2();
         let mut out = Vec::with_capacity(inputs.len());
         for chunk in inputs.chunks(lanes) {
             let mut off = Offline::new(p)?;
@@ -138,12 +138,16 @@ impl Offline {
                     // Unused lanes repeat the first axis (their output is not read).
                     *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
                 }
-                let raw = RawSample {
+                let mut raw = RawSample {
                     t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
                     seq: k as u64,
                     rate,
                     ..RawSample::default()
                 };
+                if let Some(f) = accel.and_then(|a| a.get(k)) {
+                    raw.accel = f.map(|v| v * to_accel_units);
+                    raw.flags |= RAW_ACCEL;
+                }
                 if let Some(stopped) = stops.and_then(|s| s.get(k)) {
                     off.side(&SideValue::Stop(StopSignal {
                         t_ns: raw.t_ns.max(1),

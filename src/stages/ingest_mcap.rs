@@ -49,7 +49,7 @@ use toml::Spanned;
 use crate::io::content::{sniff, Content};
 use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
-use crate::io::ros2::{accel_provided, Bag, BagErrorKind, IMU_TYPE};
+use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
@@ -539,8 +539,8 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
                         last_t = t;
                     }
                     // The accelerometer as it came, unless the message marks it not provided.
-                    if accel_provided(&m.msg) {
-                        s.accel = m.msg.linear_acceleration;
+                    if let Some(a) = m.msg.accel_reading() {
+                        s.accel = a;
                         s.flags |= RAW_ACCEL;
                     }
                 }

@@ -3,6 +3,12 @@
 //! possible (`pace = "asap"`: throughput and delivery tests). Sensor timestamps are `k / rate`
 //! in ns at every pace, and the samples are the same; rates are in deg/s.
 //!
+//! The `adis16405` profile carries its accelerometer in every sample ([`RAW_ACCEL`], in the
+//! pipeline's `accel_units`): the specific force of the motion, gravity in the body frame plus
+//! the vehicle's acceleration, with the data sheet's noise and bias
+//! ([`crate::sim::force`]). The `adxrs450` is a gyro alone: its samples carry no accelerometer.
+//! Adding the accelerometer changes no gyro sample.
+//!
 //! ```toml
 //! [[stage]]
 //! name = "sensor"
@@ -20,17 +26,18 @@ use std::sync::atomic::AtomicBool;
 
 use crate::clock::{Pace, PaceClock};
 use crate::io::InputError;
+use crate::sim::force::SimAccel;
 use crate::sim::{SimConfig, Simulator};
 use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::stages::replay::{read_pace, PACE_TYPE};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, Units};
-use crate::transport::RawSample;
+use crate::transport::{RawSample, RAW_ACCEL};
 
 const PROFILE: Key = Key {
     name: "profile",
     ty: Type::Choice(&["adxrs450", "adis16405"]),
     default: DefaultValue::Word("adxrs450"),
-    doc: "noise profile (IEEE 952 terms of the part)",
+    doc: "noise profile (IEEE 952 terms of the part): adis16405 also carries its accelerometer, adxrs450 is a gyro alone",
 };
 const SEED: Key = Key {
     name: "seed",
@@ -117,7 +124,7 @@ impl Params for SimParams {
         _transport: &crate::transport::Transport,
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
-        Ok(Box::new(SimSource::new(self, cx.rate_hz, cx.axes)?))
+        Ok(Box::new(SimSource::new(self, cx)?))
     }
 
     fn truth(&self, cx: &Context) -> Option<TrueRate> {
@@ -150,6 +157,8 @@ pub fn sim_config(p: &SimParams, rate_hz: f64, axes: usize) -> Result<SimConfig,
 /// A simulated sensor.
 pub struct SimSource {
     sim: Simulator,
+    /// Its accelerometer, and the factor from m/s² to the pipeline's `accel_units`.
+    accel: Option<(SimAccel, f64)>,
     rate_hz: f64,
     limit: Option<u64>,
     pace: Pace,
@@ -158,12 +167,15 @@ pub struct SimSource {
 }
 
 impl SimSource {
-    /// A paced simulator; stops after `p.samples` if set.
-    pub fn new(p: &SimParams, rate_hz: f64, axes: usize) -> Result<Self, String> {
-        let cfg = sim_config(p, rate_hz, axes)?;
+    /// A paced simulator at the pipeline's rate, axes and `accel_units`; stops after
+    /// `p.samples` if set.
+    pub fn new(p: &SimParams, cx: &Context) -> Result<Self, String> {
+        let cfg = sim_config(p, cx.rate_hz, cx.axes)?;
+        let accel = SimAccel::new(&p.profile, &cfg).map_err(|e| e.to_string())?;
         Ok(SimSource {
             sim: Simulator::new(&cfg).map_err(|e| e.to_string())?,
-            rate_hz,
+            accel: accel.map(|a| (a, 1.0 / cx.accel_units.to_m_per_s2())),
+            rate_hz: cx.rate_hz,
             limit: p.samples,
             pace: p.pace,
             k: 0,
@@ -193,12 +205,16 @@ impl Source for SimSource {
             }
         };
         let s = self.sim.next_sample();
-        let raw = RawSample {
+        let mut raw = RawSample {
             t_ns: self.t_ns(),
             seq: self.k,
             rate: s.measured,
             ..RawSample::default()
         };
+        if let Some((accel, to_units)) = &mut self.accel {
+            raw.accel = accel.next_reading().map(|v| v * *to_units);
+            raw.flags |= RAW_ACCEL;
+        }
         self.k += 1;
         let ingest_ns = crate::clock::ingest_now(due_ns.is_some());
         Poll::Sample(raw, ingest_ns, due_ns.map(|d| ingest_ns.saturating_sub(d)))
@@ -216,6 +232,61 @@ impl Source for SimSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::stages::schema::{AccelUnits, Units};
+
+    fn cx(rate_hz: f64, accel_units: AccelUnits) -> Context {
+        Context {
+            rate_hz,
+            axes: 3,
+            units: Units::DegPerSec,
+            accel_units,
+        }
+    }
+
+    fn samples(p: &SimParams, cx: &Context) -> Vec<RawSample> {
+        let stop = AtomicBool::new(false);
+        let mut source = SimSource::new(p, cx).unwrap();
+        let mut got = Vec::new();
+        while let Poll::Sample(raw, ..) = source.poll(&stop) {
+            got.push(raw);
+        }
+        got
+    }
+
+    /// The ADIS16405 carries its accelerometer, in the pipeline's units, beside the very gyro
+    /// samples it had without it; the ADXRS450, a gyro alone, carries none.
+    #[test]
+    fn the_adis16405_carries_its_accelerometer_and_the_adxrs450_none() {
+        let mut p = SimParams {
+            profile: "adis16405".into(),
+            seed: 3,
+            motion: "stop-and-go".into(),
+            samples: Some(10_000),
+            pace: Pace::Asap,
+        };
+        let ms2 = samples(&p, &cx(100.0, AccelUnits::MPerS2));
+        let g = samples(&p, &cx(100.0, AccelUnits::G));
+        let mut gyro = Simulator::new(&sim_config(&p, 100.0, 3).unwrap()).unwrap();
+        for (a, b) in ms2.iter().zip(&g) {
+            assert_eq!(a.rate, gyro.next_sample().measured, "the gyro unchanged");
+            assert_eq!(a.flags & RAW_ACCEL, RAW_ACCEL);
+            for i in 0..3 {
+                assert!((a.accel[i] - b.accel[i] * 9.80665).abs() < 1e-12);
+            }
+        }
+        // Still, level, z down: about -1 g on z (50 mg turn-on bias, 1 sigma).
+        assert!((ms2[100].accel[2] + 9.80665).abs() < 2.0);
+        // Turning at 10 m/s: centripetal force sideways (1.75 m/s²) against the still mean.
+        let mean = |r: std::ops::Range<usize>| {
+            ms2[r.clone()].iter().map(|s| s.accel[1]).sum::<f64>() / r.len() as f64
+        };
+        assert!((mean(7500..9000) - mean(0..6000)).abs() > 1.5);
+        p.profile = "adxrs450".into();
+        for s in samples(&p, &cx(100.0, AccelUnits::MPerS2)) {
+            assert_eq!(s.flags & RAW_ACCEL, 0);
+            assert_eq!(s.accel_reading(), None);
+        }
+    }
 
     #[test]
     fn at_pace_10_the_simulator_takes_its_samples_ten_times_as_often_and_the_same() {
@@ -234,7 +305,8 @@ mod tests {
             }
             got
         };
-        let mut fast = SimSource::new(&params(Pace::Times(10.0)), 1000.0, 3).unwrap();
+        let cx = cx(1000.0, AccelUnits::MPerS2);
+        let mut fast = SimSource::new(&params(Pace::Times(10.0)), &cx).unwrap();
         let Poll::Sample(first, ..) = fast.poll(&stop) else {
             panic!("the first sample at once")
         };
@@ -246,7 +318,7 @@ mod tests {
         );
         let mut paced = vec![(first, 0, None)];
         paced.extend(take(&mut fast));
-        let asap = take(&mut SimSource::new(&params(Pace::Asap), 1000.0, 3).unwrap());
+        let asap = take(&mut SimSource::new(&params(Pace::Asap), &cx).unwrap());
         assert_eq!(paced.len(), 30);
         for ((p, _, late), (a, _, none)) in paced[1..].iter().zip(&asap[1..]) {
             assert_eq!(p, a, "the same sample at any pace");

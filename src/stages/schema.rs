@@ -55,7 +55,7 @@ pub enum AccelUnits {
 }
 
 /// Standard gravity, m/s² (ISO 80000-3): what `g` means in `accel_units`.
-pub const STANDARD_GRAVITY: f64 = 9.80665;
+pub const STANDARD_GRAVITY: f64 = crate::sim::force::STANDARD_GRAVITY;
 
 impl AccelUnits {
     /// Factor converting these units to m/s².

@@ -46,8 +46,7 @@ use crate::io::mcap_file::{limited_reader, map_mcap, McapOpenError};
 pub use crate::io::error::{BagError, BagErrorKind};
 
 pub use crate::transport::ros2::{
-    accel_provided, seconds_text, CdrError, Imu, ImuMapping, Motion, MotionKind, Time,
-    IMU_DEFINITION, IMU_TYPE,
+    seconds_text, CdrError, Imu, ImuMapping, Motion, MotionKind, Time, IMU_DEFINITION, IMU_TYPE,
 };
 /// Schema encoding of ROS 2 `.msg` definitions.
 pub const SCHEMA_ENCODING: &str = "ros2msg";

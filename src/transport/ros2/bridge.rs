@@ -34,7 +34,7 @@ use super::diagnostics::{
     BiasDiagnosticSettings, BiasWindow, DiagnosticArray, PipelineCounts, Vector3Stamped,
     DIAGNOSTIC_ARRAY_TYPE, VECTOR3_STAMPED_TYPE,
 };
-use super::imu::{accel_provided, ImuMapping, Time, IMU_TYPE};
+use super::imu::{ImuMapping, Time, IMU_TYPE};
 use super::motion::MotionKind;
 use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
@@ -330,16 +330,14 @@ impl ImuIn {
             }
             // The accelerometer, unless the message marks it not provided (a non-finite
             // reading goes in as it came: the guard flags and holds it, as any driver's).
-            if accel_provided(&imu) {
-                flags |= RAW_ACCEL;
-            }
+            let accel = imu.accel_reading();
             let raw = RawSample {
                 t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
-                flags,
+                flags: flags | accel.map_or(0, |_| RAW_ACCEL),
                 epoch: self.epoch,
-                accel: imu.linear_acceleration,
+                accel: accel.unwrap_or_default(),
                 ..RawSample::default()
             };
             self.next_seq += 1;

@@ -321,6 +321,12 @@ impl<'a> Cursor<'a> {
 }
 
 impl Imu {
+    /// The accelerometer reading (m/s², REP 103), unless the message marks it not provided
+    /// (REP 145: `linear_acceleration_covariance[0]` is -1).
+    pub fn accel_reading(&self) -> Option<[f64; 3]> {
+        (self.linear_acceleration_covariance[0] != -1.0).then_some(self.linear_acceleration)
+    }
+
     /// Decode a CDR message (encapsulation header included). Never panics: any bytes that are
     /// not an Imu message are an error naming what is wrong and where.
     pub fn from_cdr(bytes: &[u8]) -> Result<Imu, CdrError> {
@@ -456,12 +462,6 @@ pub struct AccelReading {
     pub value: [f64; 3],
     /// The white noise of one sample per axis, m/s^2 (1 sigma); negative where not provided.
     pub std: [f64; 3],
-}
-
-/// Whether a message's `linear_acceleration` is a reading: element 0 of its covariance is not
-/// -1 ("not provided", sensor_msgs/msg/Imu).
-pub fn accel_provided(imu: &Imu) -> bool {
-    imu.linear_acceleration_covariance[0] != -1.0
 }
 
 /// How our samples become `sensor_msgs/msg/Imu` messages: one mapping for the bags `record`
@@ -859,7 +859,7 @@ mod tests {
         let imu = m.fill(5, [0.1; 3], [-1.0; 3], None, false).unwrap();
         assert_eq!(imu.linear_acceleration, [0.0; 3]);
         assert_eq!(imu.linear_acceleration_covariance, NOT_PROVIDED);
-        assert!(!accel_provided(imu));
+        assert!(imu.accel_reading().is_none());
         // Values as they came, -0.0 and a subnormal included.
         let value = [-0.0, 5e-324, 9.80665];
         let reading = AccelReading {
@@ -878,7 +878,7 @@ mod tests {
             diag(&imu.linear_acceleration_covariance),
             [0.01 * 0.01, 0.02 * 0.02, 0.03 * 0.03]
         );
-        assert!(accel_provided(imu));
+        assert!(imu.accel_reading().is_some());
         let off: Vec<f64> = (0..9)
             .filter(|k| k % 4 != 0)
             .map(|k| imu.linear_acceleration_covariance[k])
