@@ -353,7 +353,6 @@ impl ImuIn {
             // A send error is a lost sample the daemon counts as a gap.
             let _ = self.out.send(&raw);
             self.out.notify();
-            x_trace::sent(raw.seq);
         }
     }
 }
@@ -412,9 +411,7 @@ impl ServiceOut {
                 s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
             }
             for (publisher, mapping) in &mut self.imu {
-                let t_recv = monotonic_ns();
                 let sent = mapping.gyro(&s).and_then(|imu| publisher.publish(imu));
-                x_trace::out(s.seq, s.ingest_ns, t_recv);
                 match sent {
                     Ok(()) => counts.imu_out += 1,
                     Err(e) => {
@@ -771,13 +768,6 @@ pub fn run_bridge(
     } else {
         POLL
     };
-    // EXPERIMENT: spin this long for the corrected sample after handing one in.
-    let x_spin = Duration::from_micros(
-        std::env::var("DRIFTLESS_X_ROS2_SPIN_US")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(0),
-    );
     while !stop.load(Ordering::Relaxed) {
         // Edge-triggered: take the wake-ups first, then everything there is, then sleep.
         readiness.clear();
@@ -786,7 +776,6 @@ pub fn run_bridge(
                 let _ = w.drain();
             }
         }
-        let before = counts.imu_in;
         if let Some(i) = &mut imu_in {
             i.pump(&mut counts);
         }
@@ -796,18 +785,8 @@ pub fn run_bridge(
             _ => None,
         };
         let accel_covariance = imu_in.as_ref().and_then(|i| i.accel_covariance.as_ref());
-        let until = (counts.imu_in > before && !x_spin.is_zero()).then(|| Instant::now() + x_spin);
-        loop {
-            let served_before = counts.imu_out;
-            for o in &mut outs {
-                o.serve(frame, accel_covariance, realtime, &mut counts);
-            }
-            match until {
-                Some(u) if counts.imu_out == served_before && Instant::now() < u => {
-                    std::hint::spin_loop()
-                }
-                _ => break,
-            }
+        for o in &mut outs {
+            o.serve(frame, accel_covariance, realtime, &mut counts);
         }
         if let Some(m) = &mut motion {
             loop {
@@ -851,70 +830,5 @@ pub fn run_bridge(
         let _ = wake.wait(None, sleep, |_| {});
     }
     drop((announced, transport));
-    x_trace::dump();
     Ok(counts)
-}
-
-/// EXPERIMENT: hand-over times, by seq.
-mod x_trace {
-    use std::sync::Mutex;
-    static SENT: Mutex<Vec<(u64, u64)>> = Mutex::new(Vec::new());
-    static OUT: Mutex<Vec<(u64, u64, u64, u64)>> = Mutex::new(Vec::new());
-    fn on() -> bool {
-        std::env::var_os("DRIFTLESS_X_TRACE").is_some()
-    }
-    pub fn sent(seq: u64) {
-        if on() {
-            SENT.lock()
-                .unwrap()
-                .push((seq, crate::clock::monotonic_ns()));
-        }
-    }
-    pub fn out(seq: u64, ingest: u64, recv: u64) {
-        if on() {
-            OUT.lock()
-                .unwrap()
-                .push((seq, ingest, recv, crate::clock::monotonic_ns()));
-        }
-    }
-    pub fn dump() {
-        let Some(path) = std::env::var_os("DRIFTLESS_X_TRACE") else {
-            return;
-        };
-        let sent: std::collections::HashMap<u64, u64> =
-            SENT.lock().unwrap().iter().copied().collect();
-        let (mut w2, mut w3, mut dds) = (Vec::new(), Vec::new(), Vec::new());
-        for &(seq, ingest, recv, done) in OUT.lock().unwrap().iter() {
-            if let Some(&t) = sent.get(&seq) {
-                w2.push(ingest.saturating_sub(t) as f64 / 1e3);
-            }
-            w3.push(recv.saturating_sub(ingest) as f64 / 1e3);
-            dds.push(done.saturating_sub(recv) as f64 / 1e3);
-        }
-        let pct = |v: &mut Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            let q = |x: f64| {
-                v.get((x * v.len() as f64) as usize)
-                    .copied()
-                    .unwrap_or(f64::NAN)
-            };
-            format!("p50 {:.1} p90 {:.1} p99 {:.1}", q(0.5), q(0.9), q(0.99))
-        };
-        let text = format!(
-            "sent->ingest (wake of the hot thread) {}\ningest->received (stages + wake back) {}\nDDS publish {}\n",
-            pct(&mut w2),
-            pct(&mut w3),
-            pct(&mut dds)
-        );
-        if !w3.is_empty() {
-            use std::io::Write as _;
-            if let Ok(mut f) = std::fs::OpenOptions::new()
-                .append(true)
-                .create(true)
-                .open(path)
-            {
-                let _ = f.write_all(text.as_bytes());
-            }
-        }
-    }
 }
