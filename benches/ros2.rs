@@ -5,6 +5,7 @@
 //! ```text
 //! DRIFTLESS_ROS2_PYTHON=target/ros2env/bin/python cargo bench --features ros2 --bench ros2
 //! DRIFTLESS_BENCH_SECONDS=10 ...                            # 10 s per path instead of 60
+//! DRIFTLESS_BENCH_CPU=1 ...    # the daemon's hot thread on CPU 1 (`cpu`), its ROS 2 side beside it
 //! ```
 //!
 //! Needs root: DDS runs only inside a private network namespace with nothing but loopback, which
@@ -323,20 +324,21 @@ fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
     let prefix = prefix(if output { "ros2" } else { "ros2off" });
     let report = std::env::temp_dir().join(format!("{prefix}report.json"));
     let off = std::env::temp_dir().join(format!("{prefix}pipeline.toml"));
-    // EXPERIMENT: extra top-level keys.
-    let extra = std::env::var("DRIFTLESS_X_PIPELINE_EXTRA").unwrap_or_default();
-    let x_file = std::env::temp_dir().join(format!("{prefix}x.toml"));
-    let shipped = if extra.is_empty() {
-        shipped.to_string()
-    } else {
-        let text = std::fs::read_to_string(shipped).unwrap();
-        let text = text.replacen(
-            "name = \"ros2\"\n",
-            &format!("name = \"ros2\"\n{extra}\n"),
-            1,
-        );
-        std::fs::write(&x_file, text).unwrap();
-        x_file.to_string_lossy().into_owned()
+    // DRIFTLESS_BENCH_CPU: the hot thread pinned there (`cpu`), the ROS 2 side beside it.
+    let pinned = std::env::temp_dir().join(format!("{prefix}cpu.toml"));
+    let shipped = match std::env::var("DRIFTLESS_BENCH_CPU") {
+        Ok(cpu) => {
+            let cpu: usize = cpu.parse().expect("DRIFTLESS_BENCH_CPU: a CPU number");
+            let text = std::fs::read_to_string(shipped).unwrap();
+            let text = text.replacen(
+                "name = \"ros2\"\n",
+                &format!("name = \"ros2\"\ncpu = {cpu}\n"),
+                1,
+            );
+            std::fs::write(&pinned, text).unwrap();
+            pinned.to_string_lossy().into_owned()
+        }
+        Err(_) => shipped.to_string(),
     };
     let shipped = shipped.as_str();
     let pipeline = if output {
@@ -384,6 +386,7 @@ fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
     let r = read_report(&report);
     let _ = std::fs::remove_file(&report);
     let _ = std::fs::remove_file(&off);
+    let _ = std::fs::remove_file(&pinned);
     let side = DaemonSide {
         p999_us: r["end_to_end_ns"]["p999"].as_f64().unwrap_or(f64::NAN) / 1e3,
         misses: r["deadline_misses"].as_u64().unwrap_or(0),

@@ -670,7 +670,8 @@ output = "rt/corrected"
 fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     use driftless::io::ros2::{Bag, Imu};
     use driftless::pipeline::{config, offline::Offline};
-    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/imu.mcap");
+    // Its accelerometer varies per message; messages 300-309 mark it not provided.
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/accel.mcap");
     let dir = Dir::new();
     let pipeline = dir.write("rt.toml", &ros2_pipeline(&input));
 
@@ -684,8 +685,20 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     let raws: Vec<RawSample> = sent
         .iter()
         .enumerate()
-        .map(|(i, m)| raw(i as u64, m.stamp.ns() as u64, m.angular_velocity))
+        .map(|(i, m)| {
+            let mut r = raw(i as u64, m.stamp.ns() as u64, m.angular_velocity);
+            if m.accel_reading().is_some() {
+                r.accel = m.linear_acceleration;
+                r.flags |= driftless::transport::RAW_ACCEL;
+            }
+            r
+        })
         .collect();
+    assert_eq!(
+        sent.iter().filter(|m| m.accel_reading().is_none()).count(),
+        10,
+        "the fixture's stretch without an accelerometer"
+    );
     let mut offline = Offline::new(&config::load(&pipeline).expect("valid")).expect("offline");
     let mut want = Vec::with_capacity(raws.len());
     for r in &raws {
@@ -709,6 +722,10 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
             "rad/s",
             "--rate-noise",
             "0.3",
+            "--accel-noise",
+            "0.02",
+            "--raw-accel-units",
+            "m/s^2",
             "--frame-id",
             "gyro",
             "-o",
@@ -723,8 +740,12 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     let (code, rest) = finish_recorder(recorder, err);
     assert_eq!(code, Some(0), "{rest}");
     assert!(
-        rest.contains("rt/corrected: 1800 samples, 0 missing"),
+        rest.contains("rt/corrected: 600 samples, 0 missing"),
         "{rest}"
+    );
+    assert!(
+        !rest.contains("accelerometer reading(s)"),
+        "every covariance known: {rest}"
     );
 
     let got = Bag::open(&out).expect("a complete bag");
@@ -736,8 +757,8 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     assert_eq!(
         topics,
         [
-            ("/rt/corrected".to_string(), 1800),
-            ("/rt/raw".to_string(), 1800)
+            ("/rt/corrected".to_string(), 600),
+            ("/rt/raw".to_string(), 600)
         ]
     );
     let noise = 0.3f64.to_radians().powi(2);
@@ -755,7 +776,8 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
         );
         assert_eq!(m.frame_id, "gyro");
         assert_eq!(m.orientation_covariance[0], -1.0, "not provided");
-        assert_eq!(m.linear_acceleration_covariance[0], -1.0, "not provided");
+        // A raw sample carries no accel_std: --accel-noise's.
+        same_accel(m, s, 0.02, "raw");
         for (i, c) in m.angular_velocity_covariance.iter().enumerate() {
             assert_eq!(
                 *c,
@@ -766,8 +788,26 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
     }
     let corrected = read("/rt/corrected");
     assert_eq!(corrected.len(), want.len(), "every sample once");
+    // Time-aligned: each output carries the accelerometer of the input of its own stamp.
+    let by_stamp: std::collections::HashMap<i64, &Imu> =
+        sent.iter().map(|m| (m.stamp.ns(), m)).collect();
     for (i, (m, w)) in corrected.iter().zip(&want).enumerate() {
         assert_eq!(m.stamp.ns() as u64, w.t_ns, "sample {i}: stamp");
+        // predict.bias gives each reading its white noise (accel_std, from the profile's VRW).
+        let std = w.accel_std[0];
+        if w.accel_reading().is_some() {
+            assert!(
+                std > 0.0 && w.accel_std == [std; 3],
+                "sample {i}: {:?}",
+                w.accel_std
+            );
+        }
+        same_accel(m, by_stamp[&m.stamp.ns()], std, &format!("corrected {i}"));
+        assert_eq!(
+            m.linear_acceleration.map(f64::to_bits),
+            w.accel_reading().unwrap_or([0.0; 3]).map(f64::to_bits),
+            "sample {i}: the acceleration offline"
+        );
         assert_eq!(
             m.angular_velocity.map(f64::to_bits),
             w.rate.map(f64::to_bits),
@@ -786,10 +826,33 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
             );
         }
     }
-    // The committed fixture that rosbags reads (tests/ros2_bag.rs, recorded.json).
+    // The committed fixture that rosbags reads (tests/ros2_bag.rs, recorded.json: it checks
+    // every message's acceleration against accel.mcap's with rosbags' own reader).
     if std::env::var_os("DRIFTLESS_BLESS").is_some_and(|v| v == "1") {
         let fixture =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/recorded.mcap");
         std::fs::copy(&out, fixture).expect("bless recorded.mcap");
+    }
+}
+
+/// `got`'s linear acceleration is `sent`'s bit for bit with the covariance a white noise of
+/// `std` m/s^2 gives, or "not provided" where `sent` did not provide it.
+fn same_accel(
+    got: &driftless::io::ros2::Imu,
+    sent: &driftless::io::ros2::Imu,
+    std: f64,
+    what: &str,
+) {
+    let c = got.linear_acceleration_covariance;
+    if sent.accel_reading().is_some() {
+        assert_eq!(
+            got.linear_acceleration.map(f64::to_bits),
+            sent.linear_acceleration.map(f64::to_bits),
+            "{what}: linear_acceleration bit for bit"
+        );
+        let var = std * std;
+        assert_eq!(c, [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var], "{what}");
+    } else {
+        assert_eq!(c[0], -1.0, "{what}: not provided");
     }
 }

@@ -638,8 +638,8 @@ fn the_committed_written_bag_is_what_the_writer_writes_and_what_rosbags_read() {
 }
 
 /// Per topic of a bag: (count, frame ids, first and last stamps, SHA-256 over every message's
-/// stamp, angular velocity and covariance bytes), as scripts/gen_ros2_fixture.py `recorded`
-/// computes it from rosbags' reading.
+/// stamp, angular velocity, linear acceleration and covariance bytes), as
+/// scripts/gen_ros2_fixture.py `recorded` computes it from rosbags' reading.
 fn recorded_digest(bag: &Bag, topic: &str) -> (u64, Vec<String>, [i64; 2], [i64; 2], String) {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
@@ -659,6 +659,8 @@ fn recorded_digest(bag: &Bag, topic: &str) -> (u64, Vec<String>, [i64; 2], [i64;
             .angular_velocity
             .iter()
             .chain(&m.angular_velocity_covariance)
+            .chain(&m.linear_acceleration)
+            .chain(&m.linear_acceleration_covariance)
         {
             h.update(v.to_le_bytes());
         }
@@ -669,13 +671,15 @@ fn recorded_digest(bag: &Bag, topic: &str) -> (u64, Vec<String>, [i64; 2], [i64;
 
 #[test]
 fn the_committed_ros2_recording_reads_as_rosbags_read_it() {
-    // recorded.mcap: `driftless record --format ros2` of a daemon replaying imu.mcap
-    // (tests/record.rs writes it under DRIFTLESS_BLESS=1); recorded.json: rosbags' reading.
+    // recorded.mcap: `driftless record --format ros2` of a daemon replaying accel.mcap
+    // (tests/record.rs writes it under DRIFTLESS_BLESS=1); recorded.json: rosbags' reading,
+    // which checked every message's acceleration against accel.mcap's of the same stamp.
     let bag = Bag::open(&fixture("recorded.mcap")).unwrap();
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(fixture("recorded.json")).unwrap()).unwrap();
     assert_eq!(json["reader"], "rosbags 0.11.9");
     assert_eq!(json["every_message_checked"], true);
+    assert_eq!(json["input"], "accel.mcap");
     let topics = json["topics"].as_object().unwrap();
     let ours: Vec<String> = bag.imu_topics().into_iter().map(|t| t.topic).collect();
     assert_eq!(ours, topics.keys().cloned().collect::<Vec<_>>());
@@ -694,5 +698,8 @@ fn the_committed_ros2_recording_reads_as_rosbags_read_it() {
             t["sha256"], sha,
             "{topic}: every message as rosbags read it"
         );
+        // accel.mcap's messages 300-309 mark their accelerometer not provided.
+        assert_eq!(t["accel_not_provided"], 10, "{topic}");
+        assert_eq!(t["accel_provided"], n - 10, "{topic}");
     }
 }

@@ -302,6 +302,8 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
         assert_eq!(m["stamp"][1], (i % 1000) as i64 * 1_000_000, "{i}");
         // No frame_id in ros2.toml: the driver's own frame passes through.
         assert_eq!(m["frame_id"], "peer_imu");
+        // A gyro-only driver (covariance[0] = -1): no acceleration out either.
+        assert_eq!(m["linear_acceleration_covariance"][0], -1.0, "{i}");
         let cov: Vec<f64> = m["angular_velocity_covariance"]
             .as_array()
             .unwrap()
@@ -1056,6 +1058,32 @@ fn validate_checks_the_bias_and_diagnostics_tables_against_the_chain() {
     let (code, _, err) = validate("vperiod", "diagnostics_period_s = 0.0");
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("diagnostics_period_s"), "{err}");
+    // A driver's Imu is m/s^2 (REP 103): a pipeline in g cannot take it.
+    let (dir, file) = ros2_pipeline_with("vg", "");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(
+        &file,
+        text.replacen(
+            "input_units = \"rad/s\"\n",
+            "input_units = \"rad/s\"\naccel_units = \"g\"\n",
+            1,
+        ),
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+        .arg("validate")
+        .arg(&file)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(
+            "imu_in: ROS 2 accelerations are m/s^2 (REP 103): set accel_units = \"m/s^2\""
+        ),
+        "{err}"
+    );
 }
 
 /// The driver's specific force of message `i` (tests/ros2/imu_peer.py `accel`, the same IEEE
@@ -1111,11 +1139,14 @@ fn a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covari
         ] {
             let c = floats(&m[key]);
             assert!(c.iter().all(|x| x.is_finite()), "{i}: {key} {c:?}");
-            assert!(
-                c[0] >= 0.0 && c[4] >= 0.0 && c[8] >= 0.0,
-                "{i}: {key} {c:?}"
-            );
+            assert!(c[0] > 0.0 && c[4] > 0.0 && c[8] > 0.0, "{i}: {key} {c:?}");
         }
+        // predict.bias gives each reading its white noise (accel_std: the ADIS16405 profile's
+        // VRW at 1 kHz): diagonal, its square, not the driver's covariance.
+        let std = driftless::drift::bias::AccelTerms::ADIS16405.white_std(1000.0);
+        let var = std * std;
+        let c = floats(&m["linear_acceleration_covariance"]);
+        assert_eq!(c, [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var], "{i}");
         assert_eq!(m["orientation_covariance"][0], -1.0, "{i}: no orientation");
     }
 }

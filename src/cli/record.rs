@@ -11,6 +11,7 @@ use std::time::Duration;
 
 use crate::cli::CliError;
 use crate::io::recorder::{Progress, RecordError, Recorder, Ros2Bag, Settings, Summary};
+use crate::stages::schema::AccelUnits;
 use crate::transport::{self, WireType};
 
 /// Arguments of `driftless record`.
@@ -55,6 +56,11 @@ pub struct Args {
     /// zeros ("unknown"; robot_localization then trusts it far too much).
     #[arg(long, value_name = "M_PER_S2")]
     pub accel_noise: Option<f64>,
+    /// With --format ros2: units of raw services' accelerometer readings (the pipeline's
+    /// accel_units), to write them in m/s^2; without it a raw reading is written "not
+    /// provided".
+    #[arg(long, value_parser = ["m/s^2", "g"])]
+    pub raw_accel_units: Option<String>,
 }
 
 /// Subscribe to SERVICE... and record them until stopped.
@@ -93,6 +99,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
+    if args.raw_accel_units.is_some() && !ros2 {
+        return Err(CliError::input(
+            "--raw-accel-units is for --format ros2 (a recording keeps raw readings as they came)",
+        ));
+    }
     if args.frame_id != crate::transport::ros2::DEFAULT_FRAME_ID && !ros2 {
         return Err(CliError::input("--frame-id is for --format ros2"));
     }
@@ -121,6 +132,10 @@ fn record(args: &Args, prefix: &str) -> Result<(), CliError> {
             frame_id: args.frame_id.clone(),
             rate_noise: args.rate_noise,
             accel_noise: args.accel_noise,
+            raw_accel_to_m_s2: args.raw_accel_units.as_deref().map(|u| match u {
+                "g" => AccelUnits::G.to_m_per_s2(),
+                _ => AccelUnits::MPerS2.to_m_per_s2(),
+            }),
         }),
     };
     // Installed in main, before anything exists on disk: a signal ends the recording cleanly.
@@ -164,6 +179,13 @@ fn record(args: &Args, prefix: &str) -> Result<(), CliError> {
         );
     }
     let summary = outcome?;
+    let no_units: u64 = summary.services.iter().map(|s| s.accel_units_unknown).sum();
+    if no_units > 0 {
+        eprintln!(
+            "driftless: note: {no_units} raw accelerometer reading(s) written \"not provided\": \
+             give --raw-accel-units (the pipeline's accel_units) to write them in m/s^2"
+        );
+    }
     let unknown: u64 = summary.services.iter().map(|s| s.accel_unknown).sum();
     if unknown > 0 {
         eprintln!(

@@ -65,6 +65,9 @@ pub struct Ros2Bag {
     /// The accelerometer's white noise, 1 sigma of one sample in m/s^2, for samples that carry
     /// no `accel_std` (None: their covariance unknown).
     pub accel_noise: Option<f64>,
+    /// Factor from raw services' accelerometer units (their pipeline's `accel_units`) to m/s^2
+    /// (None: not known; their readings are written "not provided").
+    pub raw_accel_to_m_s2: Option<f64>,
 }
 
 /// Why a recording did not start or did not end whole.
@@ -109,6 +112,9 @@ pub struct ServiceSummary {
     /// In a ROS 2 bag: accelerometer readings written with an unknown covariance (all zeros:
     /// no `accel_std` in the sample, no `--accel-noise`).
     pub accel_unknown: u64,
+    /// In a ROS 2 bag: raw accelerometer readings written "not provided", their units not
+    /// given (`--raw-accel-units`).
+    pub accel_units_unknown: u64,
 }
 
 /// What a recording reports about once a second.
@@ -364,7 +370,8 @@ impl Recorder {
                         _ => 1.0,
                     };
                     let m = ImuMapping::new(&bag.frame_id, to_rad, bag.rate_noise)
-                        .with_accel_noise(bag.accel_noise);
+                        .with_accel_noise(bag.accel_noise)
+                        .with_raw_accel_units(bag.raw_accel_to_m_s2);
                     (channel, Some(m))
                 }
                 None => {
@@ -536,6 +543,7 @@ impl Recorder {
                     wire: r.input.wire_type(),
                     held: r.ros2.as_ref().map_or(0, |m| m.held),
                     accel_unknown: r.ros2.as_ref().map_or(0, |m| m.accel_unknown),
+                    accel_units_unknown: r.ros2.as_ref().map_or(0, |m| m.accel_units_unknown),
                     service: r.service,
                     counts: r.counts,
                 })

@@ -104,6 +104,10 @@ pub struct Start<'a> {
     pub qos: Qos,
     /// The pipeline's rate, Hz.
     pub rate_hz: f64,
+    /// The hot thread's CPU, when its pipelines pin it (`cpu`): a side that hands samples to
+    /// the hot thread and back may run beside it, so that each hand-over wakes a thread on the
+    /// same CPU rather than an idle one.
+    pub cpu: Option<usize>,
     /// Set when the pipeline stops: the side returns soon after.
     pub stop: &'a AtomicBool,
 }

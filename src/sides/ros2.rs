@@ -10,7 +10,7 @@ use toml::Spanned;
 use super::contract::{Chain, Kind, Ready, Side, Start};
 use crate::io::InputError;
 use crate::stages::contract::SideInput;
-use crate::stages::schema::{DefaultValue, Key, Table, Type, Units};
+use crate::stages::schema::{AccelUnits, DefaultValue, Key, Table, Type, Units};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::{
     Direction, MotionKind, Ros2Settings, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, IMU_TYPE,
@@ -55,8 +55,10 @@ const IMU_IN: Key = Key {
     name: "imu_in",
     ty: Type::Table("`topic`, `service`, `type` = \"sensor_msgs/msg/Imu\""),
     default: DefaultValue::Absent("none"),
-    doc: "a driver node's Imu topic, into the service an `ingest.iceoryx2` stage reads. The \
-          pipeline's `input_units` must be `\"rad/s\"` (REP 103)",
+    doc: "a driver node's Imu topic, into the service an `ingest.iceoryx2` stage reads: its \
+          angular velocity, and its linear acceleration unless the message marks it not \
+          provided (covariance element 0 = -1). The pipeline's `input_units` must be \
+          `\"rad/s\"` and its `accel_units` `\"m/s^2\"` (REP 103)",
 };
 const IMU_OUT: Key = Key {
     name: "imu_out",
@@ -250,6 +252,13 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
                     "imu_in: ROS 2 rates are rad/s (REP 103): set input_units = \"rad/s\"",
                 ));
             }
+            if chain.cx.accel_units != AccelUnits::MPerS2 {
+                return Err(src.span(
+                    &raw.service,
+                    "imu_in: ROS 2 accelerations are m/s^2 (REP 103): set accel_units = \
+                     \"m/s^2\"",
+                ));
+            }
             imu_type(&raw.ty, "imu_in")?;
             Some((topic(&raw.topic)?, service))
         }
@@ -414,6 +423,7 @@ impl Side for Ros2Side {
             start.announce_as,
             start.qos,
             start.rate_hz,
+            start.cpu,
             start.stop,
             ready,
         )

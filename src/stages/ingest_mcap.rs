@@ -7,7 +7,9 @@
 //! rates and flags bit for bit), so replaying a recording of a pipeline's raw service through
 //! the same stages reproduces what that pipeline published. A bag's message `n` (from 1) enters
 //! as `seq` n - 1, `t_ns` its `header.stamp`, `rate` its `angular_velocity` (rad/s: the
-//! pipeline's `input_units` must be rad/s), `epoch` 0. A message that does not decode enters
+//! pipeline's `input_units` must be rad/s), `accel` its `linear_acceleration` with
+//! `RAW_ACCEL` unless the message marks it not provided (covariance element 0 = -1; m/s^2: the
+//! pipeline's `accel_units` must be m/s^2), `epoch` 0. A message that does not decode enters
 //! as an invalid sample (`RAW_INVALID`, its time held, said on stderr): the daemon flags it
 //! and keeps serving; a stamp going backwards or leaping enters as it is and is flagged
 //! downstream (`stamp_fault`, [`crate::clock::StampCheck`]); a stamp of 0 ("not set") or
@@ -51,11 +53,11 @@ use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
-use crate::stages::schema::Units;
+use crate::stages::schema::{AccelUnits, Units};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
 use crate::transport::{
-    RawSample, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+    RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
 
 const FILE: Key = Key {
@@ -415,6 +417,17 @@ fn parse_bag(
             ),
         ));
     }
+    if t.cx.accel_units != AccelUnits::MPerS2 {
+        return Err(src.at(
+            at,
+            format!(
+                "topic {topic} of {shown} is a sensor_msgs/msg/Imu: its linear acceleration is \
+                 in m/s^2 (REP 103), but the pipeline's accel_units is {}: set accel_units = \
+                 \"m/s^2\"",
+                t.cx.accel_units.name()
+            ),
+        ));
+    }
     let mut stamps = Vec::with_capacity(CHECKED_MESSAGES);
     for m in bag
         .imu_messages(&topic)
@@ -524,6 +537,11 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
                         // The loop's span, from real stamps only.
                         first_t.get_or_insert(t);
                         last_t = t;
+                    }
+                    // The accelerometer as it came, unless the message marks it not provided.
+                    if let Some(a) = m.msg.accel_reading() {
+                        s.accel = a;
+                        s.flags |= RAW_ACCEL;
                     }
                 }
                 Err(e) if e.kind == BagErrorKind::Cdr => {

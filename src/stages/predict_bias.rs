@@ -40,6 +40,7 @@ use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::transport::{
     GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
+    SENSOR_ACCEL,
 };
 #[cfg(doc)]
 use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
@@ -439,6 +440,7 @@ impl Params for BiasParams {
             since_save: 0,
             samples: 0,
             warm,
+            accel_std: self.accel.white_std(cx.rate_hz),
         }))
     }
 
@@ -611,6 +613,9 @@ pub struct BiasStage {
     samples: u64,
     /// How the stage started: warm, or cold and why.
     warm: WarmStart,
+    /// The accelerometer's white noise per sample, m/s² (from `accel_vrw`): each sample's
+    /// `accel_std`, the weight a navigator (and the ROS 2 covariance) gives its reading.
+    accel_std: f64,
 }
 
 impl BiasStage {
@@ -725,6 +730,9 @@ impl Stage for BiasStage {
                 self.since_save = 0;
                 writer.offer(|snap| *snap = self.snapshot());
             }
+        }
+        if out.sensors & SENSOR_ACCEL != 0 {
+            out.accel_std = [self.accel_std; 3];
         }
         Some(out)
     }

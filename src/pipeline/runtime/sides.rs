@@ -40,10 +40,12 @@ impl Sides {
             stop: Arc::default(),
             threads: Vec::new(),
         };
+        // The group's one hot thread: whichever pipeline pins it.
+        let cpu = members.iter().find_map(|(p, _)| p.cpu);
         for (p, prefix) in members {
             for spec in &p.sides {
                 let table = spec.kind.table;
-                if let Err(message) = sides.spawn(p, prefix, spec) {
+                if let Err(message) = sides.spawn(p, prefix, spec, cpu) {
                     sides.finish(false);
                     return Err(RunError::Stage {
                         stage: table.into(),
@@ -61,6 +63,7 @@ impl Sides {
         p: &Pipeline,
         prefix: &str,
         spec: &crate::sides::SideSpec,
+        cpu: Option<usize>,
     ) -> Result<(), String> {
         let (tx, rx) = bounded::<Result<(), String>>(1);
         let table = spec.kind.table;
@@ -80,6 +83,7 @@ impl Sides {
                     announce_as: &announce_as,
                     qos,
                     rate_hz,
+                    cpu,
                     stop: &stop,
                 };
                 side.run(

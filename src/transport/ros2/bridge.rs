@@ -40,7 +40,7 @@ use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
 use crate::transport::{
     GyroSample, Input, Output, Qos, RawSample, StatsSnapshot, StopSignal, Transport,
-    TransportError, WakeSet, Waker, RAW_INVALID, RAW_STAMP_FAULT,
+    TransportError, WakeSet, Waker, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
 };
 
 /// How long a topic may go unmatched before stderr says so.
@@ -328,13 +328,16 @@ impl ImuIn {
             if fault.is_some() {
                 flags |= RAW_STAMP_FAULT;
             }
+            // The accelerometer, unless the message marks it not provided (a non-finite
+            // reading goes in as it came: the guard flags and holds it, as any driver's).
+            let accel = imu.accel_reading();
             let raw = RawSample {
                 t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
-                flags,
+                flags: flags | accel.map_or(0, |_| RAW_ACCEL),
                 epoch: self.epoch,
-                // The accelerometer: the ROS 2 side's scope (issue 49) maps it.
+                accel: accel.unwrap_or_default(),
                 ..RawSample::default()
             };
             self.next_seq += 1;
@@ -554,10 +557,30 @@ fn announcement(settings: &Ros2Settings, node: &Ros2Node) -> Vec<(&'static str, 
     out
 }
 
+/// Pin the calling thread to `cpu`, the hot thread's, before it starts the DDS threads (they
+/// inherit it): each hand-over between them and the hot thread then wakes a thread on the CPU
+/// that is running, never an idle one (on a VM, waking an idle vCPU costs tens of us). A
+/// failure is said and costs only that.
+fn beside_the_hot_thread(cpu: usize) {
+    // SAFETY: a zeroed cpu_set_t is valid; CPU_SET stays in bounds (cpu < 1024 = CPU_SETSIZE).
+    let rc = unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
+    };
+    if rc != 0 {
+        say(format_args!(
+            "cannot run beside the hot thread on CPU {cpu}: {}",
+            std::io::Error::last_os_error()
+        ));
+    }
+}
+
 /// Run the ROS 2 side of a pipeline until `stop`: `settings` under iceoryx2 `prefix` with the
 /// pipeline's `qos` and rate, on the iceoryx2 node `node_name`, announced on the event service
-/// `announce_as` (what `driftless list` shows). `started` hears once whether it set up (so the
-/// daemon can refuse to run without it); then it runs, and returns what it carried.
+/// `announce_as` (what `driftless list` shows); beside the hot thread on its `cpu` when the
+/// pipeline pins it. `started` hears once whether it set up (so the daemon can refuse to run
+/// without it); then it runs, and returns what it carried.
 #[allow(clippy::too_many_arguments)]
 pub fn run_bridge(
     settings: &Ros2Settings,
@@ -566,22 +589,14 @@ pub fn run_bridge(
     announce_as: &str,
     qos: Qos,
     rate_hz: f64,
+    cpu: Option<usize>,
     stop: &AtomicBool,
     started: impl FnOnce(Result<(), String>),
 ) -> Result<BridgeCounts, TransportError> {
     let setup = || -> Result<_, TransportError> {
         let transport = Transport::new(prefix, node_name, qos)?;
-        // EXPERIMENT: pin this thread (and the DDS threads it starts) to a CPU.
-        if let Some(cpu) = std::env::var("DRIFTLESS_X_ROS2_CPU")
-            .ok()
-            .and_then(|v| v.parse::<usize>().ok())
-        {
-            // SAFETY: a zeroed cpu_set_t is valid; cpu < 1024.
-            unsafe {
-                let mut set: libc::cpu_set_t = std::mem::zeroed();
-                libc::CPU_SET(cpu, &mut set);
-                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-            }
+        if let Some(cpu) = cpu {
+            beside_the_hot_thread(cpu);
         }
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
         let announced = transport.announce(announce_as, &announcement(settings, &node))?;
@@ -753,13 +768,6 @@ pub fn run_bridge(
     } else {
         POLL
     };
-    // EXPERIMENT: spin this long for the corrected sample after handing one in.
-    let x_spin = Duration::from_micros(
-        std::env::var("DRIFTLESS_X_ROS2_SPIN_US")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(0),
-    );
     while !stop.load(Ordering::Relaxed) {
         // Edge-triggered: take the wake-ups first, then everything there is, then sleep.
         readiness.clear();
@@ -768,7 +776,6 @@ pub fn run_bridge(
                 let _ = w.drain();
             }
         }
-        let before = counts.imu_in;
         if let Some(i) = &mut imu_in {
             i.pump(&mut counts);
         }
@@ -778,18 +785,8 @@ pub fn run_bridge(
             _ => None,
         };
         let accel_covariance = imu_in.as_ref().and_then(|i| i.accel_covariance.as_ref());
-        let until = (counts.imu_in > before && !x_spin.is_zero()).then(|| Instant::now() + x_spin);
-        loop {
-            let served_before = counts.imu_out;
-            for o in &mut outs {
-                o.serve(frame, accel_covariance, realtime, &mut counts);
-            }
-            match until {
-                Some(u) if counts.imu_out == served_before && Instant::now() < u => {
-                    std::hint::spin_loop()
-                }
-                _ => break,
-            }
+        for o in &mut outs {
+            o.serve(frame, accel_covariance, realtime, &mut counts);
         }
         if let Some(m) = &mut motion {
             loop {

@@ -321,6 +321,12 @@ impl<'a> Cursor<'a> {
 }
 
 impl Imu {
+    /// The accelerometer reading (m/s², REP 103), unless the message marks it not provided
+    /// (REP 145: `linear_acceleration_covariance[0]` is -1).
+    pub fn accel_reading(&self) -> Option<[f64; 3]> {
+        (self.linear_acceleration_covariance[0] != -1.0).then_some(self.linear_acceleration)
+    }
+
     /// Decode a CDR message (encapsulation header included). Never panics: any bytes that are
     /// not an Imu message are an error naming what is wrong and where.
     pub fn from_cdr(bytes: &[u8]) -> Result<Imu, CdrError> {
@@ -458,12 +464,6 @@ pub struct AccelReading {
     pub std: [f64; 3],
 }
 
-/// Whether a message's `linear_acceleration` is a reading: element 0 of its covariance is not
-/// -1 ("not provided", sensor_msgs/msg/Imu).
-pub fn accel_provided(imu: &Imu) -> bool {
-    imu.linear_acceleration_covariance[0] != -1.0
-}
-
 /// How our samples become `sensor_msgs/msg/Imu` messages: one mapping for the bags `record`
 /// writes and the topics the daemon publishes.
 /// - `angular_velocity`: the rate in rad/s; the stamp: the sample's time `t_ns`.
@@ -498,6 +498,11 @@ pub struct ImuMapping {
     /// Accelerometer readings mapped with an unknown covariance (all zeros: neither the
     /// sample, the `accel_noise` setting nor the input gave one).
     pub accel_unknown: u64,
+    /// Factor from raw samples' accelerometer units to m/s^2 (None: not known).
+    raw_to_m_s2: Option<f64>,
+    /// Raw samples whose accelerometer reading went out "not provided" because its units were
+    /// not known.
+    pub accel_units_unknown: u64,
 }
 
 impl ImuMapping {
@@ -517,6 +522,8 @@ impl ImuMapping {
             accel_cov_in: None,
             held: 0,
             accel_unknown: 0,
+            raw_to_m_s2: None,
+            accel_units_unknown: 0,
         }
     }
 
@@ -542,16 +549,37 @@ impl ImuMapping {
         }
     }
 
+    /// Raw samples' accelerometer readings times `to_m_s2` are m/s^2 (their pipeline's
+    /// `accel_units`). Without it, a raw sample's reading goes out "not provided", counted in
+    /// [`ImuMapping::accel_units_unknown`]: a reading in unknown units is no reading.
+    pub fn with_raw_accel_units(mut self, to_m_s2: Option<f64>) -> ImuMapping {
+        self.raw_to_m_s2 = to_m_s2;
+        self
+    }
+
     /// A raw sample's message.
     pub fn raw(&mut self, s: &RawSample) -> Result<&Imu, String> {
         let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
-        self.fill(s.t_ns, s.rate, [-1.0; 3], None, held)
+        let reading = s
+            .accel_reading()
+            .filter(|a| a.iter().all(|v| v.is_finite()));
+        self.accel_units_unknown += u64::from(reading.is_some() && self.raw_to_m_s2.is_none());
+        let accel = reading.zip(self.raw_to_m_s2).map(|(a, k)| AccelReading {
+            value: a.map(|v| v * k),
+            std: [-1.0; 3],
+        });
+        self.fill(s.t_ns, s.rate, [-1.0; 3], accel, held)
     }
 
-    /// A gyro sample's message.
+    /// A gyro sample's message: its accelerometer reading where it has a valid one (a held
+    /// one goes out "not provided").
     pub fn gyro(&mut self, s: &GyroSample) -> Result<&Imu, String> {
         let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-        self.fill(s.t_ns, s.rate, s.drift_std, None, held)
+        let accel = s.accel_reading().map(|value| AccelReading {
+            value,
+            std: s.accel_std,
+        });
+        self.fill(s.t_ns, s.rate, s.drift_std, accel, held)
     }
 
     /// The covariance of a reading whose white noise per axis is `std` (m/s^2, negative
@@ -831,7 +859,7 @@ mod tests {
         let imu = m.fill(5, [0.1; 3], [-1.0; 3], None, false).unwrap();
         assert_eq!(imu.linear_acceleration, [0.0; 3]);
         assert_eq!(imu.linear_acceleration_covariance, NOT_PROVIDED);
-        assert!(!accel_provided(imu));
+        assert!(imu.accel_reading().is_none());
         // Values as they came, -0.0 and a subnormal included.
         let value = [-0.0, 5e-324, 9.80665];
         let reading = AccelReading {
@@ -850,7 +878,7 @@ mod tests {
             diag(&imu.linear_acceleration_covariance),
             [0.01 * 0.01, 0.02 * 0.02, 0.03 * 0.03]
         );
-        assert!(accel_provided(imu));
+        assert!(imu.accel_reading().is_some());
         let off: Vec<f64> = (0..9)
             .filter(|k| k % 4 != 0)
             .map(|k| imu.linear_acceleration_covariance[k])

@@ -29,8 +29,8 @@ pub use diagnostics::{
     Vector3Stamped, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, VECTOR3_STAMPED_TYPE,
 };
 pub use imu::{
-    accel_provided, seconds_text, AccelReading, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION,
-    IMU_TYPE, NOT_PROVIDED,
+    seconds_text, AccelReading, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE,
+    NOT_PROVIDED,
 };
 pub use motion::{Motion, MotionKind};
 
