@@ -323,6 +323,22 @@ fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
     let prefix = prefix(if output { "ros2" } else { "ros2off" });
     let report = std::env::temp_dir().join(format!("{prefix}report.json"));
     let off = std::env::temp_dir().join(format!("{prefix}pipeline.toml"));
+    // EXPERIMENT: extra top-level keys.
+    let extra = std::env::var("DRIFTLESS_X_PIPELINE_EXTRA").unwrap_or_default();
+    let x_file = std::env::temp_dir().join(format!("{prefix}x.toml"));
+    let shipped = if extra.is_empty() {
+        shipped.to_string()
+    } else {
+        let text = std::fs::read_to_string(shipped).unwrap();
+        let text = text.replacen(
+            "name = \"ros2\"\n",
+            &format!("name = \"ros2\"\n{extra}\n"),
+            1,
+        );
+        std::fs::write(&x_file, text).unwrap();
+        x_file.to_string_lossy().into_owned()
+    };
+    let shipped = shipped.as_str();
     let pipeline = if output {
         std::path::PathBuf::from(shipped)
     } else {

@@ -21,16 +21,31 @@ delay, as a recorder's receive time would be, so a reader that took the log time
 stamp fails. imu.csv holds what a reader must decode: stamp_ns and angular_velocity x, y, z
 as repr() (exact doubles); the other fields follow from the formulas in `imu_message`.
 
-`recorded PATH` reads tests/fixtures/ros2/recorded.mcap, what `driftless record --format ros2`
-recorded of a daemon replaying imu.mcap (tests/record.rs, the round trip, writes it under
+`recorded PATH [INPUT]` reads tests/fixtures/ros2/recorded.mcap, what `driftless record --format
+ros2` recorded of a daemon replaying accel.mcap (tests/record.rs, the round trip, writes it under
 DRIFTLESS_BLESS=1), with rosbags' reader and deserializer: every message of every topic,
-asserting what the message definition asks (header.frame_id set, orientation and linear
-acceleration "not provided" (-1), a finite diagonal angular_velocity_covariance, stamps
-rising), and prints per topic the count, the stamps and a SHA-256 over every message's stamp,
-angular velocity and covariance bytes; the test computes the same from its own reading:
+asserting what the message definition asks (header.frame_id set, orientation "not provided"
+(-1), a finite diagonal angular_velocity_covariance, stamps rising) and the accelerometer as
+INPUT gave it (see `accel` below), and prints per topic the count, the stamps and a SHA-256
+over every message's stamp, angular velocity, linear acceleration and covariance bytes; the
+test computes the same from its own reading:
 
     /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py recorded \
         tests/fixtures/ros2/recorded.mcap > tests/fixtures/ros2/recorded.json
+
+`accel` writes tests/fixtures/ros2/accel.mcap for the accelerometer's round trip
+(tests/record.rs): `/imu/data` (Imu, 600 messages at 100 Hz, frame_id imu_link) whose
+linear_acceleration varies per message (splitmix doubles around gravity on z) with a covariance
+diag(1e-4, 2e-4, 3e-4), except messages 300-309, whose covariance element 0 is -1 ("not
+provided": a driver that lost its accelerometer; their values are still written, so a reader
+that ignores the -1 shows). accel.csv holds what a reader must decode: stamp_ns, ax, ay, az as
+repr() and provided (1 or 0).
+
+    /tmp/rosbags-venv/bin/python scripts/gen_ros2_fixture.py accel
+
+`recorded` checks each recorded message's linear_acceleration against the input bag's message
+of the same stamp (INPUT, default tests/fixtures/ros2/accel.mcap): bit for bit with a finite
+diagonal covariance where the input provided one, "not provided" (-1) where it did not.
 
 `odom` writes tests/fixtures/ros2/odom.mcap for tests/logged_stops.rs: `/imu/data` (Imu,
 1,500 messages at 100 Hz: a gyro at rest with a bias of 0.4, -0.2, 0.1 deg/s and a small
@@ -274,10 +289,24 @@ def check(path):
     sys.stdout.write("\n")
 
 
-def recorded(path):
+def input_accel(path):
+    """The input bag's linear_acceleration by stamp: (values, provided)."""
+    by_stamp = {}
+    with Reader(path) as reader:
+        for c, _log_time, data in reader.messages():
+            if c.msgtype != IMU:
+                continue
+            m = as_dict(STORE.deserialize_cdr(data, IMU))
+            provided = m["linear_acceleration_covariance"][0] != -1.0
+            by_stamp[(m["sec"], m["nanosec"])] = (m["linear_acceleration"], provided)
+    return by_stamp
+
+
+def recorded(path, input_path):
     topics = {}
     digests = {}
     last_stamp = {}
+    inputs = input_accel(input_path)
     with Reader(path) as reader:
         for c in reader.connections:
             topics[c.topic] = {
@@ -295,11 +324,22 @@ def recorded(path):
             if m["frame_id"] not in t["frame_ids"]:
                 t["frame_ids"].append(m["frame_id"])
             assert m["orientation_covariance"][0] == -1.0, m
-            assert m["linear_acceleration_covariance"][0] == -1.0, m
             cov = m["angular_velocity_covariance"]
             assert all(np.isfinite(cov)), m
             assert all(cov[i] == 0.0 for i in range(9) if i % 4 != 0), m
             stamp = (m["sec"], m["nanosec"])
+            # The accelerometer as the input gave it, bit for bit, or not provided where the
+            # input did not provide it.
+            acc, provided = inputs[stamp]
+            acc_cov = m["linear_acceleration_covariance"]
+            if provided:
+                assert same(m["linear_acceleration"], acc), (stamp, m, acc)
+                assert all(np.isfinite(acc_cov)) and acc_cov[0] != -1.0, m
+                assert all(acc_cov[i] >= 0.0 for i in (0, 4, 8)), m
+                t["accel_provided"] = t.get("accel_provided", 0) + 1
+            else:
+                assert acc_cov[0] == -1.0, (stamp, m)
+                t["accel_not_provided"] = t.get("accel_not_provided", 0) + 1
             assert stamp > last_stamp.get(c.topic, (-(2**31), 0)), (c.topic, stamp)
             last_stamp[c.topic] = stamp
             t.setdefault("first", list(stamp))
@@ -308,15 +348,78 @@ def recorded(path):
             digests[c.topic].update(struct.pack("<iI", *stamp))
             digests[c.topic].update(struct.pack("<3d", *m["angular_velocity"]))
             digests[c.topic].update(struct.pack("<9d", *cov))
+            digests[c.topic].update(struct.pack("<3d", *m["linear_acceleration"]))
+            digests[c.topic].update(struct.pack("<9d", *acc_cov))
     for topic, d in digests.items():
         topics[topic]["sha256"] = d.hexdigest()
     json.dump(
-        {"reader": f"rosbags {VERSION}", "topics": topics, "every_message_checked": True},
+        {
+            "reader": f"rosbags {VERSION}",
+            "input": os.path.basename(input_path),
+            "topics": topics,
+            "every_message_checked": True,
+        },
         sys.stdout,
         indent=1,
         sort_keys=True,
     )
     sys.stdout.write("\n")
+
+
+# --- accel: a bag whose accelerometer varies, with a stretch not provided ---------------
+
+ACCEL_COUNT = 600  # 6 s at 100 Hz
+ACCEL_SEED = 49  # issue 49
+ACCEL_MISSING = range(300, 310)  # covariance element 0 = -1: not provided
+
+
+def accel_message(k, u):
+    """Message k of accel.mcap's /imu/data; u yields 6 splitmix doubles per message."""
+    types = STORE.types
+    stamp = T0_NS + k * STEP_NS
+    gyro = [b + 0.02 * (next(u) - 0.5) for b in (0.011, -0.007, 0.003)]
+    acc = [0.3 * (next(u) - 0.5), -0.2 + 0.3 * (next(u) - 0.5), 9.80665 + 0.05 * (next(u) - 0.5)]
+    provided = k not in ACCEL_MISSING
+    return types[IMU](
+        header=types["std_msgs/msg/Header"](
+            stamp=types["builtin_interfaces/msg/Time"](
+                sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000
+            ),
+            frame_id="imu_link",
+        ),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=diag(-1.0, 0.0, 0.0),
+        angular_velocity=types["geometry_msgs/msg/Vector3"](x=gyro[0], y=gyro[1], z=gyro[2]),
+        angular_velocity_covariance=diag(1e-6, 2e-6, 3e-6),
+        linear_acceleration=types["geometry_msgs/msg/Vector3"](x=acc[0], y=acc[1], z=acc[2]),
+        linear_acceleration_covariance=diag(1e-4, 2e-4, 3e-4) if provided else diag(-1.0, 0.0, 0.0),
+    ), stamp, acc, provided
+
+
+def gen_accel():
+    tmp = tempfile.mkdtemp()
+    rows = []
+    try:
+        bag = os.path.join(tmp, "accel")
+        writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        with writer:
+            imu = writer.add_connection(
+                "/imu/data", IMU, typestore=STORE, offered_qos_profiles=[RELIABLE_KEEP_LAST_10]
+            )
+            u = splitmix64(ACCEL_SEED)
+            for k in range(ACCEL_COUNT):
+                msg, stamp, acc, provided = accel_message(k, u)
+                writer.write(imu, stamp + 1_000_000, bytes(STORE.serialize_cdr(msg, IMU)))
+                rows.append([stamp] + [repr(v) for v in acc] + [int(provided)])
+        shutil.copyfile(os.path.join(bag, "accel.mcap"), os.path.join(HERE, "accel.mcap"))
+    finally:
+        shutil.rmtree(tmp)
+    with open(os.path.join(HERE, "accel.csv"), "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["stamp_ns", "ax", "ay", "az", "provided"])
+        w.writerows(rows)
+    print("wrote accel.mcap, accel.csv in", os.path.normpath(HERE), len(rows), "messages")
 
 
 # --- odom: a bag whose odometry gives the vehicle's stops ------------------------------
@@ -413,6 +516,8 @@ if __name__ == "__main__":
     elif len(sys.argv) >= 2 and sys.argv[1] == "check":
         check(sys.argv[2])
     elif len(sys.argv) >= 2 and sys.argv[1] == "recorded":
-        recorded(sys.argv[2])
+        recorded(sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else os.path.join(HERE, "accel.mcap"))
+    elif len(sys.argv) >= 2 and sys.argv[1] == "accel":
+        gen_accel()
     else:
         gen()

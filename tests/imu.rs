@@ -9,6 +9,7 @@ mod common;
 use std::time::Duration;
 
 use common::{finish, start, wait_ready, Dir, Prefix};
+use driftless::drift::bias::AccelTerms;
 use driftless::stages::schema::STANDARD_GRAVITY;
 use driftless::transport::{
     GyroSample, Transport, FLAG_INPUT_INVALID, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
@@ -110,6 +111,8 @@ fn run(with_accel: bool, name: &str) -> Vec<GyroSample> {
 #[test]
 fn the_accelerometer_rides_beside_the_corrected_rate_sample_for_sample() {
     let got = run(true, "imuaccel");
+    let white_std = AccelTerms::ADIS16405.white_std(100.0);
+    assert!((white_std - 0.2 / 60.0 * 10.0).abs() < 1e-15, "{white_std}");
     assert_eq!(got.len(), N, "every sample published once");
     for (i, s) in got.iter().enumerate() {
         assert_eq!(s.seq, i as u64, "in order");
@@ -125,6 +128,9 @@ fn the_accelerometer_rides_beside_the_corrected_rate_sample_for_sample() {
             assert!(s.rate.iter().all(|r| r.is_finite()));
         } else {
             assert_eq!(s.sensors, SENSOR_ACCEL, "row {i}");
+            // The bias filter's accelerometer terms (the ADIS16405 data sheet's VRW) give each
+            // reading its white noise.
+            assert_eq!(s.accel_std, [white_std; 3], "row {i}");
             // Each sample's own row, through a denoiser 16 samples late: time-aligned, exact.
             assert_eq!(s.accel.map(f64::to_bits), want.map(f64::to_bits), "row {i}");
         }

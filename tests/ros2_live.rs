@@ -367,18 +367,19 @@ fn daemon(tag: &str) -> Child {
 }
 
 fn daemon_command(tag: &str) -> Command {
-    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
+    daemon_of(
+        std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml")),
+        tag,
+    )
+}
+
+/// `driftless run PIPELINE` under a prefix of its own, quiet, stderr piped.
+fn daemon_of(pipeline: &std::path::Path, tag: &str) -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_driftless"));
     command
-        .args([
-            "run",
-            pipeline,
-            "--prefix",
-            &prefix(tag),
-            "--duration",
-            "60s",
-            "-q",
-        ])
+        .arg("run")
+        .arg(pipeline)
+        .args(["--prefix", &prefix(tag), "--duration", "60s", "-q"])
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
     command
@@ -859,4 +860,262 @@ fn list_shows_the_ros2_side_on_the_domain_in_force_and_a_bad_domain_is_refused()
             .any(|l| l.starts_with("vehicle/stop") && l.contains("StopSignal")),
         "{text}"
     );
+}
+
+/// pipelines/ros2.toml with `extra` added to its `[ros2]` table, written to a directory of its
+/// own (returned with the file).
+fn ros2_pipeline_with(tag: &str, extra: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml"))
+        .unwrap();
+    let with = text.replacen("[ros2]\n", &format!("[ros2]\n{extra}\n"), 1);
+    assert_ne!(with, text);
+    let dir = std::env::temp_dir().join(format!("dl_{tag}_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ros2.toml");
+    std::fs::write(&file, with).unwrap();
+    (dir, file)
+}
+
+#[test]
+fn the_bias_and_its_diagnostics_reach_rclpy_and_warn_past_the_threshold() {
+    if !in_netns("the_bias_and_its_diagnostics_reach_rclpy_and_warn_past_the_threshold") {
+        return;
+    }
+    // Inline tables: the extra keys go at the top of [ros2], before its sub-tables.
+    let (dir, file) = ros2_pipeline_with(
+        "diag",
+        "bias_out = { topic = \"/imu/gyro_bias\", service = \"ros2/corrected\" }\n\
+         diagnostics = { service = \"ros2/corrected\" }\n\
+         diagnostics_period_s = 0.25",
+    );
+    let d = daemon_of(&file, "diag").spawn().unwrap();
+    let n = 4000;
+    let mut bias = ready(peer("bias", "/imu/gyro_bias", n));
+    let mut diagnostics = ready(peer("diagnostics", "/diagnostics", 100_000));
+    // A gyro at rest with a bias of 0.002, -0.001, 0.0005 rad/s; the vehicle moves for the
+    // first half, then stands.
+    let mut driver = peer("drive", "/imu/data_raw", n);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut bias);
+    assert!(bias.wait().unwrap().success());
+    // The diagnostics as they come, until the daemon has served every sample: after statuses
+    // of samples, one of a period without any (STALE).
+    let mut statuses: Vec<serde_json::Value> = Vec::new();
+    let out = diagnostics.stdout.take().unwrap();
+    for line in BufReader::new(out).lines().map_while(Result::ok) {
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        let Some(s) = v.get("status").and_then(|s| s.get(0)).cloned() else {
+            continue;
+        };
+        let stale = s["level"] == 3;
+        let served = statuses.iter().any(|s| s["level"] != 3);
+        statuses.push(s);
+        if stale && served {
+            break;
+        }
+    }
+    let _ = diagnostics.kill();
+    let _ = diagnostics.wait();
+    let err = stop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+
+    // The bias: one message per sample, with its stamp and the driver's frame.
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("vector").is_some()).collect();
+    assert_eq!(msgs.len(), n, "every sample's bias: {err}");
+    for (i, m) in msgs.iter().enumerate() {
+        assert_eq!(m["stamp"][0], 1_700_000_000 + (i / 1000) as i64, "{i}");
+        assert_eq!(m["stamp"][1], (i % 1000) as i64 * 1_000_000, "{i}");
+        assert_eq!(m["frame_id"], "peer_imu");
+    }
+    // Learnt while the vehicle stood: the gyro's own bias.
+    let last = &msgs[n - 1]["vector"];
+    for (a, truth) in [0.002, -0.001, 0.0005].iter().enumerate() {
+        let b = last[a].as_f64().unwrap();
+        assert!(
+            (b - truth).abs() < 2e-4,
+            "axis {a}: {b} against {truth}: {err}"
+        );
+    }
+    // The diagnostics: named as diagnostic_updater names them, with each value.
+    let served: Vec<&serde_json::Value> = statuses.iter().filter(|s| s["level"] != 3).collect();
+    assert!(!served.is_empty(), "{statuses:?}");
+    for s in &statuses {
+        assert_eq!(s["name"], "driftless_ros2: gyro_bias");
+        assert_eq!(s["hardware_id"], "driftless_ros2");
+    }
+    let last = served.last().unwrap();
+    for key in [
+        "gyro_bias_x",
+        "gyro_bias_y",
+        "gyro_bias_z",
+        "gyro_bias_sigma_x",
+        "gyro_bias_sigma_y",
+        "gyro_bias_sigma_z",
+        "gyro_bias_threshold",
+        "stillness",
+        "still_samples",
+        "moving_samples",
+        "samples",
+        "deadline_misses",
+        "lost",
+        "missing_in_input",
+    ] {
+        assert!(last["values"].get(key).is_some(), "{key} in {last}");
+    }
+    // The x bias (0.002 rad/s) passes the default threshold, 0.0015 rad/s: WARN, naming x.
+    assert_eq!(last["level"], 1, "{last}");
+    assert!(
+        last["message"]
+            .as_str()
+            .unwrap()
+            .contains("past 0.0015 rad/s on x"),
+        "{last}"
+    );
+    assert_eq!(last["values"]["stillness"], "still", "{last}");
+    let x: f64 = last["values"]["gyro_bias_x"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((x - 0.002).abs() < 2e-4, "{last}");
+    let sigma: f64 = last["values"]["gyro_bias_sigma_x"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(sigma > 0.0 && sigma < 1e-3, "{last}");
+    // Nothing lost, no deadline missed, and the last status of a silent period is STALE.
+    assert_eq!(last["values"]["lost"], "0", "{last}");
+    assert_eq!(last["values"]["missing_in_input"], "0", "{last}");
+    assert_eq!(statuses.last().unwrap()["level"], 3);
+    assert!(
+        err.contains(&format!("{n} bias out, ")) && err.contains("diagnostics out (0 not sent)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn validate_checks_the_bias_and_diagnostics_tables_against_the_chain() {
+    // No DDS: validate only reads the file.
+    let validate = |tag: &str, extra: &str| {
+        let (dir, file) = ros2_pipeline_with(tag, extra);
+        let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+            .arg("validate")
+            .arg(&file)
+            .output()
+            .unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, text, err) = validate(
+        "vok",
+        "bias_out = { topic = \"/imu/gyro_bias\", service = \"ros2/corrected\" }\n\
+         diagnostics = { service = \"ros2/predicted\" }\n\
+         accel_noise = 0.02",
+    );
+    assert_eq!(code, Some(0), "{err}");
+    for line in [
+        "    out    ros2/corrected -> /imu/gyro_bias (geometry_msgs/msg/Vector3Stamped)",
+        "    out    ros2/predicted, ros2/stats -> /diagnostics (diagnostic_msgs/msg/DiagnosticArray) every 1 s, WARN past 0.0015 rad/s",
+        "    linear_acceleration as received; its covariance from the samples' accel_std, else accel_noise 0.02 m/s^2",
+    ] {
+        assert!(text.lines().any(|l| l == line), "{line:?} in\n{text}");
+    }
+    // Before any predict.bias: no bias to report.
+    let (code, _, err) = validate("vup", "diagnostics = { service = \"ros2/denoised\" }");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains(
+            "diagnostics.service \"ros2/denoised\": no predict.bias stage at or before the stage \
+             that publishes it, so its samples carry no bias to report"
+        ),
+        "{err}"
+    );
+    let (code, _, err) = validate(
+        "vnone",
+        "bias_out = { topic = \"/b\", service = \"nowhere/x\" }",
+    );
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("bias_out.service \"nowhere/x\" is no stage's output"),
+        "{err}"
+    );
+    let (code, _, err) = validate(
+        "vtype",
+        "bias_out = { topic = \"/b\", service = \"ros2/corrected\", type = \"sensor_msgs/msg/Imu\" }",
+    );
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("bias_out.type is geometry_msgs/msg/Vector3Stamped"),
+        "{err}"
+    );
+    let (code, _, err) = validate("vperiod", "diagnostics_period_s = 0.0");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("diagnostics_period_s"), "{err}");
+}
+
+/// The driver's specific force of message `i` (tests/ros2/imu_peer.py `accel`, the same IEEE
+/// operations in the same order: the same bits).
+fn peer_accel(i: usize) -> [f64; 3] {
+    let i = i as u64;
+    [
+        (i * 7919 % 1009) as f64 / 1009.0 * 0.3 - 0.15,
+        -0.2 + (i * 104729 % 997) as f64 / 997.0 * 0.1,
+        9.80665 + i as f64 / 3.0e4,
+    ]
+}
+
+#[test]
+fn a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covariance() {
+    if !in_netns(
+        "a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covariance",
+    ) {
+        return;
+    }
+    let d = daemon("accel");
+    let mut nav = navigator(N);
+    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_ACCEL", "1")]);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(d);
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), N, "every message through: {err}");
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    for (i, m) in msgs.iter().enumerate() {
+        assert_eq!(
+            m["stamp"][1],
+            (i % 1000) as i64 * 1_000_000,
+            "{i}: in order"
+        );
+        assert_eq!(m["frame_id"], "peer_imu", "{i}: the driver's frame");
+        let a = floats(&m["linear_acceleration"]);
+        assert_eq!(
+            a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            peer_accel(i).map(f64::to_bits),
+            "{i}: linear_acceleration bit for bit"
+        );
+        for key in [
+            "linear_acceleration_covariance",
+            "angular_velocity_covariance",
+        ] {
+            let c = floats(&m[key]);
+            assert!(c.iter().all(|x| x.is_finite()), "{i}: {key} {c:?}");
+            assert!(
+                c[0] >= 0.0 && c[4] >= 0.0 && c[8] >= 0.0,
+                "{i}: {key} {c:?}"
+            );
+        }
+        assert_eq!(m["orientation_covariance"][0], -1.0, "{i}: no orientation");
+    }
 }

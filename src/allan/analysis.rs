@@ -1,6 +1,6 @@
 //! A record's whole Allan analysis, as `driftless allan` reports it: the deviation curve with
-//! intervals on the grid asked for, the octave OADEV curve (deg/s) that the IEEE 952 fit and
-//! the read-offs use, the fit and the read-offs. A curve says how far it has got as it goes
+//! intervals on the grid asked for, the octave OADEV curve (in the sensor's base unit, deg/s or
+//! m/s^2) that the IEEE 952 fit and the read-offs use, the fit and the read-offs. A curve says how far it has got as it goes
 //! ([`Progress`]): a long grid on a long record takes minutes.
 
 use super::chi2;
@@ -41,7 +41,7 @@ pub struct Analysis {
     pub samples: usize,
     /// The deviation asked for, with intervals, in the record's units.
     pub points: Vec<AllanPoint>,
-    /// The octave OADEV points the fit and the read-offs use, deg/s.
+    /// The octave OADEV points the fit and the read-offs use, in the base unit (deg/s, m/s^2).
     pub octave: Vec<AllanPoint>,
     /// The IEEE 952 fit of [`Analysis::octave`], or why there is none.
     pub fit: Result<NoiseFit, FitError>,
@@ -56,15 +56,15 @@ pub fn work(kind: Kind, phase_len: usize, ms: &[usize]) -> f64 {
         .sum()
 }
 
-/// The analysis of the rates `y` at `rate` Hz: `kind` on `grid` in the record's units, the
-/// fit and the read-offs in deg/s (`to_deg`: deg/s per unit of `y`). `progress` hears each
-/// curve's start, steps and end.
+/// The analysis of the samples `y` at `rate` Hz: `kind` on `grid` in the record's units, the
+/// fit and the read-offs in the sensor's base unit (`to_base`: deg/s or m/s^2 per unit of `y`,
+/// [`super::SampleUnit::to_base`]). `progress` hears each curve's start, steps and end.
 pub fn analyse(
     y: &[f64],
     rate: f64,
     kind: Kind,
     grid: &TauGrid,
-    to_deg: f64,
+    to_base: f64,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Analysis, AllanError> {
     let ci = chi2::ONE_SIGMA;
@@ -108,21 +108,21 @@ pub fn analyse(
     } else {
         curve(Curve::OctaveForFit, Kind::Oadev, &TauGrid::Octave)
     };
-    let in_deg: Vec<AllanPoint> = octave
+    let in_base: Vec<AllanPoint> = octave
         .iter()
         .map(|p| AllanPoint {
-            dev: p.dev * to_deg,
-            lo: p.lo * to_deg,
-            hi: p.hi * to_deg,
+            dev: p.dev * to_base,
+            lo: p.lo * to_base,
+            hi: p.hi * to_base,
             ..*p
         })
         .collect();
     Ok(Analysis {
         samples: y.len(),
         points,
-        fit: fit_terms(&in_deg, ci),
-        read_offs: read_offs(&in_deg),
-        octave: in_deg,
+        fit: fit_terms(&in_base, ci),
+        read_offs: read_offs(&in_base),
+        octave: in_base,
     })
 }
 

@@ -31,8 +31,8 @@
 //! term's slope through its geometric middle, read at tau = sqrt 3 (Q), 1 (N), 3 (K), sqrt 2 (R);
 //! B = the interior minimum / sqrt(2 ln2/pi) = min / 0.6643.
 //!
-//! Everything here is in the base units of [`crate::allan::units::Term::base_unit`]: pass
-//! deviations in deg/s.
+//! Everything here is in the base units of [`crate::allan::units::Sensor::base_unit`]: pass
+//! deviations in deg/s (a gyro's) or m/s^2 (an accelerometer's); the model is the same.
 
 use super::chi2;
 use super::deviation::{AllanPoint, NoiseId};

@@ -1,7 +1,10 @@
-//! Units: the rate unit of the input, and the display units of the IEEE Std 952 terms.
+//! Units: the unit of the input (a gyro's rate or an accelerometer's specific force), and the
+//! display units and names of the IEEE Std 952 terms of each [`Sensor`].
 //!
-//! Inside [`crate::allan::fit`] every term is in base units built from deg and s:
-//! Q deg, N deg/sqrt(s), B deg/s, K deg/s/sqrt(s), R deg/s^2 (the deviation in deg/s, tau in s).
+//! Inside [`crate::allan::fit`] every term is in the sensor's base units, built from its base
+//! unit and s. A gyro's (deviation in deg/s): Q deg, N deg/sqrt(s), B deg/s, K deg/s/sqrt(s),
+//! R deg/s^2. An accelerometer's (deviation in m/s^2): Q m/s, N m/s/sqrt(s), B m/s^2,
+//! K m/s^2/sqrt(s), R m/s^3. The fit is the same; only the names and units differ.
 
 use std::fmt;
 use std::str::FromStr;
@@ -43,6 +46,201 @@ impl fmt::Display for RateUnit {
             RateUnit::DegPerS => "deg/s",
             RateUnit::RadPerS => "rad/s",
         })
+    }
+}
+
+/// Standard gravity, m/s^2 per g (the unit `g` of an accelerometer's reading).
+pub const STANDARD_GRAVITY: f64 = 9.806_65;
+
+/// The unit of an accelerometer's samples (specific force).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AccelUnit {
+    /// Metres per second squared.
+    #[default]
+    MPerS2,
+    /// Standard gravities ([`STANDARD_GRAVITY`]).
+    G,
+}
+
+impl AccelUnit {
+    /// Factor that turns a reading in this unit into m/s^2.
+    pub fn to_m_per_s2(self) -> f64 {
+        match self {
+            AccelUnit::MPerS2 => 1.0,
+            AccelUnit::G => STANDARD_GRAVITY,
+        }
+    }
+
+    /// The unit in which a still accelerometer's three axes reading a gravity of `norm` (the
+    /// length of their mean vector, as the numbers read) would read 1 g: `G` for 0.5 to 1.5,
+    /// `MPerS2` for 5 to 15 (half to one and a half g either way); None for anything else.
+    pub fn implied_by_gravity(norm: f64) -> Option<AccelUnit> {
+        if (0.5..=1.5).contains(&norm) {
+            Some(AccelUnit::G)
+        } else if (5.0..=15.0).contains(&norm) {
+            Some(AccelUnit::MPerS2)
+        } else {
+            None
+        }
+    }
+}
+
+impl FromStr for AccelUnit {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "m/s^2" => Ok(AccelUnit::MPerS2),
+            "g" => Ok(AccelUnit::G),
+            _ => Err(format!("unknown accelerometer unit '{s}' (m/s^2 or g)")),
+        }
+    }
+}
+
+impl fmt::Display for AccelUnit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            AccelUnit::MPerS2 => "m/s^2",
+            AccelUnit::G => "g",
+        })
+    }
+}
+
+/// Which sensor a record comes from: it names the terms and gives their units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sensor {
+    /// A gyroscope: rates, base unit deg/s.
+    #[default]
+    Gyro,
+    /// An accelerometer: specific force, base unit m/s^2.
+    Accel,
+}
+
+impl Sensor {
+    /// The word used in outputs (`"gyro"`, `"accel"`).
+    pub fn word(self) -> &'static str {
+        match self {
+            Sensor::Gyro => "gyro",
+            Sensor::Accel => "accel",
+        }
+    }
+
+    /// What `term` is called for this sensor (IEEE Std 952 for a gyro, IEEE Std 1293's
+    /// counterparts for an accelerometer).
+    pub fn term_name(self, term: Term) -> &'static str {
+        match (self, term) {
+            (Sensor::Gyro, Term::Q) => "quantisation noise",
+            (Sensor::Gyro, Term::N) => "angle random walk",
+            (Sensor::Gyro, Term::K) => "rate random walk",
+            (Sensor::Gyro, Term::R) => "rate ramp",
+            (Sensor::Accel, Term::Q) => "velocity quantisation",
+            (Sensor::Accel, Term::N) => "velocity random walk",
+            (Sensor::Accel, Term::K) => "acceleration random walk",
+            (Sensor::Accel, Term::R) => "acceleration ramp",
+            (_, Term::B) => "bias instability",
+        }
+    }
+
+    /// The base unit the fit works in for `term` (deviation in the sensor's base unit, tau in s).
+    pub fn base_unit(self, term: Term) -> &'static str {
+        match self {
+            Sensor::Gyro => match term {
+                Term::Q => "deg",
+                Term::N => "deg/sqrt(s)",
+                Term::B => "deg/s",
+                Term::K => "deg/s/sqrt(s)",
+                Term::R => "deg/s^2",
+            },
+            Sensor::Accel => match term {
+                Term::Q => "m/s",
+                Term::N => "m/s/sqrt(s)",
+                Term::B => "m/s^2",
+                Term::K => "m/s^2/sqrt(s)",
+                Term::R => "m/s^3",
+            },
+        }
+    }
+
+    /// The unit a data sheet prints `term` in and the factor from the base unit to it. A gyro:
+    /// Q deg, N deg/sqrt(h), B deg/h, K deg/h/sqrt(h), R deg/h^2. An accelerometer: Q m/s,
+    /// N m/s/sqrt(h), B mg, K m/s^2/sqrt(h), R m/s^2/h.
+    pub fn display(self, term: Term) -> (&'static str, f64) {
+        match self {
+            Sensor::Gyro => match term {
+                Term::Q => ("deg", 1.0),
+                Term::N => ("deg/sqrt(h)", 60.0),
+                Term::B => ("deg/h", 3600.0),
+                Term::K => ("deg/h/sqrt(h)", 3600.0 * 60.0),
+                Term::R => ("deg/h^2", 3600.0 * 3600.0),
+            },
+            Sensor::Accel => match term {
+                Term::Q => ("m/s", 1.0),
+                Term::N => ("m/s/sqrt(h)", 60.0),
+                Term::B => ("mg", 1000.0 / STANDARD_GRAVITY),
+                Term::K => ("m/s^2/sqrt(h)", 60.0),
+                Term::R => ("m/s^2/h", 3600.0),
+            },
+        }
+    }
+
+    /// The unit `term` is shown in under `units`, and the factor from the base unit.
+    pub fn unit_in(self, term: Term, units: TermUnits) -> (&'static str, f64) {
+        match units {
+            TermUnits::Datasheet => self.display(term),
+            TermUnits::Seconds => (self.base_unit(term), 1.0),
+        }
+    }
+
+    /// A second unit where one is customary, with its factor from the base unit: Q in arcsec
+    /// (a gyro's), N per sqrt(s) (deg/sqrt(s), m/s/sqrt(s)).
+    pub fn alternate(self, term: Term) -> Option<(&'static str, f64)> {
+        match (self, term) {
+            (Sensor::Gyro, Term::Q) => Some(("arcsec", 3600.0)),
+            (_, Term::N) => Some((self.base_unit(term), 1.0)),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Sensor {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.word())
+    }
+}
+
+/// The unit of a record's samples: a gyro's or an accelerometer's. It says which sensor the
+/// record is of and the factor to that sensor's base unit (deg/s, m/s^2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleUnit {
+    /// A gyro's rate.
+    Rate(RateUnit),
+    /// An accelerometer's specific force.
+    Accel(AccelUnit),
+}
+
+impl SampleUnit {
+    /// The sensor.
+    pub fn sensor(self) -> Sensor {
+        match self {
+            SampleUnit::Rate(_) => Sensor::Gyro,
+            SampleUnit::Accel(_) => Sensor::Accel,
+        }
+    }
+
+    /// Factor that turns a sample into the sensor's base unit (deg/s, m/s^2).
+    pub fn to_base(self) -> f64 {
+        match self {
+            SampleUnit::Rate(u) => u.to_deg_per_s(),
+            SampleUnit::Accel(u) => u.to_m_per_s2(),
+        }
+    }
+}
+
+impl fmt::Display for SampleUnit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SampleUnit::Rate(u) => u.fmt(f),
+            SampleUnit::Accel(u) => u.fmt(f),
+        }
     }
 }
 
@@ -100,44 +298,24 @@ impl Term {
         }
     }
 
-    /// The base unit the fit works in (deviation in deg/s, tau in s).
+    /// A gyro's base unit of this term ([`Sensor::base_unit`]).
     pub fn base_unit(self) -> &'static str {
-        match self {
-            Term::Q => "deg",
-            Term::N => "deg/sqrt(s)",
-            Term::B => "deg/s",
-            Term::K => "deg/s/sqrt(s)",
-            Term::R => "deg/s^2",
-        }
+        Sensor::Gyro.base_unit(self)
     }
 
-    /// The unit a navigation engineer reads (the data-sheet unit) and the factor from the base
-    /// unit to it: Q deg, N deg/sqrt(h), B deg/h, K deg/h/sqrt(h), R deg/h^2.
+    /// A gyro's data-sheet unit of this term and the factor to it ([`Sensor::display`]).
     pub fn display(self) -> (&'static str, f64) {
-        match self {
-            Term::Q => ("deg", 1.0),
-            Term::N => ("deg/sqrt(h)", 60.0),
-            Term::B => ("deg/h", 3600.0),
-            Term::K => ("deg/h/sqrt(h)", 3600.0 * 60.0),
-            Term::R => ("deg/h^2", 3600.0 * 3600.0),
-        }
+        Sensor::Gyro.display(self)
     }
 
-    /// The unit this term is shown in under `units`, and the factor from the base unit.
+    /// A gyro's unit of this term under `units` ([`Sensor::unit_in`]).
     pub fn unit_in(self, units: TermUnits) -> (&'static str, f64) {
-        match units {
-            TermUnits::Datasheet => self.display(),
-            TermUnits::Seconds => (self.base_unit(), 1.0),
-        }
+        Sensor::Gyro.unit_in(self, units)
     }
 
-    /// A second unit where one is customary (Q in arcsec, N in deg/sqrt(s)), with its factor.
+    /// A gyro's second unit of this term ([`Sensor::alternate`]).
     pub fn alternate(self) -> Option<(&'static str, f64)> {
-        match self {
-            Term::Q => Some(("arcsec", 3600.0)),
-            Term::N => Some(("deg/sqrt(s)", 1.0)),
-            _ => None,
-        }
+        Sensor::Gyro.alternate(self)
     }
 
     /// The slope of the deviation (not the variance) on log-log axes.
@@ -166,5 +344,53 @@ impl Term {
 impl fmt::Display for Term {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_accelerometer_s_terms_have_their_own_names_and_units() {
+        // 0.2 m/s/sqrt(h) is 0.2/60 m/s/sqrt(s); 0.2 mg is 0.2 * 9.80665e-3 m/s^2.
+        let (u, f) = Sensor::Accel.display(Term::N);
+        assert_eq!((u, f), ("m/s/sqrt(h)", 60.0));
+        let (u, f) = Sensor::Accel.display(Term::B);
+        assert_eq!(u, "mg");
+        assert!((0.2e-3 * STANDARD_GRAVITY * f - 0.2).abs() < 1e-12);
+        assert_eq!(Sensor::Accel.display(Term::K), ("m/s^2/sqrt(h)", 60.0));
+        assert_eq!(Sensor::Accel.term_name(Term::N), "velocity random walk");
+        assert_eq!(Sensor::Accel.term_name(Term::K), "acceleration random walk");
+        assert_eq!(Sensor::Gyro.term_name(Term::N), "angle random walk");
+        assert_eq!(
+            Sensor::Accel.unit_in(Term::B, TermUnits::Seconds),
+            ("m/s^2", 1.0)
+        );
+        // The gyro's units are Term's own, unchanged.
+        for t in Term::ALL {
+            assert_eq!(Sensor::Gyro.display(t), t.display());
+        }
+        assert_eq!(Term::N.display(), ("deg/sqrt(h)", 60.0));
+        assert_eq!(Sensor::Accel.alternate(Term::N), Some(("m/s/sqrt(s)", 1.0)));
+    }
+
+    #[test]
+    fn units_parse_and_gravity_says_which_unit_a_still_record_is_in() {
+        assert_eq!("g".parse::<AccelUnit>(), Ok(AccelUnit::G));
+        assert_eq!("m/s^2".parse::<AccelUnit>(), Ok(AccelUnit::MPerS2));
+        assert!("mg"
+            .parse::<AccelUnit>()
+            .unwrap_err()
+            .contains("m/s^2 or g"));
+        assert_eq!(AccelUnit::G.to_string(), "g");
+        assert_eq!(AccelUnit::implied_by_gravity(1.016), Some(AccelUnit::G));
+        assert_eq!(AccelUnit::implied_by_gravity(9.81), Some(AccelUnit::MPerS2));
+        assert_eq!(AccelUnit::implied_by_gravity(3.0), None);
+        let g = SampleUnit::Accel(AccelUnit::G);
+        assert_eq!((g.sensor(), g.to_base()), (Sensor::Accel, STANDARD_GRAVITY));
+        let r = SampleUnit::Rate(RateUnit::RadPerS);
+        assert_eq!(r.sensor(), Sensor::Gyro);
+        assert_eq!(r.to_string(), "rad/s");
     }
 }

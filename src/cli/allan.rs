@@ -1,19 +1,26 @@
-//! `driftless allan`: Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms
-//! ([`crate::allan::analysis`]); with `--stage`, the `predict.bias` table of the unit's own terms
-//! ([`crate::drift::bias::own_terms`]).
+//! `driftless allan`: Allan deviation of a rate log (and of its accelerometer columns) with
+//! intervals, and its IEEE Std 952 noise terms ([`crate::allan::analysis`]); with `--stage`, the
+//! `predict.bias` table of the unit's own terms ([`crate::drift::bias::own_terms`], and the
+//! accelerometer's: [`crate::drift::bias::own_accel_terms`]).
 
 use super::CliError;
 use crate::allan::analysis::{self, Curve, Progress};
 use crate::allan::deviation::{AllanPoint, NoiseId};
 use crate::allan::fit::b_read_off_unidentified;
 use crate::allan::{
-    chi2, edf, Estimate, FitError, Kind, NoiseFit, RateUnit, TauGrid, Term, TermFit, TermUnits,
+    chi2, edf, AccelUnit, Estimate, FitError, Kind, NoiseFit, SampleUnit, Sensor, TauGrid, Term,
+    TermFit, TermUnits,
 };
 use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
-use crate::drift::bias::{combined_as, own_terms, stage_key, Choice, ColumnFit, OwnTerms};
+use crate::drift::bias::{
+    accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,
+    TermChoices,
+};
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
+use crate::io::rate_log::{self, RateLog};
 use crate::io::{progress, write_table};
+use crate::stages::accel_terms::{ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 
@@ -29,37 +36,49 @@ pub struct Args {
     /// The bag's topic.
     #[command(flatten)]
     pub bag: BagArgs,
-    /// Column to analyse (repeat for several; default: every numeric column but a time column
-    /// named t, t_s, time, time_s or timestamp).
+    /// Gyro column to analyse (repeat for several; default: every numeric column but a time
+    /// column named t, t_s, time, time_s or timestamp and the --accel-column ones; a bag's x,
+    /// y, z).
     #[arg(long = "column", value_name = "NAME")]
     pub columns: Vec<String>,
+    /// Accelerometer column to analyse (repeat for several): velocity random walk N
+    /// (m/s/sqrt(h)), bias instability B (mg), acceleration random walk K (m/s^2/sqrt(h)). A
+    /// bag's are ax, ay, az (linear_acceleration, m/s^2).
+    #[arg(long = "accel-column", value_name = "NAME")]
+    pub accel_columns: Vec<String>,
+    /// Unit of the accelerometer columns: m/s^2 or g (default m/s^2; a bag's are m/s^2).
+    #[arg(long, requires = "accel_columns")]
+    pub accel_units: Option<String>,
     /// Tau grid: octave, decade, log:P (P per decade), all, or a list of seconds (0.1,1,10).
     #[arg(long, default_value = "octave")]
     pub taus: String,
     /// Deviation: oadev, adev, mdev or hdev (overlapping Hadamard).
     #[arg(long, default_value = "oadev")]
     pub kind: String,
-    /// Unit of the samples: deg/s or rad/s (terms are always reported in degree units;
+    /// Unit of the gyro samples: deg/s or rad/s (terms are always reported in degree units;
     /// default deg/s, a bag's rad/s).
     #[arg(long)]
     pub units: Option<String>,
-    /// Units of the noise terms: datasheet (N deg/sqrt(h), B deg/h, K deg/h/sqrt(h)) or
-    /// seconds (deg/sqrt(s), deg/s, deg/s/sqrt(s)); the other is shown beside N.
+    /// Units of the noise terms: datasheet (N deg/sqrt(h), B deg/h, K deg/h/sqrt(h); an
+    /// accelerometer's N m/s/sqrt(h), B mg, K m/s^2/sqrt(h)) or seconds (deg/sqrt(s), deg/s,
+    /// deg/s/sqrt(s); m/s/sqrt(s), m/s^2, m/s^2/sqrt(s)); the other is shown beside N.
     #[arg(long, default_value = "datasheet")]
     pub term_units: TermUnits,
     /// Print one JSON object instead of tables.
     #[arg(long)]
     pub json: bool,
-    /// Write a log-log SVG plot with error bars and the fitted terms.
+    /// Write a log-log SVG plot with error bars and the fitted terms (one per sensor: with both,
+    /// the accelerometer's goes to FILE-accel.svg).
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
     /// Write the tau table as CSV.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: Option<PathBuf>,
     /// Print a ready `predict.bias` [[stage]] table with the fitted terms instead of the tables:
-    /// every key given (no sensor's defaults fill in), one set for all axes (N the largest, B
+    /// every gyro term given (no sensor's defaults fill in), one set for all axes (N the largest, B
     /// the median, K 0, Q the largest; a term the record cannot identify is never the fit's
-    /// guess), and per term and column what was taken and why in its comments.
+    /// guess), and per term and column what was taken and why in its comments. With
+    /// --accel-column, the accelerometer's accel_vrw and accel_bias_instability too.
     #[arg(long, conflicts_with = "json")]
     pub stage: bool,
     /// With --stage: the output step of the raw rate, in the log's units (0: not quantised).
@@ -75,12 +94,20 @@ pub struct Args {
 /// The analysis of one column.
 struct ColumnResult {
     name: String,
+    /// The unit of its samples, which says the sensor.
+    unit: SampleUnit,
     samples: usize,
     points: Vec<AllanPoint>,
     fit: Result<NoiseFit, FitError>,
     read_offs: Vec<TermFit>,
-    /// The octave OADEV points the fit and the read-offs use (deg/s).
+    /// The octave OADEV points the fit and the read-offs use (base unit: deg/s, m/s^2).
     octave: Vec<AllanPoint>,
+}
+
+impl ColumnResult {
+    fn sensor(&self) -> Sensor {
+        self.unit.sensor()
+    }
 }
 
 /// Terms a curve sums from which it shows a progress bar (about half a second here).
@@ -89,18 +116,18 @@ const PROGRESS_MIN_TERMS: f64 = 1e9;
 /// Terms a grid sums from which it is worth a warning that it will take long.
 const WARN_TERMS: f64 = 2e10;
 
-/// The analysis of the column `name` ([`analysis::analyse`]), with a progress bar for each
-/// long curve.
+/// The analysis of the column `name` of samples in `unit` ([`analysis::analyse`]), with a
+/// progress bar for each long curve.
 fn analyse(
     y: &[f64],
     rate: f64,
     kind: Kind,
     grid: &TauGrid,
-    to_deg: f64,
+    unit: SampleUnit,
     name: &str,
 ) -> Result<ColumnResult, crate::allan::AllanError> {
     let mut bar = None;
-    let a = analysis::analyse(y, rate, kind, grid, to_deg, &mut |p| match p {
+    let a = analysis::analyse(y, rate, kind, grid, unit.to_base(), &mut |p| match p {
         Progress::Start {
             curve,
             steps,
@@ -138,6 +165,7 @@ fn analyse(
     })?;
     Ok(ColumnResult {
         name: name.to_string(),
+        unit,
         samples: a.samples,
         points: a.points,
         fit: a.fit,
@@ -146,21 +174,21 @@ fn analyse(
     })
 }
 
-fn term_json(t: &TermFit) -> Value {
+fn term_json(t: &TermFit, sensor: Sensor) -> Value {
     match t.estimate {
         Some(e) => {
-            let (unit, f) = t.term.display();
+            let (unit, f) = sensor.display(t.term);
             json!({"value": e.value * f, "unit": unit, "lo": e.lo * f, "hi": e.hi * f})
         }
         None => Value::Null,
     }
 }
 
-fn terms_json(terms: &[TermFit]) -> (Value, Value) {
+fn terms_json(terms: &[TermFit], sensor: Sensor) -> (Value, Value) {
     let mut values = Map::new();
     let mut reasons = Map::new();
     for t in terms {
-        values.insert(t.term.name().into(), term_json(t));
+        values.insert(t.term.name().into(), term_json(t, sensor));
         if let Some(r) = &t.reason {
             reasons.insert(t.term.name().into(), Value::String(r.clone()));
         }
@@ -217,9 +245,9 @@ fn trust(
     (line, outside)
 }
 
-/// `term`'s estimate `e` in `units`: value, unit and interval.
-fn format_estimate(term: Term, e: &Estimate, units: TermUnits) -> String {
-    let (unit, f) = term.unit_in(units);
+/// `term`'s estimate `e` of a `sensor` in `units`: value, unit and interval.
+fn format_estimate(sensor: Sensor, term: Term, e: &Estimate, units: TermUnits) -> String {
+    let (unit, f) = sensor.unit_in(term, units);
     format!(
         "{} {unit}  [{}, {}]",
         sig(e.value * f, 5),
@@ -228,14 +256,16 @@ fn format_estimate(term: Term, e: &Estimate, units: TermUnits) -> String {
     )
 }
 
-fn format_term(t: &TermFit, units: TermUnits) -> String {
+fn format_term(t: &TermFit, units: TermUnits, sensor: Sensor) -> String {
     match (t.estimate, &t.reason) {
         (Some(e), _) => {
-            let mut s = format_estimate(t.term, &e, units);
+            let mut s = format_estimate(sensor, t.term, &e, units);
             // A second unit where it is customary: N in the other convention, Q in arcsec.
             let alt = match (units, t.term) {
-                (TermUnits::Seconds, Term::N) => Some(t.term.display()),
-                (TermUnits::Seconds, Term::Q) | (TermUnits::Datasheet, _) => t.term.alternate(),
+                (TermUnits::Seconds, Term::N) => Some(sensor.display(t.term)),
+                (TermUnits::Seconds, Term::Q) | (TermUnits::Datasheet, _) => {
+                    sensor.alternate(t.term)
+                }
                 (TermUnits::Seconds, _) => None,
             };
             if let Some((alt, g)) = alt {
@@ -248,35 +278,64 @@ fn format_term(t: &TermFit, units: TermUnits) -> String {
     }
 }
 
-/// The `predict.bias` table of `--stage`: the terms of [`own_terms`], every key written out,
-/// and per term and column what was taken and why (`lsb` in the log's units).
+/// The `predict.bias` table of `--stage`: the terms of [`own_terms`] (of the gyro columns) and
+/// of [`own_accel_terms`] (of the accelerometer's, if any), every key written out, and per term
+/// and column what was taken and why (`lsb` in the gyro columns' units).
 fn stage_table(
     results: &[ColumnResult],
     args: &Args,
     rate: f64,
-    unit: RateUnit,
     lsb: f64,
 ) -> Result<String, CliError> {
     let shown = args.input.display();
-    let fits = column_fits(results, &shown.to_string(), rate)?;
-    if fits.is_empty() {
-        return Err(CliError::input(format!("{shown}: no column to analyse")));
-    }
-    let own = own_terms(&fits, lsb * unit.to_deg_per_s()).map_err(|e| {
+    let (gyro, accel): (Vec<&ColumnResult>, Vec<&ColumnResult>) =
+        results.iter().partition(|r| r.sensor() == Sensor::Gyro);
+    let Some(unit) = gyro.first().map(|r| r.unit) else {
+        return Err(CliError::input(format!(
+            "{shown}: no gyro column to give predict.bias its terms (name them with --column)"
+        )));
+    };
+    let refused = |e| {
         CliError::input(format!(
             "{shown}: {e}: the record cannot give predict.bias its terms"
         ))
-    })?;
-    let notes = term_notes(&own);
+    };
+    let own = own_terms(
+        &column_fits(&gyro, &shown.to_string(), rate)?,
+        lsb * unit.to_base(),
+    )
+    .map_err(refused)?;
+    let mut notes = term_notes(Sensor::Gyro, &own.choices, |t| stage_key(&own.terms, t));
     let mut terms = own.terms;
     // The stage reads lsb in the pipeline's input units, which are the log's here.
     terms.lsb = lsb;
-    let columns: Vec<&str> = results.iter().map(|r| r.name.as_str()).collect();
+    let mut keys = terms.stage_keys();
+    let mut columns: Vec<&str> = gyro.iter().map(|r| r.name.as_str()).collect();
+    let mut units = format!("{unit}");
+    if let Some(a) = accel.first() {
+        let own =
+            own_accel_terms(&column_fits(&accel, &shown.to_string(), rate)?).map_err(refused)?;
+        notes.extend(term_notes(Sensor::Accel, &own.choices, |t| {
+            accel_stage_key(&own.terms, t)
+        }));
+        notes.push(format!(
+            "#   the accelerometer's white noise per sample: accel_vrw / 60 x sqrt(rate_hz), {} m/s^2 at {rate} Hz",
+            sig(own.terms.white_std(rate), 4)
+        ));
+        keys = format!("{keys}\n{}", own.terms.stage_keys());
+        columns.extend(accel.iter().map(|r| r.name.as_str()));
+        units = format!("{units}; the accelerometer's {}", a.unit);
+    } else {
+        notes.push(format!(
+            "#   {} and {} are not given: the stage takes their defaults (the ADIS16405 data sheet's); --accel-column measures them",
+            ACCEL_VRW.name, ACCEL_BIAS_INSTABILITY.name
+        ));
+    }
     let samples = results.first().map_or(0, |r| r.samples);
     let mut out = format!(
-        "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {unit}),\n\
+        "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {units}),\n\
          # from `driftless allan ... --stage`. One set for every axis; each term says how it was\n\
-         # taken. Every key is given, so no sensor's defaults fill in. The pipeline's\n\
+         # taken. Every gyro term is given, so no sensor's defaults fill in. The pipeline's\n\
          # input_units must be {unit} (lsb is in them). Set input and output to your chain's services.\n",
         columns.join(", ")
     );
@@ -285,16 +344,15 @@ fn stage_table(
         out.push('\n');
     }
     out.push_str(&format!(
-        "[[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"nav/denoised\"\noutput = \"nav/predicted\"\n{}\n",
-        terms.stage_keys()
+        "[[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"nav/denoised\"\noutput = \"nav/predicted\"\n{keys}\n",
     ));
     Ok(out)
 }
 
-/// Each column's fit, for [`own_terms`]: refused where a column has none, or no N (then saying
-/// how long a record would give it).
+/// Each column's fit, for [`own_terms`] and [`own_accel_terms`]: refused where a column has
+/// none, or no N (then saying how long a record would give it).
 fn column_fits<'a>(
-    results: &'a [ColumnResult],
+    results: &[&'a ColumnResult],
     shown: &str,
     rate: f64,
 ) -> Result<Vec<ColumnFit<'a>>, CliError> {
@@ -318,12 +376,13 @@ fn column_fits<'a>(
                 None => "a longer stretch of still data".to_string(),
             };
             return Err(CliError::input(format!(
-                "{shown}: column '{}': {} of data cannot identify the angle random walk N ({}): \
+                "{shown}: column '{}': {} of data cannot identify the {} N ({}): \
                  record {needed}",
                 r.name,
                 humantime::format_duration(std::time::Duration::from_millis(
                     (secs * 1000.0).round() as u64
                 )),
+                r.sensor().term_name(Term::N),
                 n.reason.as_deref().unwrap_or("no estimate")
             )));
         }
@@ -336,20 +395,28 @@ fn column_fits<'a>(
     Ok(fits)
 }
 
-/// The `--stage` table's comments: per term, the value taken and how the columns were
-/// combined, and per column what it gave.
-fn term_notes(own: &OwnTerms) -> Vec<String> {
+/// The `--stage` table's comments for one sensor: per term, the value taken (`key` gives its
+/// stage key and value) and how the columns were combined, and per column what it gave.
+fn term_notes(
+    sensor: Sensor,
+    choices: &[TermChoices],
+    key: impl Fn(Term) -> (&'static str, f64),
+) -> Vec<String> {
     let mut notes = Vec::new();
-    for (term, columns) in &own.choices {
-        let (key, taken) = stage_key(&own.terms, *term);
-        let (u, f) = term.unit_in(TermUnits::Datasheet);
+    for (term, columns) in choices {
+        let (key, taken) = key(*term);
+        let (u, f) = sensor.unit_in(*term, TermUnits::Datasheet);
+        let whose = match sensor {
+            Sensor::Gyro => String::new(),
+            Sensor::Accel => format!(", the accelerometer's {}", sensor.term_name(*term)),
+        };
         notes.push(format!(
-            "#   {term} ({key}) = {} {u}: {}",
+            "#   {term}{whose} ({key}) = {} {u}: {}",
             sig(taken * f, 5),
             combined_as(*term)
         ));
         for (name, choice) in columns {
-            let at = |e: &Estimate| format_estimate(*term, e, TermUnits::Datasheet);
+            let at = |e: &Estimate| format_estimate(sensor, *term, e, TermUnits::Datasheet);
             let what = match choice {
                 Choice::Identified(e) => at(e),
                 Choice::Floor {
@@ -400,14 +467,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .kind
         .parse()
         .map_err(|e| CliError::input(format!("--kind: {e}")))?;
-    let log = log_input::open(&args.input, &args.columns, &args.bag, false)?;
+    let (log, units) = read_columns(&args)?;
     let rate = log.origin.rate(given_rate).map_err(CliError::input)?;
-    let unit = log_input::rate_unit(&log.origin, args.units.as_deref())?;
     let table = log.table;
     let shown = args.input.display().to_string();
     let mut results = Vec::new();
-    for (name, y) in table.names.iter().zip(&table.columns) {
-        let r = analyse(y, rate, kind, &grid, unit.to_deg_per_s(), name)
+    for ((name, y), &unit) in table.names.iter().zip(&table.columns).zip(&units) {
+        let r = analyse(y, rate, kind, &grid, unit, name)
             .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
         results.push(r);
     }
@@ -415,7 +481,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         write_csv(out, &results)?;
     }
     if let Some(path) = &args.plot {
-        plot::write_loglog(path, &chart(&results, kind, unit)).map_err(CliError::input)?;
+        write_plots(path, &results, kind)?;
     }
     if args.stage {
         let lsb = super::simulate::parse_number("--lsb", &args.lsb)?;
@@ -425,21 +491,93 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 args.lsb
             )));
         }
-        print!("{}", stage_table(&results, &args, rate, unit, lsb)?);
+        print!("{}", stage_table(&results, &args, rate, lsb)?);
         return Ok(());
     }
     if args.json {
-        let columns: Vec<Value> = results
-            .iter()
-            .map(|r| column_json(r, rate, kind, unit))
-            .collect();
+        let columns: Vec<Value> = results.iter().map(|r| column_json(r, rate, kind)).collect();
         println!("{}", json!({ "columns": columns }));
         return Ok(());
     }
     for r in &results {
-        print_column(r, rate, kind, unit, args.term_units);
+        print_column(r, rate, kind, args.term_units);
     }
     Ok(())
+}
+
+/// The log's columns to analyse and the unit of each: the gyro's (`--column`, or every other
+/// numeric column) in `--units`, the accelerometer's (`--accel-column`) in `--accel-units`.
+fn read_columns(args: &Args) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
+    let accel = &args.accel_columns;
+    if let Some(both) = args.columns.iter().find(|c| accel.contains(c)) {
+        return Err(CliError::input(format!(
+            "column '{both}' is named by both --column and --accel-column: a column is one sensor's"
+        )));
+    }
+    let bag = rate_log::is_bag(&args.input);
+    // Without --column the gyro's are the rest: every numeric column of a CSV file, read all
+    // at once; a bag's x, y, z.
+    let wanted: Vec<String> = match (args.columns.is_empty(), accel.is_empty(), bag) {
+        (true, true, _) | (true, false, false) => Vec::new(),
+        (true, false, true) => rate_log::BAG_COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .chain(accel.iter().cloned())
+            .collect(),
+        (false, _, _) => args.columns.iter().chain(accel).cloned().collect(),
+    };
+    let log = log_input::open(&args.input, &wanted, &args.bag, false)?;
+    let gyro = SampleUnit::Rate(log_input::rate_unit(&log.origin, args.units.as_deref())?);
+    let accel_unit = log
+        .origin
+        .accel_units(args.accel_units.as_deref())
+        .map_err(CliError::input)?
+        .parse::<AccelUnit>()
+        .map_err(|e| CliError::input(format!("--accel-units: {e}")))?;
+    for name in accel {
+        if !log.table.names.contains(name) {
+            return Err(CliError::input(format!(
+                "{}: no column named '{name}' (columns: {})",
+                args.input.display(),
+                log.table.names.join(", ")
+            )));
+        }
+    }
+    let units: Vec<SampleUnit> = log
+        .table
+        .names
+        .iter()
+        .map(|n| match accel.contains(n) {
+            true => SampleUnit::Accel(accel_unit),
+            false => gyro,
+        })
+        .collect();
+    gravity_check(&log, &units, accel_unit);
+    Ok((log, units))
+}
+
+/// A warning when three accelerometer axes read a gravity that says another unit than the one
+/// given (a still unit reads 1 g, 9.8 m/s^2, whatever its attitude).
+fn gravity_check(log: &RateLog, units: &[SampleUnit], given: AccelUnit) {
+    let means: Vec<f64> = log
+        .table
+        .columns
+        .iter()
+        .zip(units)
+        .filter(|(_, u)| matches!(u, SampleUnit::Accel(_)))
+        .map(|(y, _)| y.iter().sum::<f64>() / y.len().max(1) as f64)
+        .collect();
+    if means.len() != 3 {
+        return;
+    }
+    let norm = means.iter().map(|m| m * m).sum::<f64>().sqrt();
+    if let Some(seems) = AccelUnit::implied_by_gravity(norm).filter(|&u| u != given) {
+        eprintln!(
+            "driftless: warning: {}: the accelerometer columns read a gravity of {} {given}, as a still unit does in {seems}: are they in {seems} (--accel-units {seems})?",
+            log.origin.path.display(),
+            sig(norm, 4)
+        );
+    }
 }
 
 /// `-o`: the tau table as CSV. Every column has the same grid (it depends only on the length),
@@ -470,7 +608,7 @@ fn write_csv(out: &Path, results: &[ColumnResult]) -> Result<(), CliError> {
 }
 
 /// One column's object of `--json`.
-fn column_json(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit) -> Value {
+fn column_json(r: &ColumnResult, rate: f64, kind: Kind) -> Value {
     let points: Vec<Value> = r
         .points
         .iter()
@@ -484,8 +622,13 @@ fn column_json(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit) -> Value
                    "alpha_plausible": plausible})
         })
         .collect();
-    let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit));
-    let (ro, _) = terms_json(&r.read_offs);
+    let sensor = r.sensor();
+    let (terms, reasons) = terms_json(&fit_terms_or_reason(&r.fit), sensor);
+    let (ro, _) = terms_json(&r.read_offs, sensor);
+    let names: Map<String, Value> = Term::ALL
+        .iter()
+        .map(|&t| (t.name().to_string(), sensor.term_name(t).into()))
+        .collect();
     let (why, outside) = trust(&r.fit, &r.read_offs, &r.octave);
     let outside: Vec<&str> = outside.iter().map(|t| t.name()).collect();
     let trust = json!({
@@ -493,16 +636,30 @@ fn column_json(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit) -> Value
         "why": why,
         "read_offs_outside_fit_interval": outside,
     });
-    json!({"name": r.name, "samples": r.samples, "rate": rate, "kind": kind.to_string(),
-           "unit": unit.to_string(), "ci": chi2::ONE_SIGMA, "points": points,
-           "terms": terms, "not_identified": reasons, "read_offs": ro,
-           "trust": trust})
+    json!({"name": r.name, "sensor": sensor.word(), "samples": r.samples, "rate": rate,
+           "kind": kind.to_string(), "unit": r.unit.to_string(), "ci": chi2::ONE_SIGMA,
+           "points": points, "term_names": names, "terms": terms,
+           "not_identified": reasons, "read_offs": ro, "trust": trust})
+}
+
+/// The terms' names for `sensor`, as the terms' header lists them ("Q quantisation noise, ...").
+fn legend(sensor: Sensor) -> String {
+    Term::ALL
+        .iter()
+        .map(|&t| format!("{t} {}", sensor.term_name(t)))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// One column's tables: the curve, the fitted terms beside the read-offs, which to trust.
-fn print_column(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit, term_units: TermUnits) {
+fn print_column(r: &ColumnResult, rate: f64, kind: Kind, term_units: TermUnits) {
+    let (sensor, unit) = (r.sensor(), r.unit);
+    let whose = match sensor {
+        Sensor::Gyro => "",
+        Sensor::Accel => "accelerometer, ",
+    };
     println!(
-        "{} ({} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
+        "{} ({whose}{} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
         r.name,
         r.samples,
         rate,
@@ -539,19 +696,20 @@ fn print_column(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit, term_un
         );
     }
     let fitted = fit_terms_or_reason(&r.fit);
+    let legend = legend(sensor);
     match &r.fit {
         Ok(f) => println!(
-            "IEEE 952 terms (weighted NNLS fit of octave OADEV, tau {} s to {} s) | slope read-off:",
+            "IEEE 952 terms ({legend}; weighted NNLS fit of octave OADEV, tau {} s to {} s) | slope read-off:",
             f.tau_range.0, f.tau_range.1
         ),
-        Err(_) => println!("IEEE 952 terms | slope read-off:"),
+        Err(_) => println!("IEEE 952 terms ({legend}) | slope read-off:"),
     }
     for (t, ro) in fitted.iter().zip(&r.read_offs) {
         println!(
             "  {}  {}  | {}",
             t.term,
-            format_term(t, term_units),
-            format_term(ro, term_units)
+            format_term(t, term_units, sensor),
+            format_term(ro, term_units, sensor)
         );
     }
     println!(
@@ -561,8 +719,43 @@ fn print_column(r: &ColumnResult, rate: f64, kind: Kind, unit: RateUnit, term_un
     println!();
 }
 
-fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {
-    let to_deg = unit.to_deg_per_s();
+/// `--plot`: one chart per sensor, as the columns' units differ: the gyro's (or the only
+/// sensor's) to `path`, the accelerometer's beside the gyro's to `<stem>-accel.<ext>`.
+fn write_plots(path: &Path, results: &[ColumnResult], kind: Kind) -> Result<(), CliError> {
+    let (gyro, accel): (Vec<&ColumnResult>, Vec<&ColumnResult>) =
+        results.iter().partition(|r| r.sensor() == Sensor::Gyro);
+    if !gyro.is_empty() {
+        plot::write_loglog(path, &chart(&gyro, kind)).map_err(CliError::input)?;
+    }
+    if !accel.is_empty() {
+        let to = if gyro.is_empty() {
+            path.to_path_buf()
+        } else {
+            let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+            let ext = path
+                .extension()
+                .map_or(String::new(), |e| format!(".{}", e.to_string_lossy()));
+            path.with_file_name(format!("{stem}-accel{ext}"))
+        };
+        plot::write_loglog(&to, &chart(&accel, kind)).map_err(CliError::input)?;
+        if !gyro.is_empty() {
+            eprintln!(
+                "driftless: the accelerometer's plot is {} (the gyro's {})",
+                to.display(),
+                path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The chart of `results`, columns of one sensor in one unit.
+fn chart(results: &[&ColumnResult], kind: Kind) -> LogLogChart {
+    let Some(first) = results.first() else {
+        unreachable!("a chart of no column")
+    };
+    let (sensor, unit) = (first.sensor(), first.unit);
+    let to_base = unit.to_base();
     let mut lines = Vec::new();
     let mut notes = Vec::new();
     for r in results {
@@ -575,7 +768,7 @@ fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {
             name: format!("{}: fitted model", r.name),
             points: taus
                 .iter()
-                .map(|&t| (t, fit.model_variance(t).sqrt() / to_deg))
+                .map(|&t| (t, fit.model_variance(t).sqrt() / to_base))
                 .collect(),
         });
         for (k, t) in fit.terms.iter().enumerate() {
@@ -589,7 +782,7 @@ fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {
                     .map(|&tau| {
                         (
                             tau,
-                            (t.term.coefficient(tau) * fit.theta[k]).sqrt() / to_deg,
+                            (t.term.coefficient(tau) * fit.theta[k]).sqrt() / to_base,
                         )
                     })
                     .collect(),
@@ -601,22 +794,27 @@ fn chart(results: &[ColumnResult], kind: Kind, unit: RateUnit) -> LogLogChart {
             chi2::ONE_SIGMA * 100.0
         ));
         for t in &fit.terms {
-            let (unit, f) = t.term.display();
+            let (unit, f) = sensor.display(t.term);
+            let name = sensor.term_name(t.term);
             notes.push(match t.estimate {
                 Some(e) => format!(
-                    "  {} = {:.4} {unit} [{:.4}, {:.4}]",
+                    "  {} = {} {unit} [{}, {}], {name}",
                     t.term,
-                    e.value * f,
-                    e.lo * f,
-                    e.hi * f
+                    sig(e.value * f, 4),
+                    sig(e.lo * f, 4),
+                    sig(e.hi * f, 4)
                 ),
-                None => format!("  {}: not identifiable", t.term),
+                None => format!("  {}: not identifiable ({name})", t.term),
             });
         }
     }
+    let whose = match sensor {
+        Sensor::Gyro => "",
+        Sensor::Accel => " of the accelerometer",
+    };
     LogLogChart {
         title: format!(
-            "{} with {:.1}% intervals and IEEE 952 terms",
+            "{}{whose} with {:.1}% intervals and IEEE 952 terms",
             kind.to_string().to_uppercase(),
             chi2::ONE_SIGMA * 100.0
         ),

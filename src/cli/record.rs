@@ -49,6 +49,12 @@ pub struct Args {
     /// angular_velocity_covariance; without it the covariance is all zeros ("unknown").
     #[arg(long, value_name = "DEG_PER_S")]
     pub rate_noise: Option<f64>,
+    /// With --format ros2: the accelerometer's white noise, 1 sigma of one sample in m/s^2 (VRW
+    /// x sqrt(rate)), for samples that carry no accel_std of their own: its square is each
+    /// axis' linear_acceleration_covariance. Without either, the covariance of a reading is all
+    /// zeros ("unknown"; robot_localization then trusts it far too much).
+    #[arg(long, value_name = "M_PER_S2")]
+    pub accel_noise: Option<f64>,
 }
 
 /// Subscribe to SERVICE... and record them until stopped.
@@ -72,6 +78,18 @@ pub fn run(args: Args) -> Result<(), CliError> {
         if !(n.is_finite() && n >= 0.0) {
             return Err(CliError::input(format!(
                 "--rate-noise {n} must be a finite number of deg/s >= 0"
+            )));
+        }
+    }
+    if let Some(n) = args.accel_noise {
+        if !ros2 {
+            return Err(CliError::input(
+                "--accel-noise is for --format ros2 (the covariance)",
+            ));
+        }
+        if !(n.is_finite() && n >= 0.0) {
+            return Err(CliError::input(format!(
+                "--accel-noise {n} must be a finite number of m/s^2 >= 0"
             )));
         }
     }
@@ -102,6 +120,7 @@ fn record(args: &Args, prefix: &str) -> Result<(), CliError> {
         ros2: (args.format == "ros2").then(|| Ros2Bag {
             frame_id: args.frame_id.clone(),
             rate_noise: args.rate_noise,
+            accel_noise: args.accel_noise,
         }),
     };
     // Installed in main, before anything exists on disk: a signal ends the recording cleanly.
@@ -144,7 +163,16 @@ fn record(args: &Args, prefix: &str) -> Result<(), CliError> {
              (unknown to the reader)"
         );
     }
-    print_summary(&outcome?);
+    let summary = outcome?;
+    let unknown: u64 = summary.services.iter().map(|s| s.accel_unknown).sum();
+    if unknown > 0 {
+        eprintln!(
+            "driftless: note: {unknown} accelerometer reading(s) with no accel_std and no \
+             --accel-noise: linear_acceleration_covariance written as all zeros (unknown to the \
+             reader; robot_localization raises it to 1e-9 and trusts the reading far too much)"
+        );
+    }
+    print_summary(&summary);
     Ok(())
 }
 

@@ -4,7 +4,9 @@
 //!
 //! A bag gives three columns, `x`, `y`, `z`: the messages' `angular_velocity` in rad/s as the
 //! message definition has it (REP 103), unconverted, so that the same doubles give the same
-//! results from a bag as from a CSV file. Its rate comes from the stamps ([`Stamps`]): the
+//! results from a bag as from a CSV file. Asked for by name, `ax`, `ay`, `az` are its
+//! `linear_acceleration` in m/s^2 ([`BAG_ACCEL_COLUMNS`]), refused when the messages mark it
+//! not provided. Its rate comes from the stamps ([`Stamps`]): the
 //! median interval between consecutive `header.stamp`s, robust to gaps. A stamp that does not
 //! rise, a message that does not decode and a non-finite rate are errors naming the file, the
 //! topic, the message's number and its log time; gaps and jitter are counted and reported
@@ -19,6 +21,9 @@ use super::ros2::{seconds_text, Bag, BagError, BagErrorKind};
 
 /// The column names a bag's angular velocity is read into.
 pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
+
+/// The column names a bag's linear acceleration is read into, when named.
+pub const BAG_ACCEL_COLUMNS: [&str; 3] = ["ax", "ay", "az"];
 
 /// How far a rate given for a bag (a command's `--rate`, a pipeline's `rate_hz`) may lie from
 /// its stamps' rate, as a fraction of the reference rate.
@@ -202,6 +207,21 @@ impl LogOrigin {
         }
     }
 
+    /// The units of the log's accelerometer columns: a bag's are m/s^2 (`given`, a command's
+    /// `--accel-units`, must agree); a CSV log's are `given`, m/s^2 without it.
+    pub fn accel_units<'a>(&self, given: Option<&'a str>) -> Result<&'a str, String> {
+        match (&self.bag, given) {
+            (None, given) => Ok(given.unwrap_or("m/s^2")),
+            (Some(_), None | Some("m/s^2")) => Ok("m/s^2"),
+            (Some(bag), Some(other)) => Err(format!(
+                "{}: topic {}: a sensor_msgs/msg/Imu linear acceleration is in m/s^2 (REP 103), \
+                 not {other}: leave --accel-units out",
+                self.path.display(),
+                bag.topic
+            )),
+        }
+    }
+
     /// A note for stderr when a bag's stamps are irregular.
     pub fn stamp_note(&self) -> Option<String> {
         let bag = self.bag.as_ref()?;
@@ -252,16 +272,22 @@ pub fn read_log(
     }
     let bag = Bag::open(path)?;
     let topic = bag.imu_topic(topic)?;
+    // Picks index the six columns a bag has: x, y, z, ax, ay, az.
+    let all: Vec<&str> = BAG_COLUMNS
+        .iter()
+        .chain(&BAG_ACCEL_COLUMNS)
+        .copied()
+        .collect();
     let mut picks = Vec::with_capacity(wanted.len().max(3));
     for w in wanted {
-        match BAG_COLUMNS.iter().position(|c| c == w) {
+        match all.iter().position(|c| c == w) {
             Some(i) => picks.push(i),
             None => {
                 return Err(InputError::file(
                     path,
                     format!(
                         "topic {topic}: no column {w:?}: a bag's columns are x, y, z (its \
-                         angular_velocity, rad/s)"
+                         angular_velocity, rad/s) and ax, ay, az (its linear_acceleration, m/s^2)"
                     ),
                 ))
             }
@@ -270,8 +296,10 @@ pub fn read_log(
     if picks.is_empty() {
         picks.extend(0..3);
     }
+    let accel = picks.iter().any(|&i| i >= 3);
+    let needed: [bool; 6] = std::array::from_fn(|i| picks.contains(&i));
     let shown = path.display();
-    let mut axes: [Vec<f64>; 3] = Default::default();
+    let mut axes: [Vec<f64>; 6] = Default::default();
     let mut stamps: Vec<i64> = Vec::new();
     for m in bag.imu_messages(&topic)? {
         let m = m?;
@@ -297,16 +325,36 @@ pub fn read_log(
             }
         }
         let w = m.msg.angular_velocity;
-        if let Some(i) = w.iter().position(|v| !v.is_finite()) {
+        let a = m.msg.linear_acceleration;
+        if accel && m.msg.linear_acceleration_covariance[0] == -1.0 {
             return Err(BagError {
                 kind: BagErrorKind::Value,
-                message: format!("{}: angular_velocity.{} is {}", at(), BAG_COLUMNS[i], w[i]),
+                message: format!(
+                    "{}: linear_acceleration is marked not provided (covariance[0] = -1): the \
+                     topic carries no accelerometer",
+                    at()
+                ),
+            }
+            .into());
+        }
+        let values = [w[0], w[1], w[2], a[0], a[1], a[2]];
+        if let Some(i) = picks.iter().copied().find(|&i| !values[i].is_finite()) {
+            let field = if i < 3 {
+                format!("angular_velocity.{}", BAG_COLUMNS[i])
+            } else {
+                format!("linear_acceleration.{}", BAG_COLUMNS[i - 3])
+            };
+            return Err(BagError {
+                kind: BagErrorKind::Value,
+                message: format!("{}: {field} is {}", at(), values[i]),
             }
             .into());
         }
         stamps.push(t);
-        for (col, v) in axes.iter_mut().zip(w) {
-            col.push(v);
+        for (i, (col, v)) in axes.iter_mut().zip(values).enumerate() {
+            if needed[i] {
+                col.push(v);
+            }
         }
     }
     if stamps.is_empty() {
@@ -322,7 +370,7 @@ pub fn read_log(
     });
     let table = Table {
         path: path.to_path_buf(),
-        names: picks.iter().map(|&i| BAG_COLUMNS[i].to_string()).collect(),
+        names: picks.iter().map(|&i| all[i].to_string()).collect(),
         // Each axis moved out at its last pick, copied only for a column named twice.
         columns: picks
             .iter()

@@ -62,6 +62,9 @@ pub struct Ros2Bag {
     pub frame_id: String,
     /// White rate noise, 1 sigma of one sample in deg/s (the covariance; None: unknown).
     pub rate_noise: Option<f64>,
+    /// The accelerometer's white noise, 1 sigma of one sample in m/s^2, for samples that carry
+    /// no `accel_std` (None: their covariance unknown).
+    pub accel_noise: Option<f64>,
 }
 
 /// Why a recording did not start or did not end whole.
@@ -103,6 +106,9 @@ pub struct ServiceSummary {
     /// In a ROS 2 bag: messages carrying a value a stage held or replaced (an Imu message
     /// cannot say it).
     pub held: u64,
+    /// In a ROS 2 bag: accelerometer readings written with an unknown covariance (all zeros:
+    /// no `accel_std` in the sample, no `--accel-noise`).
+    pub accel_unknown: u64,
 }
 
 /// What a recording reports about once a second.
@@ -357,7 +363,8 @@ impl Recorder {
                         (WireType::Raw, Some("deg/s")) => std::f64::consts::PI / 180.0,
                         _ => 1.0,
                     };
-                    let m = ImuMapping::new(&bag.frame_id, to_rad, bag.rate_noise);
+                    let m = ImuMapping::new(&bag.frame_id, to_rad, bag.rate_noise)
+                        .with_accel_noise(bag.accel_noise);
                     (channel, Some(m))
                 }
                 None => {
@@ -528,6 +535,7 @@ impl Recorder {
                 .map(|r| ServiceSummary {
                     wire: r.input.wire_type(),
                     held: r.ros2.as_ref().map_or(0, |m| m.held),
+                    accel_unknown: r.ros2.as_ref().map_or(0, |m| m.accel_unknown),
                     service: r.service,
                     counts: r.counts,
                 })

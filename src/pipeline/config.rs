@@ -461,6 +461,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         pipeline: &name,
         cx,
         stages: &stages,
+        stats_service: &stats_service,
     };
     let mut sides = Vec::new();
     for (kind, (at, table)) in side_tables {

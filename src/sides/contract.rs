@@ -45,6 +45,8 @@ pub struct Chain<'a> {
     pub cx: Context,
     /// Its stages, in chain order.
     pub stages: &'a [StageSpec],
+    /// The service its stats snapshots go to (`StatsSnapshot`, the reporting thread's).
+    pub stats_service: &'a str,
 }
 
 impl Chain<'_> {
@@ -72,6 +74,14 @@ impl Chain<'_> {
                     .map(move |(_, kind)| (s, kind))
             })
             .collect()
+    }
+
+    /// Whether a stage of `kind` runs at or before the stage that publishes `service`.
+    pub fn upstream_of(&self, service: &str, kind: &str) -> bool {
+        let Some(at) = self.stages.iter().position(|s| s.output == service) else {
+            return false;
+        };
+        self.stages[..=at].iter().any(|s| s.kind.name == kind)
     }
 
     /// The white rate noise a stage assumes (`predict.bias`'s N, deg/s/sqrt(Hz)), if one does.

@@ -12,7 +12,10 @@ use crate::io::InputError;
 use crate::stages::contract::SideInput;
 use crate::stages::schema::{DefaultValue, Key, Table, Type, Units};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
-use crate::transport::ros2::{Direction, MotionKind, Ros2Settings, IMU_TYPE};
+use crate::transport::ros2::{
+    Direction, MotionKind, Ros2Settings, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, IMU_TYPE,
+    VECTOR3_STAMPED_TYPE,
+};
 
 const NODE: Key = Key {
     name: "node",
@@ -71,13 +74,71 @@ const MOTION_IN: Key = Key {
           stage names as `stop_input` (it must have `stop_speed`)",
 };
 
+const ACCEL_NOISE: Key = Key {
+    name: "accel_noise",
+    ty: Type::Positive(1e6),
+    default: DefaultValue::Derived("the samples' own (`accel_std`)"),
+    doc: "the accelerometer's white noise per sample, m/s^2 (1 sigma): VRW in m/s/sqrt(h) / 60 \
+          x sqrt(rate_hz). The published `linear_acceleration_covariance` is its square, where \
+          a sample carries no `accel_std` of its own. With neither, it is the driver's own \
+          covariance as received on `imu_in`; with no `imu_in` either, all zeros \
+          (\"unknown\", which robot_localization raises to 1e-9: far too sure)",
+};
+const BIAS_OUT: Key = Key {
+    name: "bias_out",
+    ty: Type::Table("`topic`, `service`, `type` = \"geometry_msgs/msg/Vector3Stamped\""),
+    default: DefaultValue::Absent("none"),
+    doc: "the bias the filter removes (the samples' `drift`, rad/s), one message per sample \
+          with its stamp and frame, as Autoware's `gyro_bias_estimator` publishes it. The \
+          service: the output of a `predict.bias` stage or of one after it",
+};
+const DIAGNOSTICS: Key = Key {
+    name: "diagnostics",
+    ty: Type::Table(
+        "`service`, `topic` = \"/diagnostics\", `type` = \"diagnostic_msgs/msg/DiagnosticArray\"",
+    ),
+    default: DefaultValue::Absent("none"),
+    doc: "the bias filter's state, every `diagnostics_period_s`, as `diagnostic_updater` \
+          publishes it: each axis's bias and its sigma (rad/s), the stillness, the samples, \
+          and the pipeline's deadline misses and losses (its stats). WARN once an axis's bias \
+          passes `bias_threshold`; STALE when no sample came in a period. The service: the \
+          output of a `predict.bias` stage or of one after it",
+};
+const DIAGNOSTICS_PERIOD_S: Key = Key {
+    name: "diagnostics_period_s",
+    ty: Type::FloatIn(0.05, 3600.0),
+    default: DefaultValue::Float(1.0),
+    doc: "how often the diagnostics are published, s (`diagnostic_updater`'s default period)",
+};
+const BIAS_THRESHOLD: Key = Key {
+    name: "bias_threshold",
+    ty: Type::Positive(10.0),
+    default: DefaultValue::Float(0.0015),
+    doc: "the diagnostics go to WARN once an axis's bias passes this, rad/s (the default is \
+          Autoware's `gyro_bias_threshold`; a MEMS gyro's turn-on bias can pass it: set what \
+          your unit should stay within)",
+};
+
 /// The `[ros2]` side kind.
 pub const KIND: Kind = Kind {
     table: "ros2",
     summary: "the daemon as a ROS 2 node: a driver's Imu topic in, stages' outputs out as Imu \
-              topics, a vehicle's motion in as a stop signal (cargo feature `ros2`)",
+              topics, the bias and its diagnostics out, a vehicle's motion in as a stop signal \
+              (cargo feature `ros2`)",
     keys: &[
-        NODE, NAMESPACE, DEPTH, FRAME_ID, RATE_NOISE, IMU_IN, IMU_OUT, MOTION_IN,
+        NODE,
+        NAMESPACE,
+        DEPTH,
+        FRAME_ID,
+        RATE_NOISE,
+        ACCEL_NOISE,
+        IMU_IN,
+        IMU_OUT,
+        BIAS_OUT,
+        DIAGNOSTICS,
+        DIAGNOSTICS_PERIOD_S,
+        BIAS_THRESHOLD,
+        MOTION_IN,
     ],
     read,
 };
@@ -87,6 +148,16 @@ pub const KIND: Kind = Kind {
 #[serde(deny_unknown_fields)]
 struct RawTopic {
     topic: Spanned<String>,
+    service: Spanned<String>,
+    #[serde(rename = "type")]
+    ty: Option<Spanned<String>>,
+}
+
+/// The `[ros2.diagnostics]` table: its topic has a default.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDiagnostics {
+    topic: Option<Spanned<String>>,
     service: Spanned<String>,
     #[serde(rename = "type")]
     ty: Option<Spanned<String>>,
@@ -127,17 +198,39 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         }
         Ok(name.clone())
     };
-    let imu_type = |ty: &Option<Spanned<String>>, key: &str| match ty {
-        Some(ty) if ty.get_ref() != IMU_TYPE => {
-            Err(src.span(ty, format!("{key}.type is {IMU_TYPE}")))
-        }
+    let of_type = |ty: &Option<Spanned<String>>, key: &str, want: &str| match ty {
+        Some(ty) if ty.get_ref() != want => Err(src.span(ty, format!("{key}.type is {want}"))),
         _ => Ok(()),
+    };
+    let imu_type = |ty: &Option<Spanned<String>>, key: &str| of_type(ty, key, IMU_TYPE);
+    // The bias and its diagnostics come from a predict.bias stage's outputs or later ones.
+    let bias_service = |raw: &Spanned<String>, key: &str| -> Result<String, InputError> {
+        let service = src.service(raw)?;
+        if chain.writer(&service).is_none() {
+            return Err(src.span(
+                raw,
+                format!("{key}.service {service:?} is no stage's output"),
+            ));
+        }
+        if !chain.upstream_of(&service, "predict.bias") {
+            return Err(src.span(
+                raw,
+                format!(
+                    "{key}.service {service:?}: no predict.bias stage at or before the stage \
+                     that publishes it, so its samples carry no bias to report"
+                ),
+            ));
+        }
+        Ok(service)
     };
     let node = t.get::<String>(&NODE)?;
     let namespace = t.str_or_default(&NAMESPACE, |_| Ok(()))?;
     let depth = t.int_or_default(&DEPTH)?;
     let frame_id = t.get::<String>(&FRAME_ID)?;
     let rate_noise = t.float(&RATE_NOISE)?;
+    let accel_noise = t.float(&ACCEL_NOISE)?;
+    let diagnostics_period_s = t.float_or_default(&DIAGNOSTICS_PERIOD_S)?;
+    let bias_threshold = t.float_or_default(&BIAS_THRESHOLD)?;
     let imu_in = match t.get::<RawTopic>(&IMU_IN)? {
         Some(raw) => {
             let raw = raw.into_inner();
@@ -178,6 +271,28 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         imu_type(&raw.ty, "imu_out")?;
         imu_out.push((service, topic(&raw.topic)?));
     }
+    let bias_out = match t.get::<RawTopic>(&BIAS_OUT)? {
+        Some(raw) => {
+            let raw = raw.into_inner();
+            let service = bias_service(&raw.service, "bias_out")?;
+            of_type(&raw.ty, "bias_out", VECTOR3_STAMPED_TYPE)?;
+            Some((service, topic(&raw.topic)?))
+        }
+        None => None,
+    };
+    let diagnostics = match t.get::<RawDiagnostics>(&DIAGNOSTICS)? {
+        Some(raw) => {
+            let raw = raw.into_inner();
+            let service = bias_service(&raw.service, "diagnostics")?;
+            of_type(&raw.ty, "diagnostics", DIAGNOSTIC_ARRAY_TYPE)?;
+            let topic = match &raw.topic {
+                Some(t) => topic(t)?,
+                None => DIAGNOSTICS_TOPIC.to_string(),
+            };
+            Some((service, topic))
+        }
+        None => None,
+    };
     let motion_in = match t.get::<RawTopic>(&MOTION_IN)? {
         Some(raw) => {
             let raw = raw.into_inner();
@@ -233,6 +348,12 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         imu_in,
         imu_out,
         motion_in,
+        accel_noise,
+        bias_out,
+        diagnostics,
+        diagnostics_period_s,
+        bias_threshold,
+        stats_service: chain.stats_service.to_string(),
     })))
 }
 
@@ -253,8 +374,27 @@ impl Side for Ros2Side {
             let (topic, ty, service) = (t.topic, t.ty, t.service);
             lines.push(match t.direction {
                 Direction::In => format!("  in     {topic} ({ty}) -> {service}"),
+                Direction::Out if ty == DIAGNOSTIC_ARRAY_TYPE => format!(
+                    "  out    {service}, {} -> {topic} ({ty}) every {} s, WARN past {} rad/s",
+                    r.stats_service, r.diagnostics_period_s, r.bias_threshold
+                ),
                 Direction::Out => format!("  out    {service} -> {topic} ({ty})"),
                 Direction::Stop => format!("  motion {topic} ({ty}) -> {service}"),
+            });
+        }
+        if !r.imu_out.is_empty() {
+            // Where linear_acceleration_covariance comes from when a sample has no accel_std.
+            lines.push(match (r.accel_noise, &r.imu_in) {
+                (Some(n), _) => format!(
+                    "  linear_acceleration as received; its covariance from the samples' \
+                     accel_std, else accel_noise {n} m/s^2"
+                ),
+                (None, Some(_)) => "  linear_acceleration as received; its covariance from the \
+                                    samples' accel_std, else the driver's own"
+                    .into(),
+                (None, None) => "  linear_acceleration as received; its covariance from the \
+                                 samples' accel_std, else all zeros (unknown: set accel_noise)"
+                    .into(),
             });
         }
         lines

@@ -55,7 +55,7 @@ use crate::stages::schema::Units;
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
 use crate::transport::{
-    RawSample, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+    RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
 
 const FILE: Key = Key {
@@ -524,6 +524,10 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
                         // The loop's span, from real stamps only.
                         first_t.get_or_insert(t);
                         last_t = t;
+                    }
+                    if let Some(a) = m.msg.accel_reading() {
+                        s.accel = a;
+                        s.flags |= RAW_ACCEL;
                     }
                 }
                 Err(e) if e.kind == BagErrorKind::Cdr => {

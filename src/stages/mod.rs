@@ -13,6 +13,8 @@
 //! | `external` | [`external`] | a stage run by another process (the daemon only links to it) |
 //! | `publish` | [`publish`] | the final guard before the public service |
 //!
+//! [`accel_terms`] holds the accelerometer's noise keys (`accel_vrw`, `accel_bias_instability`)
+//! a stage reads beside the gyro's, as [`stop_rule`] holds the vehicle's stop keys.
 //! [`replay`] is what the file replays (`ingest.csv`, `ingest.mcap`) share: the reader thread,
 //! its blocks of samples and the pacing. [`bias_state`] is `predict.bias`'s saved state (its
 //! warm start): the file, its checks and its writer thread.
@@ -34,6 +36,7 @@
 //! the kind does not declare (naming the kind a stray key belongs to), and `driftless validate
 //! --kinds` and `docs/reference/pipeline-file.md` (generated from it) list the new keys.
 
+pub mod accel_terms;
 pub mod bias_state;
 pub mod contract;
 pub mod schema;

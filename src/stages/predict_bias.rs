@@ -15,6 +15,8 @@
 //! # bias_instability = 34.0    # B, deg/h
 //! # rrw = 0.0                  # K, deg/h/sqrt(h)
 //! # lsb = 0.05                 # output step of the raw rate, input units (0: none)
+//! # accel_vrw = 0.2            # the accelerometer's N, m/s/sqrt(h), and B, mg (`allan
+//! # accel_bias_instability = 0.3  # --stage` with --accel-column writes both)
 //! ```
 //!
 //! The published rate is the denoised rate minus the estimate. Flags: [`FLAG_STILL`] when every
@@ -23,10 +25,11 @@
 //! filling, or no still sample has been seen yet (nothing is subtracted there). Moving before the
 //! first stop is therefore `MOVING | WARMING_UP`.
 
+use super::accel_terms::{self, ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
 use super::predict::motion_flags;
 use crate::drift::bias::{
-    default_walk_bounds, BiasMode, BiasModel, BiasTerms, BiasTracker, Instability, LearnWalk,
-    TrackerConfig, DEFAULT_INITIAL_SD,
+    default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms, BiasTracker, Instability,
+    LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
@@ -36,6 +39,7 @@ use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::transport::{
     GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
+    SENSOR_ACCEL,
 };
 #[cfg(doc)]
 use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
@@ -158,6 +162,8 @@ pub const KIND: Kind = Kind {
         RRW,
         QUANTIZATION,
         LSB,
+        ACCEL_VRW,
+        ACCEL_BIAS_INSTABILITY,
         INITIAL_SD,
         DELAY_S,
         LEARN_WALK,
@@ -178,6 +184,8 @@ pub const KIND: Kind = Kind {
 pub struct BiasParams {
     /// The noise terms, deg/s based.
     pub terms: BiasTerms,
+    /// The accelerometer's noise terms (`accel_vrw`, `accel_bias_instability`), m/s^2 based.
+    pub accel: AccelTerms,
     /// Stillness gating and delay.
     pub tracker: TrackerConfig,
     /// The vehicle's stop signal, if any.
@@ -238,6 +246,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let q = t.float(&QUANTIZATION)?;
     let lsb = t.float(&LSB)?;
     let initial_sd = t.float(&INITIAL_SD)?;
+    let accel = accel_terms::read(t)?;
     let delay_s = t.float_or_default(&DELAY_S)?;
     // Your own terms, or a named sensor's: never a sensor's terms for the ones you left out
     // unless you name it (a gyro that is not an ADIS16405 must not get its noise silently).
@@ -365,6 +374,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     };
     let params = BiasParams {
         terms,
+        accel,
         tracker,
         stop,
         state,
@@ -418,6 +428,7 @@ impl Params for BiasParams {
             since_save: 0,
             samples: 0,
             warm,
+            accel_std: self.accel.white_std(cx.rate_hz),
         }))
     }
 
@@ -586,6 +597,9 @@ pub struct BiasStage {
     samples: u64,
     /// How the stage started: warm, or cold and why.
     warm: WarmStart,
+    /// The accelerometer's white noise per sample, m/s² (from `accel_vrw`): each sample's
+    /// `accel_std`, the weight a navigator (and the ROS 2 covariance) gives its reading.
+    accel_std: f64,
 }
 
 impl BiasStage {
@@ -686,6 +700,9 @@ impl Stage for BiasStage {
                 self.since_save = 0;
                 writer.offer(|snap| *snap = self.snapshot());
             }
+        }
+        if out.sensors & SENSOR_ACCEL != 0 {
+            out.accel_std = [self.accel_std; 3];
         }
         Some(out)
     }

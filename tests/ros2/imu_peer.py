@@ -9,7 +9,11 @@ PEER_DURABILITY=transient_local `listen` asks for that durability. With
 PEER_STAMPS=i=what,... `talk` sends wild stamps in those messages: `max` the farthest a ROS 2
 stamp holds (2038-01-19), `zero` 0 ("not set"), `back` one second before the message's own.
 `twin` publishes COUNT messages from each of two publishers on TOPIC, alternating (two drivers
-on one topic): the second's rates are the first's negated. PEER_NODE names the node. For benches/ros2.rs: `pace`
+on one topic): the second's rates are the first's negated. With PEER_ACCEL=1 `talk` and `drive`
+send an accelerometer reading too (`accel(i)`: every message's own doubles, not round ones)
+with a covariance for each field (orientation still not provided). `bias` prints each
+geometry_msgs/msg/Vector3Stamped it receives on TOPIC as a JSON line, `diagnostics` each
+diagnostic_msgs/msg/DiagnosticArray, until COUNT came. PEER_NODE names the node. For benches/ros2.rs: `pace`
 publishes COUNT messages at PEER_RATE Hz (default 1000) stamped with the system clock just
 before each publish; `latency` receives COUNT and prints, as one JSON line, how many came, in
 order, and the percentiles of receipt minus stamp (us).
@@ -27,9 +31,23 @@ import time
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
+
+
+ACCEL_COVARIANCE = [1e-4, 1e-6, 0.0, 1e-6, 2e-4, 0.0, 0.0, 0.0, 3e-4]
+
+
+def accel(i: int) -> list:
+    """Message `i`'s specific force, m/s^2: gravity on z and a wobble whose doubles are odd.
+    Only +, *, / and %: IEEE rounds them alike everywhere, so the test computes the same bits."""
+    return [
+        (i * 7919 % 1009) / 1009.0 * 0.3 - 0.15,
+        -0.2 + (i * 104729 % 997) / 997.0 * 0.1,
+        9.80665 + i / 3.0e4,
+    ]
 
 
 def message(i: int, still: bool = False) -> Imu:
@@ -48,6 +66,9 @@ def message(i: int, still: bool = False) -> Imu:
         m.angular_velocity.z = 0.0005 + 1e-4 * math.sin(2.9 * i)
     m.angular_velocity_covariance = [1e-6 * (k + 1) for k in range(9)]
     m.linear_acceleration_covariance[0] = -1.0
+    if os.environ.get("PEER_ACCEL") == "1":
+        m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = accel(i)
+        m.linear_acceleration_covariance = ACCEL_COVARIANCE
     return m
 
 
@@ -59,7 +80,34 @@ def as_dict(m: Imu) -> dict:
         "orientation_covariance": list(m.orientation_covariance),
         "angular_velocity": [m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z],
         "angular_velocity_covariance": list(m.angular_velocity_covariance),
+        "linear_acceleration": [
+            m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z
+        ],
         "linear_acceleration_covariance": list(m.linear_acceleration_covariance),
+    }
+
+
+def bias_dict(m: Vector3Stamped) -> dict:
+    return {
+        "stamp": [m.header.stamp.sec, m.header.stamp.nanosec],
+        "frame_id": m.header.frame_id,
+        "vector": [m.vector.x, m.vector.y, m.vector.z],
+    }
+
+
+def diagnostics_dict(m: DiagnosticArray) -> dict:
+    return {
+        "stamp": [m.header.stamp.sec, m.header.stamp.nanosec],
+        "status": [
+            {
+                "level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else s.level,
+                "name": s.name,
+                "message": s.message,
+                "hardware_id": s.hardware_id,
+                "values": {kv.key: kv.value for kv in s.values},
+            }
+            for s in m.status
+        ],
     }
 
 
@@ -86,6 +134,18 @@ def main() -> int:
             "publishers": [(p.node_name, p.topic_type) for p in node.get_publishers_info_by_topic(topic)],
         }
         print(json.dumps({"graph": graph}), flush=True)
+    elif mode in ("bias", "diagnostics"):
+        reliable = QoSProfile(depth=max(count, 10), reliability=ReliabilityPolicy.RELIABLE,
+                              history=HistoryPolicy.KEEP_LAST)
+        got = []
+        ty, as_json = (Vector3Stamped, bias_dict) if mode == "bias" else (
+            DiagnosticArray, diagnostics_dict)
+        node.create_subscription(ty, topic, lambda m: got.append(as_json(m)), reliable)
+        print(json.dumps({"ready": True}), flush=True)
+        while len(got) < count and time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        for g in got:
+            print(json.dumps(g), flush=True)
     elif mode == "latency":
         reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                               history=HistoryPolicy.KEEP_LAST)

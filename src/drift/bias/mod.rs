@@ -55,15 +55,23 @@
 //! ([`BiasModel`], [`BiasFilter`]); `tracker.rs` what feeds it ([`BiasTracker`]: stillness, the
 //! delay window, the ends of a stop); `walk.rs` how the filter learns its random walk from the
 //! stops ([`WalkLearner`], [`LearnWalk`]); `own_terms.rs` one unit's terms from its still
-//! record ([`own_terms`]).
+//! record ([`own_terms`], and its accelerometer's: [`own_accel_terms`]); `accel.rs` the
+//! accelerometer's terms a stage reads ([`AccelTerms`]).
 
+mod accel;
 mod filter;
 mod own_terms;
 mod tracker;
 mod walk;
 
+pub use accel::{
+    AccelTerms, ADIS16405_BIAS_INSTABILITY_MG, ADIS16405_VRW_PER_HOUR, MG_PER_M_S2, VRW_PER_HOUR,
+};
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
-pub use own_terms::{combined_as, own_terms, stage_key, Choice, ColumnFit, OwnTerms};
+pub use own_terms::{
+    accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,
+    OwnAccelTerms, OwnTerms, TermChoices,
+};
 pub use tracker::{
     default_walk_bounds, stillness_from_terms, BiasMode, BiasStep, BiasTracker, LearnWalk,
     TrackerConfig, WALK_LONGEST_S, WALK_SHORTEST_S,
@@ -115,6 +123,11 @@ pub enum BiasError {
     /// The Allan fit could not identify N.
     #[error("the Allan fit has no angle random walk N ({0}): cannot size the measurement noise")]
     NoN(String),
+    /// The Allan fit of an accelerometer could not identify its N.
+    #[error(
+        "the Allan fit has no velocity random walk N ({0}): cannot size the accelerometer's white noise"
+    )]
+    NoVrw(String),
     /// A column's B is not identified and its curve has no point to read it from.
     #[error("column '{0}': B is not identified ({1}) and the curve has no point to read it from")]
     NoFloor(String, String),

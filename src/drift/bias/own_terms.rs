@@ -19,8 +19,13 @@
 //!   temperature drift reads as K), and the walk is learnt from the stops where a stop signal
 //!   gives them ([`super::LearnWalk`]). The same as the `adis16405` profile.
 //! - **Q**: identified, or 0: the output step `lsb` carries the rounding.
+//!
+//! An accelerometer's terms ([`own_accel_terms`]), for a stillness test that uses it too: its
+//! velocity random walk N and bias instability B by the same rules (N the largest, identified
+//! or refused; B the median, identified or the floor read off). Its K and Q are not written:
+//! no stage uses them.
 
-use super::{BiasError, BiasTerms, DEFAULT_INITIAL_SD};
+use super::{AccelTerms, BiasError, BiasTerms, DEFAULT_INITIAL_SD};
 use crate::allan::deviation::AllanPoint;
 use crate::allan::fit::{Estimate, NoiseFit};
 use crate::allan::units::Term;
@@ -33,7 +38,7 @@ pub struct ColumnFit<'a> {
     pub name: &'a str,
     /// Its IEEE 952 fit.
     pub fit: &'a NoiseFit,
-    /// The deviation curve fitted (octave taus, deg/s).
+    /// The deviation curve fitted (octave taus, in the sensor's base unit: deg/s, m/s^2).
     pub points: &'a [AllanPoint],
 }
 
@@ -70,13 +75,16 @@ impl Choice {
     }
 }
 
+/// One term's choice in every column: the term, and per column its name and what was taken.
+pub type TermChoices = (Term, Vec<(String, Choice)>);
+
 /// A unit's terms from its still record, with every choice behind them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OwnTerms {
     /// The terms, one set for every axis (`lsb` as given).
     pub terms: BiasTerms,
     /// Per term (N, B, K, Q), per column: the column's name and what was taken.
-    pub choices: [(Term, Vec<(String, Choice)>); 4],
+    pub choices: [TermChoices; 4],
 }
 
 /// How the columns' values of each term are combined (for saying so).
@@ -100,29 +108,76 @@ pub fn stage_key(terms: &BiasTerms, term: Term) -> (&'static str, f64) {
     }
 }
 
-/// The terms of [the module's rules](self) from each column's fit; `lsb` in deg/s.
-pub fn own_terms(columns: &[ColumnFit<'_>], lsb: f64) -> Result<OwnTerms, BiasError> {
-    let mut choices = [Term::N, Term::B, Term::K, Term::Q].map(|t| (t, Vec::new()));
+/// The stage key that takes an accelerometer's `term` ([`AccelTerms::stage_keys`]: N and B),
+/// and its value in `terms` (base units).
+pub fn accel_stage_key(terms: &AccelTerms, term: Term) -> (&'static str, f64) {
+    match term {
+        Term::N => ("accel_vrw", terms.vrw),
+        _ => ("accel_bias_instability", terms.b),
+    }
+}
+
+/// An accelerometer's terms from its still record, with every choice behind them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnAccelTerms {
+    /// The terms, one set for every axis.
+    pub terms: AccelTerms,
+    /// Per term (N, B), per column: the column's name and what was taken.
+    pub choices: [TermChoices; 2],
+}
+
+/// What [the module's rules](self) take of `term` in one column (`no_n`: the error when N is
+/// not identified).
+fn choose(
+    c: &ColumnFit<'_>,
+    term: Term,
+    no_n: fn(String) -> BiasError,
+) -> Result<Choice, BiasError> {
+    let t = c.fit.get(term);
+    let why = || t.reason.clone().unwrap_or_else(|| "no estimate".into());
+    Ok(match (term, t.estimate) {
+        (Term::N, Some(e)) => Choice::Identified(e),
+        (Term::N, None) => return Err(no_n(format!("{}: {}", c.name, why()))),
+        (Term::B, Some(e)) | (Term::Q, Some(e)) => Choice::Identified(e),
+        (Term::B, None) => {
+            floor(c.points, why()).ok_or_else(|| BiasError::NoFloor(c.name.to_string(), why()))?
+        }
+        (Term::K, Some(e)) => Choice::Unused(e),
+        _ => Choice::Zero(why()),
+    })
+}
+
+/// Each term's choice in every column.
+fn choices<const T: usize>(
+    columns: &[ColumnFit<'_>],
+    terms: [Term; T],
+    no_n: fn(String) -> BiasError,
+) -> Result<[TermChoices; T], BiasError> {
+    let mut choices = terms.map(|t| (t, Vec::new()));
     for c in columns {
         for (term, list) in &mut choices {
-            let t = c.fit.get(*term);
-            let why = || t.reason.clone().unwrap_or_else(|| "no estimate".into());
-            let choice = match (*term, t.estimate) {
-                (Term::N, Some(e)) => Choice::Identified(e),
-                (Term::N, None) => {
-                    return Err(BiasError::NoN(format!("{}: {}", c.name, why())));
-                }
-                (Term::B, Some(e)) | (Term::Q, Some(e)) => Choice::Identified(e),
-                (Term::B, None) => floor(c.points, why())
-                    .ok_or_else(|| BiasError::NoFloor(c.name.to_string(), why()))?,
-                (Term::K, Some(e)) => Choice::Unused(e),
-                _ => Choice::Zero(why()),
-            };
-            list.push((c.name.to_string(), choice));
+            list.push((c.name.to_string(), choose(c, *term, no_n)?));
         }
     }
-    let values = |i: usize| -> Vec<f64> { choices[i].1.iter().map(|(_, c)| c.value()).collect() };
-    let largest = |v: Vec<f64>| v.into_iter().fold(0.0, f64::max);
+    Ok(choices)
+}
+
+fn values(choices: &TermChoices) -> Vec<f64> {
+    choices.1.iter().map(|(_, c)| c.value()).collect()
+}
+
+fn largest(v: Vec<f64>) -> f64 {
+    v.into_iter().fold(0.0, f64::max)
+}
+
+/// The terms of [the module's rules](self) from each column's fit; `lsb` in deg/s.
+pub fn own_terms(columns: &[ColumnFit<'_>], lsb: f64) -> Result<OwnTerms, BiasError> {
+    let choices = choices(
+        columns,
+        [Term::N, Term::B, Term::K, Term::Q],
+        BiasError::NoN,
+    )?;
+    let values = |i: usize| values(&choices[i]);
     let terms = BiasTerms {
         n: largest(values(0)),
         b: median(values(1)),
@@ -133,6 +188,18 @@ pub fn own_terms(columns: &[ColumnFit<'_>], lsb: f64) -> Result<OwnTerms, BiasEr
     };
     terms.check()?;
     Ok(OwnTerms { terms, choices })
+}
+
+/// An accelerometer's terms by [the module's rules](self) from each of its columns' fits
+/// (fitted in m/s^2); at least one column.
+pub fn own_accel_terms(columns: &[ColumnFit<'_>]) -> Result<OwnAccelTerms, BiasError> {
+    let choices = choices(columns, [Term::N, Term::B], BiasError::NoVrw)?;
+    let terms = AccelTerms {
+        vrw: largest(values(&choices[0])),
+        b: median(values(&choices[1])),
+    };
+    terms.check()?;
+    Ok(OwnAccelTerms { terms, choices })
 }
 
 /// B from the curve's lowest point (as a data sheet reads it); `None` without points.
@@ -167,6 +234,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::{MG_PER_M_S2, VRW_PER_HOUR};
     use super::*;
     use crate::allan::chi2::ONE_SIGMA;
     use crate::allan::{allan, fit_terms, Kind, TauGrid};
@@ -236,6 +304,59 @@ mod tests {
             "B {} deg/h against 34",
             own.terms.b * 3600.0
         );
+    }
+
+    /// An accelerometer's columns (the simulator is unit-blind: its numbers read as m/s^2 here)
+    /// give N the largest and B the median, both near the truth on half an hour; a record too
+    /// short for N is refused as the accelerometer's.
+    #[test]
+    fn an_accelerometer_gives_its_vrw_and_bias_instability() {
+        let truth = NoiseTerms {
+            q: 0.0,
+            n: 0.35 / VRW_PER_HOUR,
+            b: 0.4e-3 * 9.80665,
+            k: 0.0,
+            r: 0.0,
+            bias: 0.0,
+        };
+        let cols: Vec<(NoiseFit, Vec<AllanPoint>)> =
+            (0..3).map(|s| column(truth, 1800.0, 60 + s)).collect();
+        let fits: Vec<ColumnFit> = cols
+            .iter()
+            .zip(["ax", "ay", "az"])
+            .map(|((fit, points), name)| ColumnFit { name, fit, points })
+            .collect();
+        let own = own_accel_terms(&fits).unwrap();
+        let n_max = cols
+            .iter()
+            .map(|(f, _)| f.get(Term::N).estimate.unwrap().value)
+            .fold(0.0, f64::max);
+        assert_eq!(own.terms.vrw, n_max);
+        assert!((own.terms.vrw / truth.n - 1.0).abs() < 0.05, "{own:?}");
+        let bs: Vec<f64> = own.choices[1].1.iter().map(|(_, c)| c.value()).collect();
+        assert_eq!(own.terms.b, median(bs));
+        assert!(
+            own.terms.b > truth.b / 2.0 && own.terms.b < truth.b * 2.0,
+            "B {} mg against 0.4",
+            own.terms.b * MG_PER_M_S2
+        );
+        assert_eq!(
+            accel_stage_key(&own.terms, Term::N),
+            ("accel_vrw", own.terms.vrw)
+        );
+        // No white noise at all: no N to identify.
+        let walk_only = NoiseTerms {
+            n: 0.0,
+            k: 1e-3,
+            ..truth
+        };
+        let (fit, points) = column(walk_only, 600.0, 1);
+        let e = own_accel_terms(&[ColumnFit {
+            name: "ax",
+            fit: &fit,
+            points: &points,
+        }]);
+        assert!(matches!(e, Err(BiasError::NoVrw(_))), "{e:?}");
     }
 
     /// Six seconds identify N but show no floor: B is the lowest point, the last one, said as

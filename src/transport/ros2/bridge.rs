@@ -27,16 +27,20 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::dds::{
-    DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription, NodeNames, PublisherId,
-    Ros2Node,
+    CdrPublisher, DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription, NodeNames,
+    PublisherId, Ros2Node,
 };
-use super::imu::{ImuMapping, IMU_TYPE};
+use super::diagnostics::{
+    BiasDiagnosticSettings, BiasWindow, DiagnosticArray, PipelineCounts, Vector3Stamped,
+    DIAGNOSTIC_ARRAY_TYPE, VECTOR3_STAMPED_TYPE,
+};
+use super::imu::{ImuMapping, Time, IMU_TYPE};
 use super::motion::MotionKind;
 use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
 use crate::transport::{
-    GyroSample, Input, Output, Qos, RawSample, StopSignal, Transport, TransportError, WakeSet,
-    Waker, RAW_INVALID, RAW_STAMP_FAULT,
+    GyroSample, Input, Output, Qos, RawSample, StatsSnapshot, StopSignal, Transport,
+    TransportError, WakeSet, Waker, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
 };
 
 /// How long a topic may go unmatched before stderr says so.
@@ -84,6 +88,12 @@ pub struct BridgeCounts {
     pub imu_out_failed: u64,
     /// Motion messages taken.
     pub motion_in: u64,
+    /// Bias messages published.
+    pub bias_out: u64,
+    /// Diagnostics published.
+    pub diagnostics_out: u64,
+    /// Bias and diagnostics messages not published.
+    pub other_out_failed: u64,
 }
 
 impl std::fmt::Display for BridgeCounts {
@@ -92,7 +102,7 @@ impl std::fmt::Display for BridgeCounts {
             f,
             "{} Imu in ({} invalid, {} stamp faults, {} missing by their stamps, {} new \
              publishers), {} refused (a second publisher), {} Imu out ({} not sent), {} motion \
-             in, {} unreadable",
+             in, {} unreadable{}",
             self.imu_in,
             self.imu_in_invalid,
             self.imu_in_stamp_faults,
@@ -102,7 +112,15 @@ impl std::fmt::Display for BridgeCounts {
             self.imu_out,
             self.imu_out_failed,
             self.motion_in,
-            self.unreadable
+            self.unreadable,
+            if self.bias_out + self.diagnostics_out + self.other_out_failed > 0 {
+                format!(
+                    ", {} bias out, {} diagnostics out ({} not sent)",
+                    self.bias_out, self.diagnostics_out, self.other_out_failed
+                )
+            } else {
+                String::new()
+            }
         )
     }
 }
@@ -192,6 +210,8 @@ struct ImuIn {
     faults_since: u64,
     /// The taken publisher's latest `header.frame_id`.
     frame_id: String,
+    /// Its latest `linear_acceleration_covariance` (a driver's is usually constant).
+    accel_covariance: Option<[f64; 9]>,
 }
 
 impl ImuIn {
@@ -270,6 +290,7 @@ impl ImuIn {
             if self.frame_id != imu.frame_id {
                 self.frame_id.clone_from(&imu.frame_id);
             }
+            self.accel_covariance = Some(imu.linear_acceleration_covariance);
             // Before 1970 is no stamp either: 0, which the check refuses.
             let t_ns = u64::try_from(imu.stamp.ns()).unwrap_or(0);
             let believed = self.stamps.believed();
@@ -307,13 +328,14 @@ impl ImuIn {
             if fault.is_some() {
                 flags |= RAW_STAMP_FAULT;
             }
+            let accel = imu.accel_reading();
             let raw = RawSample {
                 t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
-                flags,
+                flags: flags | accel.map_or(0, |_| RAW_ACCEL),
                 epoch: self.epoch,
-                // The accelerometer: the ROS 2 side's scope (issue 49) maps it.
+                accel: accel.unwrap_or_default(),
                 ..RawSample::default()
             };
             self.next_seq += 1;
@@ -333,12 +355,167 @@ impl ImuIn {
     }
 }
 
-struct ImuOut {
+/// A service the side reads, and what it publishes of each sample.
+struct ServiceOut {
+    service: String,
     input: Input<GyroSample>,
     /// Its event service, when the daemon notifies one (the public service).
     waker: Option<Waker>,
-    publisher: ImuPublisher,
-    mapping: ImuMapping,
+    /// Imu topics.
+    imu: Vec<(ImuPublisher, ImuMapping)>,
+    /// The bias topic: the message reused for every sample, and its bytes.
+    bias: Option<(CdrPublisher, Vector3Stamped, Vec<u8>)>,
+    /// The samples of the diagnostics' period.
+    window: Option<BiasWindow>,
+}
+
+impl ServiceOut {
+    fn new(transport: &Transport, service: &str) -> Result<ServiceOut, TransportError> {
+        Ok(ServiceOut {
+            service: service.to_string(),
+            input: transport.open_input::<GyroSample>(service)?,
+            waker: transport.existing_waker(service)?,
+            imu: Vec::new(),
+            bias: None,
+            window: None,
+        })
+    }
+
+    /// Publish what came, each sample on each topic; `t_ns` from the ingest time on the system
+    /// clock (`realtime` offset) when no ROS stamps come in.
+    fn serve(
+        &mut self,
+        frame: Option<&str>,
+        accel_covariance: Option<&[f64; 9]>,
+        realtime: Option<i128>,
+        counts: &mut BridgeCounts,
+    ) {
+        for (_, mapping) in &mut self.imu {
+            if let Some(f) = frame {
+                mapping.set_frame_id(f);
+            }
+            if let Some(c) = accel_covariance {
+                mapping.set_input_accel_covariance(c);
+            }
+        }
+        if let (Some(f), Some((_, msg, _))) = (frame, &mut self.bias) {
+            if msg.frame_id != f {
+                msg.frame_id.clear();
+                msg.frame_id.push_str(f);
+            }
+        }
+        while let Ok(Some(mut s)) = self.input.receive() {
+            if let Some(offset) = realtime {
+                s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
+            }
+            for (publisher, mapping) in &mut self.imu {
+                let sent = mapping.gyro(&s).and_then(|imu| publisher.publish(imu));
+                match sent {
+                    Ok(()) => counts.imu_out += 1,
+                    Err(e) => {
+                        counts.imu_out_failed += 1;
+                        if counts.imu_out_failed == 1 {
+                            say(format_args!("an Imu message was not sent: {e}"));
+                        }
+                    }
+                }
+            }
+            if let Some((publisher, msg, buf)) = &mut self.bias {
+                let sent = i64::try_from(s.t_ns)
+                    .ok()
+                    .and_then(Time::from_ns)
+                    .ok_or_else(|| format!("sample time {} ns is past 2038", s.t_ns))
+                    .and_then(|stamp| {
+                        msg.stamp = stamp;
+                        msg.vector = s.drift;
+                        msg.write_cdr(buf).map_err(|e| e.to_string())
+                    })
+                    .and_then(|()| publisher.publish(buf));
+                other_sent(sent, "bias", counts, |c| c.bias_out += 1);
+            }
+            if let Some(w) = &mut self.window {
+                w.observe(s.drift, s.drift_std, s.flags);
+            }
+        }
+    }
+}
+
+/// Count a bias or diagnostics message sent, or say the first one not sent.
+fn other_sent(
+    sent: Result<(), String>,
+    what: &str,
+    counts: &mut BridgeCounts,
+    ok: impl FnOnce(&mut BridgeCounts),
+) {
+    match sent {
+        Ok(()) => ok(counts),
+        Err(e) => {
+            counts.other_out_failed += 1;
+            if counts.other_out_failed == 1 {
+                say(format_args!("a {what} message was not sent: {e}"));
+            }
+        }
+    }
+}
+
+/// The diagnostics: their publisher, what names their status, the pipeline's stats.
+struct Diagnostics {
+    publisher: CdrPublisher,
+    /// Which of the outputs holds the window.
+    out: usize,
+    settings: BiasDiagnosticSettings,
+    period: Duration,
+    next: Instant,
+    stats_service: String,
+    /// Opened when first needed (the stats service appears with the pipeline's reporting).
+    stats: Option<Input<StatsSnapshot>>,
+    last_stats: Option<PipelineCounts>,
+    buf: Vec<u8>,
+}
+
+impl Diagnostics {
+    /// Publish a period's status when it is due.
+    fn tick(
+        &mut self,
+        now: Instant,
+        transport: &Transport,
+        outs: &mut [ServiceOut],
+        counts: &mut BridgeCounts,
+    ) {
+        if now < self.next {
+            return;
+        }
+        self.next = now + self.period;
+        if self.stats.is_none() {
+            self.stats = transport.open_input(&self.stats_service).ok();
+        }
+        if let Some(stats) = &self.stats {
+            while let Ok(Some(s)) = stats.receive() {
+                self.last_stats = Some(PipelineCounts {
+                    deadline_misses: s.deadline_misses,
+                    lost: s.lost,
+                    missing_in_input: s.gap_samples,
+                });
+            }
+        }
+        let Some(window) = outs[self.out].window.as_mut() else {
+            return;
+        };
+        let status = window.report(&self.settings, self.period.as_secs_f64(), self.last_stats);
+        let now_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as i64);
+        let array = DiagnosticArray {
+            stamp: Time::from_ns(now_ns).unwrap_or_default(),
+            frame_id: String::new(),
+            status: vec![status],
+        };
+        let sent = array
+            .write_cdr(&mut self.buf)
+            .map_err(|e| e.to_string())
+            .and_then(|()| self.publisher.publish(&self.buf));
+        other_sent(sent, "diagnostics", counts, |c| c.diagnostics_out += 1);
+    }
 }
 
 struct MotionIn {
@@ -395,6 +572,18 @@ pub fn run_bridge(
 ) -> Result<BridgeCounts, TransportError> {
     let setup = || -> Result<_, TransportError> {
         let transport = Transport::new(prefix, node_name, qos)?;
+        // EXPERIMENT: pin this thread (and the DDS threads it starts) to a CPU.
+        if let Some(cpu) = std::env::var("DRIFTLESS_X_ROS2_CPU")
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+        {
+            // SAFETY: a zeroed cpu_set_t is valid; cpu < 1024.
+            unsafe {
+                let mut set: libc::cpu_set_t = std::mem::zeroed();
+                libc::CPU_SET(cpu, &mut set);
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+            }
+        }
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
         let announced = transport.announce(announce_as, &announcement(settings, &node))?;
         let mut watched = Vec::new();
@@ -415,23 +604,74 @@ pub fn run_bridge(
                     stamps: StampCheck::new(true),
                     faults_since: 0,
                     frame_id: String::new(),
+                    accel_covariance: None,
                 })
             }
             None => None,
         };
-        let mut outs = Vec::new();
+        let mut outs: Vec<ServiceOut> = Vec::new();
+        let mut out_of = |service: &str| -> Result<usize, TransportError> {
+            match outs.iter().position(|o| o.service == service) {
+                Some(k) => Ok(k),
+                None => {
+                    outs.push(ServiceOut::new(&transport, service)?);
+                    Ok(outs.len() - 1)
+                }
+            }
+        };
+        let mut wants = Vec::new();
         for (service, topic) in &settings.imu_out {
-            watched.push(Watched::new(topic, IMU_TYPE, true));
-            outs.push(ImuOut {
-                input: transport.open_input::<GyroSample>(service)?,
-                waker: transport.existing_waker(service)?,
-                publisher: node.imu_publisher(topic, settings.depth)?,
-                mapping: ImuMapping::new(
-                    settings.frame_id.as_deref().unwrap_or(DEFAULT_FRAME_ID),
-                    1.0,
-                    settings.rate_noise,
-                ),
+            wants.push((out_of(service)?, topic, IMU_TYPE));
+        }
+        if let Some((service, topic)) = &settings.bias_out {
+            wants.push((out_of(service)?, topic, VECTOR3_STAMPED_TYPE));
+        }
+        let mut diagnostics = None;
+        if let Some((service, topic)) = &settings.diagnostics {
+            let out = out_of(service)?;
+            wants.push((out, topic, DIAGNOSTIC_ARRAY_TYPE));
+            let ns = settings.namespace.trim_end_matches('/');
+            let full = format!("{ns}/{}", settings.node);
+            let name = full.trim_start_matches('/');
+            diagnostics = Some(Diagnostics {
+                publisher: node.cdr_publisher(topic, DIAGNOSTIC_ARRAY_TYPE, settings.depth)?,
+                out,
+                settings: BiasDiagnosticSettings {
+                    name: format!("{name}: gyro_bias"),
+                    hardware_id: name.to_string(),
+                    threshold: settings.bias_threshold,
+                },
+                period: Duration::from_secs_f64(settings.diagnostics_period_s),
+                next: Instant::now(),
+                stats_service: settings.stats_service.clone(),
+                stats: None,
+                last_stats: None,
+                buf: Vec::new(),
             });
+        }
+        let frame_id = settings.frame_id.as_deref().unwrap_or(DEFAULT_FRAME_ID);
+        for (out, topic, ty) in wants {
+            watched.push(Watched::new(topic, ty, true));
+            let o = &mut outs[out];
+            match ty {
+                IMU_TYPE => o.imu.push((
+                    node.imu_publisher(topic, settings.depth)?,
+                    ImuMapping::new(frame_id, 1.0, settings.rate_noise)
+                        .with_accel_noise(settings.accel_noise),
+                )),
+                VECTOR3_STAMPED_TYPE => {
+                    let msg = Vector3Stamped {
+                        frame_id: frame_id.to_string(),
+                        ..Vector3Stamped::default()
+                    };
+                    o.bias = Some((
+                        node.cdr_publisher(topic, ty, settings.depth)?,
+                        msg,
+                        Vec::new(),
+                    ));
+                }
+                _ => o.window = Some(BiasWindow::default()),
+            }
         }
         let mut motion = match &settings.motion_in {
             Some((topic, ty, service)) => {
@@ -469,7 +709,16 @@ pub fn run_bridge(
         }
         transport.reserve_shared_memory()?;
         Ok((
-            transport, announced, node, watched, imu_in, outs, motion, readiness, wake,
+            transport,
+            announced,
+            node,
+            watched,
+            imu_in,
+            outs,
+            diagnostics,
+            motion,
+            readiness,
+            wake,
         ))
     };
     let (
@@ -479,6 +728,7 @@ pub fn run_bridge(
         mut watched,
         mut imu_in,
         mut outs,
+        mut diagnostics,
         mut motion,
         mut readiness,
         mut wake,
@@ -492,8 +742,8 @@ pub fn run_bridge(
             return Err(e);
         }
     };
-    let ros_stamps = imu_in.is_some();
-    let offset = realtime_offset_ns();
+    // Without ROS stamps coming in, a sample's stamp is its ingest on the system clock.
+    let realtime = imu_in.is_none().then(realtime_offset_ns);
     let mut counts = BridgeCounts::default();
     let t0 = Instant::now();
     let mut next_check = t0;
@@ -504,6 +754,13 @@ pub fn run_bridge(
     } else {
         POLL
     };
+    // EXPERIMENT: spin this long for the corrected sample after handing one in.
+    let x_spin = Duration::from_micros(
+        std::env::var("DRIFTLESS_X_ROS2_SPIN_US")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0),
+    );
     while !stop.load(Ordering::Relaxed) {
         // Edge-triggered: take the wake-ups first, then everything there is, then sleep.
         readiness.clear();
@@ -512,32 +769,27 @@ pub fn run_bridge(
                 let _ = w.drain();
             }
         }
+        let before = counts.imu_in;
         if let Some(i) = &mut imu_in {
             i.pump(&mut counts);
         }
-        // The driver's frame, unless one is configured.
+        // The driver's frame and accelerometer covariance, unless a frame is configured.
         let frame = match (&settings.frame_id, &imu_in) {
             (None, Some(i)) if !i.frame_id.is_empty() => Some(i.frame_id.as_str()),
             _ => None,
         };
-        for o in &mut outs {
-            if let Some(f) = frame {
-                o.mapping.set_frame_id(f);
+        let accel_covariance = imu_in.as_ref().and_then(|i| i.accel_covariance.as_ref());
+        let until = (counts.imu_in > before && !x_spin.is_zero()).then(|| Instant::now() + x_spin);
+        loop {
+            let served_before = counts.imu_out;
+            for o in &mut outs {
+                o.serve(frame, accel_covariance, realtime, &mut counts);
             }
-            while let Ok(Some(mut s)) = o.input.receive() {
-                if !ros_stamps {
-                    s.t_ns = u64::try_from(i128::from(s.ingest_ns) + offset).unwrap_or(0);
+            match until {
+                Some(u) if counts.imu_out == served_before && Instant::now() < u => {
+                    std::hint::spin_loop()
                 }
-                let sent = o.mapping.gyro(&s).and_then(|imu| o.publisher.publish(imu));
-                match sent {
-                    Ok(()) => counts.imu_out += 1,
-                    Err(e) => {
-                        counts.imu_out_failed += 1;
-                        if counts.imu_out_failed == 1 {
-                            say(format_args!("an Imu message was not sent: {e}"));
-                        }
-                    }
-                }
+                _ => break,
             }
         }
         if let Some(m) = &mut motion {
@@ -558,6 +810,9 @@ pub fn run_bridge(
             }
         }
         let now = Instant::now();
+        if let Some(d) = &mut diagnostics {
+            d.tick(now, &transport, &mut outs, &mut counts);
+        }
         if now >= next_check {
             for w in &mut watched {
                 w.check(&node, now - t0);
@@ -573,6 +828,9 @@ pub fn run_bridge(
             next_check = now + Duration::from_millis(500);
         }
         // A signal or a failed wait only shortens the sleep.
+        let sleep = diagnostics.as_ref().map_or(sleep, |d| {
+            sleep.min(d.next.saturating_duration_since(Instant::now()))
+        });
         let _ = wake.wait(None, sleep, |_| {});
     }
     drop((announced, transport));

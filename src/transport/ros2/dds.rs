@@ -192,6 +192,34 @@ impl Ros2Node {
         Ok(ImuPublisher { publisher })
     }
 
+    /// A publisher of messages of ROS 2 type `ty` (`pkg/msg/Name`) on `topic` that we encode
+    /// in CDR ourselves ([`CdrPublisher`]): reliable, keep last `depth`, never blocking.
+    pub fn cdr_publisher(
+        &mut self,
+        topic: &str,
+        ty: &str,
+        depth: usize,
+    ) -> Result<CdrPublisher, TransportError> {
+        let (pkg, name) = match ty.split('/').collect::<Vec<_>>()[..] {
+            [pkg, "msg", name] => (pkg, name),
+            _ => {
+                return Err(TransportError::Name {
+                    name: ty.into(),
+                    reason: "not a ROS 2 message type (pkg/msg/Name)".into(),
+                })
+            }
+        };
+        let qos = publish_qos(depth);
+        let t = self.topic(topic, (pkg, name), &qos)?;
+        let publisher = self
+            .node
+            .create_publisher(&t, Some(qos))
+            .map_err(|e| setup("ROS 2 publisher", topic, e))?;
+        self.endpoints
+            .push((publisher.guid(), topic.to_string(), true));
+        Ok(CdrPublisher { publisher })
+    }
+
     /// A subscription of `sensor_msgs/msg/Imu` on `topic`: best effort, keep last `depth`.
     pub fn imu_subscription(
         &mut self,
@@ -578,6 +606,42 @@ impl ImuPublisher {
     }
 }
 
+/// A message's CDR after the encapsulation header, as we encoded it by hand: serialized byte
+/// by byte as a tuple (no length, no alignment), so the bytes on the wire are ours; ros2-client
+/// writes the encapsulation header (plain CDR, little-endian, as ours).
+struct CdrBody(Vec<u8>);
+
+impl Serialize for CdrBody {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple as _;
+        let mut t = s.serialize_tuple(self.0.len())?;
+        for b in &self.0 {
+            t.serialize_element(b)?;
+        }
+        t.end()
+    }
+}
+
+/// Publishes messages encoded by hand (`Vector3Stamped`, `DiagnosticArray`:
+/// `diagnostics.rs`).
+pub struct CdrPublisher {
+    publisher: Publisher<CdrBody>,
+}
+
+impl CdrPublisher {
+    /// Publish `cdr`, a little-endian CDR message with its encapsulation header (`00 01 00
+    /// 00`); never waits. An error says why it was not sent.
+    pub fn publish(&self, cdr: &[u8]) -> Result<(), String> {
+        match cdr {
+            [0, 1, _, _, body @ ..] => self
+                .publisher
+                .publish(CdrBody(body.to_vec()))
+                .map_err(|e| format!("{:?}", e.forget_data())),
+            _ => Err("not little-endian plain CDR".into()),
+        }
+    }
+}
+
 /// Which publisher a message came from (a restarted driver is a new one).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct PublisherId(ros2_client::Gid);
@@ -694,6 +758,15 @@ mod tests {
             linear_acceleration_covariance: [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         };
         assert_eq!(Imu::from(ImuMsg::from(&imu)), imu);
+    }
+
+    #[test]
+    fn a_hand_encoded_body_serializes_as_its_own_bytes() {
+        use ros2_client::dds::rustdds::no_key::SerializerAdapter as _;
+        use ros2_client::dds::rustdds::CDRSerializerAdapter;
+        let body = vec![1u8, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0, b'a', b'b', 0];
+        let out = CDRSerializerAdapter::<CdrBody>::to_bytes(&CdrBody(body.clone())).unwrap();
+        assert_eq!(out.as_ref(), &body[..], "no length, no padding");
     }
 
     #[test]

@@ -194,6 +194,9 @@ pub enum CdrError {
     /// A frame_id too long for a CDR string (writing).
     #[error("header.frame_id of {0} bytes is too long for CDR")]
     FrameIdTooLong(usize),
+    /// A string or sequence too long for CDR's 32-bit length (writing): the field, its length.
+    #[error("{0} of {1} elements is too long for CDR")]
+    TooLong(String, usize),
 }
 
 /// The 37 doubles after the header, in order.
@@ -318,6 +321,12 @@ impl<'a> Cursor<'a> {
 }
 
 impl Imu {
+    /// The accelerometer reading (m/s², REP 103), unless the message marks it not provided
+    /// (REP 145: `linear_acceleration_covariance[0]` is -1).
+    pub fn accel_reading(&self) -> Option<[f64; 3]> {
+        (self.linear_acceleration_covariance[0] != -1.0).then_some(self.linear_acceleration)
+    }
+
     /// Decode a CDR message (encapsulation header included). Never panics: any bytes that are
     /// not an Imu message are an error naming what is wrong and where.
     pub fn from_cdr(bytes: &[u8]) -> Result<Imu, CdrError> {
@@ -443,13 +452,40 @@ impl Imu {
     }
 }
 
+/// Element 0 of a covariance at -1: the estimate is not provided (sensor_msgs/msg/Imu).
+pub const NOT_PROVIDED: [f64; 9] = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+
+/// A sample's accelerometer reading, as the Imu message carries it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AccelReading {
+    /// Specific force x, y, z, m/s^2 (REP 103), as the sensor gave it.
+    pub value: [f64; 3],
+    /// The white noise of one sample per axis, m/s^2 (1 sigma); negative where not provided.
+    pub std: [f64; 3],
+}
+
+/// Whether a message's `linear_acceleration` is a reading: element 0 of its covariance is not
+/// -1 ("not provided", sensor_msgs/msg/Imu).
+pub fn accel_provided(imu: &Imu) -> bool {
+    imu.linear_acceleration_covariance[0] != -1.0
+}
+
 /// How our samples become `sensor_msgs/msg/Imu` messages: one mapping for the bags `record`
 /// writes and the topics the daemon publishes.
 /// - `angular_velocity`: the rate in rad/s; the stamp: the sample's time `t_ns`.
 /// - `angular_velocity_covariance`: diagonal, the white rate noise's variance per sample plus
 ///   the drift estimate's variance where a stage gave one (`GyroSample::drift_std`); all zeros
 ///   ("unknown") without a rate noise.
-/// - orientation and linear acceleration: "not provided" (covariance element 0 = -1).
+/// - `linear_acceleration`: the accelerometer's reading as the sample carries it, bit for bit
+///   (m/s^2); "not provided" (covariance element 0 = -1) when the sample has none or its
+///   reading was not valid (never a held value passed off as a measurement).
+/// - `linear_acceleration_covariance` ([`ImuMapping::accel_covariance`]): diagonal, the
+///   accelerometer's white noise per sample squared, from the sample's own `accel_std`; where
+///   the sample gives none, the `accel_noise` setting's; else the input message's own
+///   covariance as received (the driver's, on a live topic); else all zeros ("unknown", said by
+///   `validate` and `record`: robot_localization raises a variance under 1e-9 to 1e-9 and
+///   trusts such a reading far too much, where a -1 would make it drop the reading unsaid).
+/// - orientation: "not provided" (covariance element 0 = -1).
 pub struct ImuMapping {
     /// The message, filled field by field per sample (its frame_id set once).
     pub imu: Imu,
@@ -457,27 +493,51 @@ pub struct ImuMapping {
     to_rad: f64,
     /// The white rate noise's variance per sample, rad^2/s^2 (None: covariance unknown).
     noise_var: Option<f64>,
+    /// The accelerometer's white noise variance per sample, m^2/s^4, for samples that carry
+    /// no `accel_std` (None: not set).
+    accel_noise_var: Option<f64>,
+    /// The input message's own linear_acceleration_covariance, when it gave one.
+    accel_cov_in: Option<[f64; 9]>,
     /// Samples mapped whose value a stage held or replaced (flagged input_invalid or
     /// output_repaired; a raw sample marked invalid): an Imu message cannot say it.
     pub held: u64,
+    /// Accelerometer readings mapped with an unknown covariance (all zeros: neither the
+    /// sample, the `accel_noise` setting nor the input gave one).
+    pub accel_unknown: u64,
 }
 
 impl ImuMapping {
     /// Messages in `frame_id` from samples whose rates times `to_rad` are rad/s, with a white
     /// rate noise of `rate_noise_deg` deg/s per sample (1 sigma) when known.
     pub fn new(frame_id: &str, to_rad: f64, rate_noise_deg: Option<f64>) -> ImuMapping {
-        let not_provided = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
         ImuMapping {
             imu: Imu {
                 frame_id: frame_id.to_string(),
-                orientation_covariance: not_provided,
-                linear_acceleration_covariance: not_provided,
+                orientation_covariance: NOT_PROVIDED,
+                linear_acceleration_covariance: NOT_PROVIDED,
                 ..Imu::default()
             },
             to_rad,
             noise_var: rate_noise_deg.map(|n| n.to_radians().powi(2)),
+            accel_noise_var: None,
+            accel_cov_in: None,
             held: 0,
+            accel_unknown: 0,
         }
+    }
+
+    /// The accelerometer's white noise per sample, m/s^2 (1 sigma), for samples that carry
+    /// none (`accel_noise`).
+    pub fn with_accel_noise(mut self, accel_noise: Option<f64>) -> ImuMapping {
+        self.accel_noise_var = accel_noise.map(|n| n * n);
+        self
+    }
+
+    /// The input message's own linear_acceleration_covariance (a driver's, as received): used
+    /// where neither the sample nor `accel_noise` gives one. One not provided (-1) or not
+    /// finite is none.
+    pub fn set_input_accel_covariance(&mut self, cov: &[f64; 9]) {
+        self.accel_cov_in = (cov[0] != -1.0 && cov.iter().all(|c| c.is_finite())).then_some(*cov);
     }
 
     /// Put the next messages in `frame_id` (a no-op when they are in it already).
@@ -491,23 +551,48 @@ impl ImuMapping {
     /// A raw sample's message.
     pub fn raw(&mut self, s: &RawSample) -> Result<&Imu, String> {
         let held = s.flags & RAW_INVALID != 0 || !s.rate.iter().all(|v| v.is_finite());
-        self.fill(s.t_ns, s.rate, [-1.0; 3], held)
+        self.fill(s.t_ns, s.rate, [-1.0; 3], None, held)
     }
 
     /// A gyro sample's message.
     pub fn gyro(&mut self, s: &GyroSample) -> Result<&Imu, String> {
         let held = s.flags & (FLAG_INPUT_INVALID | FLAG_OUTPUT_REPAIRED) != 0;
-        self.fill(s.t_ns, s.rate, s.drift_std, held)
+        self.fill(s.t_ns, s.rate, s.drift_std, None, held)
     }
 
-    /// The message of a sample at `t_ns` with `rate` (in the samples' units) and, where a
-    /// stage estimated it, the drift's 1-sigma per axis (rad/s; negative: not provided);
-    /// `held` when its value is not a measurement.
-    fn fill(
+    /// The covariance of a reading whose white noise per axis is `std` (m/s^2, negative
+    /// where not provided): see [`ImuMapping`].
+    pub fn accel_covariance(&self, std: [f64; 3]) -> [f64; 9] {
+        self.accel_covariance_known(std).unwrap_or([0.0; 9])
+    }
+
+    /// [`ImuMapping::accel_covariance`], None where it is unknown.
+    fn accel_covariance_known(&self, std: [f64; 3]) -> Option<[f64; 9]> {
+        let diag = |v: [f64; 3]| {
+            let mut cov = [0.0; 9];
+            for a in 0..3 {
+                cov[4 * a] = v[a];
+            }
+            cov
+        };
+        if std.iter().all(|s| s.is_finite() && *s >= 0.0) {
+            Some(diag(std.map(|s| s * s)))
+        } else if let Some(var) = self.accel_noise_var {
+            Some(diag([var; 3]))
+        } else {
+            self.accel_cov_in
+        }
+    }
+
+    /// The message of a sample at `t_ns` with `rate` (in the samples' units), where a stage
+    /// estimated it the drift's 1-sigma per axis (rad/s; negative: not provided), and its
+    /// accelerometer reading if it has a valid one; `held` when its rate is not a measurement.
+    pub fn fill(
         &mut self,
         t_ns: u64,
         rate: [f64; 3],
         drift_std: [f64; 3],
+        accel: Option<AccelReading>,
         held: bool,
     ) -> Result<&Imu, String> {
         let stamp = i64::try_from(t_ns)
@@ -525,6 +610,17 @@ impl ImuMapping {
             }
         }
         self.imu.angular_velocity_covariance = cov;
+        (
+            self.imu.linear_acceleration,
+            self.imu.linear_acceleration_covariance,
+        ) = match accel {
+            Some(a) => {
+                let cov = self.accel_covariance_known(a.std);
+                self.accel_unknown += u64::from(cov.is_none());
+                (a.value, cov.unwrap_or([0.0; 9]))
+            }
+            None => ([0.0; 3], NOT_PROVIDED),
+        };
         self.held += u64::from(held);
         Ok(&self.imu)
     }
@@ -734,6 +830,79 @@ mod tests {
         assert!(!IMU_DEFINITION.lines().any(|l| l.ends_with(' ')));
     }
 
+    #[test]
+    fn the_accelerometer_goes_out_bit_for_bit_with_the_covariance_its_noise_gives() {
+        let mut m = ImuMapping::new("imu_link", 1.0, Some(0.1));
+        // Gyro-only: not provided, zeros.
+        let imu = m.fill(5, [0.1; 3], [-1.0; 3], None, false).unwrap();
+        assert_eq!(imu.linear_acceleration, [0.0; 3]);
+        assert_eq!(imu.linear_acceleration_covariance, NOT_PROVIDED);
+        assert!(!accel_provided(imu));
+        // Values as they came, -0.0 and a subnormal included.
+        let value = [-0.0, 5e-324, 9.80665];
+        let reading = AccelReading {
+            value,
+            std: [0.01, 0.02, 0.03],
+        };
+        let imu = m
+            .fill(5, [0.1; 3], [-1.0; 3], Some(reading), false)
+            .unwrap();
+        assert_eq!(
+            imu.linear_acceleration.map(f64::to_bits),
+            value.map(f64::to_bits)
+        );
+        let diag = |c: &[f64; 9]| [c[0], c[4], c[8]];
+        assert_eq!(
+            diag(&imu.linear_acceleration_covariance),
+            [0.01 * 0.01, 0.02 * 0.02, 0.03 * 0.03]
+        );
+        assert!(accel_provided(imu));
+        let off: Vec<f64> = (0..9)
+            .filter(|k| k % 4 != 0)
+            .map(|k| imu.linear_acceleration_covariance[k])
+            .collect();
+        assert_eq!(off, [0.0; 6]);
+        // No accel_std: the setting's noise, else the input's own covariance, else unknown.
+        let none = AccelReading {
+            value,
+            std: [-1.0; 3],
+        };
+        let mut driver = [0.0; 9];
+        driver[0] = 1e-4;
+        driver[1] = 2e-5;
+        driver[4] = 1e-4;
+        driver[8] = 3e-4;
+        m.set_input_accel_covariance(&driver);
+        assert_eq!(m.accel_covariance([-1.0; 3]), driver, "the driver's own");
+        assert_eq!(
+            m.accel_covariance([0.01, -1.0, 0.01]),
+            driver,
+            "all three or none"
+        );
+        let mut m = m.with_accel_noise(Some(0.5));
+        m.set_input_accel_covariance(&driver);
+        let imu = m.fill(5, [0.1; 3], [-1.0; 3], Some(none), false).unwrap();
+        assert_eq!(
+            diag(&imu.linear_acceleration_covariance),
+            [0.25; 3],
+            "the setting first"
+        );
+        let mut m = ImuMapping::new("imu_link", 1.0, None);
+        m.set_input_accel_covariance(&NOT_PROVIDED);
+        assert_eq!(m.accel_covariance([-1.0; 3]), [0.0; 9], "unknown");
+        m.set_input_accel_covariance(&[f64::NAN; 9]);
+        assert_eq!(
+            m.accel_covariance([-1.0; 3]),
+            [0.0; 9],
+            "a NaN covariance is none"
+        );
+        let imu = m.fill(5, [0.1; 3], [-1.0; 3], Some(none), false).unwrap();
+        assert_eq!(imu.linear_acceleration_covariance, [0.0; 9]);
+        assert_eq!(m.accel_unknown, 1, "counted, so that record can say it");
+        // The sample's own noise wins over both.
+        assert_eq!(diag(&m.accel_covariance([0.0, 0.5, 2.0])), [0.0, 0.25, 4.0]);
+    }
+
     fn bits(imu: &Imu) -> Vec<u64> {
         imu.orientation
             .iter()
@@ -778,6 +947,21 @@ mod tests {
             let _ = Imu::from_cdr(&b);
             b[1] = 0;
             let _ = Imu::from_cdr(&b);
+        }
+
+        #[test]
+        fn any_reading_goes_through_the_mapping_and_cdr_bit_for_bit(
+            v in proptest::collection::vec(any::<u64>(), 3),
+            std in proptest::collection::vec(0.0f64..10.0, 3),
+        ) {
+            let value = [f64::from_bits(v[0]), f64::from_bits(v[1]), f64::from_bits(v[2])];
+            let mut m = ImuMapping::new("imu_link", 1.0, None);
+            let reading = AccelReading { value, std: [std[0], std[1], std[2]] };
+            let bytes = m.fill(1, [0.0; 3], [-1.0; 3], Some(reading), false).unwrap().to_cdr().unwrap();
+            let back = Imu::from_cdr(&bytes).unwrap();
+            prop_assert_eq!(back.linear_acceleration.map(f64::to_bits), value.map(f64::to_bits));
+            let c = back.linear_acceleration_covariance;
+            prop_assert_eq!([c[0], c[4], c[8]], [std[0] * std[0], std[1] * std[1], std[2] * std[2]]);
         }
 
         #[test]

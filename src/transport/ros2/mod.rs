@@ -4,6 +4,7 @@
 //! |---|---|
 //! | `imu.rs` | `sensor_msgs/msg/Imu`: fields, CDR by hand, and [`ImuMapping`] from our samples |
 //! | `motion.rs` | a vehicle's motion (Odometry, twists): its types and its speed, CDR by hand |
+//! | `diagnostics.rs` | the bias as `Vector3Stamped` and the filter's `DiagnosticArray`, CDR by hand |
 //! | `bridge.rs` | the daemon's ROS 2 side: topics to services and back, on its own thread (feature `ros2`) |
 //! | `dds.rs` | live topics: a node in the ROS 2 graph, Imu in and out, motion as a stop signal (feature `ros2`) |
 
@@ -11,6 +12,7 @@
 mod bridge;
 #[cfg(feature = "ros2")]
 mod dds;
+mod diagnostics;
 mod imu;
 mod motion;
 
@@ -18,11 +20,18 @@ mod motion;
 pub use bridge::{run_bridge, BridgeCounts};
 #[cfg(feature = "ros2")]
 pub use dds::{
-    domain_id, ros_type_name, DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription,
-    NodeNames, PublisherId, Ros2Node, DOMAIN_ENV,
+    domain_id, ros_type_name, CdrPublisher, DdsReadiness, ImuPublisher, ImuSubscription,
+    MotionSubscription, NodeNames, PublisherId, Ros2Node, DOMAIN_ENV,
 };
 
-pub use imu::{seconds_text, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE};
+pub use diagnostics::{
+    BiasDiagnosticSettings, BiasWindow, DiagnosticArray, DiagnosticStatus, Level, PipelineCounts,
+    Vector3Stamped, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, VECTOR3_STAMPED_TYPE,
+};
+pub use imu::{
+    accel_provided, seconds_text, AccelReading, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION,
+    IMU_TYPE, NOT_PROVIDED,
+};
 pub use motion::{Motion, MotionKind};
 
 /// The frame of the Imu messages we write when neither a `frame_id` setting nor an input says
@@ -62,6 +71,21 @@ pub struct Ros2Settings {
     /// The vehicle's motion: its topic, its ROS 2 type and the StopSignal service it feeds (a
     /// `predict.bias` stage's `stop_input`).
     pub motion_in: Option<(String, String, String)>,
+    /// The accelerometer's white noise per sample, m/s^2 (1 sigma), for samples that carry no
+    /// `accel_std` of their own (None: the driver's covariance as received, else unknown).
+    pub accel_noise: Option<f64>,
+    /// A service whose bias (`drift`, rad/s) goes out as `geometry_msgs/msg/Vector3Stamped`:
+    /// (service, topic).
+    pub bias_out: Option<(String, String)>,
+    /// A service whose bias filter is judged on `diagnostic_msgs/msg/DiagnosticArray`:
+    /// (service, topic).
+    pub diagnostics: Option<(String, String)>,
+    /// How often the diagnostics are published, s.
+    pub diagnostics_period_s: f64,
+    /// The diagnostics go to WARN once an axis's bias passes this, rad/s.
+    pub bias_threshold: f64,
+    /// The pipeline's stats service: the diagnostics' misses and losses.
+    pub stats_service: String,
 }
 
 /// Which way a topic of the ROS 2 side goes.
@@ -69,7 +93,7 @@ pub struct Ros2Settings {
 pub enum Direction {
     /// A driver's Imu into a service.
     In,
-    /// A service out as Imu.
+    /// A service out as a topic (Imu, the bias, the diagnostics).
     Out,
     /// The vehicle's motion into a stop-signal service.
     Stop,
@@ -109,7 +133,8 @@ impl Ros2Settings {
         }
     }
 
-    /// Every topic: the Imu in, each Imu out, the motion in, in that order.
+    /// Every topic: the Imu in, each Imu out, the bias out, the diagnostics, the motion in, in
+    /// that order.
     pub fn topics(&self) -> Vec<Ros2Topic<'_>> {
         let imu_in = self.imu_in.iter().map(|(topic, service)| Ros2Topic {
             direction: Direction::In,
@@ -123,12 +148,29 @@ impl Ros2Settings {
             ty: IMU_TYPE,
             service,
         });
+        let bias = self.bias_out.iter().map(|(service, topic)| Ros2Topic {
+            direction: Direction::Out,
+            topic,
+            ty: VECTOR3_STAMPED_TYPE,
+            service,
+        });
+        let diagnostics = self.diagnostics.iter().map(|(service, topic)| Ros2Topic {
+            direction: Direction::Out,
+            topic,
+            ty: DIAGNOSTIC_ARRAY_TYPE,
+            service,
+        });
         let motion = self.motion_in.iter().map(|(topic, ty, service)| Ros2Topic {
             direction: Direction::Stop,
             topic,
             ty,
             service,
         });
-        imu_in.chain(imu_out).chain(motion).collect()
+        imu_in
+            .chain(imu_out)
+            .chain(bias)
+            .chain(diagnostics)
+            .chain(motion)
+            .collect()
     }
 }
