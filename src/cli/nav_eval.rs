@@ -15,7 +15,7 @@ use super::duration::parse_seconds;
 use super::simulate::parse_number;
 use super::CliError;
 use crate::cli::log_input::{self, BagArgs};
-use crate::drift::bias::BiasTerms;
+use crate::drift::bias::{AccelTerms, BiasTerms, MG_PER_M_S2, VRW_PER_HOUR};
 use crate::drift::PredictorKind;
 use crate::io::plot::{self, Panel, PanelStyle, Series};
 use crate::io::rate_log::RateLog;
@@ -178,22 +178,18 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Some(t) => vec![Motion::truth(t, source.axes.len(), rate)?],
         None => profiles.into_iter().map(Motion::Profile).collect(),
     };
-    let mut chains = vec![Chain::bias(rate, &terms)?];
-    if source.accel.is_some() {
-        chains.push(Chain::bias_imu(rate, &terms)?);
-    }
-    chains.push(Chain::stop_signal(rate, &terms)?);
-    if !args.models.is_empty() {
-        let axes = source.axes.len();
-        chains.push(Chain::rbf(rate, axes, &args.models, PredictorKind::Rbf)?);
-        chains.push(Chain::rbf(rate, axes, &args.models, PredictorKind::Ar)?);
-    }
-    for p in &args.pipelines {
-        chains.push(Chain::file(p, rate)?);
-    }
+    // A log's own accelerometer terms with `--terms fit`, as for the gyro; else the stage's
+    // defaults (the ADIS16405 data sheet's, what the simulator's has).
+    let accel_terms = if source.floor.is_none() && args.terms == "fit" {
+        source.fit_accel_terms()?
+    } else {
+        None
+    };
+    let chains = chains(&args, &source, &terms, accel_terms.as_ref(), rate)?;
     let bench = Bench {
         source,
         terms,
+        accel_terms,
         window,
         motions,
         chains,
@@ -208,6 +204,33 @@ pub fn run(args: Args) -> Result<(), CliError> {
         print_text(&args, &bench, &outcome);
     }
     Ok(())
+}
+
+/// The methods that run a pipeline's stages: the product's chain (and, when the source has an
+/// accelerometer, the same on samples that carry it), the same with the true stops as the
+/// vehicle's stop signal, with `--model` the paper's chain and its AR(p), and each
+/// `--pipeline` file.
+fn chains(
+    args: &Args,
+    source: &Source,
+    terms: &[BiasTerms],
+    accel_terms: Option<&AccelTerms>,
+    rate: f64,
+) -> Result<Vec<Chain>, CliError> {
+    let mut chains = vec![Chain::bias(rate, terms)?];
+    if source.accel.is_some() {
+        chains.push(Chain::bias_imu(rate, terms, accel_terms)?);
+    }
+    chains.push(Chain::stop_signal(rate, terms)?);
+    if !args.models.is_empty() {
+        let axes = source.axes.len();
+        chains.push(Chain::rbf(rate, axes, &args.models, PredictorKind::Rbf)?);
+        chains.push(Chain::rbf(rate, axes, &args.models, PredictorKind::Ar)?);
+    }
+    for p in &args.pipelines {
+        chains.push(Chain::file(p, rate)?);
+    }
+    Ok(chains)
 }
 
 /// Samples per window: `--window`, else the truth file's rows, else 10 minutes. A truth file
@@ -447,6 +470,7 @@ fn print_json(bench: &Bench, out: &Outcome) {
         "{}",
         json!({"source": src.name, "rate_hz": rate, "window_s": bench.window_s(),
                "windows_per_axis": out.windows, "axes": src.axes.len(), "terms": terms,
+               "accel_terms": bench.accel_terms.map(|a| json!({"vrw_m_s_per_sqrt_h": a.vrw * VRW_PER_HOUR, "bias_instability_mg": a.b * MG_PER_M_S2})),
                "reference": "ZARU oracle", "sections": sections, "cases": cases})
     );
 }
@@ -479,7 +503,17 @@ fn print_text(args: &Args, bench: &Bench, out: &Outcome) {
         );
     }
     if src.accel.is_some() {
-        println!("  accelerometer: the source's own at rest, plus each case's vehicle acceleration (longitudinal at starts and stops, centripetal in turns; 10 m/s, 5 s ramps; walking 1.4 m/s, 1 s ramps)");
+        match &bench.accel_terms {
+            Some(a) => println!(
+                "  accelerometer: VRW {:.4} m/s/sqrt(h), B {:.3} mg (the same part's fit, one set)",
+                a.vrw * VRW_PER_HOUR,
+                a.b * MG_PER_M_S2
+            ),
+            None => println!(
+                "  accelerometer: predict.bias's default terms (the ADIS16405 data sheet's)"
+            ),
+        }
+        println!("  accelerometer's force: the source's own at rest, plus each case's vehicle acceleration (longitudinal at starts and stops, centripetal in turns; 10 m/s, 5 s ramps; walking 1.4 m/s, 1 s ramps)");
     }
     println!();
     let names: Vec<&str> = out.labels.iter().map(String::as_str).collect();

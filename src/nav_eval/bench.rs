@@ -2,7 +2,7 @@
 //! plus the motion, and is judged by the heading error of the integrated rate.
 
 use super::{Chain, NavEvalError, Source};
-use crate::drift::bias::{stillness_from_terms, BiasModel, BiasTerms};
+use crate::drift::bias::{stillness_from_terms, AccelTerms, BiasModel, BiasTerms};
 use crate::io::truth::Truth;
 use crate::nav::{
     body_acceleration, evaluate, fusion, generate, heading_error, summarize_methods, BiasEstimator,
@@ -89,6 +89,8 @@ pub struct Bench {
     pub source: Source,
     /// The estimators' noise terms, one set per axis.
     pub terms: Vec<BiasTerms>,
+    /// The accelerometer's terms the gyro+accel chain was given (None: the stage's defaults).
+    pub accel_terms: Option<AccelTerms>,
     /// Samples per window.
     pub window: usize,
     /// The motions added, each a section of the tables.

@@ -5,7 +5,7 @@
 //! with the model's AR(p) in the network's place, and a user's pipeline file.
 
 use super::NavEvalError;
-use crate::drift::bias::BiasTerms;
+use crate::drift::bias::{AccelTerms, BiasTerms};
 use crate::drift::PredictorKind;
 use crate::pipeline::config::{self, Pipeline};
 use crate::pipeline::offline::Offline;
@@ -42,13 +42,32 @@ impl Chain {
         })
     }
 
-    /// The product's chain ([`Chain::bias`]) on samples that carry the accelerometer: what
-    /// the daemon runs when the sensor gives both.
-    pub fn bias_imu(rate: f64, terms: &[BiasTerms]) -> Result<Chain, NavEvalError> {
+    /// The product's chain ([`Chain::bias`]) on samples that carry the accelerometer, with the
+    /// accelerometer's terms `accel` (None: `predict.bias`'s defaults, the ADIS16405 data
+    /// sheet's): what the daemon runs when the sensor gives both.
+    pub fn bias_imu(
+        rate: f64,
+        terms: &[BiasTerms],
+        accel: Option<&AccelTerms>,
+    ) -> Result<Chain, NavEvalError> {
+        let pipelines = terms
+            .iter()
+            .map(|t| {
+                let mut keys = format!("kind = \"predict.bias\"\n{}", t.stage_keys());
+                if let Some(a) = accel {
+                    keys = format!("{keys}\n{}", a.stage_keys());
+                }
+                builtin_pipeline(
+                    rate,
+                    &keys,
+                    "<built-in denoise.wavelet -> predict.bias, gyro+accel>",
+                )
+            })
+            .collect::<Result<_, _>>()?;
         Ok(Chain {
             label: "denoise.wavelet -> predict.bias (stages, gyro+accel)".into(),
+            pipelines,
             accel: true,
-            ..Chain::bias(rate, terms)?
         })
     }
 

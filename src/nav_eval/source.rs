@@ -5,7 +5,9 @@
 
 use super::NavEvalError;
 use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
-use crate::drift::bias::{own_terms, BiasTerms, ColumnFit};
+use crate::drift::bias::{
+    own_accel_terms, own_terms, AccelTerms as FilterAccelTerms, BiasTerms, ColumnFit,
+};
 use crate::io::rate_log::RateLog;
 use crate::sim::force::{specific_force, AccelTerms, Accelerometer, Attitude};
 use crate::sim::{SimConfig, SimError, Simulator};
@@ -143,6 +145,36 @@ impl Source {
         let own = own_terms(&columns, lsb)
             .map_err(|e| NavEvalError::Input(format!("{}: {e}", self.name)))?;
         Ok(own.terms)
+    }
+
+    /// The accelerometer's noise terms of the characterisation part, when the source has one:
+    /// what `driftless allan --accel-column ... --stage` writes for that record (one set for
+    /// every axis, fitted in m/s²).
+    pub fn fit_accel_terms(&self) -> Result<Option<FilterAccelTerms>, NavEvalError> {
+        let Some(accel) = &self.accel else {
+            return Ok(None);
+        };
+        let characterise = self.first_window;
+        let mut fitted = Vec::with_capacity(3);
+        for (a, name) in ["accel x", "accel y", "accel z"].into_iter().enumerate() {
+            let y: Vec<f64> = accel[..characterise].iter().map(|f| f[a]).collect();
+            let points = allan(&y, self.rate, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA)
+                .map_err(|e| NavEvalError::Input(format!("{}: {name}: {e}", self.name)))?;
+            let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
+                NavEvalError::Input(format!(
+                    "{}: {name}: no noise terms from the first {characterise} rows ({e}); give --terms adis16405 or a longer --characterise",
+                    self.name
+                ))
+            })?;
+            fitted.push((name, fit, points));
+        }
+        let columns: Vec<ColumnFit> = fitted
+            .iter()
+            .map(|(name, fit, points)| ColumnFit { name, fit, points })
+            .collect();
+        let own = own_accel_terms(&columns)
+            .map_err(|e| NavEvalError::Input(format!("{}: {e}", self.name)))?;
+        Ok(Some(own.terms))
     }
 
     /// Whole windows of `window` samples per axis after [`Source::first_window`].

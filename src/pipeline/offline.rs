@@ -119,7 +119,6 @@ impl Offline {
         let lanes = p.axes;
         let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
         let n = inputs.first().map_or(0, |x| x.len());
-        let to_accel_units = 1.0 / p.accel_units.to_m_per_s2();
         let mut out = Vec::with_capacity(inputs.len());
         for chunk in inputs.chunks(lanes) {
             let mut off = Offline::new(p)?;
@@ -138,16 +137,7 @@ impl Offline {
                     // Unused lanes repeat the first axis (their output is not read).
                     *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
                 }
-                let mut raw = RawSample {
-                    t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
-                    seq: k as u64,
-                    rate,
-                    ..RawSample::default()
-                };
-                if let Some(f) = accel.and_then(|a| a.get(k)) {
-                    raw.accel = f.map(|v| v * to_accel_units);
-                    raw.flags |= RAW_ACCEL;
-                }
+                let raw = raw_sample(p, k, rate, accel.and_then(|a| a.get(k)));
                 if let Some(stopped) = stops.and_then(|s| s.get(k)) {
                     off.side(&SideValue::Stop(StopSignal {
                         t_ns: raw.t_ns.max(1),
@@ -172,5 +162,86 @@ impl Offline {
             }
         }
         out(s);
+    }
+}
+
+/// Sample `k` of an offline run of `p`: its time `k / rate_hz`, its rates in `input_units`,
+/// and the specific force `accel` (m/s²), when given, in `accel_units` and flagged present.
+fn raw_sample(p: &Pipeline, k: usize, rate: [f64; 3], accel: Option<&[f64; 3]>) -> RawSample {
+    let mut raw = RawSample {
+        t_ns: (k as f64 * 1e9 / p.rate_hz).round() as u64,
+        seq: k as u64,
+        rate,
+        ..RawSample::default()
+    };
+    if let Some(f) = accel {
+        let to_units = 1.0 / p.accel_units.to_m_per_s2();
+        raw.accel = f.map(|v| v * to_units);
+        raw.flags |= RAW_ACCEL;
+    }
+    raw
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::config;
+    use std::path::Path;
+
+    fn pipeline(accel_units: &str) -> Pipeline {
+        let text = format!(
+            r#"name = "t"
+rate_hz = 100.0
+axes = 3
+input_units = "deg/s"
+accel_units = "{accel_units}"
+
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "t/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "t/raw"
+output = "t/denoised"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "t/denoised"
+output = "t/corrected"
+"#
+        );
+        config::parse(Path::new("t.toml"), &text).unwrap()
+    }
+
+    /// The force given in m/s² enters in the pipeline's units and is published in m/s², present;
+    /// without it the sample carries none.
+    #[test]
+    fn an_offline_sample_carries_the_accelerometer_in_the_pipelines_units() {
+        let force = [0.5, -1.25, -9.80665];
+        for units in ["m/s^2", "g"] {
+            let p = pipeline(units);
+            let raw = raw_sample(&p, 3, [1.0; 3], Some(&force));
+            let scale = if units == "g" { 9.80665 } else { 1.0 };
+            assert_eq!(
+                raw.accel_reading().map(|a| a.map(|v| v * scale)),
+                Some(force)
+            );
+            let mut off = Offline::new(&p).unwrap();
+            let mut got = Vec::new();
+            off.push(&raw, &mut |g| got.push(g));
+            let a = got[0].accel_reading().expect("published present");
+            for i in 0..3 {
+                assert!((a[i] - force[i]).abs() < 1e-12, "{units}: {a:?}");
+            }
+            let none = raw_sample(&p, 4, [1.0; 3], None);
+            assert_eq!(none.accel_reading(), None);
+            got.clear();
+            off.push(&none, &mut |g| got.push(g));
+            assert_eq!(got[0].accel_reading(), None);
+        }
     }
 }

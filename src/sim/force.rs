@@ -285,13 +285,14 @@ const MG: f64 = 1e-3 * STANDARD_GRAVITY;
 /// (Rev. B, Table 1; NaveGo's synthetic example transcribes the same figures).
 /// - Velocity random walk: 0.2 m/s/sqrt(h), 1 sigma. That is a noise density of 0.34 mg/sqrt(Hz),
 ///   3.4 mg per sample at 100 Hz; the real static log reads 3.0-4.3 mg.
-/// - In-run bias stability: 0.2 mg, 1 sigma. The real log's Allan floor is 0.22-0.29 mg near
-///   10 s.
+/// - In-run bias stability: 0.2 mg, 1 sigma: the Allan deviation's floor, which is 0.664 B, so
+///   B = 0.3 mg (as `predict.bias`'s `accel_bias_instability` default takes it). The real
+///   log's Allan floor is 0.22-0.29 mg near 10 s.
 /// - Initial bias error: 50 mg, 1 sigma (the real log's z axis is 16 mg off 1 g).
 /// - Sensitivity: 3.33 mg per LSB (the real log's step).
 pub const ADIS16405_ACCEL: AccelTerms = AccelTerms {
     vrw: 0.2 / 60.0,
-    bias_instability: 0.2 * MG,
+    bias_instability: 0.3 * MG,
     turn_on_sd: 50.0 * MG,
     lsb: Some(3.33 * MG),
 };

@@ -12,8 +12,9 @@ What it does, per undisturbed trial 01-18 that the copy holds (`data_hdf5/NN_*.h
 `data_mat/NN_*.mat`, the same data):
 
 1. The unit's noise terms, once for every trial: `driftless allan --stage` on the trials' first
-   rests (before the first `movement` sample), concatenated. That is a still record of the unit,
-   as a user would take one; no motion is used.
+   rests (before the first `movement` sample), concatenated: the gyro's and, with
+   `--accel-column`, the accelerometer's. That is a still record of the unit, as a user would
+   take one; no motion is used.
 2. `target/release/examples/broad_rates` runs the pipeline's stages offline (`denoise.wavelet
    -> predict.bias`, the terms above) on the IMU's real gyro. It runs them twice: gyro only (no
    accelerometer in the samples), and gyro+accel (the IMU's real accelerometer in every sample).
@@ -64,20 +65,29 @@ def load_trial(broad, number):
 
 
 def first_rest(d):
-    """The trial's rest before its first movement sample, gyro rad/s."""
+    """The trial's rest before its first movement sample: gyro (deg/s) and accelerometer (m/s²)."""
     moving = np.asarray(d["movement"], bool)
-    return d["imu_gyr"][: int(np.argmax(moving))]
+    k = int(np.argmax(moving))
+    return np.column_stack([np.degrees(d["imu_gyr"][:k]), d["imu_acc"][:k]])
+
+
+KEYS = ("arw", "bias_instability", "rrw", "quantization", "lsb", "accel_vrw", "accel_bias_instability")
 
 
 def stage_keys(driftless, rests, rate, work):
-    """`driftless allan --stage` on the concatenated rests (deg/s): its predict.bias keys."""
+    """`driftless allan --stage` on the concatenated rests: its predict.bias keys, the gyro's
+    and the accelerometer's."""
     path = os.path.join(work, "rests.csv")
-    np.savetxt(path, np.degrees(np.concatenate(rests)), delimiter=",", header="x,y,z", comments="", fmt="%.10g")
-    out = subprocess.run(
-        [driftless, "allan", path, "--rate", repr(rate), "--units", "deg/s", "--stage"],
-        check=True, capture_output=True, text=True,
-    ).stdout
-    keys = [l for l in out.splitlines() if l.split(" = ")[0] in ("arw", "bias_instability", "rrw", "quantization", "lsb")]
+    np.savetxt(path, np.concatenate(rests), delimiter=",", header="x,y,z,ax,ay,az", comments="", fmt="%.10g")
+    accel = [a for c in ("ax", "ay", "az") for a in ("--accel-column", c)]
+    run = subprocess.run(
+        [driftless, "allan", path, "--rate", repr(rate), "--units", "deg/s", *accel, "--stage"],
+        capture_output=True, text=True,
+    )
+    if run.returncode != 0:
+        sys.exit(f"the unit's terms from {len(rests)} first rests: {run.stderr.strip()}")
+    out = run.stdout
+    keys = [l for l in out.splitlines() if l.split(" = ")[0] in KEYS]
     comments = [l for l in out.splitlines() if l.startswith("#")]
     return "\n".join(keys), comments
 
@@ -198,8 +208,9 @@ def main():
             results.append(row)
 
     print(f"BROAD undisturbed trials, {len(results)} present; terms from the first rests:")
-    for c in comments[:12]:
-        print("  " + c)
+    for c in comments:
+        if c.startswith("#   ") and not c.startswith("#     "):
+            print("  " + c)
     print()
     head = "| trial | " + " | ".join(f"{label} heading / total (deg)" for _, label in METHODS)
     print(head + " | gyro-only / ZARU heading | gyro+accel / ZARU heading | gyro-only / ZARU total | gyro+accel / ZARU total |")
