@@ -368,6 +368,17 @@ fn bad_input_is_one_line_and_exit_2() {
             "--model: 2 models for 3 axes".into(),
         ),
         (
+            vec![
+                "--sim",
+                "adis16405",
+                "--window",
+                "10s",
+                "--judge-from",
+                "10s",
+            ],
+            "--judge-from 10s leaves nothing of a 1000-sample window to judge".into(),
+        ),
+        (
             vec!["--sim", "adis16405", "--terms", "nope"],
             "--terms: no default bias terms for 'nope'".into(),
         ),
@@ -414,4 +425,31 @@ fn bad_input_is_one_line_and_exit_2() {
         assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
         assert!(out.stdout.is_empty(), "{args:?}");
     }
+}
+
+#[test]
+fn judge_from_starts_the_integration_later_and_runs_every_method_from_the_first_sample() {
+    let run = |from: Option<&str>| {
+        let mut args = vec![
+            "--sim",
+            "adis16405",
+            "--windows",
+            "1",
+            "--window",
+            "60s",
+            "--json",
+        ];
+        if let Some(f) = from {
+            args.extend(["--judge-from", f]);
+        }
+        json(&nav_eval(&args))
+    };
+    let (all, later) = (run(None), run(Some("3s")));
+    assert_eq!(all["judge_from_s"].as_f64(), Some(0.0));
+    assert_eq!(later["judge_from_s"].as_f64(), Some(3.0));
+    let raw = |v: &Value| med(method(&v["sections"][0], "raw"), "rms_heading_deg");
+    // The raw rate's error grows from where the integration starts: judged later, a different
+    // heading.
+    assert!(raw(&all).is_finite() && raw(&later).is_finite());
+    assert_ne!(raw(&all), raw(&later));
 }

@@ -78,6 +78,11 @@ pub struct Args {
     /// after it, so they are held out.
     #[arg(long, default_value = "33min")]
     pub characterise: String,
+    /// Judge the heading from this time into each window (e.g. 3s): every method runs from the
+    /// window's first sample, and the integration starts here. Without it the start-up is
+    /// judged too.
+    #[arg(long)]
+    pub judge_from: Option<String>,
     /// Noise terms of the estimators: `fit` (what `driftless allan --stage` takes from the
     /// characterisation part: one set for every axis) or a sensor profile (adis16405,
     /// adxrs450). With `--sim`: the simulated sensor's.
@@ -165,6 +170,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
         None => None,
     };
     let window = window_samples(&args, truth.as_ref(), rate)?;
+    let judge_from = match &args.judge_from {
+        None => 0,
+        Some(from) => {
+            let n = (parse_seconds(from)
+                .map_err(|e| CliError::input(format!("--judge-from {e}")))?
+                * rate)
+                .round() as usize;
+            if n >= window {
+                return Err(CliError::input(format!(
+                    "--judge-from {from} leaves nothing of a {window}-sample window to judge"
+                )));
+            }
+            n
+        }
+    };
     let (source, terms) = match input {
         Input::Log(log) => log_source(*log, &args, rate, window)?,
         Input::Sim(s) => {
@@ -193,6 +213,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         window,
         motions,
         chains,
+        judge_from,
     };
     let outcome = bench.run(args.plot.is_some())?;
     if let (Some(path), Some(traces)) = (&args.plot, &outcome.traces) {
@@ -468,7 +489,7 @@ fn print_json(bench: &Bench, out: &Outcome) {
         .collect();
     println!(
         "{}",
-        json!({"source": src.name, "rate_hz": rate, "window_s": bench.window_s(),
+        json!({"source": src.name, "rate_hz": rate, "window_s": bench.window_s(), "judge_from_s": bench.judge_from as f64 / rate,
                "windows_per_axis": out.windows, "axes": src.axes.len(), "terms": terms,
                "accel_terms": bench.accel_terms.map(|a| json!({"vrw_m_s_per_sqrt_h": a.vrw * VRW_PER_HOUR, "bias_instability_mg": a.b * MG_PER_M_S2})),
                "reference": "ZARU oracle", "sections": sections, "cases": cases})
@@ -493,6 +514,12 @@ fn print_text(args: &Args, bench: &Bench, out: &Outcome) {
             ""
         }
     );
+    if bench.judge_from > 0 {
+        println!(
+            "  heading judged from {} s into each window (every method runs from its first sample)",
+            bench.judge_from as f64 / rate
+        );
+    }
     for ((name, _), t) in src.axes.iter().zip(&bench.terms) {
         println!(
             "  {name}: N {:.3} deg/sqrt(h), B {:.2} deg/h, K {:.2} deg/h/sqrt(h), lsb {} deg/s",

@@ -316,7 +316,9 @@ impl AccelRest {
         }
         let n = w as f64;
         let dof = 3.0 * (n - 1.0);
-        let scatter: f64 = (0..3).map(|i| (sum2[i] - sum[i] * sum[i] / n).max(0.0)).sum();
+        let scatter: f64 = (0..3)
+            .map(|i| (sum2[i] - sum[i] * sum[i] / n).max(0.0))
+            .sum();
         let v = scatter / dof;
         if v <= self.rest_variance() * chi2_ratio(dof, self.cfg.hysteresis * self.cfg.sigmas) {
             self.learnt += 1;
@@ -569,7 +571,10 @@ mod tests {
         assert_eq!(scale, 1.0);
         let (learnt, scale) = cuts(true);
         assert!((scale - 1.4).abs() < 0.05, "learnt {scale}");
-        assert!(blind >= 10 && learnt <= 1, "{blind} cuts with the terms, {learnt} learnt");
+        assert!(
+            blind >= 10 && learnt <= 1,
+            "{blind} cuts with the terms, {learnt} learnt"
+        );
         // A shake the gyro missed does not teach it: its windows are beyond a rest's bound.
         let mut r = AccelRest::new(c);
         let shaken: Vec<[f64; 3]> = noise(5_000, (10.0 * c.var).sqrt(), 6);
@@ -579,4 +584,3 @@ mod tests {
         assert_eq!(r.rest_variance(), c.var);
     }
 }
-

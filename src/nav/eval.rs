@@ -111,6 +111,9 @@ pub struct Setup {
     pub floor: Option<BiasModel>,
     /// The denoiser of [`Method::KfDenoised`].
     pub denoiser: StreamConfig,
+    /// Samples every method runs before the heading is judged: the integration starts there
+    /// (0: from the first sample, start-up included).
+    pub judge_from: usize,
 }
 
 impl Setup {
@@ -123,6 +126,7 @@ impl Setup {
             zaru_min_s: 1.0,
             floor: None,
             denoiser: StreamConfig::default(),
+            judge_from: 0,
         }
     }
 }
@@ -134,12 +138,15 @@ fn run(
     still: &[bool],
     dt: f64,
     hold: bool,
+    judge_from: usize,
 ) -> HeadingMetrics {
     let mut acc = HeadingAccumulator::new(dt);
-    for ((&x, &t), &s) in measured.iter().zip(truth).zip(still) {
+    for (k, ((&x, &t), &s)) in measured.iter().zip(truth).zip(still).enumerate() {
         let b = est.push(x, s);
         let c = if hold && est.still() { 0.0 } else { x - b };
-        acc.push(c, t);
+        if k >= judge_from {
+            acc.push(c, t);
+        }
     }
     acc.metrics()
 }
@@ -173,6 +180,7 @@ pub fn evaluate(
         return Err(BiasError::BadRate(rate).into());
     }
     let dt = 1.0 / rate;
+    let from = setup.judge_from;
     let min = ((setup.zaru_min_s.max(0.0) * rate).round() as usize).max(1);
     let tracker = || BiasTracker::new(&setup.terms, rate, &setup.tracker);
     // The true stops need neither a delay nor a backfill.
@@ -184,9 +192,25 @@ pub fn evaluate(
     let mut out = Vec::with_capacity(methods.len());
     for &m in methods {
         let metrics = match m {
-            Method::Raw => run(&mut Raw, measured, truth, still, dt, false),
-            Method::PowerOn => run(&mut Zaru::power_on(min), measured, truth, still, dt, false),
-            Method::ZaruOracle => run(&mut Zaru::oracle(min), measured, truth, still, dt, false),
+            Method::Raw => run(&mut Raw, measured, truth, still, dt, false, from),
+            Method::PowerOn => run(
+                &mut Zaru::power_on(min),
+                measured,
+                truth,
+                still,
+                dt,
+                false,
+                from,
+            ),
+            Method::ZaruOracle => run(
+                &mut Zaru::oracle(min),
+                measured,
+                truth,
+                still,
+                dt,
+                false,
+                from,
+            ),
             Method::ZaruDetected | Method::ZaruDenoised => {
                 let cfg = stillness_from_terms(&setup.terms, rate, &setup.tracker)?;
                 let denoised;
@@ -203,6 +227,7 @@ pub fn evaluate(
                     still,
                     dt,
                     false,
+                    from,
                 )
             }
             Method::KfDetected | Method::KfHold => run(
@@ -212,6 +237,7 @@ pub fn evaluate(
                 still,
                 dt,
                 m == Method::KfHold,
+                from,
             ),
             Method::KfOracle | Method::KfOracleFixed => run(
                 &mut Tracked::oracle(BiasTracker::new(
@@ -231,6 +257,7 @@ pub fn evaluate(
                 still,
                 dt,
                 false,
+                from,
             ),
             Method::KfDenoised => run(
                 &mut Tracked::detected(tracker()?),
@@ -239,11 +266,20 @@ pub fn evaluate(
                 still,
                 dt,
                 false,
+                from,
             ),
             Method::Floor => {
                 let model = setup.floor.clone().ok_or(EvalError::NoFloor)?;
                 let t = BiasTracker::with_model(model, &setup.terms, rate, &oracle_cfg)?;
-                run(&mut Tracked::oracle(t), measured, truth, still, dt, false)
+                run(
+                    &mut Tracked::oracle(t),
+                    measured,
+                    truth,
+                    still,
+                    dt,
+                    false,
+                    from,
+                )
             }
         };
         out.push(metrics);

@@ -97,6 +97,9 @@ pub struct Bench {
     pub motions: Vec<Motion>,
     /// The methods that run a pipeline's stages, after the built-in ones.
     pub chains: Vec<Chain>,
+    /// Samples of each window every method runs before its heading is judged (0: from the
+    /// first sample, start-up included).
+    pub judge_from: usize,
 }
 
 /// One evaluated case: a window of one axis under one motion.
@@ -206,9 +209,9 @@ impl Bench {
                     let mut metrics = evaluate(&measured[a], &m.truth, &m.still, &setup, &methods)
                         .map_err(|e| NavEvalError::Input(format!("{}: {e}", src.name)))?;
                     let dt = 1.0 / src.rate;
-                    metrics.push(metrics_of(&fusion_out[a], &m.truth, dt));
+                    metrics.push(metrics_of(&fusion_out[a], &m.truth, dt, self.judge_from));
                     for out in &chain_out {
-                        metrics.push(metrics_of(&out[a], &m.truth, dt));
+                        metrics.push(metrics_of(&out[a], &m.truth, dt, self.judge_from));
                     }
                     if first.is_none() && traces {
                         first = Some(self.traces(&measured[a], m, &chain_out, a, &setup)?);
@@ -315,6 +318,7 @@ impl Bench {
     /// noise model.
     fn setup(&self, a: usize) -> Result<Setup, NavEvalError> {
         let mut setup = Setup::new(self.terms[a], self.source.rate);
+        setup.judge_from = self.judge_from;
         if let Some(cfg) = &self.source.floor {
             setup.floor = Some(
                 BiasModel::simulator_truth(cfg, setup.terms.initial_sd)
@@ -404,10 +408,10 @@ impl Bench {
     }
 }
 
-/// The heading figures of a corrected rate against the truth.
-fn metrics_of(corrected: &[f64], truth: &[f64], dt: f64) -> HeadingMetrics {
+/// The heading figures of a corrected rate against the truth, judged from sample `from`.
+fn metrics_of(corrected: &[f64], truth: &[f64], dt: f64, from: usize) -> HeadingMetrics {
     let mut acc = HeadingAccumulator::new(dt);
-    for (&c, &t) in corrected.iter().zip(truth) {
+    for (&c, &t) in corrected.iter().zip(truth).skip(from) {
         // A sample a stage never published (it cannot happen with the shipped stages) counts
         // as uncorrected zero rate, not as silently skipped.
         acc.push(if c.is_finite() { c } else { 0.0 }, t);

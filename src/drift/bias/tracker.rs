@@ -672,8 +672,6 @@ impl BiasTracker {
         self.step_end(x, confirmed || provisional, mode, false, sure, end)
     }
 
-    /// Our detector's verdict on `x`; when it turns still and `backfill`, the stop's start
-    /// joins it (not when stillness comes from outside: the window before may be motion).
     /// Our detector's verdict on `x`, and whether it has just turned still.
     fn detect(&mut self, x: f64) -> (bool, bool) {
         // At start-up the prior is the reference: a turn at power-up far beyond the turn-on
@@ -692,8 +690,9 @@ impl BiasTracker {
     }
 
     /// The stop began before the detector confirmed it: the last `backfill` samples of its
-    /// window before this one (at most `limit`: the accelerometer's rest may be younger) join it (the filter's time update already ran for them), all but
-    /// those up to `guard` after the end of a movement still in the window. That end is the
+    /// window before this one (at most `limit`: the accelerometer's rest may be younger) join
+    /// it (the filter's time update already ran for them), all but those up to `guard` after
+    /// the end of a movement still in the window. That end is the
     /// end of the most likely moving prefix under [`moving_llr`] against the mean of the
     /// window's newest half, if that prefix is evidence of movement at all
     /// ([`MOVING_EVIDENCE`]). O(window) once per stop, no allocation.
