@@ -9,8 +9,8 @@ mod common;
 use std::time::Duration;
 
 use common::{finish, start, wait_ready, Dir, Prefix};
+use driftless::allan::STANDARD_GRAVITY;
 use driftless::drift::bias::AccelTerms;
-use driftless::stages::schema::STANDARD_GRAVITY;
 use driftless::transport::{
     GyroSample, Transport, FLAG_INPUT_INVALID, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
 };

@@ -49,7 +49,8 @@ impl fmt::Display for RateUnit {
     }
 }
 
-/// Standard gravity, m/s^2 per g (the unit `g` of an accelerometer's reading).
+/// Standard gravity, m/s^2 per g (ISO 80000-3): the unit `g` of an accelerometer's reading, in
+/// `allan`, `accel_units` and the simulator alike.
 pub const STANDARD_GRAVITY: f64 = 9.806_65;
 
 /// The unit of an accelerometer's samples (specific force).

@@ -35,8 +35,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::f64::consts::PI;
 
-/// Standard gravity, m/s² (the conventional value, also what 1 g converts to).
-pub const STANDARD_GRAVITY: f64 = 9.80665;
+pub use crate::allan::STANDARD_GRAVITY;
 
 /// A road vehicle's speed: 10 m/s (36 km/h) between 5 s raised-cosine ramps (peak longitudinal
 /// acceleration pi 10 / (2 x 5) = 3.1 m/s², 0.32 g; a 10 deg/s turn at speed is 1.75 m/s²

@@ -54,15 +54,12 @@ pub enum AccelUnits {
     G,
 }
 
-/// Standard gravity, m/s² (ISO 80000-3): what `g` means in `accel_units`.
-pub const STANDARD_GRAVITY: f64 = crate::sim::force::STANDARD_GRAVITY;
-
 impl AccelUnits {
     /// Factor converting these units to m/s².
     pub fn to_m_per_s2(self) -> f64 {
         match self {
             AccelUnits::MPerS2 => 1.0,
-            AccelUnits::G => STANDARD_GRAVITY,
+            AccelUnits::G => crate::allan::STANDARD_GRAVITY,
         }
     }
 
