@@ -145,3 +145,12 @@ fn a_gyro_only_log_publishes_no_accelerometer() {
         .iter()
         .all(|s| s.sensors == 0 && s.accel_reading().is_none() && s.accel == [0.0; 3]));
 }
+
+#[test]
+fn the_simulator_and_accel_units_take_the_same_standard_gravity() {
+    // Two layers-apart copies of one constant (the simulator sits beside `allan`).
+    assert_eq!(
+        driftless::sim::force::STANDARD_GRAVITY.to_bits(),
+        STANDARD_GRAVITY.to_bits()
+    );
+}

@@ -50,7 +50,7 @@ impl fmt::Display for RateUnit {
 }
 
 /// Standard gravity, m/s^2 per g (ISO 80000-3): the unit `g` of an accelerometer's reading, in
-/// `allan`, `accel_units` and the simulator alike.
+/// `allan` and `accel_units` (the simulator keeps its own copy: it sits beside `allan`).
 pub const STANDARD_GRAVITY: f64 = 9.806_65;
 
 /// The unit of an accelerometer's samples (specific force).
