@@ -97,6 +97,9 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     let mut latency =
         Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3).map_err(|e| e.to_string())?;
     let (mut received, mut lost) = (0u64, 0u64);
+    // Samples that carried an accelerometer reading, and the sum of its magnitudes (m/s²): at
+    // rest or cruising, about gravity's.
+    let (mut with_accel, mut accel_norm_sum) = (0u64, 0.0f64);
     let mut heading_deg = 0.0f64;
     // The heading error the removed bias can leave: its 1-sigma integrated over time (a bias
     // error is nearly constant between stops, so errors add up rather than average out: an
@@ -112,6 +115,10 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
         while let Ok(Some(s)) = input.receive() {
             let now = monotonic_ns();
             received += 1;
+            if let Some(a) = s.accel_reading() {
+                with_accel += 1;
+                accel_norm_sum += a.iter().map(|v| v * v).sum::<f64>().sqrt();
+            }
             if s.flags & FLAG_FLUSHED == 0 {
                 latency.saturating_record(now.saturating_sub(s.ingest_ns).max(1));
             }
@@ -147,9 +154,11 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
         }
     }
     let q = |p: f64| latency.value_at_quantile(p);
+    let accel_mean_norm = (with_accel > 0).then(|| accel_norm_sum / with_accel as f64);
     println!(
-        "nav_subscriber: {received} received, {lost} lost, {epochs} epochs; heading {heading_deg:+.3} deg {} (from the removed bias); latency (ingest to receipt) p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
+        "nav_subscriber: {received} received, {lost} lost, {epochs} epochs; heading {heading_deg:+.3} deg {} (from the removed bias); {with_accel} with an accelerometer (mean |a| {}); latency (ingest to receipt) p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
         sd_text(heading_sd_deg, "deg"),
+        accel_mean_norm.map_or("-".to_string(), |v| format!("{v:.3} m/s²")),
         q(0.5),
         q(0.99),
         q(0.999),
@@ -157,8 +166,9 @@ fn run(o: &Options, prefix: &str) -> Result<(), String> {
     );
     if let Some(path) = &o.report {
         let json = format!(
-            "{{\"received\":{received},\"lost\":{lost},\"epochs\":{epochs},\"heading_deg\":{heading_deg},\"heading_sd_deg\":{},\"latency_ns\":{{\"count\":{},\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}}}}\n",
+            "{{\"received\":{received},\"lost\":{lost},\"epochs\":{epochs},\"heading_deg\":{heading_deg},\"heading_sd_deg\":{},\"with_accel\":{with_accel},\"accel_mean_norm_m_s2\":{},\"latency_ns\":{{\"count\":{},\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}}}}\n",
             heading_sd_deg.map_or("null".to_string(), |v| v.to_string()),
+            accel_mean_norm.map_or("null".to_string(), |v| v.to_string()),
             latency.len(),
             q(0.5),
             q(0.99),

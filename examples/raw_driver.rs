@@ -1,6 +1,8 @@
-//! A stand-in sensor driver in its own process: publishes simulated raw gyro samples
-//! (`driftless::RawSample`, deg/s) on an iceoryx2 service at a fixed rate and notifies the event
-//! service of the same name after each one, as `ingest.iceoryx2` expects.
+//! A stand-in sensor driver in its own process: publishes simulated raw IMU samples
+//! (`driftless::RawSample`: the gyro in deg/s, and beside it the accelerometer in m/s², flag
+//! `RAW_ACCEL`, the pipelines' default `accel_units`) on an iceoryx2 service at a fixed rate and
+//! notifies the event service of the same name after each one, as `ingest.iceoryx2` expects. A
+//! gyro-only driver leaves the accelerometer out (flag clear): absent, never zero.
 //!
 //! ```text
 //! cargo run --release --example raw_driver -- --service sensor/raw --rate 1000 &
@@ -17,8 +19,9 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 use driftless::cli::duration::parse_duration;
+use driftless::sim::force::SimAccel;
 use driftless::sim::{Motion, SimConfig, Simulator};
-use driftless::transport::{self, RawSample, Transport};
+use driftless::transport::{self, RawSample, Transport, RAW_ACCEL};
 
 /// A stand-in sensor driver: publishes simulated raw gyro samples (deg/s) at a fixed rate and
 /// notifies after each one, for `ingest.iceoryx2` (pipelines/external-sensor.toml).
@@ -102,6 +105,10 @@ fn publish(
     cfg.axes = 3;
     cfg.motion = Motion::Sines;
     let mut sim = Simulator::new(&cfg).map_err(|e| e.to_string())?;
+    // The same unit's accelerometer: the specific force of the same motion, with its noise.
+    let mut accel = SimAccel::new("adis16405", &cfg)
+        .map_err(|e| e.to_string())?
+        .ok_or("the adis16405 profile has no accelerometer")?;
     // This run's id: a daemon that outlives the driver tells a restart from lost samples.
     let epoch = rand::random::<u32>().max(1);
     let start = Instant::now();
@@ -117,6 +124,8 @@ fn publish(
             t_ns: (k as f64 * 1e9 / rate).round() as u64,
             seq: k,
             rate: s.measured,
+            accel: accel.next_reading(),
+            flags: RAW_ACCEL,
             epoch,
             ..RawSample::default()
         };

@@ -182,6 +182,11 @@ fn raw_driver_feeds_the_daemon_and_nav_subscriber_reads_it() {
     );
     assert_eq!(v["lost"], 0, "{v}");
     assert_eq!(v["epochs"], 1, "one daemon run, one driver run: {v}");
+    // The driver's accelerometer rides beside every rate: gravity's magnitude, give or take
+    // the simulated motion and noise.
+    assert_eq!(v["with_accel"], v["received"], "{v}");
+    let g = v["accel_mean_norm_m_s2"].as_f64().unwrap();
+    assert!((9.0..10.6).contains(&g), "mean |a| {g}: {v}");
     // No predict stage: the bias uncertainty is "not provided" (-1), so no heading sigma.
     assert_eq!(v["heading_sd_deg"], serde_json::Value::Null, "{v}");
     assert!(summary.contains("+- ? (not provided)"), "{summary}");
