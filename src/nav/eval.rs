@@ -180,7 +180,9 @@ pub fn evaluate(
         return Err(BiasError::BadRate(rate).into());
     }
     let dt = 1.0 / rate;
-    let from = setup.judge_from;
+    let judge = |est: &mut dyn BiasEstimator, input: &[f64], hold: bool| {
+        run(est, input, truth, still, dt, hold, setup.judge_from)
+    };
     let min = ((setup.zaru_min_s.max(0.0) * rate).round() as usize).max(1);
     let tracker = || BiasTracker::new(&setup.terms, rate, &setup.tracker);
     // The true stops need neither a delay nor a backfill.
@@ -192,25 +194,9 @@ pub fn evaluate(
     let mut out = Vec::with_capacity(methods.len());
     for &m in methods {
         let metrics = match m {
-            Method::Raw => run(&mut Raw, measured, truth, still, dt, false, from),
-            Method::PowerOn => run(
-                &mut Zaru::power_on(min),
-                measured,
-                truth,
-                still,
-                dt,
-                false,
-                from,
-            ),
-            Method::ZaruOracle => run(
-                &mut Zaru::oracle(min),
-                measured,
-                truth,
-                still,
-                dt,
-                false,
-                from,
-            ),
+            Method::Raw => judge(&mut Raw, measured, false),
+            Method::PowerOn => judge(&mut Zaru::power_on(min), measured, false),
+            Method::ZaruOracle => judge(&mut Zaru::oracle(min), measured, false),
             Method::ZaruDetected | Method::ZaruDenoised => {
                 let cfg = stillness_from_terms(&setup.terms, rate, &setup.tracker)?;
                 let denoised;
@@ -220,26 +206,14 @@ pub fn evaluate(
                 } else {
                     measured
                 };
-                run(
-                    &mut Zaru::detected(min, cfg),
-                    input,
-                    truth,
-                    still,
-                    dt,
-                    false,
-                    from,
-                )
+                judge(&mut Zaru::detected(min, cfg), input, false)
             }
-            Method::KfDetected | Method::KfHold => run(
+            Method::KfDetected | Method::KfHold => judge(
                 &mut Tracked::detected(tracker()?),
                 measured,
-                truth,
-                still,
-                dt,
                 m == Method::KfHold,
-                from,
             ),
-            Method::KfOracle | Method::KfOracleFixed => run(
+            Method::KfOracle | Method::KfOracleFixed => judge(
                 &mut Tracked::oracle(BiasTracker::new(
                     &setup.terms,
                     rate,
@@ -253,33 +227,17 @@ pub fn evaluate(
                     },
                 )?),
                 measured,
-                truth,
-                still,
-                dt,
                 false,
-                from,
             ),
-            Method::KfDenoised => run(
+            Method::KfDenoised => judge(
                 &mut Tracked::detected(tracker()?),
                 &denoise(measured, setup)?,
-                truth,
-                still,
-                dt,
                 false,
-                from,
             ),
             Method::Floor => {
                 let model = setup.floor.clone().ok_or(EvalError::NoFloor)?;
                 let t = BiasTracker::with_model(model, &setup.terms, rate, &oracle_cfg)?;
-                run(
-                    &mut Tracked::oracle(t),
-                    measured,
-                    truth,
-                    still,
-                    dt,
-                    false,
-                    from,
-                )
+                judge(&mut Tracked::oracle(t), measured, false)
             }
         };
         out.push(metrics);
