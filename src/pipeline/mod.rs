@@ -8,6 +8,7 @@
 
 pub mod config;
 pub mod guard;
+pub mod iceoryx2_table;
 pub mod offline;
 pub mod registry;
 pub mod runtime;
