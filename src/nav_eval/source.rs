@@ -4,7 +4,7 @@
 //! included, or the simulated sensor's), time-aligned with the rates.
 
 use super::NavEvalError;
-use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, Kind, TauGrid};
+use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, AllanPoint, Kind, NoiseFit, TauGrid};
 use crate::drift::bias::{
     own_accel_terms, own_terms, AccelTerms as FilterAccelTerms, BiasTerms, ColumnFit,
 };
@@ -122,20 +122,7 @@ impl Source {
         let characterise = self.first_window;
         let mut fitted = Vec::with_capacity(self.axes.len());
         for (name, y) in &self.axes {
-            let points = allan(
-                &y[..characterise],
-                self.rate,
-                Kind::Oadev,
-                &TauGrid::Octave,
-                ONE_SIGMA,
-            )
-            .map_err(|e| NavEvalError::Input(format!("{}: {name}: {e}", self.name)))?;
-            let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
-                NavEvalError::Input(format!(
-                    "{}: {name}: no noise terms from the first {characterise} rows ({e}); give --terms adis16405 or a longer --characterise",
-                    self.name
-                ))
-            })?;
+            let (fit, points) = self.fit_column(name, &y[..characterise])?;
             fitted.push((name.as_str(), fit, points));
         }
         let columns: Vec<ColumnFit> = fitted
@@ -158,14 +145,7 @@ impl Source {
         let mut fitted = Vec::with_capacity(3);
         for (a, name) in ["accel x", "accel y", "accel z"].into_iter().enumerate() {
             let y: Vec<f64> = accel[..characterise].iter().map(|f| f[a]).collect();
-            let points = allan(&y, self.rate, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA)
-                .map_err(|e| NavEvalError::Input(format!("{}: {name}: {e}", self.name)))?;
-            let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
-                NavEvalError::Input(format!(
-                    "{}: {name}: no noise terms from the first {characterise} rows ({e}); give --terms adis16405 or a longer --characterise",
-                    self.name
-                ))
-            })?;
+            let (fit, points) = self.fit_column(name, &y)?;
             fitted.push((name, fit, points));
         }
         let columns: Vec<ColumnFit> = fitted
@@ -175,6 +155,25 @@ impl Source {
         let own = own_accel_terms(&columns)
             .map_err(|e| NavEvalError::Input(format!("{}: {e}", self.name)))?;
         Ok(Some(own.terms))
+    }
+
+    /// One column's Allan deviation (the characterisation part `y`) and its IEEE 952 fit, as
+    /// `driftless allan` computes them.
+    fn fit_column(
+        &self,
+        name: &str,
+        y: &[f64],
+    ) -> Result<(NoiseFit, Vec<AllanPoint>), NavEvalError> {
+        let points = allan(y, self.rate, Kind::Oadev, &TauGrid::Octave, ONE_SIGMA)
+            .map_err(|e| NavEvalError::Input(format!("{}: {name}: {e}", self.name)))?;
+        let fit = fit_terms(&points, ONE_SIGMA).map_err(|e| {
+            NavEvalError::Input(format!(
+                "{}: {name}: no noise terms from the first {} rows ({e}); give --terms adis16405 or a longer --characterise",
+                self.name,
+                y.len()
+            ))
+        })?;
+        Ok((fit, points))
     }
 
     /// Whole windows of `window` samples per axis after [`Source::first_window`].
