@@ -181,15 +181,9 @@ impl Ros2Node {
         topic: &str,
         depth: usize,
     ) -> Result<ImuPublisher, TransportError> {
-        let qos = publish_qos(depth);
-        let t = self.topic(topic, ("sensor_msgs", "Imu"), &qos)?;
-        let publisher = self
-            .node
-            .create_publisher(&t, Some(qos))
-            .map_err(|e| setup("ROS 2 publisher", topic, e))?;
-        self.endpoints
-            .push((publisher.guid(), topic.to_string(), true));
-        Ok(ImuPublisher { publisher })
+        Ok(ImuPublisher {
+            publisher: self.publisher(topic, ("sensor_msgs", "Imu"), depth)?,
+        })
     }
 
     /// A publisher of messages of ROS 2 type `ty` (`pkg/msg/Name`) on `topic` that we encode
@@ -209,15 +203,28 @@ impl Ros2Node {
                 })
             }
         };
+        Ok(CdrPublisher {
+            publisher: self.publisher(topic, (pkg, name), depth)?,
+        })
+    }
+
+    /// A publisher of `ty` (package, name) on `topic`: reliable, keep last `depth`, never
+    /// blocking; recorded among our endpoints.
+    fn publisher<M: Serialize>(
+        &mut self,
+        topic: &str,
+        ty: (&str, &str),
+        depth: usize,
+    ) -> Result<Publisher<M>, TransportError> {
         let qos = publish_qos(depth);
-        let t = self.topic(topic, (pkg, name), &qos)?;
+        let t = self.topic(topic, ty, &qos)?;
         let publisher = self
             .node
             .create_publisher(&t, Some(qos))
             .map_err(|e| setup("ROS 2 publisher", topic, e))?;
         self.endpoints
             .push((publisher.guid(), topic.to_string(), true));
-        Ok(CdrPublisher { publisher })
+        Ok(publisher)
     }
 
     /// A subscription of `sensor_msgs/msg/Imu` on `topic`: best effort, keep last `depth`.
