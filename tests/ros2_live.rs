@@ -1020,6 +1020,12 @@ fn validate_checks_the_bias_and_diagnostics_tables_against_the_chain() {
          accel_noise = 0.02",
     );
     assert_eq!(code, Some(0), "{err}");
+    // Refused with exit 2 and an error that says `want`.
+    let refused = |tag: &str, extra: &str, want: &str| {
+        let (code, _, err) = validate(tag, extra);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(want), "{err}");
+    };
     for line in [
         "    out    ros2/corrected -> /imu/gyro_bias (geometry_msgs/msg/Vector3Stamped)",
         "    out    ros2/predicted, ros2/stats -> /diagnostics (diagnostic_msgs/msg/DiagnosticArray) every 1 s, WARN past 0.0015 rad/s",
@@ -1028,36 +1034,27 @@ fn validate_checks_the_bias_and_diagnostics_tables_against_the_chain() {
         assert!(text.lines().any(|l| l == line), "{line:?} in\n{text}");
     }
     // Before any predict.bias: no bias to report.
-    let (code, _, err) = validate("vup", "diagnostics = { service = \"ros2/denoised\" }");
-    assert_eq!(code, Some(2), "{err}");
-    assert!(
-        err.contains(
-            "diagnostics.service \"ros2/denoised\": no predict.bias stage at or before the stage \
-             that publishes it, so its samples carry no bias to report"
-        ),
-        "{err}"
+    refused(
+        "vup",
+        "diagnostics = { service = \"ros2/denoised\" }",
+        "diagnostics.service \"ros2/denoised\": no predict.bias stage at or before the stage \
+             that publishes it, so its samples carry no bias to report",
     );
-    let (code, _, err) = validate(
+    refused(
         "vnone",
         "bias_out = { topic = \"/b\", service = \"nowhere/x\" }",
+        "bias_out.service \"nowhere/x\" is no stage's output",
     );
-    assert_eq!(code, Some(2), "{err}");
-    assert!(
-        err.contains("bias_out.service \"nowhere/x\" is no stage's output"),
-        "{err}"
-    );
-    let (code, _, err) = validate(
+    refused(
         "vtype",
         "bias_out = { topic = \"/b\", service = \"ros2/corrected\", type = \"sensor_msgs/msg/Imu\" }",
+        "bias_out.type is geometry_msgs/msg/Vector3Stamped",
     );
-    assert_eq!(code, Some(2), "{err}");
-    assert!(
-        err.contains("bias_out.type is geometry_msgs/msg/Vector3Stamped"),
-        "{err}"
+    refused(
+        "vperiod",
+        "diagnostics_period_s = 0.0",
+        "diagnostics_period_s",
     );
-    let (code, _, err) = validate("vperiod", "diagnostics_period_s = 0.0");
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("diagnostics_period_s"), "{err}");
     // A driver's Imu is m/s^2 (REP 103): a pipeline in g cannot take it.
     let (dir, file) = ros2_pipeline_with("vg", "");
     let text = std::fs::read_to_string(&file).unwrap();
