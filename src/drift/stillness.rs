@@ -21,7 +21,9 @@
 //! ([`StillnessDetector::restart`]). The thresholds for n samples are those of the full window
 //! with n in its place: chi-square quantiles (Wilson-Hilferty) of the variance and the spread of
 //! an n-sample mean. A failed test ends that: the rest's start is refuted, and the detector
-//! waits for a full window again, as without [`Growth`].
+//! waits for a full window again, as without [`Growth`]. A rest confirmed on fewer samples than
+//! the window has had less power against a slow turn: it is judged at the exit thresholds, not
+//! the wider enter ones, until a full window has passed them ([`StillnessDetector::is_provisional`]).
 //!
 //! Rotation slower than the drift band itself (a turn building up over minutes) cannot be told
 //! from drift by any test on the rate alone.
@@ -202,6 +204,8 @@ pub struct StillnessDetector {
     sum: f64,
     sum2: f64,
     still: bool,
+    /// Still, confirmed on fewer samples than the window; no full window has passed since.
+    provisional: bool,
     quiet: usize,
     anchor: f64,
 }
@@ -220,6 +224,7 @@ impl StillnessDetector {
             sum: 0.0,
             sum2: 0.0,
             still: false,
+            provisional: false,
             quiet: 0,
             anchor: f64::NAN,
         }
@@ -264,6 +269,24 @@ impl StillnessDetector {
         self.filled
     }
 
+    /// Whether the sensor is still on a window shorter than the full one that no full window
+    /// has confirmed yet: judged at the exit thresholds (no hysteresis) until one does.
+    pub fn is_provisional(&self) -> bool {
+        self.still && self.provisional
+    }
+
+    /// Whether the detector holds a stop's mean as its own reference (see
+    /// [`StillnessDetector::update`]).
+    pub fn has_anchor(&self) -> bool {
+        self.anchor.is_finite()
+    }
+
+    /// Forget the last stop's mean, the reference without one from outside: that stop gave
+    /// the estimate nothing (a lull within a movement), so it says nothing of the bias.
+    pub fn forget_anchor(&mut self) {
+        self.anchor = f64::NAN;
+    }
+
     /// Whether the last update passed the exit tests (still, or on its way there: settling).
     pub fn is_quiet(&self) -> bool {
         self.still || self.quiet > 0
@@ -306,6 +329,7 @@ impl StillnessDetector {
         self.sum = 0.0;
         self.sum2 = 0.0;
         self.still = false;
+        self.provisional = false;
         self.quiet = 0;
         self.anchor = f64::NAN;
         self.growing = true;
@@ -376,15 +400,27 @@ impl StillnessDetector {
         } else {
             0.0
         };
+        // A rest confirmed on a short window keeps to the exit thresholds: the hysteresis must
+        // not hold a slow turn that a full window would never have let in.
+        let (var_enter, mean_enter) = if self.provisional {
+            (var_exit, mean_exit)
+        } else {
+            (var_enter, mean_enter)
+        };
         if self.still {
             if var > var_enter || shift > mean_enter + tol {
                 self.still = false;
+                self.provisional = false;
                 self.quiet = 0;
+                self.growing = false;
+            } else if self.filled == w {
+                self.provisional = false;
             }
         } else if var <= var_exit && shift <= mean_exit + tol {
             self.quiet += 1;
             if self.quiet >= self.cfg.settle {
                 self.still = true;
+                self.provisional = self.filled < w;
                 self.anchor = self.mean();
             }
         } else {

@@ -823,6 +823,102 @@ mod tests {
         }
     }
 
+    /// The accelerometer's verdict for a body at rest over `rests` (first sample, end) and
+    /// moving elsewhere, as [`crate::drift::accel_rest`] gives it: quiet once settled
+    /// ([`TrackerConfig::default`]'s 0.25 s), dated from the rest's first sample.
+    fn accel_aid(rests: &[(usize, usize)], k: usize) -> Aid {
+        let settle = 25;
+        match rests.iter().find(|(s, e)| (*s..*e).contains(&k)) {
+            Some(&(s, _)) if k - s + 1 >= settle => Aid::Quiet { since: k - s + 1 },
+            Some(&(s, _)) => Aid::Moving { age: k - s + 1 },
+            None => {
+                let end = rests.iter().filter(|(_, e)| *e <= k).map(|(_, e)| *e).max();
+                Aid::Moving {
+                    age: end.map_or(0, |e| k - e),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_slow_turn_at_a_steady_force_is_no_stop() {
+        // 20 s at rest; a 10 deg/s turn; 1.5 s of a gentle 0.25 deg/s turn at a steady force
+        // (a car at constant speed on a bend: the accelerometer is quiet); the 10 deg/s turn
+        // again. The accelerometer's quiet lets the detector judge the samples since it
+        // began, where the mean bound (0.32 deg/s on 25 samples) is twice the full window's:
+        // such a stop must pass the full window's test, without the hysteresis, before it
+        // counts, and then nothing of the turn may reach the estimate, as with the gyro alone.
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let (rest, turn, gentle) = (2000, 500, 150);
+        let lull = rest + turn..rest + turn + gentle;
+        for seed in 0..20 {
+            let mut x = noisy(0.4, sd, rest + turn + gentle + turn, 21 + seed);
+            for (k, v) in x.iter_mut().enumerate().skip(rest) {
+                *v += if lull.contains(&k) { 0.25 } else { 10.0 };
+            }
+            let rests = [(0, rest), (lull.start, lull.end)];
+            let cfg = TrackerConfig::default();
+            let mut aided = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+            let mut alone = BiasTracker::new(&t, 100.0, &cfg).unwrap();
+            let mut before = f64::NAN;
+            for (k, &v) in x.iter().enumerate() {
+                let s = aided.push_with(v, accel_aid(&rests, k));
+                alone.push(v);
+                if k == lull.start - 1 {
+                    before = s.bias;
+                }
+            }
+            // 0.01 deg/s: a 25th of the turn's rate, several times the walk over 7 s.
+            for (name, tr) in [("gyro alone", &alone), ("gyro+accel", &aided)] {
+                let after = tr.filter().estimate();
+                assert!(
+                    (after - before).abs() < 0.01,
+                    "seed {seed}, {name}: the gentle turn moved the estimate from {before} to {after}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_false_start_up_rest_does_not_become_the_reference() {
+        // At power-up the body turns slowly (0.5 deg/s, within the turn-on bias's spread) with
+        // the accelerometer quiet for 0.4 s: a start-up rest, confirmed, then cut short by motion
+        // before any of it reached the filter. Then 20 s of true rest at the bias (0.4 deg/s):
+        // the tracker must find it, though the false rest's mean (0.9) is far from it.
+        let t = terms();
+        let sd = (t.n * t.n * 100.0).sqrt();
+        let (false_rest, turn, rest) = (40, 300, 2000);
+        let mut x = noisy(0.4, sd, false_rest + turn + rest, 5);
+        for (k, v) in x.iter_mut().enumerate() {
+            if k < false_rest {
+                *v += 0.5;
+            } else if k < false_rest + turn {
+                *v += 10.0 * (std::f64::consts::PI * k as f64 / 100.0).sin();
+            }
+        }
+        let rests = [(0, false_rest), (false_rest + turn, x.len())];
+        let mut tr = BiasTracker::new(&t, 100.0, &TrackerConfig::default()).unwrap();
+        let steps: Vec<BiasStep> = x
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| tr.push_with(v, accel_aid(&rests, k)))
+            .collect();
+        assert!(
+            steps[..false_rest]
+                .iter()
+                .any(|s| s.mode == BiasMode::Still),
+            "the false rest was confirmed: the case this test is about"
+        );
+        assert_eq!(steps[false_rest + turn - 1].mode, BiasMode::Moving);
+        let last = steps.last().unwrap();
+        assert_eq!(last.mode, BiasMode::Still);
+        assert!(
+            (last.bias - 0.4).abs() < 4.0 * t.n / 10f64.sqrt(),
+            "{last:?}"
+        );
+    }
+
     #[test]
     fn quantisation_noise_does_not_hide_a_turn() {
         // The ADXRS450's Q at 100 Hz: about 13 deg/s per sample, but its 1 s window mean

@@ -428,6 +428,12 @@ pub struct BiasTracker {
     still_var: f64,
     min_run: usize,
     run: usize,
+    /// Samples of the current stop that the detector judged on its full window (or given from
+    /// outside, or of a rest since power-up): what `min_run` counts. A stop confirmed on a
+    /// window cut back to the accelerometer's rest has had less power against a slow turn.
+    full_run: usize,
+    /// The current stop began at start-up.
+    stop_at_startup: bool,
     pub(super) delay: DelayWindow,
     mode: BiasMode,
     learn: LearnWalk,
@@ -541,6 +547,8 @@ impl BiasTracker {
             still_var: terms.sample_variance(rate_hz),
             min_run: samples("min_stop_s", cfg.min_stop_s, rate_hz)?,
             run: 0,
+            full_run: 0,
+            stop_at_startup: false,
             // Backfilled samples wait their `delay` like the rest: room for both.
             delay: DelayWindow::new(delay + backfill),
             mode: BiasMode::Warming,
@@ -600,6 +608,8 @@ impl BiasTracker {
         self.detector.reset();
         self.delay.clear();
         self.run = 0;
+        self.full_run = 0;
+        self.stop_at_startup = false;
         self.mode = BiasMode::Warming;
         self.stop_detected = false;
         self.stop_gyro_only = false;
@@ -657,6 +667,9 @@ impl BiasTracker {
         let confirmed = still && (!self.startup || sure || self.detector.is_ready());
         let provisional =
             self.startup && !confirmed && !vetoed && x.is_finite() && self.detector.is_quiet();
+        if self.run == 0 {
+            self.stop_at_startup = self.startup;
+        }
         if self.startup && !provisional {
             self.startup = false;
         }
@@ -674,9 +687,11 @@ impl BiasTracker {
 
     /// Our detector's verdict on `x`, and whether it has just turned still.
     fn detect(&mut self, x: f64) -> (bool, bool) {
-        // At start-up the prior is the reference: a turn at power-up far beyond the turn-on
-        // bias's spread (`initial_sd`) is not a rest.
-        let (reference, tol) = if self.filter.updates() > 0 || self.startup {
+        // The filter's estimate is the reference once it has measured the bias; before, a
+        // stop's own mean (the detector's anchor) is a closer one than the prior. With
+        // neither, the prior: a turn far beyond the turn-on bias's spread (`initial_sd`) is no
+        // rest, at power-up or after a stop that proved a lull.
+        let (reference, tol) = if self.filter.updates() > 0 || !self.detector.has_anchor() {
             (
                 self.filter.estimate(),
                 self.estimate_sigmas * self.filter.variance().sqrt(),
@@ -802,6 +817,8 @@ impl BiasTracker {
         if still {
             self.delay.push(x, &mut self.filter);
             self.run += 1;
+            let full = self.detector.is_ready() && !self.detector.is_provisional();
+            self.full_run += usize::from(given || self.stop_at_startup || full);
             self.stop_detected |= !given;
             self.stop_gyro_only |= !sure;
         } else {
@@ -810,14 +827,14 @@ impl BiasTracker {
                 // movement (a zero-mean oscillation whose window mean passed) than a stop.
                 // A stop given from outside ends where it says: every waiting sample is
                 // still (our detector sees an end late, so its onset is estimated).
-                Some(_) if self.run >= self.min_run && given && !self.stop_detected => {
+                Some(_) if self.full_run >= self.min_run && given && !self.stop_detected => {
                     self.delay.release_all(&mut self.filter)
                 }
-                Some(_) if self.run >= self.min_run && matches!(end, End::Since(_)) => {
+                Some(_) if self.full_run >= self.min_run && matches!(end, End::Since(_)) => {
                     let End::Since(age) = end else { unreachable!() };
                     self.delay.release_older_than(age, &mut self.filter)
                 }
-                Some((mean, count)) if self.run >= self.min_run => {
+                Some((mean, count)) if self.full_run >= self.min_run => {
                     let (bias, _) = self.filter.with_mean(mean, count);
                     self.delay.release_before_onset(
                         x,
@@ -828,6 +845,11 @@ impl BiasTracker {
                     );
                 }
                 _ => self.delay.clear(),
+            }
+            if self.run > 0 && self.filter.updates() == 0 {
+                // Nothing of the stop measured the bias: its mean must not be the detector's
+                // reference, or a rest elsewhere could never pass the mean test again.
+                self.detector.forget_anchor();
             }
             if self.run > 0 {
                 // A stop teaches the walk only if it came from where this tracker trusts.
@@ -840,6 +862,7 @@ impl BiasTracker {
                 self.filter.end_stop(teaches);
             }
             self.run = 0;
+            self.full_run = 0;
             self.stop_detected = false;
             self.stop_gyro_only = false;
         }
