@@ -1,0 +1,339 @@
+"""Orientation from gyro + accelerometer on BROAD's real motion: the peers a navigator would pick
+(VQF 6D, Madgwick, Mahony, x-io Fusion), judged with the authors' error metrics (issue 50;
+docs/navigation.md, "Real motion: BROAD").
+
+BROAD (Laidig, Caruso, Cereatti, Seel 2021, CC BY 4.0) is fetched, never stored here:
+
+    git clone https://github.com/dlaidig/broad /path/to/broad     # data_hdf5/, data_mat/
+    python3 -m venv target/broad && target/broad/bin/pip install -r docs/scripts/broad/requirements-attitude.txt
+    DRIFTLESS_BROAD=/path/to/broad target/broad/bin/python docs/scripts/broad/broad_attitude.py --json target/broad-attitude.json
+
+What it does, per trial that the copy holds (`data_hdf5/NN_*.hdf5`, else `data_mat/NN_*.mat`, the
+same data; all of 01-39 by default, `--trials 1-18` for the undisturbed development set):
+
+1. Each method runs on the IMU's real gyro (rad/s) and accelerometer (m/s²) at the trial's rate,
+   from the first sample, with its package defaults:
+   - `vqf`: VQF 6D, `VQF(Ts).updateBatch(gyr, acc)["quat6D"]` (rest detection and motion bias
+     estimation on, as they are by default).
+   - `madgwick`: `ahrs.filters.Madgwick` with gain 0.1, imu_tools' imu_filter_madgwick default
+     (`gain: 0.1`; ahrs' own default is 0.033). Starts from the first accelerometer sample, as
+     imu_filter_madgwick does.
+   - `mahony`: `ahrs.filters.Mahony` at ahrs' defaults, k_P = 1.0 and k_I = 0.3 (imu_tools has
+     no Mahony filter, so ahrs' defaults stand in).
+   - `fusion`: x-io Fusion's `imufusion.Ahrs` with `AhrsSettings(sample_rate=rate)` and every
+     other setting at its default (gain 0.5, no rejection, 3 s start-up), gyro in deg/s and
+     accelerometer in g as its API wants, `update_no_magnetometer`. Its NWU earth frame is turned
+     to ENU (a 90 deg turn about up). `fusion_bias`: the same behind Fusion's gyro `Bias` at its
+     defaults (stationary under 3 deg/s for 3 s, then a 0.02 Hz high-pass), as x-io's own
+     examples chain them: Fusion's AHRS alone corrects no gyro bias.
+   - `gyro_raw`: the raw gyro integrated, a sanity baseline, and `gyro_zaru`: the gyro less the
+     bias of ZARU with the true rests (each rest's running mean, 1 s minimum, held while moving;
+     `driftless::nav::Zaru::oracle`). Both start from the optical truth at its first valid sample
+     (q <- q (x) exp(w dt / 2)).
+   - With `--example PATH` (repeatable), ours: see `ours()`.
+   Every quaternion is scalar first, IMU body to an earth frame with z up.
+2. A 6D estimate's heading is relative, so it is aligned to the truth at the first sample with a
+   valid truth, as a navigator would initialise it: the estimate is turned about the earth's
+   vertical by the heading part of q_est (x) q_ref^-1 there. (The integrations start from the
+   truth, so this changes nothing for them.) The authors' own example (their `process_data.py`)
+   judges 9D filters with no alignment and `broad_utils.py` has no alignment helper; removing
+   the mean heading offset over the motion instead is printed beside, for comparison.
+3. The authors' metrics (`example_code/broad_utils.py`, loaded from the clone): total, heading and
+   inclination error of q_est (x) q_ref^-1 in the earth frame, RMS over the movement samples (a
+   sample whose truth is lost is left out).
+
+Prints one table per trial (method x total / heading / inclination RMS, deg; "dev" marks the
+undisturbed trials 01-18) and the medians over the dev trials and over all trials; `--json FILE`
+writes the same numbers. The stored copy holds 30 trials (22 in data_hdf5, 8 more only in
+data_mat); `--hdf5-only` keeps the 22, the set of the medians in the team's notes (VQF 6D: total
+2.84, heading 2.81, inclination 0.55 deg). Every peer's median inclination stays under 5 deg,
+the check that its frame convention is read right. About 3.5 min for the 30 trials on 2 cores
+(ahrs' Madgwick and Mahony are per-sample Python loops; VQF and Fusion take seconds).
+"""
+
+import argparse
+import glob
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from broad_heading import integrate, load_trial  # noqa: E402  (the same loading and integration)
+
+METRICS = ("total", "heading", "inclination")
+PEERS = [
+    ("vqf", "VQF 6D, defaults"),
+    ("madgwick", "Madgwick, gain 0.1 (imu_tools)"),
+    ("mahony", "Mahony, Kp 1.0 Ki 0.3 (ahrs)"),
+    ("fusion", "Fusion AHRS, defaults"),
+    ("fusion_bias", "Fusion AHRS + Bias, defaults"),
+    ("gyro_zaru", "gyro only, ZARU true rests"),
+    ("gyro_raw", "gyro only, raw"),
+]
+DEV = range(1, 19)  # the undisturbed trials, the development set (the authors' split)
+GRAVITY = 9.81  # Fusion's accelerometer is in g
+
+
+def parse_trials(text):
+    """'1-18,24,30-36' -> [1, ..., 18, 24, 30, ..., 36]."""
+    numbers = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        numbers.extend(range(int(lo), int(hi or lo) + 1))
+    return numbers
+
+
+def source(broad, number):
+    """Which copy load_trial read: "hdf5", or "mat" where the HDF5 blob is absent."""
+    return "hdf5" if glob.glob(os.path.join(broad, "data_hdf5", f"{number:02d}_*.hdf5")) else "mat"
+
+
+def run_vqf(gyr, acc, rate):
+    import vqf
+
+    # updateBatch wants C-contiguous float64.
+    out = vqf.VQF(1.0 / rate).updateBatch(np.ascontiguousarray(gyr, float), np.ascontiguousarray(acc, float))
+    return out["quat6D"]
+
+
+def run_madgwick(gyr, acc, rate):
+    from ahrs.filters import Madgwick
+
+    return Madgwick(gyr=gyr, acc=acc, frequency=rate, gain=0.1).Q
+
+
+def run_mahony(gyr, acc, rate):
+    from ahrs.filters import Mahony
+
+    return Mahony(gyr=gyr, acc=acc, frequency=rate).Q
+
+
+def run_fusion(gyr, acc, rate, quatmult, with_bias=False):
+    import imufusion
+
+    ahrs = imufusion.Ahrs()
+    # Only the sample rate is set: it is the data's, not a tuning choice (the default is 100 Hz).
+    ahrs.set_settings(imufusion.AhrsSettings(sample_rate=rate))
+    bias = imufusion.Bias()
+    bias.set_settings(imufusion.BiasSettings(sample_rate=rate))
+    gyr_deg = np.ascontiguousarray(np.degrees(gyr))
+    acc_g = np.ascontiguousarray(acc / GRAVITY)
+    q = np.empty((len(gyr), 4))
+    for k in range(len(gyr)):
+        # Fusion's AHRS corrects no gyro bias; its `Bias` (x-io's own examples put it in front)
+        # does, while the gyro stays under 3 deg/s for 3 s.
+        g = bias.update(gyr_deg[k]) if with_bias else gyr_deg[k]
+        ahrs.update_no_magnetometer(g, acc_g[k])
+        q[k] = ahrs.get_quaternion()
+    # NWU -> ENU: east = -west, north = north, a +90 deg turn about up on the earth side.
+    return quatmult(np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)]), q)
+
+
+def zaru_bias(gyr, still, min_samples):
+    """ZARU with the true rests, as `driftless::nav::Zaru::oracle`: in a rest, once it is
+    `min_samples` long, the rest's running mean; after it, that rest's mean, held; 0 before the
+    first."""
+    bias = np.zeros_like(gyr)
+    held = np.zeros(3)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], still.astype(np.int8), [0]))))
+    pos = 0
+    for a, b in zip(edges[::2], edges[1::2]):
+        bias[pos:a] = held
+        if b - a >= min_samples:
+            mean = np.cumsum(gyr[a:b], axis=0) / np.arange(1, b - a + 1)[:, None]
+            bias[a:a + min_samples - 1] = held
+            bias[a + min_samples - 1:b] = mean[min_samples - 1:]
+            held = mean[-1]
+        else:
+            bias[a:b] = held
+        pos = b
+    bias[pos:] = held
+    return bias
+
+
+def ours(name, d, rate, examples, work):
+    """Our attitude stage's outputs for one trial: {method name: quaternions (N x 4)}.
+
+    Each `--example PATH` (a Rust example, e.g. `target/release/examples/broad_attitude`) is run
+    as `PATH in.csv out.csv` with `BROAD_RATE_HZ` set to the trial's rate in its environment.
+    in.csv has a header and the columns gx,gy,gz (the IMU's gyro, deg/s), ax,ay,az (its
+    accelerometer, m/s²) and still (1 where the dataset's `movement` is false: the rest flags, for
+    the vehicle's stop signal), one row per sample. out.csv must have a header and the columns
+    qw,qx,qy,qz, one row per input sample: scalar first, IMU body to ENU (the heading may be
+    relative; it is aligned like the peers'). The method is named after the example's file name.
+    """
+    moving = np.asarray(d["movement"], bool)
+    src, dst = os.path.join(work, "in.csv"), os.path.join(work, "out.csv")
+    table = np.column_stack([np.degrees(d["imu_gyr"]), d["imu_acc"], (~moving).astype(float)])
+    np.savetxt(src, table, delimiter=",", header="gx,gy,gz,ax,ay,az,still", comments="", fmt="%.17g")
+    out = {}
+    for path in examples:
+        if os.path.exists(dst):
+            os.remove(dst)
+        env = dict(os.environ, BROAD_RATE_HZ=repr(rate))
+        run = subprocess.run([path, src, dst], env=env, capture_output=True, text=True)
+        if run.returncode != 0:
+            sys.exit(f"{path} on {name}: exit {run.returncode}: {run.stderr.strip()}")
+        q = np.genfromtxt(dst, delimiter=",", names=True)
+        q = np.column_stack([q[c] for c in ("qw", "qx", "qy", "qz")])
+        if q.shape != (len(moving), 4):
+            sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
+        out[os.path.basename(path)] = q
+    return out
+
+
+def heading_part(q_err):
+    """The rotation about the earth's vertical in an earth-frame error quaternion: (w, 0, 0, z),
+    normalised. q_err = t (x) s with t this and s free of any z part, so t^-1 (x) q_err has no
+    heading error (the authors' heading error is 2 atan(|z| / |w|))."""
+    t = np.array([q_err[0], 0.0, 0.0, q_err[3]])
+    return t / np.linalg.norm(t)
+
+
+def align_first(q, q_ref, k0, bu):
+    """The estimate turned about the earth's vertical so its heading matches the truth at k0."""
+    t = heading_part(bu.calculateErrorQuatEarth(q[k0:k0 + 1], q_ref[k0:k0 + 1])[0])
+    return bu.quatmult(bu.invquat(t), q)
+
+
+def align_mean(q, q_ref, moving, bu):
+    """The estimate turned about the earth's vertical by its mean heading offset over the motion
+    (a circular mean), for comparison with the first-sample alignment."""
+    e = bu.calculateErrorQuatEarth(q, q_ref)
+    e *= np.where(e[:, :1] < 0, -1.0, 1.0)  # q and -q are one rotation
+    psi = 2 * np.arctan2(e[:, 3], e[:, 0])
+    psi = psi[moving & np.isfinite(psi)]
+    mean = np.arctan2(np.mean(np.sin(psi)), np.mean(np.cos(psi)))
+    t = np.array([np.cos(mean / 2), 0.0, 0.0, np.sin(mean / 2)])
+    return bu.quatmult(bu.invquat(t), q)
+
+
+def errors(q, q_ref, moving, bu):
+    e = bu.calculateRMSE(q, q_ref, moving)
+    return {m: float(e[f"{m}_rmse_deg"]) for m in METRICS}
+
+
+def medians(results, methods, key, numbers):
+    rows = [r for r in results if r["number"] in numbers]
+    return {
+        m: {metric: float(np.median([r[key][m][metric] for r in rows])) for metric in METRICS}
+        for m in methods
+    } if rows else {}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("broad", nargs="?", default=os.environ.get("DRIFTLESS_BROAD"),
+                    help="a clone of github.com/dlaidig/broad (default: $DRIFTLESS_BROAD)")
+    ap.add_argument("--trials", default="1-39", help="trial numbers, e.g. 1-39, 1-18 or 2,3,5 (those absent are skipped)")
+    ap.add_argument("--hdf5-only", action="store_true",
+                    help="only the trials whose data_hdf5 file the copy holds (22 in the stored copy, "
+                         "the set the medians in the notes were measured on)")
+    ap.add_argument("--example", action="append", default=[], metavar="PATH",
+                    help="our attitude example to run beside the peers (see ours()); repeatable")
+    ap.add_argument("--json", help="write the numbers to this file")
+    args = ap.parse_args()
+    if not args.broad:
+        sys.exit("give the BROAD clone's path, or set DRIFTLESS_BROAD")
+    for path in args.example:
+        if not os.access(path, os.X_OK):
+            sys.exit(f"{path} is not an executable")
+
+    spec = importlib.util.spec_from_file_location("broad_utils", os.path.join(args.broad, "example_code", "broad_utils.py"))
+    bu = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bu)
+
+    runners = {
+        "vqf": run_vqf,
+        "madgwick": run_madgwick,
+        "mahony": run_mahony,
+        "fusion": lambda g, a, r: run_fusion(g, a, r, bu.quatmult),
+        "fusion_bias": lambda g, a, r: run_fusion(g, a, r, bu.quatmult, with_bias=True),
+    }
+    labels = dict(PEERS)
+    methods = [m for m, _ in PEERS]
+    seconds = {m: 0.0 for m in methods}
+    results = []
+    start = time.time()
+    with tempfile.TemporaryDirectory(prefix="broad-attitude-") as work:
+        for n in parse_trials(args.trials):
+            name, d = load_trial(args.broad, n)
+            if name is not None and args.hdf5_only and source(args.broad, n) != "hdf5":
+                print(f"trial {n:02d}: no HDF5 file, skipped (--hdf5-only)", file=sys.stderr)
+                continue
+            if name is None:
+                print(f"trial {n:02d}: not in this copy, skipped", file=sys.stderr)
+                continue
+            rate = d["rate"]
+            gyr = np.asarray(d["imu_gyr"], float)
+            acc = np.asarray(d["imu_acc"], float)
+            q_ref = np.asarray(d["opt_quat"], float)
+            moving = np.asarray(d["movement"], bool)
+            k0 = int(np.argmax(np.all(np.isfinite(q_ref), axis=1)))
+
+            est = {}
+            for m, run in runners.items():
+                t = time.time()
+                est[m] = run(gyr, acc, rate)
+                seconds[m] += time.time() - t
+            t = time.time()
+            est["gyro_raw"] = integrate(gyr, q_ref, 1.0 / rate)
+            est["gyro_zaru"] = integrate(gyr - zaru_bias(gyr, ~moving, int(round(rate))), q_ref, 1.0 / rate)
+            seconds["gyro_raw"] += time.time() - t  # both integrations
+            if args.example:
+                for m, q in ours(name, d, rate, args.example, work).items():
+                    est[m] = q
+                    if m not in methods:
+                        methods.append(m)
+                        labels[m] = f"ours: {m}"
+
+            row = {"trial": name, "number": n, "dev": n in DEV, "source": source(args.broad, n),
+                   "first_valid_truth": k0, "first": {}, "mean_heading": {}, "nan": {}}
+            for m in methods:
+                q = est[m]
+                nan = int(np.sum(~np.all(np.isfinite(q[k0:]), axis=1)))
+                row["nan"][m] = nan
+                row["first"][m] = errors(align_first(q, q_ref, k0, bu), q_ref, moving, bu)
+                row["mean_heading"][m] = errors(align_mean(q, q_ref, moving, bu), q_ref, moving, bu)
+            results.append(row)
+
+            print(f"\n{name}{' (dev)' if row['dev'] else ''}, heading aligned at sample {k0}")
+            print("| method | total | heading | inclination |")
+            print("|---|---|---|---|")
+            for m in methods:
+                e = row["first"][m]
+                flag = f" ({row['nan'][m]} NaN samples)" if row["nan"][m] else ""
+                print(f"| {labels[m]}{flag} | " + " | ".join(f"{e[x]:.2f}" for x in METRICS) + " |")
+            sys.stdout.flush()
+    elapsed = time.time() - start
+    if not results:
+        sys.exit("no trial of --trials is in this copy")
+
+    dev = [r["number"] for r in results if r["dev"]]
+    every = [r["number"] for r in results]
+    summary = {}
+    for key, what in (("first", "heading aligned at the first valid truth"),
+                      ("mean_heading", "mean heading offset over the motion removed (for comparison)")):
+        summary[key] = {"dev": medians(results, methods, key, dev), "all": medians(results, methods, key, every)}
+        print(f"\nMedian RMS error (deg), {what}:")
+        print(f"| method | dev 01-18 ({len(dev)} trial(s)): total | heading | inclination "
+              f"| all ({len(every)} trial(s)): total | heading | inclination |")
+        print("|---|---|---|---|---|---|---|")
+        for m in methods:
+            cells = [f"{summary[key][s][m][x]:.2f}" if summary[key][s] else "-" for s in ("dev", "all") for x in METRICS]
+            print(f"| {labels[m]} | " + " | ".join(cells) + " |")
+    print(f"\n{len(results)} trial(s) in {elapsed:.0f} s (" + ", ".join(f"{m} {s:.0f} s" for m, s in seconds.items() if s) + "; gyro_raw: both integrations)")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"rate_hz": float(rate), "methods": labels, "trials": results,
+                       "medians": summary, "seconds": {"total": elapsed, **seconds}}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
