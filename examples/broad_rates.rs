@@ -10,6 +10,8 @@
 //!   - `gyro_*`: the pipeline's stages after its ingest, run offline, on samples that carry no
 //!     accelerometer.
 //!   - `imu_*`: the same stages on samples that carry the accelerometer.
+//!   - `stop_*`: `imu_*` with the true rests as the vehicle's stop signal, handed to every
+//!     `stop_input` of the pipeline (without one, the same as `imu_*`).
 //!
 //! The stages run as the daemon runs them ([`Offline::run_imu_series`]), from the first sample:
 //! what they publish while warming up is judged too.
@@ -18,8 +20,12 @@ use driftless::nav::{BiasEstimator, Zaru};
 use driftless::pipeline::config;
 use driftless::pipeline::offline::Offline;
 use std::error::Error;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufWriter, Write};
 use std::path::Path;
+
+#[path = "common/broad_csv.rs"]
+mod broad_csv;
+use broad_csv::read;
 
 fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -43,14 +49,15 @@ fn main() -> Result<(), Box<dyn Error>> {
         .collect();
     let gyro_only = Offline::run_imu_series(&p, &axes, None, None)?;
     let with_accel = Offline::run_imu_series(&p, &axes, Some(&accel), None)?;
+    let with_stops = Offline::run_imu_series(&p, &axes, Some(&accel), Some(&still))?;
 
     let mut out = BufWriter::new(std::fs::File::create(output)?);
     writeln!(
         out,
-        "zaru_x,zaru_y,zaru_z,gyro_x,gyro_y,gyro_z,imu_x,imu_y,imu_z"
+        "zaru_x,zaru_y,zaru_z,gyro_x,gyro_y,gyro_z,imu_x,imu_y,imu_z,stop_x,stop_y,stop_z"
     )?;
     for k in 0..still.len() {
-        let row: Vec<String> = [&zaru, &gyro_only, &with_accel]
+        let row: Vec<String> = [&zaru, &gyro_only, &with_accel, &with_stops]
             .iter()
             .flat_map(|m| m.iter().map(move |axis| format!("{:e}", axis[k])))
             .collect();
@@ -58,31 +65,4 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     out.flush()?;
     Ok(())
-}
-
-type Columns = (Vec<Vec<f64>>, Vec<[f64; 3]>, Vec<bool>);
-
-/// The rates per axis, the specific force per sample and the true rests.
-fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
-    let file = BufReader::new(std::fs::File::open(path)?);
-    let mut gyro = vec![Vec::new(); 3];
-    let mut accel = Vec::new();
-    let mut still = Vec::new();
-    for (i, line) in file.lines().enumerate().skip(1) {
-        let line = line?;
-        let v: Vec<f64> = line
-            .split(',')
-            .map(|x| x.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| format!("{}:{}: {e}", path.display(), i + 1))?;
-        if v.len() != 7 {
-            return Err(format!("{}:{}: 7 columns expected", path.display(), i + 1).into());
-        }
-        for (a, g) in gyro.iter_mut().enumerate() {
-            g.push(v[a]);
-        }
-        accel.push([v[3], v[4], v[5]]);
-        still.push(v[6] != 0.0);
-    }
-    Ok((gyro, accel, still))
 }

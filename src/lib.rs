@@ -9,7 +9,7 @@
 //! evaluate the drift model, and judge every method by the heading error a navigator would see.
 //!
 //! Layers, from the ground up (ARCHITECTURE.md; `tests/layers.rs` checks them): [`clock`], [`wire`] (the types that cross shared memory) and
-//! the maths ([`wavelet`], [`allan`], [`sim`], [`drift`], [`nav`], ...: no I/O, no transport,
+//! the maths ([`wavelet`], [`allan`], [`sim`], [`drift`], [`attitude`], [`nav`], ...: no I/O, no transport,
 //! usable as a library) -> [`transport`] (the only module that touches iceoryx2) -> [`io`]
 //! (files) -> [`metrics`] -> [`stages`] (the stage contract and every stage kind) ->
 //! [`sides`] (what runs beside a chain) -> [`pipeline`] (the pipeline file, the runtime) -> [`nav_eval`] (the heading benchmark on the
@@ -18,6 +18,7 @@
 #![warn(missing_docs)]
 
 pub mod allan;
+pub mod attitude;
 pub mod bigbuf;
 pub mod cli;
 pub mod clock;

@@ -20,6 +20,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("allan", 1),
     ("wavelet", 1),
     ("drift", 2),
+    ("attitude", 2),
     ("nav", 3),
     ("transport", 4),
     ("io", 5),
@@ -40,6 +41,7 @@ const MATHS: &[&str] = &[
     "allan",
     "wavelet",
     "drift",
+    "attitude",
     "nav",
 ];
 

@@ -64,7 +64,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from broad_heading import integrate, load_trial  # noqa: E402  (the same loading and integration)
+from broad_heading import PIPELINE, REPO, first_rest, integrate, load_trial, stage_keys  # noqa: E402  (the same loading, terms and integration)
 
 METRICS = ("total", "heading", "inclination")
 PEERS = [
@@ -157,16 +157,17 @@ def zaru_bias(gyr, still, min_samples):
     return bias
 
 
-def ours(name, d, rate, examples, work):
-    """Our attitude stage's outputs for one trial: {method name: quaternions (N x 4)}.
+def ours(name, d, pipeline, examples, work):
+    """Our orientations for one trial: {method name: quaternions (N x 4)}.
 
-    Each `--example PATH` (a Rust example, e.g. `target/release/examples/broad_attitude`) is run
-    as `PATH in.csv out.csv` with `BROAD_RATE_HZ` set to the trial's rate in its environment.
+    Each `--example PATH` (`target/release/examples/broad_attitude`) runs as `PATH PIPELINE
+    in.csv out.csv`. PIPELINE is our chain (`denoise.wavelet -> predict.bias`, reading a stop
+    signal) with the unit's terms from the trials' first rests, as broad_heading.py takes them.
     in.csv has a header and the columns gx,gy,gz (the IMU's gyro, deg/s), ax,ay,az (its
-    accelerometer, m/s²) and still (1 where the dataset's `movement` is false: the rest flags, for
-    the vehicle's stop signal), one row per sample. out.csv must have a header and the columns
-    qw,qx,qy,qz, one row per input sample: scalar first, IMU body to ENU (the heading may be
-    relative; it is aligned like the peers'). The method is named after the example's file name.
+    accelerometer, m/s²) and still (1 where the dataset's `movement` is false: the rest flags,
+    for the vehicle's stop signal). out.csv has a header and, per method M that the example
+    writes, the columns M_qw,M_qx,M_qy,M_qz, one row per input sample: scalar first, IMU body to
+    an earth frame with z up (the heading may be relative; it is aligned like the peers').
     """
     moving = np.asarray(d["movement"], bool)
     src, dst = os.path.join(work, "in.csv"), os.path.join(work, "out.csv")
@@ -176,15 +177,15 @@ def ours(name, d, rate, examples, work):
     for path in examples:
         if os.path.exists(dst):
             os.remove(dst)
-        env = dict(os.environ, BROAD_RATE_HZ=repr(rate))
-        run = subprocess.run([path, src, dst], env=env, capture_output=True, text=True)
+        run = subprocess.run([path, pipeline, src, dst], capture_output=True, text=True)
         if run.returncode != 0:
             sys.exit(f"{path} on {name}: exit {run.returncode}: {run.stderr.strip()}")
-        q = np.genfromtxt(dst, delimiter=",", names=True)
-        q = np.column_stack([q[c] for c in ("qw", "qx", "qy", "qz")])
-        if q.shape != (len(moving), 4):
-            sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
-        out[os.path.basename(path)] = q
+        cols = np.genfromtxt(dst, delimiter=",", names=True)
+        for m in [c[:-3] for c in cols.dtype.names if c.endswith("_qw")]:
+            q = np.column_stack([cols[f"{m}_{c}"] for c in ("qw", "qx", "qy", "qz")])
+            if q.shape != (len(moving), 4):
+                sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
+            out[f"ours_{m}"] = q
     return out
 
 
@@ -237,6 +238,8 @@ def main():
                          "the set the medians in the notes were measured on)")
     ap.add_argument("--example", action="append", default=[], metavar="PATH",
                     help="our attitude example to run beside the peers (see ours()); repeatable")
+    ap.add_argument("--target", default=os.path.join(REPO, "target", "release"),
+                    help="where driftless is built (the unit's terms for --example)")
     ap.add_argument("--json", help="write the numbers to this file")
     args = ap.parse_args()
     if not args.broad:
@@ -262,6 +265,7 @@ def main():
     results = []
     start = time.time()
     with tempfile.TemporaryDirectory(prefix="broad-attitude-") as work:
+        trials = []
         for n in parse_trials(args.trials):
             name, d = load_trial(args.broad, n)
             if name is not None and args.hdf5_only and source(args.broad, n) != "hdf5":
@@ -270,6 +274,18 @@ def main():
             if name is None:
                 print(f"trial {n:02d}: not in this copy, skipped", file=sys.stderr)
                 continue
+            trials.append((n, name, d))
+        pipeline = None
+        if args.example and trials:
+            # One parameter set for every trial: the unit's terms from the first rests of the
+            # undisturbed trials (as broad_heading.py takes them), whichever trials are judged.
+            rests = [first_rest(d) for d in (load_trial(args.broad, n)[1] for n in DEV) if d is not None]
+            driftless = os.path.join(args.target, "driftless")
+            keys, _ = stage_keys(driftless, rests, trials[0][2]["rate"], work)
+            pipeline = os.path.join(work, "broad.toml")
+            with open(pipeline, "w") as f:
+                f.write(PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"'))
+        for n, name, d in trials:
             rate = d["rate"]
             gyr = np.asarray(d["imu_gyr"], float)
             acc = np.asarray(d["imu_acc"], float)
@@ -287,7 +303,7 @@ def main():
             est["gyro_zaru"] = integrate(gyr - zaru_bias(gyr, ~moving, int(round(rate))), q_ref, 1.0 / rate)
             seconds["gyro_raw"] += time.time() - t  # both integrations
             if args.example:
-                for m, q in ours(name, d, rate, args.example, work).items():
+                for m, q in ours(name, d, pipeline, args.example, work).items():
                     est[m] = q
                     if m not in methods:
                         methods.append(m)

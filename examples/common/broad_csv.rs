@@ -1,0 +1,34 @@
+//! The input both BROAD examples read (`broad_rates`, `broad_attitude`): a header, then
+//! `gx,gy,gz,ax,ay,az,still` per sample.
+
+use std::error::Error;
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+
+/// Rates per axis, the specific force per sample, and the true rests.
+pub type Columns = (Vec<Vec<f64>>, Vec<[f64; 3]>, Vec<bool>);
+
+/// The rates per axis, the specific force per sample and the true rests of `path`.
+pub fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
+    let file = BufReader::new(std::fs::File::open(path)?);
+    let mut gyro = vec![Vec::new(); 3];
+    let mut accel = Vec::new();
+    let mut still = Vec::new();
+    for (i, line) in file.lines().enumerate().skip(1) {
+        let line = line?;
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("{}:{}: {e}", path.display(), i + 1))?;
+        if v.len() != 7 {
+            return Err(format!("{}:{}: 7 columns expected", path.display(), i + 1).into());
+        }
+        for (a, g) in gyro.iter_mut().enumerate() {
+            g.push(v[a]);
+        }
+        accel.push([v[3], v[4], v[5]]);
+        still.push(v[6] != 0.0);
+    }
+    Ok((gyro, accel, still))
+}
