@@ -12,6 +12,9 @@
 //!   - `stop`: the same with the true rests as the vehicle's stop signal, handed to every
 //!     `stop_input` of the pipeline (without one, the same as `imu`).
 //!
+//!   and the gyro-only chain's corrected rate, `gyro_wx,_wy,_wz` (rad/s), for the harness to
+//!   integrate from the truth: what a navigator without an attitude stage gets from us.
+//!
 //! The stages run as the daemon runs them ([`Offline::run_imu_series`]), from the first sample.
 
 use driftless::attitude::{Attitude, AttitudeConfig};
@@ -50,14 +53,21 @@ fn main() -> Result<(), Box<dyn Error>> {
         Some(&accel),
         Some(&still),
     )?)?;
+    let gyro_only = Offline::run_imu_series(&p, &axes, None, None)?;
 
     let mut out = BufWriter::new(std::fs::File::create(output)?);
     writeln!(
         out,
-        "imu_qw,imu_qx,imu_qy,imu_qz,stop_qw,stop_qx,stop_qy,stop_qz"
+        "imu_qw,imu_qx,imu_qy,imu_qz,stop_qw,stop_qx,stop_qy,stop_qz,gyro_wx,gyro_wy,gyro_wz"
     )?;
-    for (a, b) in imu.iter().zip(&stop) {
-        let row: Vec<String> = a.iter().chain(b).map(|v| format!("{v:e}")).collect();
+    for (k, (a, b)) in imu.iter().zip(&stop).enumerate() {
+        let w = [0, 1, 2].map(|i| gyro_only[i][k] * to_rad);
+        let row: Vec<String> = a
+            .iter()
+            .chain(b)
+            .chain(&w)
+            .map(|v| format!("{v:e}"))
+            .collect();
         writeln!(out, "{}", row.join(","))?;
     }
     out.flush()?;

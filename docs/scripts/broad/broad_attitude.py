@@ -167,7 +167,10 @@ def ours(name, d, pipeline, examples, work):
     accelerometer, m/s²) and still (1 where the dataset's `movement` is false: the rest flags,
     for the vehicle's stop signal). out.csv has a header and, per method M that the example
     writes, the columns M_qw,M_qx,M_qy,M_qz, one row per input sample: scalar first, IMU body to
-    an earth frame with z up (the heading may be relative; it is aligned like the peers').
+    an earth frame with z up (the heading may be relative; it is aligned like the peers'). Per
+    rate R it writes, the columns R_wx,R_wy,R_wz (rad/s): a corrected gyro, integrated here from
+    the truth at its first valid sample (`ours_R_integrated`), what a navigator without an
+    attitude stage gets from us.
     """
     moving = np.asarray(d["movement"], bool)
     src, dst = os.path.join(work, "in.csv"), os.path.join(work, "out.csv")
@@ -186,6 +189,9 @@ def ours(name, d, pipeline, examples, work):
             if q.shape != (len(moving), 4):
                 sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
             out[f"ours_{m}"] = q
+        for m in [c[:-3] for c in cols.dtype.names if c.endswith("_wx")]:
+            w = np.column_stack([cols[f"{m}_{c}"] for c in ("wx", "wy", "wz")])
+            out[f"ours_{m}_integrated"] = integrate(w, np.asarray(d["opt_quat"], float), 1.0 / d["rate"])
     return out
 
 
