@@ -592,6 +592,15 @@ pub enum RowRead {
     /// A bad row (not a number, not finite, ragged), with its position: the reader goes on
     /// after it.
     Bad(InputError),
+    /// A row whose cells are all there but some are not finite numbers: the good ones were
+    /// written, the bad ones are NaN; `bad` holds their indices among the selected columns,
+    /// `error` the first one's position and reason. The reader goes on after it.
+    BadCells {
+        /// Indices of the bad cells among the selected columns, in order.
+        bad: Vec<usize>,
+        /// The first bad cell, positioned.
+        error: InputError,
+    },
     /// The end of the file.
     End,
 }
@@ -713,7 +722,20 @@ impl RowReader {
             out[k] = v
         }) {
             Ok(()) => Ok(RowRead::Row),
-            Err(e) => Ok(RowRead::Bad(e)),
+            Err(error) => {
+                // Every cell judged on its own, so a reader can keep what is good in the row.
+                let mut bad = Vec::new();
+                for (k, &i) in self.selected.iter().enumerate() {
+                    match parse_cell(&trimmed[i]) {
+                        Some(v) if v.is_finite() => out[k] = v,
+                        _ => {
+                            out[k] = f64::NAN;
+                            bad.push(k);
+                        }
+                    }
+                }
+                Ok(RowRead::BadCells { bad, error })
+            }
         }
     }
 }

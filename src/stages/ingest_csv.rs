@@ -6,7 +6,8 @@
 //! file:line:col); the run streams the file from a reader thread in blocks of samples, so memory
 //! stays bounded however long the log. A bad row found while replaying is not dropped: it is
 //! replayed as a sample marked invalid (the guard holds the last good rate, flags and counts it)
-//! and its file:line:col is printed on stderr.
+//! and its file:line:col is printed on stderr. A row whose only bad cells are the accelerometer's
+//! or the stop's keeps its rates: only the unreadable reading is flagged.
 //!
 //! ```toml
 //! [[stage]]
@@ -55,8 +56,9 @@ const ACCEL_COLUMNS: Key = Key {
     ty: Type::StrList("three column names, x, y, z"),
     default: DefaultValue::Absent("none: the samples carry no accelerometer"),
     doc: "the accelerometer's columns, in the pipeline's `accel_units`; carried beside the \
-          rates, time-aligned. A bad cell is a bad row, as a rate's: refused at validation, \
-          replayed later as an invalid sample (rate and accelerometer held and flagged)",
+          rates, time-aligned. A bad cell in the rows checked at validation refuses the \
+          pipeline, as a rate's; found later, it keeps the row's rates, and the guard holds the \
+          last good accelerometer and flags it",
 };
 const TIME_COLUMN: Key = Key {
     name: "time_column",
@@ -225,7 +227,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     while n < CHECKED_ROWS {
         match rows.next_row(&mut values)? {
             RowRead::Row => {}
-            RowRead::Bad(e) => return Err(e),
+            RowRead::Bad(e) | RowRead::BadCells { error: e, .. } => return Err(e),
             RowRead::End => break,
         }
         n += 1;
@@ -331,6 +333,7 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let wanted = &layout.wanted;
     let mut values = vec![0.0; wanted.len()];
     let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
+    let mut beside_bad = 0u64;
     loop {
         let mut rows = match RowReader::open(&params.file, wanted) {
             Ok(r) => r,
@@ -358,13 +361,39 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 Some(k) => values[k],
                 None => i as f64 / rate_hz,
             };
+            // A row whose bad cells are only beside the rates (the accelerometer, the stop)
+            // keeps its rates: only what is unreadable is flagged.
+            let beside = |k: usize| {
+                layout.accel.is_some_and(|a| (a..a + 3).contains(&k)) || layout.stop == Some(k)
+            };
+            let usable = match &read {
+                RowRead::Row => true,
+                RowRead::BadCells { bad, .. } => bad.iter().all(|&k| beside(k)),
+                _ => false,
+            };
             match read {
                 RowRead::End => break,
-                RowRead::Row if time >= 0.0 => {
+                ref row if usable && time >= 0.0 => {
                     sample.rate[..axes].copy_from_slice(&values[..axes]);
                     if let Some(k) = layout.accel {
                         sample.accel.copy_from_slice(&values[k..k + 3]);
+                        if sample.accel.iter().any(|v| !v.is_finite()) {
+                            // The accelerometer is there, its reading unknown: the guard holds
+                            // the last good one and flags it.
+                            sample.accel = [f64::NAN; 3];
+                        }
                         sample.flags |= RAW_ACCEL;
+                    }
+                    if let RowRead::BadCells { error, .. } = row {
+                        if pass == 0 {
+                            beside_bad += 1;
+                            if beside_bad <= REPORTED_BAD_ROWS {
+                                eprintln!(
+                                    "driftless: warning: {error} (the rates kept; the \
+                                     unreadable cells flagged)"
+                                );
+                            }
+                        }
                     }
                     match layout.stop.map(|k| values[k]) {
                         Some(v) if v.is_nan() => {}
@@ -392,7 +421,9 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                         bad += 1;
                         if bad <= REPORTED_BAD_ROWS {
                             let why = match other {
-                                RowRead::Bad(e) => e.to_string(),
+                                RowRead::Bad(e) | RowRead::BadCells { error: e, .. } => {
+                                    e.to_string()
+                                }
                                 _ => format!("{shown}: data row {}: negative time", i + 1),
                             };
                             eprintln!(
@@ -425,5 +456,11 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     }
     if bad > 0 {
         eprintln!("driftless: warning: {shown}: {bad} bad row(s) replayed as invalid samples");
+    }
+    if beside_bad > 0 {
+        eprintln!(
+            "driftless: warning: {shown}: {beside_bad} row(s) with an unreadable accelerometer \
+             or stop cell: rates kept, the cell flagged"
+        );
     }
 }
