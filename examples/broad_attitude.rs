@@ -5,7 +5,8 @@
 //! - `IN.csv`: a header, then `gx,gy,gz,ax,ay,az,still` per sample: rates in the pipeline's
 //!   `input_units`, specific force in m/s², `still` 1 in a true rest, else 0.
 //! - `OUT.csv`: one orientation per method, `{method}_qw,_qx,_qy,_qz` (body to an earth frame
-//!   with z up, heading relative), aligned with the input:
+//!   with z up, heading relative) and its inclination's standard deviation `{method}_incl_sd`
+//!   (rad), aligned with the input:
 //!   - `imu`: the pipeline's stages after its ingest, run offline on samples that carry the
 //!     accelerometer (stillness from both sensors), then [`Attitude`] on their corrected rate
 //!     and the accelerometer;
@@ -37,12 +38,14 @@ fn main() -> Result<(), Box<dyn Error>> {
     let (gyro, accel, still) = read(Path::new(input))?;
     let axes: Vec<&[f64]> = gyro.iter().map(Vec::as_slice).collect();
     let to_rad = p.input_units.to_rad_per_sec();
-    let orient = |rates: Vec<Vec<f64>>| -> Result<Vec<[f64; 4]>, String> {
+    let orient = |rates: Vec<Vec<f64>>| -> Result<Vec<[f64; 5]>, String> {
         let mut f = Attitude::new(p.rate_hz, AttitudeConfig::default())?;
         Ok((0..still.len())
             .map(|k| {
                 let w = [rates[0][k], rates[1][k], rates[2][k]].map(|v| v * to_rad);
-                f.push(w, Some(accel[k])).quat
+                let s = f.push(w, Some(accel[k]));
+                let [qw, qx, qy, qz] = s.quat;
+                [qw, qx, qy, qz, s.inclination_sd]
             })
             .collect())
     };
@@ -58,7 +61,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut out = BufWriter::new(std::fs::File::create(output)?);
     writeln!(
         out,
-        "imu_qw,imu_qx,imu_qy,imu_qz,stop_qw,stop_qx,stop_qy,stop_qz,gyro_wx,gyro_wy,gyro_wz"
+        "imu_qw,imu_qx,imu_qy,imu_qz,imu_incl_sd,stop_qw,stop_qx,stop_qy,stop_qz,stop_incl_sd,\
+         gyro_wx,gyro_wy,gyro_wz"
     )?;
     for (k, (a, b)) in imu.iter().zip(&stop).enumerate() {
         let w = [0, 1, 2].map(|i| gyro_only[i][k] * to_rad);

@@ -167,7 +167,8 @@ def ours(name, d, pipeline, examples, work):
     accelerometer, m/s²) and still (1 where the dataset's `movement` is false: the rest flags,
     for the vehicle's stop signal). out.csv has a header and, per method M that the example
     writes, the columns M_qw,M_qx,M_qy,M_qz, one row per input sample: scalar first, IMU body to
-    an earth frame with z up (the heading may be relative; it is aligned like the peers'). Per
+    an earth frame with z up (the heading may be relative; it is aligned like the peers'), and
+    optionally M_incl_sd, the standard deviation it publishes for its inclination (rad). Per
     rate R it writes, the columns R_wx,R_wy,R_wz (rad/s): a corrected gyro, integrated here from
     the truth at its first valid sample (`ours_R_integrated`), what a navigator without an
     attitude stage gets from us.
@@ -176,7 +177,7 @@ def ours(name, d, pipeline, examples, work):
     src, dst = os.path.join(work, "in.csv"), os.path.join(work, "out.csv")
     table = np.column_stack([np.degrees(d["imu_gyr"]), d["imu_acc"], (~moving).astype(float)])
     np.savetxt(src, table, delimiter=",", header="gx,gy,gz,ax,ay,az,still", comments="", fmt="%.17g")
-    out = {}
+    out, sds = {}, {}
     for path in examples:
         if os.path.exists(dst):
             os.remove(dst)
@@ -189,10 +190,12 @@ def ours(name, d, pipeline, examples, work):
             if q.shape != (len(moving), 4):
                 sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
             out[f"ours_{m}"] = q
+            if f"{m}_incl_sd" in cols.dtype.names:
+                sds[f"ours_{m}"] = np.asarray(cols[f"{m}_incl_sd"], float)
         for m in [c[:-3] for c in cols.dtype.names if c.endswith("_wx")]:
             w = np.column_stack([cols[f"{m}_{c}"] for c in ("wx", "wy", "wz")])
             out[f"ours_{m}_integrated"] = integrate(w, np.asarray(d["opt_quat"], float), 1.0 / d["rate"])
-    return out
+    return out, sds
 
 
 def heading_part(q_err):
@@ -309,20 +312,29 @@ def main():
             est["gyro_zaru"] = integrate(gyr - zaru_bias(gyr, ~moving, int(round(rate))), q_ref, 1.0 / rate)
             seconds["gyro_raw"] += time.time() - t  # both integrations
             if args.example:
-                for m, q in ours(name, d, pipeline, args.example, work).items():
+                found, sds = ours(name, d, pipeline, args.example, work)
+                for m, q in found.items():
                     est[m] = q
                     if m not in methods:
                         methods.append(m)
                         labels[m] = f"ours: {m}"
 
             row = {"trial": name, "number": n, "dev": n in DEV, "source": source(args.broad, n),
-                   "first_valid_truth": k0, "first": {}, "mean_heading": {}, "nan": {}}
+                   "first_valid_truth": k0, "first": {}, "mean_heading": {}, "nan": {}, "coverage": {}}
             for m in methods:
                 q = est[m]
                 nan = int(np.sum(~np.all(np.isfinite(q[k0:]), axis=1)))
                 row["nan"][m] = nan
                 row["first"][m] = errors(align_first(q, q_ref, k0, bu), q_ref, moving, bu)
                 row["mean_heading"][m] = errors(align_mean(q, q_ref, moving, bu), q_ref, moving, bu)
+            for m, sd in (sds.items() if args.example else ()):
+                # The published sd's honesty: how many motion samples' inclination error lies
+                # within 2 sd.
+                e = bu.calculateErrorQuatEarth(est[m], q_ref)
+                e *= np.where(e[:, :1] < 0, -1.0, 1.0)
+                incl = 2 * np.arccos(np.clip(np.sqrt(e[:, 0] ** 2 + e[:, 3] ** 2), -1.0, 1.0))
+                ok = moving & np.isfinite(incl)
+                row["coverage"][m] = [int(np.sum(incl[ok] <= 2 * sd[ok])), int(np.sum(ok))]
             results.append(row)
 
             print(f"\n{name}{' (dev)' if row['dev'] else ''}, heading aligned at sample {k0}")
@@ -350,6 +362,14 @@ def main():
         for m in methods:
             cells = [f"{summary[key][s][m][x]:.2f}" if summary[key][s] else "-" for s in ("dev", "all") for x in METRICS]
             print(f"| {labels[m]} | " + " | ".join(cells) + " |")
+    for m in sorted({m for r in results for m in r["coverage"]}):
+        cells = []
+        for label, numbers in (("dev 01-18", dev), ("all", every)):
+            inside = sum(r["coverage"][m][0] for r in results if r["number"] in numbers and m in r["coverage"])
+            total = sum(r["coverage"][m][1] for r in results if r["number"] in numbers and m in r["coverage"])
+            cells.append(f"{label} {inside / max(total, 1):.3f}")
+            summary.setdefault("coverage", {}).setdefault(m, {})[label] = inside / max(total, 1)
+        print(f"\n{labels[m]}: inclination error within the published 2 sd in " + ", ".join(cells) + " of the motion samples")
     print(f"\n{len(results)} trial(s) in {elapsed:.0f} s (" + ", ".join(f"{m} {s:.0f} s" for m, s in seconds.items() if s) + "; gyro_raw: both integrations)")
     if args.json:
         with open(args.json, "w") as f:
