@@ -322,8 +322,14 @@ mod tests {
         let cfg = AttitudeConfig::default();
         let mut f = Attitude::new(100.0, cfg).unwrap();
         let up = [0.0, 0.0, GRAVITY];
-        let still = (0..1000).map(|_| f.push([0.0; 3], Some(up))).last().unwrap();
-        assert!((still.inclination_sd - 0.3f64.to_radians()).abs() < 1e-12, "{still:?}");
+        let still = (0..1000)
+            .map(|_| f.push([0.0; 3], Some(up)))
+            .last()
+            .unwrap();
+        assert!(
+            (still.inclination_sd - 0.3f64.to_radians()).abs() < 1e-12,
+            "{still:?}"
+        );
         // Shaken along z by +-1 g: |a| - g is +-1 g, so d tends to g and the sd to
         // sqrt(0.3 deg^2 + (0.1 rad)^2).
         let shaken = (0..3000)
@@ -334,7 +340,10 @@ mod tests {
             .last()
             .unwrap();
         let want = (0.3f64.to_radians().powi(2) + 0.1f64.powi(2)).sqrt();
-        assert!((shaken.inclination_sd / want - 1.0).abs() < 0.05, "{shaken:?} vs {want}");
+        assert!(
+            (shaken.inclination_sd / want - 1.0).abs() < 0.05,
+            "{shaken:?} vs {want}"
+        );
     }
 
     #[test]
