@@ -36,10 +36,8 @@
 //! Frames: the quaternion (w, x, y, z) turns body coordinates into an earth frame whose z is
 //! up (VQF's; ENU up to the heading, which is relative).
 
+use crate::allan::STANDARD_GRAVITY as GRAVITY;
 use vqf_rs::{Params, VQF};
-
-/// Standard gravity, m/s² (the accelerometer's norm at rest).
-const GRAVITY: f64 = 9.806_65;
 
 /// How much of VQF's own gyro bias estimation runs on the (already corrected) rate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,17 +48,6 @@ pub enum VqfBias {
     Rest,
     /// VQF's rest and motion bias estimation (VQF's own default, and ours).
     Full,
-}
-
-impl VqfBias {
-    /// Its name in a pipeline file.
-    pub const fn name(self) -> &'static str {
-        match self {
-            VqfBias::Off => "off",
-            VqfBias::Rest => "rest",
-            VqfBias::Full => "full",
-        }
-    }
 }
 
 /// Settings of the attitude filter.
@@ -231,21 +218,7 @@ impl Attitude {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Rotate `v` by the unit quaternion `q` (w, x, y, z).
-    fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
-        let [w, x, y, z] = q;
-        let t = [
-            2.0 * (y * v[2] - z * v[1]),
-            2.0 * (z * v[0] - x * v[2]),
-            2.0 * (x * v[1] - y * v[0]),
-        ];
-        [
-            v[0] + w * t[0] + (y * t[2] - z * t[1]),
-            v[1] + w * t[1] + (z * t[0] - x * t[2]),
-            v[2] + w * t[2] + (x * t[1] - y * t[0]),
-        ]
-    }
+    use crate::sim::force::rotate;
 
     /// Angle (deg) between the body's z axis in the earth frame and up: the inclination.
     fn inclination_deg(q: [f64; 4], body_up: [f64; 3]) -> f64 {

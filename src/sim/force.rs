@@ -165,8 +165,8 @@ fn quat_mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
     ]
 }
 
-/// q v q* for a unit quaternion q.
-fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+/// q v q* for a unit quaternion q (w, x, y, z): `v` turned by q.
+pub fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
     let p = quat_mul(
         quat_mul(q, [0.0, v[0], v[1], v[2]]),
         [q[0], -q[1], -q[2], -q[3]],
