@@ -463,33 +463,38 @@ pub(crate) fn check_row(
     selected: &[usize],
     mut out: impl FnMut(usize, f64),
 ) -> Result<(), InputError> {
-    let line = row.position().map_or(0, |p| p.line());
     for (k, &i) in selected.iter().enumerate() {
-        let cell = &row[i];
-        let at = |message: String| InputError::At {
-            path: path.display().to_string(),
-            line,
-            column: field_column(row, i),
-            message,
-        };
-        match parse_cell(cell) {
-            Some(v) if v.is_finite() => out(k, v),
-            Some(v) => {
-                return Err(at(format!(
-                    "column '{}': {v} is not a finite sample",
-                    names[i]
-                )))
-            }
-            None => {
-                return Err(at(format!(
-                    "column '{}': '{}' is not a number",
-                    names[i],
-                    String::from_utf8_lossy(cell)
-                )))
-            }
-        }
+        out(k, check_cell(row, path, names, i)?);
     }
     Ok(())
+}
+
+/// Cell `i` of a data row as a finite number, or its positioned error.
+fn check_cell(
+    row: &csv::ByteRecord,
+    path: &Path,
+    names: &[String],
+    i: usize,
+) -> Result<f64, InputError> {
+    let cell = &row[i];
+    let at = |message: String| InputError::At {
+        path: path.display().to_string(),
+        line: row.position().map_or(0, |p| p.line()),
+        column: field_column(row, i),
+        message,
+    };
+    match parse_cell(cell) {
+        Some(v) if v.is_finite() => Ok(v),
+        Some(v) => Err(at(format!(
+            "column '{}': {v} is not a finite sample",
+            names[i]
+        ))),
+        None => Err(at(format!(
+            "column '{}': '{}' is not a number",
+            names[i],
+            String::from_utf8_lossy(cell)
+        ))),
+    }
 }
 
 /// Reads `inner` with every `\r\n` turned into `\n`, so that the csv crate counts lines right
@@ -718,25 +723,22 @@ impl RowReader {
         // The reference decides (and words the error) for the cells fast-float2 left.
         let mut trimmed = row.clone();
         trimmed.trim();
-        match check_row(&trimmed, &self.path, &self.names, &self.selected, |k, v| {
-            out[k] = v
-        }) {
-            Ok(()) => Ok(RowRead::Row),
-            Err(error) => {
-                // Every cell judged on its own, so a reader can keep what is good in the row.
-                let mut bad = Vec::new();
-                for (k, &i) in self.selected.iter().enumerate() {
-                    match parse_cell(&trimmed[i]) {
-                        Some(v) if v.is_finite() => out[k] = v,
-                        _ => {
-                            out[k] = f64::NAN;
-                            bad.push(k);
-                        }
-                    }
+        // Every cell judged on its own, so a reader can keep what is good in the row.
+        let (mut bad, mut first) = (Vec::new(), None);
+        for (k, &i) in self.selected.iter().enumerate() {
+            match check_cell(&trimmed, &self.path, &self.names, i) {
+                Ok(v) => out[k] = v,
+                Err(e) => {
+                    out[k] = f64::NAN;
+                    bad.push(k);
+                    first.get_or_insert(e);
                 }
-                Ok(RowRead::BadCells { bad, error })
             }
         }
+        Ok(match first {
+            None => RowRead::Row,
+            Some(error) => RowRead::BadCells { bad, error },
+        })
     }
 }
 
