@@ -19,23 +19,16 @@
 //! The stages run as the daemon runs them ([`Offline::run_imu_series`]), from the first sample.
 
 use driftless::attitude::{Attitude, AttitudeConfig};
-use driftless::pipeline::config;
 use driftless::pipeline::offline::Offline;
 use std::error::Error;
 use std::io::{BufWriter, Write};
-use std::path::Path;
 
 #[path = "common/broad_csv.rs"]
 mod broad_csv;
-use broad_csv::read;
+use broad_csv::inputs;
 
 fn main() -> Result<(), Box<dyn Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [pipeline, input, output] = args.as_slice() else {
-        return Err("usage: broad_attitude PIPELINE.toml IN.csv OUT.csv".into());
-    };
-    let p = config::load(Path::new(pipeline))?;
-    let (gyro, accel, still) = read(Path::new(input))?;
+    let (p, (gyro, accel, still), output) = inputs("broad_attitude")?;
     let axes: Vec<&[f64]> = gyro.iter().map(Vec::as_slice).collect();
     let to_rad = p.input_units.to_rad_per_sec();
     let orient = |rates: Vec<Vec<f64>>| -> Result<Vec<[f64; 5]>, String> {

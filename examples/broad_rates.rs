@@ -17,23 +17,16 @@
 //! what they publish while warming up is judged too.
 
 use driftless::nav::{BiasEstimator, Zaru};
-use driftless::pipeline::config;
 use driftless::pipeline::offline::Offline;
 use std::error::Error;
 use std::io::{BufWriter, Write};
-use std::path::Path;
 
 #[path = "common/broad_csv.rs"]
 mod broad_csv;
-use broad_csv::read;
+use broad_csv::inputs;
 
 fn main() -> Result<(), Box<dyn Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [pipeline, input, output] = args.as_slice() else {
-        return Err("usage: broad_rates PIPELINE.toml IN.csv OUT.csv".into());
-    };
-    let p = config::load(Path::new(pipeline))?;
-    let (gyro, accel, still) = read(Path::new(input))?;
+    let (p, (gyro, accel, still), output) = inputs("broad_rates")?;
     let axes: Vec<&[f64]> = gyro.iter().map(Vec::as_slice).collect();
 
     let min = (p.rate_hz.round() as usize).max(1);

@@ -1,15 +1,30 @@
-//! The input both BROAD examples read (`broad_rates`, `broad_attitude`): a header, then
-//! `gx,gy,gz,ax,ay,az,still` per sample.
+//! The command line and the input both BROAD examples read (`broad_rates`, `broad_attitude`):
+//! the input CSV has a header, then `gx,gy,gz,ax,ay,az,still` per sample.
 
+use driftless::pipeline::config::{self, Pipeline};
 use std::error::Error;
 use std::io::{BufRead, BufReader};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// The command line both examples take, `NAME PIPELINE.toml IN.csv OUT.csv`: the pipeline,
+/// the input's columns and the output's path.
+pub fn inputs(name: &str) -> Result<(Pipeline, Columns, PathBuf), Box<dyn Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [pipeline, input, output] = args.as_slice() else {
+        return Err(format!("usage: {name} PIPELINE.toml IN.csv OUT.csv").into());
+    };
+    Ok((
+        config::load(Path::new(pipeline))?,
+        read(Path::new(input))?,
+        PathBuf::from(output),
+    ))
+}
 
 /// Rates per axis, the specific force per sample, and the true rests.
 pub type Columns = (Vec<Vec<f64>>, Vec<[f64; 3]>, Vec<bool>);
 
 /// The rates per axis, the specific force per sample and the true rests of `path`.
-pub fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
+fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
     let file = BufReader::new(std::fs::File::open(path)?);
     let mut gyro = vec![Vec::new(); 3];
     let mut accel = Vec::new();
