@@ -53,7 +53,6 @@ the check that its frame convention is read right. About 3.5 min for the 30 tria
 
 import argparse
 import glob
-import importlib.util
 import json
 import os
 import subprocess
@@ -64,7 +63,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from broad_heading import PIPELINE, REPO, first_rest, integrate, load_trial, stage_keys  # noqa: E402  (the same loading, terms and integration)
+from broad_heading import PIPELINE, REPO, first_rest, integrate, load_broad_utils, load_trial, parse_trials, stage_keys  # noqa: E402  (the same loading, terms and integration)
 
 METRICS = ("total", "heading", "inclination")
 PEERS = [
@@ -78,15 +77,6 @@ PEERS = [
 ]
 DEV = range(1, 19)  # the undisturbed trials, the development set (the authors' split)
 GRAVITY = 9.81  # Fusion's accelerometer is in g
-
-
-def parse_trials(text):
-    """'1-18,24,30-36' -> [1, ..., 18, 24, 30, ..., 36]."""
-    numbers = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        numbers.extend(range(int(lo), int(hi or lo) + 1))
-    return numbers
 
 
 def source(broad, number):
@@ -257,9 +247,7 @@ def main():
         if not os.access(path, os.X_OK):
             sys.exit(f"{path} is not an executable")
 
-    spec = importlib.util.spec_from_file_location("broad_utils", os.path.join(args.broad, "example_code", "broad_utils.py"))
-    bu = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bu)
+    bu = load_broad_utils(args.broad)
 
     runners = {
         "vqf": run_vqf,

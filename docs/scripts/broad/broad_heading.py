@@ -64,6 +64,23 @@ def load_trial(broad, number):
     return None, None
 
 
+def parse_trials(text):
+    """'1-18,24,30-36' -> [1, ..., 18, 24, 30, ..., 36]."""
+    numbers = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        numbers.extend(range(int(lo), int(hi or lo) + 1))
+    return numbers
+
+
+def load_broad_utils(broad):
+    """The authors' `example_code/broad_utils.py` from the clone, as a module."""
+    spec = importlib.util.spec_from_file_location("broad_utils", os.path.join(broad, "example_code", "broad_utils.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def first_rest(d):
     """The trial's rest before its first movement sample: gyro (deg/s) and accelerometer (m/s²)."""
     moving = np.asarray(d["movement"], bool)
@@ -161,12 +178,8 @@ def main():
     args = ap.parse_args()
     if not args.broad:
         sys.exit("give the BROAD clone's path, or set DRIFTLESS_BROAD")
-    lo, _, hi = args.trials.partition("-")
-    numbers = range(int(lo), int(hi or lo) + 1) if "," not in args.trials else [int(x) for x in args.trials.split(",")]
-
-    spec = importlib.util.spec_from_file_location("broad_utils", os.path.join(args.broad, "example_code", "broad_utils.py"))
-    broad_utils = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(broad_utils)
+    numbers = parse_trials(args.trials)
+    broad_utils = load_broad_utils(args.broad)
 
     driftless = os.path.join(args.target, "driftless")
     example = os.path.join(args.target, "examples", "broad_rates")
