@@ -6,14 +6,14 @@
     driftless bridge demo/corrected --listen tcp/127.0.0.1:7447 --no-multicast-scouting &
     python3 examples/zenoh_subscriber.py --connect tcp/127.0.0.1:7447 --count 2000
 
-The payload is driftless::GyroSample.v3's 208 little-endian bytes (docs/wire-types.md, "Layouts"):
+The payload is driftless::GyroSample.v4's 264 little-endian bytes (docs/wire-types.md, "Layouts"):
     0 u64 t_ns | 8 u64 seq | 16 u64 ingest_ns | 24 f64[3] rate | 48 f64[3] drift
     72 f64[3] denoised | 96 u32 flags | 100 u32 epoch | 104 f64[3] drift_std (-1: not provided)
     128 f64[3] accel (m/s^2) | 152 f64[3] accel_std | 176 f64[3] mag (T) | 200 u32 sensors
-    204 u32 reserved
-with encoding application/octet-stream;driftless::GyroSample.v3. A payload of an older layout
-(driftless::GyroSample.v2, 128 bytes, or driftless::GyroSample, 104 bytes, from a bridge of an
-older driftless) is refused by name.
+    204 u32 reserved | 208 f64[4] orientation (x, y, z, w) | 240 f64[3] orientation_std (rad)
+with encoding application/octet-stream;driftless::GyroSample.v4. A payload of an older layout
+(driftless::GyroSample.v3, 208 bytes, driftless::GyroSample.v2, 128 bytes, or
+driftless::GyroSample, 104 bytes, from a bridge of an older driftless) is refused by name.
 Checks that seq rises by one within each epoch (a jump is a loss, a repeat or a step back is an
 error) and prints the rate and the bias's 1-sigma once a second. Exit 0 when --count samples
 came in order, 1 otherwise.
@@ -28,11 +28,13 @@ import time
 
 import zenoh
 
-GYRO = struct.Struct("<QQQ9dII12dII")  # 208 bytes
-assert GYRO.size == 208
-GYRO_TYPE = "driftless::GyroSample.v3"
-# Older layouts: version 1 before drift_std, version 2 before the accelerometer.
-GYRO_OLD = {"driftless::GyroSample": (1, 104), "driftless::GyroSample.v2": (2, 128)}
+GYRO = struct.Struct("<QQQ9dII12dII7d")  # 264 bytes
+assert GYRO.size == 264
+GYRO_TYPE = "driftless::GyroSample.v4"
+# Older layouts: version 1 before drift_std, version 2 before the accelerometer, version 3
+# before the orientation.
+GYRO_OLD = {"driftless::GyroSample": (1, 104), "driftless::GyroSample.v2": (2, 128),
+            "driftless::GyroSample.v3": (3, 208)}
 
 
 def main() -> int:

@@ -31,7 +31,16 @@
 //! [`AttitudeConfig::inclination_floor_deg`] and [`AttitudeConfig::inclination_motion_gain`].
 //! For a disturbance with correlation time T the low-pass leaves about sqrt(T / (2 tau)) of
 //! it: 0.1 for 60 ms at 3 s. Fitted on BROAD's undisturbed trials, judged on all (docs/attitude.md).
-//! While coasting it is held: with no accelerometer, nothing measures it.
+//! While coasting it grows as the gyro's error is integrated (below), and it returns to the
+//! model with the low-pass once the accelerometer is back.
+//!
+//! **How far to trust the heading** ([`AttitudeStep::heading_sd`]). The heading is relative: 0
+//! at the start, exact there. Its error is the integrated error of the rate about the earth's
+//! vertical: the rate's white noise (the gyro's angle random walk, [`AttitudeConfig::arw`]) adds
+//! variance, N² per second; the rate's remaining bias (its standard deviation, per sample from
+//! `predict.bias`) is the same from one sample to the next, so its part adds linearly, sd x dt.
+//! Without the bias's uncertainty the heading's is unknown (None). The inclination's error
+//! while coasting grows the same way, from the rate's error about the horizontal axes.
 //!
 //! Frames: the quaternion (w, x, y, z) turns body coordinates into an earth frame whose z is
 //! up (VQF's; ENU up to the heading, which is relative).
@@ -66,6 +75,9 @@ pub struct AttitudeConfig {
     /// How much of the low-passed |a| - g is left in the inclination (see the module
     /// documentation).
     pub inclination_motion_gain: f64,
+    /// The gyro's angle random walk N, rad/sqrt(s) (its white rate noise): what the heading's
+    /// uncertainty grows by besides the bias's. None: not known (counted as 0).
+    pub arw: Option<f64>,
 }
 
 impl Default for AttitudeConfig {
@@ -78,6 +90,7 @@ impl Default for AttitudeConfig {
             max_g: 4.0,
             inclination_floor_deg: 0.3,
             inclination_motion_gain: 0.1,
+            arw: None,
         }
     }
 }
@@ -103,6 +116,7 @@ impl AttitudeConfig {
         for (name, v) in [
             ("inclination_floor_deg", self.inclination_floor_deg),
             ("inclination_motion_gain", self.inclination_motion_gain),
+            ("arw", self.arw.unwrap_or(0.0)),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("attitude: {name} must be a number >= 0, not {v}"));
@@ -127,6 +141,9 @@ pub struct AttitudeStep {
     pub held: bool,
     /// Standard deviation of the inclination (the tilt of the estimated vertical), rad.
     pub inclination_sd: f64,
+    /// Standard deviation of the heading relative to the start, rad; None while the rate's
+    /// bias uncertainty is not known (see the module documentation).
+    pub heading_sd: Option<f64>,
 }
 
 /// The attitude filter of one IMU (see the module documentation).
@@ -137,6 +154,15 @@ pub struct Attitude {
     keep: f64,
     /// Low-passed (|a| - g)^2, (m/s²)^2.
     motion: f64,
+    /// The sample period, s.
+    dt: f64,
+    /// The heading's error from the rate's bias (added linearly), rad, and from its white
+    /// noise (a variance), rad²; NaN once a sample came without the bias's uncertainty.
+    heading_bias: f64,
+    heading_noise: f64,
+    /// The inclination's error gathered while coasting, as the heading's: rad and rad².
+    coast_bias: f64,
+    coast_noise: f64,
 }
 
 impl std::fmt::Debug for Attitude {
@@ -172,6 +198,11 @@ impl Attitude {
             cfg,
             keep: (-1.0 / (rate_hz * cfg.tau_acc_s)).exp(),
             motion: 0.0,
+            dt: 1.0 / rate_hz,
+            heading_bias: 0.0,
+            heading_noise: 0.0,
+            coast_bias: 0.0,
+            coast_noise: 0.0,
         })
     }
 
@@ -180,9 +211,15 @@ impl Attitude {
         &self.cfg
     }
 
-    /// One sample: the corrected rate (rad/s) and the specific force (m/s²), if the sample
-    /// carries one.
-    pub fn push(&mut self, gyro: [f64; 3], accel: Option<[f64; 3]>) -> AttitudeStep {
+    /// One sample: the corrected rate (rad/s), the specific force (m/s²) if the sample carries
+    /// one, and the standard deviation of the rate's remaining bias per axis (rad/s; the bias
+    /// filter's), if known.
+    pub fn push(
+        &mut self,
+        gyro: [f64; 3],
+        accel: Option<[f64; 3]>,
+        bias_sd: Option<[f64; 3]>,
+    ) -> AttitudeStep {
         let held = !gyro.iter().all(|v| v.is_finite());
         if !held {
             self.vqf.update_gyr(gyro);
@@ -197,14 +234,69 @@ impl Attitude {
             self.motion = self.keep * self.motion + (1.0 - self.keep) * off * off;
         }
         let q = self.vqf.quat_6d();
+        let quat = [q.0, q.1, q.2, q.3];
+        self.integrate_errors(quat, bias_sd, accel.is_some());
         let floor = self.cfg.inclination_floor_deg.to_radians();
         let moving = self.cfg.inclination_motion_gain * self.motion.sqrt() / GRAVITY;
+        let coast = self.coast_bias * self.coast_bias + self.coast_noise;
         AttitudeStep {
-            quat: [q.0, q.1, q.2, q.3],
+            quat,
             coasting: accel.is_none(),
             no_gravity,
             held,
-            inclination_sd: (floor * floor + moving * moving).sqrt(),
+            inclination_sd: (floor * floor + moving * moving + coast).sqrt(),
+            heading_sd: self
+                .heading_bias
+                .is_finite()
+                .then(|| (self.heading_bias * self.heading_bias + self.heading_noise).sqrt()),
+        }
+    }
+
+    /// One sample period of the rate's error, turned into the earth frame by `quat`: about the
+    /// vertical into the heading's, about the horizontal axes into the inclination's while
+    /// `coasting` (and that part fades with the accelerometer's low-pass once it is back).
+    fn integrate_errors(&mut self, quat: [f64; 4], bias_sd: Option<[f64; 3]>, measured: bool) {
+        let [w, x, y, z] = quat;
+        // Rows of the body-to-earth rotation: the earth's x, y and z in body coordinates.
+        let rows = [
+            [
+                1.0 - 2.0 * (y * y + z * z),
+                2.0 * (x * y - w * z),
+                2.0 * (x * z + w * y),
+            ],
+            [
+                2.0 * (x * y + w * z),
+                1.0 - 2.0 * (x * x + z * z),
+                2.0 * (y * z - w * x),
+            ],
+            [
+                2.0 * (x * z - w * y),
+                2.0 * (y * z + w * x),
+                1.0 - 2.0 * (x * x + y * y),
+            ],
+        ];
+        let bias_sd = bias_sd.filter(|s| s.iter().all(|v| v.is_finite() && *v >= 0.0));
+        let about = |row: &[f64; 3], sd: &[f64; 3]| -> f64 {
+            row.iter()
+                .zip(sd)
+                .map(|(r, s)| (r * s) * (r * s))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let noise = self.cfg.arw.unwrap_or(0.0).powi(2) * self.dt;
+        match bias_sd {
+            Some(sd) => self.heading_bias += about(&rows[2], &sd) * self.dt,
+            None => self.heading_bias = f64::NAN,
+        }
+        self.heading_noise += noise;
+        if measured {
+            self.coast_bias *= self.keep;
+            self.coast_noise *= self.keep * self.keep;
+        } else {
+            let sd = bias_sd.unwrap_or([0.0; 3]);
+            let tilt = (about(&rows[0], &sd).powi(2) + about(&rows[1], &sd).powi(2)).sqrt();
+            self.coast_bias += tilt * self.dt;
+            self.coast_noise += 2.0 * noise;
         }
     }
 
@@ -212,7 +304,22 @@ impl Attitude {
     pub fn reset(&mut self) {
         self.vqf.reset_state();
         self.motion = 0.0;
+        self.heading_bias = 0.0;
+        self.heading_noise = 0.0;
+        self.coast_bias = 0.0;
+        self.coast_noise = 0.0;
     }
+}
+
+/// Roll, pitch and yaw (rad; ZYX, the aerospace and ROS `tf2` convention: yaw about the
+/// earth's z, then pitch about the new y, then roll about the new x) of a body-to-earth
+/// quaternion in the wire's order (x, y, z, w).
+pub fn roll_pitch_yaw(q: [f64; 4]) -> [f64; 3] {
+    let [x, y, z, w] = q;
+    let roll = (2.0 * (w * x + y * z)).atan2(1.0 - 2.0 * (x * x + y * y));
+    let pitch = (2.0 * (w * y - z * x)).clamp(-1.0, 1.0).asin();
+    let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
+    [roll, pitch, yaw]
 }
 
 #[cfg(test)]
@@ -236,7 +343,7 @@ mod tests {
         let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
         let mut last = None;
         for _ in 0..2000 {
-            last = Some(f.push([0.0; 3], Some(a)));
+            last = Some(f.push([0.0; 3], Some(a), None));
         }
         let s = last.unwrap();
         assert!(!s.coasting && !s.held);
@@ -249,16 +356,16 @@ mod tests {
         let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
         let up = [0.0, 0.0, GRAVITY];
         for _ in 0..500 {
-            f.push([0.0; 3], Some(up));
+            f.push([0.0; 3], Some(up), None);
         }
-        let before = f.push([0.0; 3], Some(up)).quat;
+        let before = f.push([0.0; 3], Some(up), None).quat;
         // No accelerometer, a NaN one: coasting, the attitude kept.
         for a in [
             None,
             Some([f64::NAN, 0.0, GRAVITY]),
             Some([f64::INFINITY; 3]),
         ] {
-            let s = f.push([0.0; 3], a);
+            let s = f.push([0.0; 3], a, None);
             assert!(s.coasting && !s.no_gravity, "{a:?}");
             let d: f64 = s.quat.iter().zip(before).map(|(x, y)| (x - y).abs()).sum();
             assert!(d < 1e-9, "{a:?}: {s:?}");
@@ -267,7 +374,7 @@ mod tests {
         // inclination barely moves.
         let shock = [10.0 * GRAVITY, 0.0, 0.0];
         for a in std::iter::repeat_n([0.0, 0.0, 0.05], 20).chain([shock]) {
-            let s = f.push([0.0; 3], Some(a));
+            let s = f.push([0.0; 3], Some(a), None);
             assert!(s.no_gravity && !s.coasting, "{a:?}");
             assert!(s.quat.iter().all(|v| v.is_finite()));
             assert!(
@@ -276,13 +383,13 @@ mod tests {
             );
         }
         // A NaN rate: held, not integrated, and still no NaN.
-        let s = f.push([f64::NAN, 1.0, 0.0], Some(up));
+        let s = f.push([f64::NAN, 1.0, 0.0], Some(up), None);
         assert!(s.held && s.quat.iter().all(|v| v.is_finite()));
         // The gyro integrates while coasting: 90 deg/s about z for 1 s is a quarter turn.
-        let start = f.push([0.0; 3], None).quat;
+        let start = f.push([0.0; 3], None, None).quat;
         let mut s = None;
         for _ in 0..100 {
-            s = Some(f.push([0.0, 0.0, 90f64.to_radians()], None));
+            s = Some(f.push([0.0, 0.0, 90f64.to_radians()], None, None));
         }
         let q = s.unwrap().quat;
         let dot: f64 = q.iter().zip(start).map(|(a, b)| a * b).sum();
@@ -296,7 +403,7 @@ mod tests {
         let mut f = Attitude::new(100.0, cfg).unwrap();
         let up = [0.0, 0.0, GRAVITY];
         let still = (0..1000)
-            .map(|_| f.push([0.0; 3], Some(up)))
+            .map(|_| f.push([0.0; 3], Some(up), None))
             .last()
             .unwrap();
         assert!(
@@ -308,7 +415,7 @@ mod tests {
         let shaken = (0..3000)
             .map(|k| {
                 let z = if k % 2 == 0 { 0.0 } else { 2.0 * GRAVITY };
-                f.push([0.0; 3], Some([0.0, 0.0, z]))
+                f.push([0.0; 3], Some([0.0, 0.0, z]), None)
             })
             .last()
             .unwrap();
@@ -317,6 +424,80 @@ mod tests {
             (shaken.inclination_sd / want - 1.0).abs() < 0.05,
             "{shaken:?} vs {want}"
         );
+    }
+
+    #[test]
+    fn the_heading_sd_integrates_the_rate_error_about_the_vertical() {
+        let n = 0.002; // rad/sqrt(s)
+        let cfg = AttitudeConfig {
+            arw: Some(n),
+            ..AttitudeConfig::default()
+        };
+        let mut f = Attitude::new(100.0, cfg).unwrap();
+        let up = [0.0, 0.0, GRAVITY];
+        // Level: only z's bias is about the vertical. 10 s at 1e-4 rad/s on z, and a large
+        // x and y bias sd that must not reach the heading.
+        let sd = [5e-3, 5e-3, 1e-4];
+        let s = (0..1000)
+            .map(|_| f.push([0.0; 3], Some(up), Some(sd)))
+            .last()
+            .unwrap();
+        let want = ((1e-4f64 * 10.0).powi(2) + n * n * 10.0).sqrt();
+        let got = s.heading_sd.unwrap();
+        assert!((got / want - 1.0).abs() < 1e-3, "{got} vs {want}");
+        // With the accelerometer, x's and y's bias never reach the inclination's sd.
+        assert!(
+            (s.inclination_sd - 0.3f64.to_radians()).abs() < 1e-9,
+            "{s:?}"
+        );
+        // Coasting 2 s: they do, about sd x t on each horizontal axis (and the noise's).
+        let c = (0..200)
+            .map(|_| f.push([0.0; 3], None, Some(sd)))
+            .last()
+            .unwrap();
+        let tilt = (2.0f64 * (5e-3 * 2.0f64).powi(2) + 2.0 * n * n * 2.0).sqrt();
+        let want = (0.3f64.to_radians().powi(2) + tilt * tilt).sqrt();
+        assert!(
+            (c.inclination_sd / want - 1.0).abs() < 0.02,
+            "{} vs {want}",
+            c.inclination_sd
+        );
+        // The accelerometer back: the coasting part fades with the low-pass (3 s).
+        let back = (0..1500)
+            .map(|_| f.push([0.0; 3], Some(up), Some(sd)))
+            .last()
+            .unwrap();
+        assert!(back.inclination_sd < 0.3f64.to_radians() * 1.05, "{back:?}");
+        // A sample without the bias's sd: the heading's is unknown from then on.
+        assert_eq!(f.push([0.0; 3], Some(up), None).heading_sd, None);
+        assert_eq!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd, None);
+        f.reset();
+        assert!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd.unwrap() < 1e-3);
+    }
+
+    #[test]
+    fn roll_pitch_yaw_undoes_the_rotations_it_names() {
+        // q = yaw(z) * pitch(y) * roll(x), each a half-angle quaternion (w, x, y, z).
+        let mul = |a: [f64; 4], b: [f64; 4]| {
+            [
+                a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+                a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+                a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+            ]
+        };
+        let (r, p, y) = (0.3f64, -0.7f64, 2.5f64);
+        let q = mul(
+            mul(
+                [(y / 2.0).cos(), 0.0, 0.0, (y / 2.0).sin()],
+                [(p / 2.0).cos(), 0.0, (p / 2.0).sin(), 0.0],
+            ),
+            [(r / 2.0).cos(), (r / 2.0).sin(), 0.0, 0.0],
+        );
+        let got = roll_pitch_yaw([q[1], q[2], q[3], q[0]]);
+        for (g, want) in got.iter().zip([r, p, y]) {
+            assert!((g - want).abs() < 1e-12, "{got:?}");
+        }
     }
 
     #[test]
@@ -336,6 +517,10 @@ mod tests {
             AttitudeConfig { min_g: 5.0, ..ok },
             AttitudeConfig {
                 max_g: f64::INFINITY,
+                ..ok
+            },
+            AttitudeConfig {
+                arw: Some(-1.0),
                 ..ok
             },
         ] {

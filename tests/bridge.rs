@@ -179,7 +179,7 @@ impl Bridge {
 
 /// Decoded at the offsets docs/wire-types.md documents (not with the crate's own decoder).
 fn decode_gyro(b: &[u8]) -> GyroSample {
-    assert_eq!(b.len(), 208, "a GyroSample (layout v3) is 208 bytes");
+    assert_eq!(b.len(), 264, "a GyroSample (layout v4) is 264 bytes");
     let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap());
     let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
     let f3 = |o: usize| [0, 1, 2].map(|i| f64::from_bits(u64_at(o + 8 * i)));
@@ -198,6 +198,8 @@ fn decode_gyro(b: &[u8]) -> GyroSample {
         mag: f3(176),
         sensors: u32_at(200),
         reserved: u32_at(204),
+        orientation: [0, 1, 2, 3].map(|i| f64::from_bits(u64_at(208 + 8 * i))),
+        orientation_std: f3(240),
     }
 }
 
@@ -309,7 +311,7 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
         ],
     );
     bridge.wait_for(
-        "bridge: ready: t/corrected (driftless::GyroSample.v3) -> driftless/t/corrected",
+        "bridge: ready: t/corrected (driftless::GyroSample.v4) -> driftless/t/corrected",
         Duration::from_secs(20),
     );
     bridge.wait_for("a Zenoh subscriber matches", Duration::from_secs(20));
@@ -357,7 +359,7 @@ fn every_sample_crosses_once_in_order_with_the_bits_an_iceoryx2_subscriber_sees(
         assert_eq!(key, "driftless/t/corrected");
         assert_eq!(
             encoding,
-            "application/octet-stream;driftless::GyroSample.v3"
+            "application/octet-stream;driftless::GyroSample.v4"
         );
         let s = decode_gyro(payload);
         assert_eq!(

@@ -120,8 +120,8 @@ fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_port
     for (name, wire, type_name, subscribers) in [
         // The daemon reads none of its hops back; the tap reads the last.
         ("c/raw", "RawSample", "driftless::RawSample.v2", 0),
-        ("c/denoised", "GyroSample", "driftless::GyroSample.v3", 0),
-        ("c/corrected", "GyroSample", "driftless::GyroSample.v3", 1),
+        ("c/denoised", "GyroSample", "driftless::GyroSample.v4", 0),
+        ("c/corrected", "GyroSample", "driftless::GyroSample.v4", 1),
         ("c/stats", "StatsSnapshot", "driftless::StatsSnapshot.v3", 0),
     ] {
         let s = service(&doc, name, "publish-subscribe");

@@ -1147,3 +1147,56 @@ fn a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covari
         assert_eq!(m["orientation_covariance"][0], -1.0, "{i}: no orientation");
     }
 }
+
+#[test]
+fn the_attitude_pipeline_fills_the_orientation_and_its_covariance() {
+    if !in_netns("the_attitude_pipeline_fills_the_orientation_and_its_covariance") {
+        return;
+    }
+    let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2-attitude.toml");
+    let d = daemon_of(std::path::Path::new(pipeline), "attitude")
+        .spawn()
+        .expect("the daemon runs");
+    let mut nav = navigator(N);
+    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_ACCEL", "1")]);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(d);
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), N, "every message through: {err}");
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let mut last_yaw_var = 0.0;
+    for (i, m) in msgs.iter().enumerate() {
+        // The acceleration still passes bit for bit beside the orientation.
+        let a = floats(&m["linear_acceleration"]);
+        assert_eq!(
+            a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            peer_accel(i).map(f64::to_bits),
+            "{i}"
+        );
+        let q = floats(&m["orientation"]);
+        let norm: f64 = q.iter().map(|v| v * v).sum();
+        assert!((norm - 1.0).abs() < 1e-9, "{i}: {q:?}");
+        // REP 145: roll and pitch from gravity (the same sd about x and y), the relative
+        // yaw's variance growing from the start; diagonal, every element finite.
+        let c = floats(&m["orientation_covariance"]);
+        assert!(c.iter().all(|x| x.is_finite()), "{i}: {c:?}");
+        assert!(c[0] > 0.0 && c[0] == c[4], "{i}: {c:?}");
+        assert!(c[8] > 0.0 && c[8] >= last_yaw_var, "{i}: {c:?}");
+        last_yaw_var = c[8];
+        assert_eq!([c[1], c[2], c[3], c[5], c[6], c[7]], [0.0; 6], "{i}");
+    }
+    // The driver turns at 0.5 rad/s about z (and faster and faster about x and y): the
+    // orientation follows the rate, it is no constant.
+    let first = floats(&msgs[0]["orientation"]);
+    let last = floats(&msgs[N - 1]["orientation"]);
+    let dot: f64 = first.iter().zip(&last).map(|(a, b)| a * b).sum();
+    assert!(dot.abs() < 0.999, "{first:?} {last:?}");
+}

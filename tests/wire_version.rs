@@ -80,9 +80,9 @@ fn listed(prefix: &Prefix, name: &str) -> serde_json::Value {
 fn refusal(service: &str) -> String {
     format!(
         "service {service:?} carries driftless::GyroSample (layout v1, 104 bytes, from an older \
-         driftless); this driftless reads driftless::GyroSample.v3 (layout v3, 208 bytes, with \
-         the accelerometer and the magnetometer): run the daemon and its subscribers from one \
-         release (docs/wire-types.md#versions)"
+         driftless); this driftless reads driftless::GyroSample.v4 (layout v4, 264 bytes, with \
+         the orientation): run the daemon and its subscribers from one release \
+         (docs/wire-types.md#versions)"
     )
 }
 

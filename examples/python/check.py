@@ -232,7 +232,7 @@ def run(args, facts: dict, tmp: str, start, procs: dict) -> bool:
     with open(sub_report) as f:
         s = json.load(f)
     # The pipeline has no bias filter (predict.none at most): every sample's drift_std is
-    # "not provided", -1 on each axis, read at offset 104 of GyroSample v3.
+    # "not provided", -1 on each axis, read at offset 104 of GyroSample v4.
     expect = {"received": n, "first_seq": 0, "last_seq": n - 1, "epochs": 1, "missing": 0,
               "disorder": 0, "flagged": 0, "pattern_errors": 0, "flushed": lag,
               "drift_std_not_provided": n, "drift_std_bad": 0,

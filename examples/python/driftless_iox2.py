@@ -96,10 +96,11 @@ class RawSample(ctypes.Structure):
 
 
 class GyroSample(ctypes.Structure):
-    """`driftless::GyroSample.v3`, 208 bytes: every hop after the ingest, and the public output.
+    """`driftless::GyroSample.v4`, 264 bytes: every hop after the ingest, and the public output.
 
-    Layout version 3 (transport::GYRO_VERSION): version 2 (`driftless::GyroSample.v2`, 128
-    bytes) ended at `drift_std`, version 1 (`driftless::GyroSample`, 104 bytes) at `epoch`. A
+    Layout version 4 (transport::GYRO_VERSION): version 3 (`driftless::GyroSample.v3`, 208
+    bytes) ended at `reserved`, version 2 (`driftless::GyroSample.v2`, 128 bytes) at
+    `drift_std`, version 1 (`driftless::GyroSample`, 104 bytes) at `epoch`. A
     service of another version is refused by iceoryx2 with IncompatibleTypes: run the daemon
     and this subscriber from one release."""
 
@@ -118,21 +119,25 @@ class GyroSample(ctypes.Structure):
         ("mag", ctypes.c_double * 3),  # 176: magnetic field, tesla (with SENSOR_MAG)
         ("sensors", ctypes.c_uint32),  # 200: SENSOR_*
         ("reserved", ctypes.c_uint32),  # 204: 0
+        # 208: x, y, z, w, body to earth (z up, heading relative) (with SENSOR_ORIENTATION)
+        ("orientation", ctypes.c_double * 4),
+        ("orientation_std", ctypes.c_double * 3),  # 240: 1-sigma about earth x, y, z, rad; -1
     ]
 
     @staticmethod
     def type_name() -> str:
         """iceoryx2's type name (Rust `transport::GYRO_TYPE_NAME`)."""
-        return "driftless::GyroSample.v3"
+        return "driftless::GyroSample.v4"
 
 
 # The documented layouts, checked once: a wrong field order or type fails here, not on the wire.
 for _t, _size, _offsets in (
     (RawSample, 96, {"t_ns": 0, "seq": 8, "rate": 16, "flags": 40, "epoch": 44, "accel": 48,
                      "mag": 72}),
-    (GyroSample, 208, {"t_ns": 0, "seq": 8, "ingest_ns": 16, "rate": 24, "drift": 48,
+    (GyroSample, 264, {"t_ns": 0, "seq": 8, "ingest_ns": 16, "rate": 24, "drift": 48,
                        "denoised": 72, "flags": 96, "epoch": 100, "drift_std": 104,
-                       "accel": 128, "accel_std": 152, "mag": 176, "sensors": 200}),
+                       "accel": 128, "accel_std": 152, "mag": 176, "sensors": 200,
+                       "orientation": 208, "orientation_std": 240}),
 ):
     assert ctypes.sizeof(_t) == _size and ctypes.alignment(_t) == 8, _t
     assert {f: getattr(_t, f).offset for f in _offsets} == _offsets, _t

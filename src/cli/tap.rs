@@ -133,9 +133,29 @@ fn accel_text(accel: Option<[f64; 3]>, units: &str) -> String {
     })
 }
 
-/// Three CSV cells: the values, or empty where the sample has no accelerometer (never 0).
-fn accel_cells(v: Option<[f64; 3]>) -> String {
-    v.map_or(",,".to_string(), |v| v.map(|x| x.to_string()).join(","))
+/// ` attitude roll r pitch p yaw y deg +- [sx sy sz]` for a text line (the standard
+/// deviations about the earth's axes, deg; `?` where not provided), or nothing when the sample
+/// has no orientation.
+fn attitude_text(s: &GyroSample) -> String {
+    s.orientation_estimate().map_or(String::new(), |q| {
+        let [r, p, y] = crate::attitude::roll_pitch_yaw(q).map(f64::to_degrees);
+        let sd = s.orientation_std.map(|v| {
+            if v >= 0.0 {
+                format!("{:.3}", v.to_degrees())
+            } else {
+                "?".into()
+            }
+        });
+        format!(
+            " attitude roll {r:+.3} pitch {p:+.3} yaw {y:+.3} deg +- [{} {} {}]",
+            sd[0], sd[1], sd[2]
+        )
+    })
+}
+
+/// CSV cells of `v`: the values, or as many empty cells where the sample has none (never 0).
+fn optional_cells<const N: usize>(v: Option<[f64; N]>) -> String {
+    v.map_or(",".repeat(N - 1), |v| v.map(|x| x.to_string()).join(","))
 }
 
 fn no_csv_for_stats(service: &str) -> CliError {
@@ -197,13 +217,15 @@ impl Printer {
             Item::Gyro(_) => {
                 let u = self.units.suffix();
                 format!(
-                    "epoch,seq,t_s,{},{},{},flags,flag_names,{},{},{},sensors",
+                    "epoch,seq,t_s,{},{},{},flags,flag_names,{},{},{},sensors,\
+                     orientation_x,orientation_y,orientation_z,orientation_w,{}",
                     axes("rate", u),
                     axes("drift", u),
                     axes("denoised", u),
                     axes("drift_std", u),
                     axes("accel", "ms2"),
                     axes("accel_std", "ms2"),
+                    axes("orientation_std", "rad"),
                 )
             }
             Item::Raw(_) => format!(
@@ -238,13 +260,14 @@ impl Printer {
                 let sd = self.std_text(s.drift_std);
                 format!(
                     "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] drift [{:+.6} {:+.6} {:+.6}] \
-                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {}{} flags {}",
+                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {}{}{} flags {}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
                     r[0], r[1], r[2], d[0], d[1], d[2], sd[0], sd[1], sd[2], n[0], n[1], n[2],
                     self.units.name(),
                     accel_text((s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel), "m/s²"),
+                    attitude_text(s),
                     joined(&transport::flag_names(s.flags), ",")
                 )
             }
@@ -271,7 +294,7 @@ impl Printer {
                 let sd = self.std_values(s.drift_std).map(|v| v.to_string());
                 let accel = s.sensors & transport::SENSOR_ACCEL != 0;
                 format!(
-                    "{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{},{},{}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
@@ -279,9 +302,11 @@ impl Printer {
                     s.flags,
                     joined(&transport::flag_names(s.flags), "|"),
                     sd.join(","),
-                    accel_cells(accel.then_some(s.accel)),
-                    accel_cells(accel.then_some(s.accel_std)),
-                    joined(&transport::sensor_names(s.sensors), "|")
+                    optional_cells(accel.then_some(s.accel)),
+                    optional_cells(accel.then_some(s.accel_std)),
+                    joined(&transport::sensor_names(s.sensors), "|"),
+                    optional_cells(s.orientation_estimate()),
+                    optional_cells(s.orientation_estimate().map(|_| s.orientation_std)),
                 )
             }
             (Format::Csv, Item::Raw(s)) => format!(
@@ -294,7 +319,7 @@ impl Printer {
                 s.rate[2],
                 s.flags,
                 joined(&transport::raw_flag_names(s.flags), "|"),
-                accel_cells(s.accel_reading())
+                optional_cells(s.accel_reading())
             ),
             (Format::Csv, Item::Stats(_)) => return Err(no_csv_for_stats(&self.service)),
             (Format::Json, Item::Gyro(s)) => serde_json::json!({
@@ -312,6 +337,8 @@ impl Printer {
                 "accel": (s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel),
                 "accel_std": (s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel_std),
                 "sensors": transport::sensor_names(s.sensors),
+                "orientation": s.orientation_estimate(),
+                "orientation_std": s.orientation_estimate().map(|_| s.orientation_std),
             })
             .to_string(),
             (Format::Json, Item::Raw(s)) => serde_json::json!({
@@ -591,13 +618,15 @@ mod tests {
             "epoch,seq,t_s,rate_x_rads,rate_y_rads,rate_z_rads,drift_x_rads,drift_y_rads,\
              drift_z_rads,denoised_x_rads,denoised_y_rads,denoised_z_rads,flags,flag_names,\
              drift_std_x_rads,drift_std_y_rads,drift_std_z_rads,accel_x_ms2,accel_y_ms2,\
-             accel_z_ms2,accel_std_x_ms2,accel_std_y_ms2,accel_std_z_ms2,sensors"
+             accel_z_ms2,accel_std_x_ms2,accel_std_y_ms2,accel_std_z_ms2,sensors,\
+             orientation_x,orientation_y,orientation_z,orientation_w,orientation_std_x_rad,\
+             orientation_std_y_rad,orientation_std_z_rad"
         );
         // No accelerometer: empty cells, never zeros.
         assert_eq!(
             rad.line(&item).unwrap(),
             format!(
-                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still,0.25,-1,0,,,,,,,-",
+                "3,7,0.0015,{},0,-1,0.5,0,0,1,0,0,64,still,0.25,-1,0,,,,,,,-,,,,,,,",
                 std::f64::consts::PI
             )
         );
@@ -610,11 +639,43 @@ mod tests {
         assert!(rad
             .line(&with)
             .unwrap()
-            .ends_with(",0.5,-0.25,9.75,-1,-1,-1,accel"));
+            .ends_with(",0.5,-0.25,9.75,-1,-1,-1,accel,,,,,,,"));
         let text = printer(Format::Text, RateUnits::DegS).line(&with).unwrap();
         assert!(
             text.contains("accel [+0.500000 -0.250000 +9.750000] m/s² flags still"),
             "{text}"
+        );
+        // An orientation: 90 deg of yaw, its heading's sd not provided.
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let turned = Item::Gyro(GyroSample {
+            orientation: [0.0, 0.0, h, h],
+            orientation_std: [0.01, 0.01, -1.0],
+            sensors: crate::transport::SENSOR_ORIENTATION,
+            ..s
+        });
+        let text = printer(Format::Text, RateUnits::DegS)
+            .line(&turned)
+            .unwrap();
+        assert!(
+            text.contains(
+                "attitude roll +0.000 pitch +0.000 yaw +90.000 deg +- [0.573 0.573 ?] flags still"
+            ),
+            "{text}"
+        );
+        assert!(rad
+            .line(&turned)
+            .unwrap()
+            .ends_with(&format!(",,orientation,0,0,{h},{h},0.01,0.01,-1")));
+        let json: serde_json::Value = serde_json::from_str(
+            &printer(Format::Json, RateUnits::DegS)
+                .line(&turned)
+                .unwrap(),
+        )
+        .unwrap();
+        assert_eq!(json["orientation"], serde_json::json!([0.0, 0.0, h, h]));
+        assert_eq!(
+            json["orientation_std"],
+            serde_json::json!([0.01, 0.01, -1.0])
         );
         let text = printer(Format::Text, RateUnits::DegS).line(&item).unwrap();
         assert!(

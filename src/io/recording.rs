@@ -25,7 +25,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::transport::{
     GyroSample, Percentiles, RawSample, StatsSnapshot, DRIFT_STD_NOT_PROVIDED, RAW_ACCEL, RAW_MAG,
-    SENSOR_ACCEL, SENSOR_MAG,
+    SENSOR_ACCEL, SENSOR_MAG, SENSOR_ORIENTATION,
 };
 
 use super::mcap_file::{limited_reader, map_mcap, McapOpenError};
@@ -86,6 +86,41 @@ impl From<[f64; 3]> for Xyz {
 impl From<Xyz> for [f64; 3] {
     fn from(v: Xyz) -> Self {
         [v.x, v.y, v.z]
+    }
+}
+
+/// A quaternion (x, y, z, w) as recorded; a non-finite component is `null`, read back as NaN.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Xyzw {
+    /// x.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub x: f64,
+    /// y.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub y: f64,
+    /// z.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub z: f64,
+    /// w (the scalar part).
+    #[serde(deserialize_with = "nan_if_null")]
+    pub w: f64,
+}
+
+impl From<[f64; 4]> for Xyzw {
+    fn from(q: [f64; 4]) -> Self {
+        Xyzw {
+            x: q[0],
+            y: q[1],
+            z: q[2],
+            w: q[3],
+        }
+    }
+}
+
+impl From<Xyzw> for [f64; 4] {
+    fn from(q: Xyzw) -> Self {
+        [q.x, q.y, q.z, q.w]
     }
 }
 
@@ -186,6 +221,14 @@ pub struct GyroMessage {
     /// The sensors word (`SENSOR_*`): which readings are present, which were held.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub sensors: u32,
+    /// The orientation, body to earth (z up), x, y, z, w; present exactly when `sensors` has
+    /// `SENSOR_ORIENTATION` (an attitude stage ran; absent before `GyroSample` v4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<Xyzw>,
+    /// 1-sigma of the orientation about the earth's x, y, z, rad (-1: not provided); with
+    /// `orientation`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation_std_rad: Option<Xyz>,
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -209,6 +252,9 @@ impl From<&GyroSample> for GyroMessage {
             accel_std_m_s2: (s.sensors & SENSOR_ACCEL != 0).then(|| s.accel_std.into()),
             mag_t: (s.sensors & SENSOR_MAG != 0).then(|| s.mag.into()),
             sensors: s.sensors,
+            orientation: (s.sensors & SENSOR_ORIENTATION != 0).then(|| s.orientation.into()),
+            orientation_std_rad: (s.sensors & SENSOR_ORIENTATION != 0)
+                .then(|| s.orientation_std.into()),
         }
     }
 }
@@ -233,10 +279,15 @@ impl From<&GyroMessage> for GyroSample {
                 .map_or([DRIFT_STD_NOT_PROVIDED; 3], Into::into),
             mag: m.mag_t.map_or([0.0; 3], Into::into),
             // The readings say what is present, whatever the word claimed.
-            sensors: (m.sensors & !(SENSOR_ACCEL | SENSOR_MAG))
+            sensors: (m.sensors & !(SENSOR_ACCEL | SENSOR_MAG | SENSOR_ORIENTATION))
                 | m.accel_m_s2.map_or(0, |_| SENSOR_ACCEL)
-                | m.mag_t.map_or(0, |_| SENSOR_MAG),
+                | m.mag_t.map_or(0, |_| SENSOR_MAG)
+                | m.orientation.map_or(0, |_| SENSOR_ORIENTATION),
             reserved: 0,
+            orientation: m.orientation.map_or([0.0; 4], Into::into),
+            orientation_std: m
+                .orientation_std_rad
+                .map_or([DRIFT_STD_NOT_PROVIDED; 3], Into::into),
         }
     }
 }
@@ -399,7 +450,7 @@ pub fn raw_schema() -> String {
 /// The JSON Schema of processed-sample channels.
 pub fn gyro_schema() -> String {
     format!(
-        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed IMU sample (denoised, drift, corrected rates in rad/s; the accelerometer beside them in m/s²)","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted, 0x200 vehicle stopped, 0x400 vehicle moving, 0x800 stamp fault"}},"drift_std_rad_s":{{"description":"1-sigma of the drift estimate per axis, rad/s; -1: not provided (absent in recordings of GyroSample v1)","allOf":[{XYZ_DEF}]}},"accel_m_s2":{{"description":"the accelerometer, m/s²; absent: no accelerometer","allOf":[{XYZ_DEF}]}},"accel_std_m_s2":{{"description":"1-sigma white noise of one accelerometer sample, m/s²; -1: not provided","allOf":[{XYZ_DEF}]}},"mag_t":{{"description":"the magnetometer, tesla; absent: none","allOf":[{XYZ_DEF}]}},"sensors":{{"type":"integer","description":"0x1 accel present, 0x2 mag present, 0x4 accel held (input not finite), 0x8 mag held; absent: 0"}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
+        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed IMU sample (denoised, drift, corrected rates in rad/s; the accelerometer beside them in m/s²)","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted, 0x200 vehicle stopped, 0x400 vehicle moving, 0x800 stamp fault"}},"drift_std_rad_s":{{"description":"1-sigma of the drift estimate per axis, rad/s; -1: not provided (absent in recordings of GyroSample v1)","allOf":[{XYZ_DEF}]}},"accel_m_s2":{{"description":"the accelerometer, m/s²; absent: no accelerometer","allOf":[{XYZ_DEF}]}},"accel_std_m_s2":{{"description":"1-sigma white noise of one accelerometer sample, m/s²; -1: not provided","allOf":[{XYZ_DEF}]}},"mag_t":{{"description":"the magnetometer, tesla; absent: none","allOf":[{XYZ_DEF}]}},"sensors":{{"type":"integer","description":"0x1 accel present, 0x2 mag present, 0x4 accel held (input not finite), 0x8 mag held, 0x10 orientation present, 0x20 orientation coasting (no accelerometer used), 0x40 free fall or shock; absent: 0"}},"orientation":{{"description":"the orientation, body to an earth frame with z up (heading relative), a unit quaternion; absent: no attitude stage","type":"object","properties":{{"x":{{"type":["number","null"]}},"y":{{"type":["number","null"]}},"z":{{"type":["number","null"]}},"w":{{"type":["number","null"]}}}},"required":["x","y","z","w"]}},"orientation_std_rad":{{"description":"1-sigma of the orientation about the earth's x, y, z, rad; -1: not provided","allOf":[{XYZ_DEF}]}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
     )
 }
 
@@ -685,8 +736,13 @@ mod tests {
             accel: [0.3, -0.1, 9.81],
             accel_std: [1e-3, 2e-3, DRIFT_STD_NOT_PROVIDED],
             mag: [2e-5, 0.0, -4e-5],
-            sensors: SENSOR_ACCEL | SENSOR_MAG,
+            sensors: SENSOR_ACCEL
+                | SENSOR_MAG
+                | SENSOR_ORIENTATION
+                | crate::transport::SENSOR_ORIENTATION_COASTING,
             reserved: 0,
+            orientation: [0.1 + 0.2, -0.5, 0.5, (1.0f64 - 0.34 - 0.25 - 0.25).sqrt()],
+            orientation_std: [1e-3 / 3.0, 2e-3, 0.7],
         };
         let text = serde_json::to_string(&GyroMessage::from(&g)).unwrap();
         let back: GyroMessage = serde_json::from_str(&text).unwrap();
@@ -710,6 +766,8 @@ mod tests {
                 accel_std: [DRIFT_STD_NOT_PROVIDED; 3],
                 mag: [0.0; 3],
                 sensors: 0,
+                orientation: [0.0; 4],
+                orientation_std: [DRIFT_STD_NOT_PROVIDED; 3],
                 ..g
             }
         );

@@ -97,6 +97,7 @@ impl Pipeline {
             axes: self.axes,
             units: self.input_units,
             accel_units: self.accel_units,
+            white_noise: self.stages.iter().find_map(|s| s.params.white_noise()),
         }
     }
 }
@@ -270,6 +271,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         axes: 0,
         units: Units::DegPerSec,
         accel_units: AccelUnits::MPerS2,
+        white_noise: None,
     };
     let top = split(&src, top, &valid)?;
     let mut t = Table::new(
@@ -343,6 +345,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         axes,
         units: input_units,
         accel_units,
+        white_noise: None,
     };
     let mut entries = Vec::new();
     for value in array {

@@ -213,7 +213,7 @@ impl Guard {
             accel_std: [DRIFT_STD_NOT_PROVIDED; 3],
             mag,
             sensors,
-            reserved: 0,
+            ..GyroSample::default()
         }
     }
 }

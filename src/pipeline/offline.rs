@@ -116,42 +116,65 @@ impl Offline {
         accel: Option<&[[f64; 3]]>,
         stops: Option<&[bool]>,
     ) -> Result<Vec<Vec<f64>>, String> {
-        let lanes = p.axes;
-        let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
-        let n = inputs.first().map_or(0, |x| x.len());
         let mut out = Vec::with_capacity(inputs.len());
-        for chunk in inputs.chunks(lanes) {
-            let mut off = Offline::new(p)?;
-            let mut got: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; chunk.len()];
-            let mut put = |g: GyroSample| {
-                let k = g.seq as usize;
-                for (lane, col) in got.iter_mut().enumerate() {
-                    if k < n {
-                        col[k] = g.rate[lane].to_degrees();
-                    }
-                }
-            };
-            for k in 0..n {
-                let mut rate = [0.0; 3];
-                for (lane, r) in rate.iter_mut().enumerate().take(lanes) {
-                    // Unused lanes repeat the first axis (their output is not read).
-                    *r = chunk.get(lane).unwrap_or(&chunk[0])[k] * to_units;
-                }
-                let raw = raw_sample(p, k, rate, accel.and_then(|a| a.get(k)));
-                if let Some(stopped) = stops.and_then(|s| s.get(k)) {
-                    off.side(&SideValue::Stop(StopSignal {
-                        t_ns: raw.t_ns.max(1),
-                        speed_m_s: f64::NAN,
-                        stopped: u32::from(*stopped),
-                        reserved: 0,
-                    }));
-                }
-                off.push(&raw, &mut put);
+        for chunk in inputs.chunks(p.axes) {
+            let samples = Offline::run_imu_samples(p, chunk, accel, stops)?;
+            for lane in 0..chunk.len() {
+                out.push(
+                    samples
+                        .iter()
+                        .map(|s| s.map_or(f64::NAN, |g| g.rate[lane].to_degrees()))
+                        .collect(),
+                );
             }
-            off.finish(&mut put);
-            out.extend(got);
         }
         Ok(out)
+    }
+
+    /// What [`Offline::run_imu_series`] runs for one pass: the published sample at each input
+    /// sample (None where the stages published none for it), `inputs` holding at most the
+    /// pipeline's `axes` series (deg/s). An attitude stage's orientation is read from here.
+    pub fn run_imu_samples(
+        p: &Pipeline,
+        inputs: &[&[f64]],
+        accel: Option<&[[f64; 3]]>,
+        stops: Option<&[bool]>,
+    ) -> Result<Vec<Option<GyroSample>>, String> {
+        if inputs.is_empty() || inputs.len() > p.axes {
+            return Err(format!(
+                "{} series for a pipeline of {} axes",
+                inputs.len(),
+                p.axes
+            ));
+        }
+        let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
+        let n = inputs[0].len();
+        let mut off = Offline::new(p)?;
+        let mut got: Vec<Option<GyroSample>> = vec![None; n];
+        let mut put = |g: GyroSample| {
+            if let Some(slot) = got.get_mut(g.seq as usize) {
+                *slot = Some(g);
+            }
+        };
+        for k in 0..n {
+            let mut rate = [0.0; 3];
+            for (lane, r) in rate.iter_mut().enumerate().take(p.axes) {
+                // Unused lanes repeat the first axis (their output is not read).
+                *r = inputs.get(lane).unwrap_or(&inputs[0])[k] * to_units;
+            }
+            let raw = raw_sample(p, k, rate, accel.and_then(|a| a.get(k)));
+            if let Some(stopped) = stops.and_then(|s| s.get(k)) {
+                off.side(&SideValue::Stop(StopSignal {
+                    t_ns: raw.t_ns.max(1),
+                    speed_m_s: f64::NAN,
+                    stopped: u32::from(*stopped),
+                    reserved: 0,
+                }));
+            }
+            off.push(&raw, &mut put);
+        }
+        off.finish(&mut put);
+        Ok(got)
     }
 
     fn run_from(&mut self, first: usize, mut s: GyroSample, out: &mut impl FnMut(GyroSample)) {

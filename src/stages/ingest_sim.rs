@@ -240,6 +240,7 @@ mod tests {
             axes: 3,
             units: Units::DegPerSec,
             accel_units,
+            white_noise: None,
         }
     }
 

@@ -10,6 +10,7 @@
 //! | `denoise.wavelet`, `denoise.none` | [`denoise`] | streaming wavelet denoiser / pass-through |
 //! | `predict.none`, `predict.rbf` | [`predict`] | drift estimate 0 / the RBF drift model, gated by stillness |
 //! | `predict.bias` | [`predict_bias`] | the bias as a Kalman state from the gyro's Allan terms (no training) |
+//! | `attitude.6d` | [`attitude_6d`] | the orientation from the corrected gyro and the accelerometer |
 //! | `external` | [`external`] | a stage run by another process (the daemon only links to it) |
 //! | `publish` | [`publish`] | the final guard before the public service |
 //!
@@ -41,6 +42,7 @@ pub mod bias_state;
 pub mod contract;
 pub mod schema;
 
+pub mod attitude_6d;
 pub mod denoise;
 pub mod external;
 pub mod ingest_csv;
@@ -67,6 +69,7 @@ pub const KINDS: &[&Kind] = &[
     &predict::NONE_KIND,
     &predict::RBF_KIND,
     &predict_bias::KIND,
+    &attitude_6d::KIND,
     &external::KIND,
     &publish::KIND,
 ];
@@ -122,6 +125,7 @@ mod tests {
             axes: 3,
             units: Units::DegPerSec,
             accel_units: AccelUnits::MPerS2,
+            white_noise: None,
         };
         let mut t = Table::new(&src, cx, 0, 0, Some("in/raw"), ("keys", "s"), entries);
         (kind.parse)(&mut t)

@@ -1,5 +1,5 @@
 //! `publish`: the last guard before the public service: no non-finite value ever leaves (a
-//! non-finite `drift_std` leaves as "not provided", -1).
+//! non-finite `drift_std` leaves as "not provided", -1; an orientation with one, as none).
 //!
 //! ```toml
 //! [[stage]]
@@ -13,7 +13,9 @@
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::transport::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_OUTPUT_REPAIRED};
+use crate::transport::{
+    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_OUTPUT_REPAIRED, SENSOR_ORIENTATION,
+};
 
 const NOTIFY: Key = Key {
     name: "notify",
@@ -58,7 +60,7 @@ impl Params for PublishParams {
 /// Passes samples through, replacing any non-finite value by 0 and flagging it.
 pub struct Publish;
 
-fn repair(v: &mut [f64; 3]) -> bool {
+fn repair(v: &mut [f64]) -> bool {
     let mut bad = false;
     for x in v.iter_mut() {
         if !x.is_finite() {
@@ -78,11 +80,24 @@ impl Stage for Publish {
             | repair(&mut out.accel)
             | repair(&mut out.mag);
         // An uncertainty that is not a number is not known: say so, never publish 0 (exact).
-        for s in out.drift_std.iter_mut().chain(out.accel_std.iter_mut()) {
+        for s in out
+            .drift_std
+            .iter_mut()
+            .chain(out.accel_std.iter_mut())
+            .chain(out.orientation_std.iter_mut())
+        {
             if !s.is_finite() {
                 *s = DRIFT_STD_NOT_PROVIDED;
                 bad = true;
             }
+        }
+        // A quaternion with a NaN in it is no orientation (and 0 in its place no rotation):
+        // the sample goes out without one.
+        if repair(&mut out.orientation) {
+            out.orientation = [0.0; 4];
+            out.orientation_std = [DRIFT_STD_NOT_PROVIDED; 3];
+            out.sensors &= !SENSOR_ORIENTATION;
+            bad = true;
         }
         if bad {
             out.flags |= FLAG_OUTPUT_REPAIRED;
@@ -123,6 +138,16 @@ mod tests {
         let o = Publish.process(&s).unwrap();
         assert_eq!(o.accel, [0.0, 0.0, 9.8]);
         assert_eq!(o.accel_std, [DRIFT_STD_NOT_PROVIDED, 1e-3, 1e-3]);
+        assert!(o.flags & FLAG_OUTPUT_REPAIRED != 0);
+        let s = GyroSample {
+            orientation: [0.0, f64::NAN, 0.0, 1.0],
+            orientation_std: [1e-3, 1e-3, 0.1],
+            sensors: SENSOR_ORIENTATION,
+            ..GyroSample::default()
+        };
+        let o = Publish.process(&s).unwrap();
+        assert_eq!(o.orientation_estimate(), None);
+        assert_eq!(o.orientation_std, [DRIFT_STD_NOT_PROVIDED; 3]);
         assert!(o.flags & FLAG_OUTPUT_REPAIRED != 0);
         let fine = GyroSample::default();
         assert_eq!(

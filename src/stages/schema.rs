@@ -83,6 +83,10 @@ pub struct Context {
     pub units: Units,
     /// Units of the raw accelerometer readings.
     pub accel_units: AccelUnits,
+    /// The gyro's white rate noise N (deg/sqrt(s)) that a stage of the chain assumes
+    /// (`predict.bias`'s terms), for the stages that build after it; None while the pipeline
+    /// is read, and in a chain without one.
+    pub white_noise: Option<f64>,
 }
 
 /// Positions errors in one source text.
@@ -909,6 +913,7 @@ mod tests {
             axes: 1,
             units: Units::DegPerSec,
             accel_units: AccelUnits::MPerS2,
+            white_noise: None,
         };
         f(&mut Table::new(&src, cx, 0, 0, None, ("p", "s"), entries))
     }

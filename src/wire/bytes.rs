@@ -31,12 +31,12 @@ impl Le<'_> {
         self.0 = rest;
         u32::from_le_bytes(head.try_into().expect("4 bytes"))
     }
-    fn f64x3(&mut self) -> [f64; 3] {
-        [(); 3].map(|_| f64::from_bits(self.u64()))
+    fn f64s<const N: usize>(&mut self) -> [f64; N] {
+        [(); N].map(|_| f64::from_bits(self.u64()))
     }
 }
 
-fn put_f64x3(out: &mut Vec<u8>, v: &[f64; 3]) {
+fn put_f64s(out: &mut Vec<u8>, v: &[f64]) {
     for x in v {
         out.extend_from_slice(&x.to_le_bytes());
     }
@@ -50,11 +50,11 @@ impl WireBytes for RawSample {
         out.clear();
         out.extend_from_slice(&self.t_ns.to_le_bytes());
         out.extend_from_slice(&self.seq.to_le_bytes());
-        put_f64x3(out, &self.rate);
+        put_f64s(out, &self.rate);
         out.extend_from_slice(&self.flags.to_le_bytes());
         out.extend_from_slice(&self.epoch.to_le_bytes());
-        put_f64x3(out, &self.accel);
-        put_f64x3(out, &self.mag);
+        put_f64s(out, &self.accel);
+        put_f64s(out, &self.mag);
     }
 
     fn decode(bytes: &[u8]) -> Option<Self> {
@@ -65,17 +65,17 @@ impl WireBytes for RawSample {
         Some(RawSample {
             t_ns: r.u64(),
             seq: r.u64(),
-            rate: r.f64x3(),
+            rate: r.f64s(),
             flags: r.u32(),
             epoch: r.u32(),
-            accel: r.f64x3(),
-            mag: r.f64x3(),
+            accel: r.f64s(),
+            mag: r.f64s(),
         })
     }
 }
 
 impl WireBytes for GyroSample {
-    const SIZE: usize = 208;
+    const SIZE: usize = 264;
     const TYPE_NAME: &'static str = GYRO_TYPE_NAME;
 
     fn encode(&self, out: &mut Vec<u8>) {
@@ -83,17 +83,19 @@ impl WireBytes for GyroSample {
         out.extend_from_slice(&self.t_ns.to_le_bytes());
         out.extend_from_slice(&self.seq.to_le_bytes());
         out.extend_from_slice(&self.ingest_ns.to_le_bytes());
-        put_f64x3(out, &self.rate);
-        put_f64x3(out, &self.drift);
-        put_f64x3(out, &self.denoised);
+        put_f64s(out, &self.rate);
+        put_f64s(out, &self.drift);
+        put_f64s(out, &self.denoised);
         out.extend_from_slice(&self.flags.to_le_bytes());
         out.extend_from_slice(&self.epoch.to_le_bytes());
-        put_f64x3(out, &self.drift_std);
-        put_f64x3(out, &self.accel);
-        put_f64x3(out, &self.accel_std);
-        put_f64x3(out, &self.mag);
+        put_f64s(out, &self.drift_std);
+        put_f64s(out, &self.accel);
+        put_f64s(out, &self.accel_std);
+        put_f64s(out, &self.mag);
         out.extend_from_slice(&self.sensors.to_le_bytes());
         out.extend_from_slice(&self.reserved.to_le_bytes());
+        put_f64s(out, &self.orientation);
+        put_f64s(out, &self.orientation_std);
     }
 
     fn decode(bytes: &[u8]) -> Option<Self> {
@@ -105,17 +107,19 @@ impl WireBytes for GyroSample {
             t_ns: r.u64(),
             seq: r.u64(),
             ingest_ns: r.u64(),
-            rate: r.f64x3(),
-            drift: r.f64x3(),
-            denoised: r.f64x3(),
+            rate: r.f64s(),
+            drift: r.f64s(),
+            denoised: r.f64s(),
             flags: r.u32(),
             epoch: r.u32(),
-            drift_std: r.f64x3(),
-            accel: r.f64x3(),
-            accel_std: r.f64x3(),
-            mag: r.f64x3(),
+            drift_std: r.f64s(),
+            accel: r.f64s(),
+            accel_std: r.f64s(),
+            mag: r.f64s(),
             sensors: r.u32(),
             reserved: r.u32(),
+            orientation: r.f64s(),
+            orientation_std: r.f64s(),
         })
     }
 }

@@ -27,6 +27,15 @@ pub const SENSOR_MAG: u32 = 1 << 1;
 pub const SENSOR_ACCEL_INVALID: u32 = 1 << 2;
 /// Sensors word: the magnetometer's input was not finite; `mag` holds the last good reading.
 pub const SENSOR_MAG_INVALID: u32 = 1 << 3;
+/// Sensors word: the sample carries an orientation (`orientation`, `orientation_std`): an
+/// attitude stage ran.
+pub const SENSOR_ORIENTATION: u32 = 1 << 4;
+/// Sensors word: the attitude stage had no valid accelerometer at this sample; the inclination
+/// rests on the gyro alone (coasting) and its standard deviation grows.
+pub const SENSOR_ORIENTATION_COASTING: u32 = 1 << 5;
+/// Sensors word: the accelerometer's norm said free fall or a shock at this sample (outside
+/// the attitude stage's `min_g`..`max_g`); the reading was used all the same.
+pub const SENSOR_ORIENTATION_NO_GRAVITY: u32 = 1 << 6;
 
 /// Output flag: a stage is still filling (denoiser window, predictor warm-up).
 pub const FLAG_WARMING_UP: u32 = 1;
@@ -87,11 +96,14 @@ pub const RAW_FLAG_NAMES: [(u32, &str); 6] = [
 ];
 
 /// The sensors word's bits by name, in bit order.
-pub const SENSOR_NAMES: [(u32, &str); 4] = [
+pub const SENSOR_NAMES: [(u32, &str); 7] = [
     (SENSOR_ACCEL, "accel"),
     (SENSOR_MAG, "mag"),
     (SENSOR_ACCEL_INVALID, "accel_invalid"),
     (SENSOR_MAG_INVALID, "mag_invalid"),
+    (SENSOR_ORIENTATION, "orientation"),
+    (SENSOR_ORIENTATION_COASTING, "orientation_coasting"),
+    (SENSOR_ORIENTATION_NO_GRAVITY, "orientation_no_gravity"),
 ];
 
 /// Names of the output flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as

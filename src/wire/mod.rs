@@ -41,7 +41,7 @@ mod tests {
         // Version 1 was this layout up to `epoch`.
         assert_eq!(std::mem::offset_of!(RawSample, accel), RAW_V1_SIZE);
         assert_eq!(std::mem::offset_of!(RawSample, mag), 72);
-        assert_eq!(std::mem::size_of::<GyroSample>(), 208);
+        assert_eq!(std::mem::size_of::<GyroSample>(), 264);
         assert_eq!(std::mem::align_of::<GyroSample>(), 8);
         assert_eq!(std::mem::offset_of!(GyroSample, ingest_ns), 16);
         assert_eq!(std::mem::offset_of!(GyroSample, rate), 24);
@@ -57,10 +57,15 @@ mod tests {
         assert_eq!(std::mem::offset_of!(GyroSample, accel_std), 152);
         assert_eq!(std::mem::offset_of!(GyroSample, mag), 176);
         assert_eq!(std::mem::offset_of!(GyroSample, sensors), 200);
+        // Version 3 was this layout up to `reserved`.
+        assert_eq!(std::mem::offset_of!(GyroSample, orientation), GYRO_V3_SIZE);
+        assert_eq!(std::mem::offset_of!(GyroSample, orientation_std), 240);
         let d = GyroSample::default();
         assert_eq!(d.drift_std, [DRIFT_STD_NOT_PROVIDED; 3]);
         assert_eq!(d.accel_std, [DRIFT_STD_NOT_PROVIDED; 3]);
         assert_eq!((d.accel_reading(), d.mag_reading()), (None, None));
+        assert_eq!(d.orientation_estimate(), None);
+        assert_eq!(d.orientation_std, [DRIFT_STD_NOT_PROVIDED; 3]);
         assert_eq!(RawSample::default().accel_reading(), None);
     }
 
@@ -91,8 +96,8 @@ mod tests {
         assert_eq!(
             old,
             "service \"d/corrected\" carries driftless::GyroSample (layout v1, 104 bytes, from \
-             an older driftless); this driftless reads driftless::GyroSample.v3 (layout v3, 208 \
-             bytes, with the accelerometer and the magnetometer): run the daemon and its subscribers from one release \
+             an older driftless); this driftless reads driftless::GyroSample.v4 (layout v4, 264 \
+             bytes, with the orientation): run the daemon and its subscribers from one release \
              (docs/wire-types.md#versions)"
         );
         let stats = wire_version_mismatch("service \"d/stats\"", STATS_V1_TYPE_NAME).unwrap();
@@ -114,9 +119,14 @@ mod tests {
         let raw = wire_version_mismatch("service \"sensor/raw\"", RAW_V1_TYPE_NAME).unwrap();
         assert!(raw.contains("(layout v1, 48 bytes, from an older driftless); this driftless reads driftless::RawSample.v2 (layout v2, 96 bytes"), "{raw}");
         assert_eq!(other_layout_of(RAW_V1_TYPE_NAME), Some("RawSample"));
-        let newer = wire_version_mismatch("key k", "driftless::GyroSample.v4").unwrap();
+        let v3 = wire_version_mismatch("s", "driftless::GyroSample.v3").unwrap();
         assert!(
-            newer.contains("(layout v4, from a newer driftless)"),
+            v3.contains("(layout v3, 208 bytes, from an older driftless)"),
+            "{v3}"
+        );
+        let newer = wire_version_mismatch("key k", "driftless::GyroSample.v5").unwrap();
+        assert!(
+            newer.contains("(layout v5, from a newer driftless)"),
             "{newer}"
         );
         assert!(wire_version_mismatch("s", "driftless::GyroSample.v0").is_some());
@@ -161,8 +171,10 @@ mod tests {
             accel: [0.5, -9.81, 1e-3],
             accel_std: [DRIFT_STD_NOT_PROVIDED, 2e-3, 4.0],
             mag: [2e-5, -3e-5, 4.5e-5],
-            sensors: SENSOR_ACCEL | SENSOR_MAG | SENSOR_MAG_INVALID,
+            sensors: SENSOR_ACCEL | SENSOR_MAG | SENSOR_MAG_INVALID | SENSOR_ORIENTATION,
             reserved: 0,
+            orientation: [0.5, -0.5, 0.5, 0.5],
+            orientation_std: [1e-3, 2e-3, DRIFT_STD_NOT_PROVIDED],
         };
         let r = RawSample {
             t_ns: 9,
@@ -185,10 +197,12 @@ mod tests {
         assert_eq!(GyroSample::decode(&out), Some(g));
         assert_eq!(&out[200..204], &g.sensors.to_le_bytes());
         assert_eq!(GyroSample::decode(&out), Some(g));
-        assert_eq!(GyroSample::decode(&out[..207]), None);
+        assert_eq!(&out[208..216], &0.5f64.to_le_bytes());
+        assert_eq!(GyroSample::decode(&out[..263]), None);
         // An older version's payload is refused, not read as a short current one.
         assert_eq!(GyroSample::decode(&out[..GYRO_V1_SIZE]), None);
         assert_eq!(GyroSample::decode(&out[..GYRO_V2_SIZE]), None);
+        assert_eq!(GyroSample::decode(&out[..GYRO_V3_SIZE]), None);
         r.encode(&mut out);
         assert_eq!(out.len(), RawSample::SIZE);
         if cfg!(target_endian = "little") {

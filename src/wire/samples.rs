@@ -3,6 +3,7 @@
 
 use super::flags::{
     RAW_ACCEL, RAW_MAG, SENSOR_ACCEL, SENSOR_ACCEL_INVALID, SENSOR_MAG, SENSOR_MAG_INVALID,
+    SENSOR_ORIENTATION,
 };
 
 /// Type name of [`RawSample`] on the wire; `.v2` names the layout, as for [`GYRO_TYPE_NAME`].
@@ -13,13 +14,13 @@ pub const RAW_VERSION: u32 = 2;
 pub const RAW_V1_TYPE_NAME: &str = "driftless::RawSample";
 /// Size of [`RawSample`] version 1, bytes.
 pub const RAW_V1_SIZE: usize = 48;
-/// Type name of [`GyroSample`] on the wire. The `.v3` names the layout: a layout change takes
+/// Type name of [`GyroSample`] on the wire. The `.v4` names the layout: a layout change takes
 /// a new name, so that a subscriber built for another one is refused by iceoryx2
 /// (`IncompatibleTypes`) and by the Zenoh receivers, never handed bytes it misreads
 /// ([`super::wire_version_mismatch`] words the refusal).
-pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample.v3";
+pub const GYRO_TYPE_NAME: &str = "driftless::GyroSample.v4";
 /// The layout version of [`GyroSample`] (the `.vN` of [`GYRO_TYPE_NAME`]).
-pub const GYRO_VERSION: u32 = 3;
+pub const GYRO_VERSION: u32 = 4;
 /// The type name of [`GyroSample`] version 1 (104 bytes, before `drift_std`), as a driftless
 /// before it publishes it.
 pub const GYRO_V1_TYPE_NAME: &str = "driftless::GyroSample";
@@ -27,6 +28,8 @@ pub const GYRO_V1_TYPE_NAME: &str = "driftless::GyroSample";
 pub const GYRO_V1_SIZE: usize = 104;
 /// Size of [`GyroSample`] version 2, bytes (before the accelerometer and the magnetometer).
 pub const GYRO_V2_SIZE: usize = 128;
+/// Size of [`GyroSample`] version 3, bytes (before the orientation).
+pub const GYRO_V3_SIZE: usize = 208;
 /// Type name of [`StopSignal`] on the wire.
 pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
 
@@ -109,7 +112,7 @@ impl RawSample {
 /// covariance. Never NaN: a subscriber tests `< 0.0`. `accel_std` uses the same mark.
 pub const DRIFT_STD_NOT_PROVIDED: f64 = -1.0;
 
-/// A processed IMU sample: every hop after the ingest carries one (208 bytes, 8-byte aligned;
+/// A processed IMU sample: every hop after the ingest carries one (264 bytes, 8-byte aligned;
 /// type name [`GYRO_TYPE_NAME`], layout version [`GYRO_VERSION`]). It is named for the gyro
 /// it corrects; the accelerometer and magnetometer travel beside it, time-aligned.
 ///
@@ -129,10 +132,13 @@ pub const DRIFT_STD_NOT_PROVIDED: f64 = -1.0;
 /// | 176 | `[f64; 3]` | `mag` magnetic field, tesla (with [`SENSOR_MAG`]) |
 /// | 200 | u32 | `sensors` which readings are present and valid ([`SENSOR_ACCEL`], ...) |
 /// | 204 | u32 | `reserved` 0 |
+/// | 208 | `[f64; 4]` | `orientation` quaternion x, y, z, w, body to earth (z up) (with [`SENSOR_ORIENTATION`]) |
+/// | 240 | `[f64; 3]` | `orientation_std` 1-sigma about the earth's x, y, z, rad; -1: not provided |
 ///
 /// Each version appends: every field of an older version keeps its offset (and the struct
 /// needs no padding); the layout change is told by the type name, not by the offsets.
-/// [`Default`] gives zeros, no sensor beside the gyro, and every `_std` not provided.
+/// [`Default`] gives zeros, no sensor beside the gyro, no orientation (a zero quaternion, which
+/// is no rotation) and every `_std` not provided.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct GyroSample {
@@ -177,11 +183,21 @@ pub struct GyroSample {
     pub sensors: u32,
     /// Reserved, 0.
     pub reserved: u32,
+    /// Orientation of the body, a unit quaternion (x, y, z, w: ROS's and scipy's order) that
+    /// turns body coordinates into an earth frame whose z is up (ENU, REP 103); meaningful
+    /// only with [`SENSOR_ORIENTATION`] (an attitude stage ran). The heading is relative: 0
+    /// where the filter started, for a 6D estimate has no north.
+    pub orientation: [f64; 4],
+    /// Standard deviation (1 sigma) of the orientation's error as small rotations about the
+    /// earth frame's x, y and z axes, rad: roll and pitch from gravity, and the heading's,
+    /// which grows from 0 at the start as the rate's uncertainty is integrated.
+    /// [`DRIFT_STD_NOT_PROVIDED`] (-1) where not known.
+    pub orientation_std: [f64; 3],
 }
 
 impl Default for GyroSample {
-    /// Zeros, with `drift_std` and `accel_std` not provided (a zero would claim them known
-    /// exactly) and no sensor beside the gyro.
+    /// Zeros, with `drift_std`, `accel_std` and `orientation_std` not provided (a zero would
+    /// claim them known exactly), no sensor beside the gyro and no orientation.
     fn default() -> Self {
         GyroSample {
             t_ns: 0,
@@ -198,6 +214,8 @@ impl Default for GyroSample {
             mag: [0.0; 3],
             sensors: 0,
             reserved: 0,
+            orientation: [0.0; 4],
+            orientation_std: [DRIFT_STD_NOT_PROVIDED; 3],
         }
     }
 }
@@ -212,5 +230,10 @@ impl GyroSample {
     /// The magnetometer reading, tesla, when the sample carries a valid one.
     pub fn mag_reading(&self) -> Option<[f64; 3]> {
         (self.sensors & (SENSOR_MAG | SENSOR_MAG_INVALID) == SENSOR_MAG).then_some(self.mag)
+    }
+
+    /// The orientation (x, y, z, w), when an attitude stage gave one.
+    pub fn orientation_estimate(&self) -> Option<[f64; 4]> {
+        (self.sensors & SENSOR_ORIENTATION != 0).then_some(self.orientation)
     }
 }

@@ -2,7 +2,7 @@
 
 use super::samples::{
     GyroSample, RawSample, GYRO_TYPE_NAME, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME, GYRO_V2_SIZE,
-    GYRO_VERSION, RAW_TYPE_NAME, RAW_V1_SIZE, RAW_V1_TYPE_NAME, RAW_VERSION,
+    GYRO_V3_SIZE, GYRO_VERSION, RAW_TYPE_NAME, RAW_V1_SIZE, RAW_V1_TYPE_NAME, RAW_VERSION,
 };
 use super::stats::{
     StatsSnapshot, STATS_TYPE_NAME, STATS_V1_SIZE, STATS_V1_TYPE_NAME, STATS_V2_SIZE, STATS_VERSION,
@@ -37,11 +37,11 @@ const VERSIONED: [Versioned; 3] = [
     Versioned {
         short: "GyroSample",
         v1: GYRO_V1_TYPE_NAME,
-        old_sizes: &[GYRO_V1_SIZE, GYRO_V2_SIZE],
+        old_sizes: &[GYRO_V1_SIZE, GYRO_V2_SIZE, GYRO_V3_SIZE],
         name: GYRO_TYPE_NAME,
         version: GYRO_VERSION,
         size: std::mem::size_of::<GyroSample>(),
-        added: "the accelerometer and the magnetometer",
+        added: "the orientation",
     },
     Versioned {
         short: "StatsSnapshot",

@@ -65,6 +65,20 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from broad_heading import PIPELINE, REPO, first_rest, integrate, load_broad_utils, load_trial, parse_trials, stage_keys  # noqa: E402  (the same loading, terms and integration)
 
+# broad_heading.py's chain with the attitude stage after the bias filter: what we publish.
+ATTITUDE_PIPELINE = PIPELINE.replace('''input = "broad/predicted"
+output = "broad/corrected"''', '''input = "broad/attitude"
+output = "broad/corrected"''').replace('''[[stage]]
+name = "publish"''', '''[[stage]]
+name = "attitude"
+kind = "attitude.6d"
+input = "broad/predicted"
+output = "broad/attitude"
+
+[[stage]]
+name = "publish"''')
+assert "attitude.6d" in ATTITUDE_PIPELINE and 'input = "broad/attitude"' in ATTITUDE_PIPELINE
+
 METRICS = ("total", "heading", "inclination")
 PEERS = [
     ("vqf", "VQF 6D, defaults"),
@@ -151,14 +165,16 @@ def ours(name, d, pipeline, examples, work):
     """Our orientations for one trial: {method name: quaternions (N x 4)}.
 
     Each `--example PATH` (`target/release/examples/broad_attitude`) runs as `PATH PIPELINE
-    in.csv out.csv`. PIPELINE is our chain (`denoise.wavelet -> predict.bias`, reading a stop
-    signal) with the unit's terms from the trials' first rests, as broad_heading.py takes them.
+    in.csv out.csv`. PIPELINE is our chain (`denoise.wavelet -> predict.bias -> attitude.6d`,
+    reading a stop signal) with the unit's terms from the trials' first rests, as
+    broad_heading.py takes them (ATTITUDE_PIPELINE).
     in.csv has a header and the columns gx,gy,gz (the IMU's gyro, deg/s), ax,ay,az (its
     accelerometer, m/s²) and still (1 where the dataset's `movement` is false: the rest flags,
     for the vehicle's stop signal). out.csv has a header and, per method M that the example
     writes, the columns M_qw,M_qx,M_qy,M_qz, one row per input sample: scalar first, IMU body to
     an earth frame with z up (the heading may be relative; it is aligned like the peers'), and
-    optionally M_incl_sd, the standard deviation it publishes for its inclination (rad). Per
+    optionally M_incl_sd and M_head_sd, the standard deviations it publishes for its
+    inclination and its heading (rad). Per
     rate R it writes, the columns R_wx,R_wy,R_wz (rad/s): a corrected gyro, integrated here from
     the truth at its first valid sample (`ours_R_integrated`), what a navigator without an
     attitude stage gets from us.
@@ -181,7 +197,9 @@ def ours(name, d, pipeline, examples, work):
                 sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
             out[f"ours_{m}"] = q
             if f"{m}_incl_sd" in cols.dtype.names:
-                sds[f"ours_{m}"] = np.asarray(cols[f"{m}_incl_sd"], float)
+                head = f"{m}_head_sd"
+                sds[f"ours_{m}"] = (np.asarray(cols[f"{m}_incl_sd"], float),
+                                    np.asarray(cols[head], float) if head in cols.dtype.names else None)
         for m in [c[:-3] for c in cols.dtype.names if c.endswith("_wx")]:
             w = np.column_stack([cols[f"{m}_{c}"] for c in ("wx", "wy", "wz")])
             out[f"ours_{m}_integrated"] = integrate(w, np.asarray(d["opt_quat"], float), 1.0 / d["rate"])
@@ -281,7 +299,7 @@ def main():
             keys, _ = stage_keys(driftless, rests, trials[0][2]["rate"], work)
             pipeline = os.path.join(work, "broad.toml")
             with open(pipeline, "w") as f:
-                f.write(PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"'))
+                f.write(ATTITUDE_PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"'))
         for n, name, d in trials:
             rate = d["rate"]
             gyr = np.asarray(d["imu_gyr"], float)
@@ -315,14 +333,20 @@ def main():
                 row["nan"][m] = nan
                 row["first"][m] = errors(align_first(q, q_ref, k0, bu), q_ref, moving, bu)
                 row["mean_heading"][m] = errors(align_mean(q, q_ref, moving, bu), q_ref, moving, bu)
-            for m, sd in (sds.items() if args.example else ()):
-                # The published sd's honesty: how many motion samples' inclination error lies
-                # within 2 sd.
+            for m, (sd, head_sd) in (sds.items() if args.example else ()):
+                # The published sd's honesty: how many motion samples' inclination error (and
+                # heading error, aligned at the first valid truth) lies within 2 sd.
                 e = bu.calculateErrorQuatEarth(est[m], q_ref)
                 e *= np.where(e[:, :1] < 0, -1.0, 1.0)
                 incl = 2 * np.arccos(np.clip(np.sqrt(e[:, 0] ** 2 + e[:, 3] ** 2), -1.0, 1.0))
                 ok = moving & np.isfinite(incl)
                 row["coverage"][m] = [int(np.sum(incl[ok] <= 2 * sd[ok])), int(np.sum(ok))]
+                if head_sd is not None:
+                    e = bu.calculateErrorQuatEarth(align_first(est[m], q_ref, k0, bu), q_ref)
+                    e *= np.where(e[:, :1] < 0, -1.0, 1.0)
+                    head = np.abs(2 * np.arctan2(e[:, 3], e[:, 0]))
+                    ok = moving & np.isfinite(head) & (head_sd >= 0)
+                    row["coverage"][m + " heading"] = [int(np.sum(head[ok] <= 2 * head_sd[ok])), int(np.sum(ok))]
             results.append(row)
 
             print(f"\n{name}{' (dev)' if row['dev'] else ''}, heading aligned at sample {k0}")
@@ -357,7 +381,8 @@ def main():
             total = sum(r["coverage"][m][1] for r in results if r["number"] in numbers and m in r["coverage"])
             cells.append(f"{label} {inside / max(total, 1):.3f}")
             summary.setdefault("coverage", {}).setdefault(m, {})[label] = inside / max(total, 1)
-        print(f"\n{labels[m]}: inclination error within the published 2 sd in " + ", ".join(cells) + " of the motion samples")
+        what, who = ("heading", m[:-len(" heading")]) if m.endswith(" heading") else ("inclination", m)
+        print(f"\n{labels[who]}: {what} error within the published 2 sd in " + ", ".join(cells) + " of the motion samples")
     print(f"\n{len(results)} trial(s) in {elapsed:.0f} s (" + ", ".join(f"{m} {s:.0f} s" for m, s in seconds.items() if s) + "; gyro_raw: both integrations)")
     if args.json:
         with open(args.json, "w") as f:

@@ -479,7 +479,12 @@ pub struct AccelReading {
 ///   covariance as received (the driver's, on a live topic); else all zeros ("unknown", said by
 ///   `validate` and `record`: robot_localization raises a variance under 1e-9 to 1e-9 and
 ///   trusts such a reading far too much, where a -1 would make it drop the reading unsaid).
-/// - orientation: "not provided" (covariance element 0 = -1).
+/// - `orientation`: the sample's (an `attitude.6d` stage's; x, y, z, w, body to ENU, REP
+///   103), with `orientation_covariance` diagonal: the variances about the earth's x, y and z
+///   from `orientation_std`. Roll and pitch are from gravity. The yaw is relative (0 where the
+///   stage started: no magnetometer, REP 145), and its variance says how far it has drifted
+///   since: it grows from 0. Where the stage did not know it, the yaw's variance is pi^2 (any
+///   heading). "Not provided" (covariance element 0 = -1) for a sample without one.
 pub struct ImuMapping {
     /// The message, filled field by field per sample (its frame_id set once).
     pub imu: Imu,
@@ -579,6 +584,20 @@ impl ImuMapping {
             value,
             std: s.accel_std,
         });
+        (self.imu.orientation, self.imu.orientation_covariance) = match s.orientation_estimate() {
+            Some(q) => {
+                let mut cov = [0.0; 9];
+                for (a, sd) in s.orientation_std.iter().enumerate() {
+                    cov[4 * a] = if *sd >= 0.0 {
+                        sd * sd
+                    } else {
+                        std::f64::consts::PI.powi(2)
+                    };
+                }
+                (q, cov)
+            }
+            None => ([0.0, 0.0, 0.0, 1.0], NOT_PROVIDED),
+        };
         self.fill(s.t_ns, s.rate, s.drift_std, accel, held)
     }
 
@@ -923,6 +942,38 @@ mod tests {
         assert_eq!(m.accel_unknown, 1, "counted, so that record can say it");
         // The sample's own noise wins over both.
         assert_eq!(diag(&m.accel_covariance([0.0, 0.5, 2.0])), [0.0, 0.25, 4.0]);
+    }
+
+    #[test]
+    fn the_orientation_goes_out_with_its_covariance_and_only_when_given() {
+        use crate::transport::{GyroSample, SENSOR_ORIENTATION};
+        let mut m = ImuMapping::new("imu_link", 1.0, Some(0.1));
+        let q = [0.1, -0.2, 0.3, (1.0f64 - 0.14).sqrt()];
+        let with = GyroSample {
+            orientation: q,
+            orientation_std: [1e-3, 2e-3, 0.05],
+            sensors: SENSOR_ORIENTATION,
+            ..GyroSample::default()
+        };
+        let imu = m.gyro(&with).unwrap();
+        assert_eq!(imu.orientation.map(f64::to_bits), q.map(f64::to_bits));
+        let c = imu.orientation_covariance;
+        assert_eq!(
+            [c[0], c[4], c[8]],
+            [1e-3f64 * 1e-3, 2e-3 * 2e-3, 0.05 * 0.05]
+        );
+        assert_eq!([c[1], c[2], c[3], c[5], c[6], c[7]], [0.0; 6]);
+        // The heading's sd not known: any heading.
+        let unknown_yaw = GyroSample {
+            orientation_std: [1e-3, 1e-3, -1.0],
+            ..with
+        };
+        let c = m.gyro(&unknown_yaw).unwrap().orientation_covariance;
+        assert_eq!(c[8], std::f64::consts::PI.powi(2));
+        // The next sample has none: not provided, not the last one's.
+        let imu = m.gyro(&GyroSample::default()).unwrap();
+        assert_eq!(imu.orientation_covariance, NOT_PROVIDED);
+        assert_eq!(imu.orientation, [0.0, 0.0, 0.0, 1.0]);
     }
 
     fn bits(imu: &Imu) -> Vec<u64> {

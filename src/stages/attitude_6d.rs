@@ -1,0 +1,302 @@
+//! `attitude.6d`: the orientation from the corrected gyro and the accelerometer
+//! ([`crate::attitude`]: VQF, fed our corrected rate), carried in every sample beside them.
+//!
+//! ```toml
+//! [[stage]]
+//! name = "attitude"
+//! kind = "attitude.6d"
+//! input = "nav/predicted"        # after predict.bias: it integrates the corrected rate
+//! output = "nav/attitude"
+//! # tau_acc_s = 3.0              # how fast the accelerometer pulls the inclination, s
+//! ```
+//!
+//! What it takes from the stages before it: the corrected rate (`predict.bias` removed the
+//! bias from the unit's own Allan terms and the stops both sensors or the vehicle confirm),
+//! that bias's uncertainty (`drift_std`) and the gyro's white noise (`predict.bias`'s `arw`)
+//! for the heading's uncertainty. The sample gains `orientation` (x, y, z, w, body to an earth
+//! frame with z up; the heading relative, 0 where the stage started) and `orientation_std`
+//! (about the earth's x, y, z). A sample without a valid accelerometer coasts on the gyro and
+//! says so (`SENSOR_ORIENTATION_COASTING`); free fall and shocks are flagged
+//! (`SENSOR_ORIENTATION_NO_GRAVITY`). docs/attitude.md gives the method and its figures.
+
+use crate::attitude::{Attitude, AttitudeConfig, VqfBias};
+use crate::io::InputError;
+use crate::stages::contract::{Kind, Params, Role, Stage};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
+use crate::transport::{
+    GyroSample, DRIFT_STD_NOT_PROVIDED, SENSOR_ORIENTATION, SENSOR_ORIENTATION_COASTING,
+    SENSOR_ORIENTATION_NO_GRAVITY,
+};
+
+const TAU_ACC_S: Key = Key {
+    name: "tau_acc_s",
+    ty: Type::Positive(1e3),
+    default: DefaultValue::Float(3.0),
+    doc: "time constant of the accelerometer's pull on the inclination, s (VQF's tauAcc): \
+          longer trusts the gyro more through the body's own accelerations",
+};
+const VQF_BIAS: Key = Key {
+    name: "vqf_bias",
+    ty: Type::Choice(&["full", "rest", "off"]),
+    default: DefaultValue::Word("full"),
+    doc: "VQF's own bias estimation on top of `predict.bias`'s: at rest and in motion (full), \
+          at rest only, or none",
+};
+const MIN_G: Key = Key {
+    name: "min_g",
+    ty: Type::FloatIn(0.0, 100.0),
+    default: DefaultValue::Float(0.5),
+    doc: "an accelerometer norm below this many g is flagged free fall (the reading is used)",
+};
+const MAX_G: Key = Key {
+    name: "max_g",
+    ty: Type::Positive(1e3),
+    default: DefaultValue::Float(4.0),
+    doc: "one above this many g is flagged a shock (the reading is used: dropping it biases \
+          the low-passed gravity)",
+};
+const INCLINATION_FLOOR_DEG: Key = Key {
+    name: "inclination_floor_deg",
+    ty: Type::NonNegative,
+    default: DefaultValue::Float(0.3),
+    doc: "the inclination's standard deviation with no motion, deg",
+};
+const INCLINATION_MOTION_GAIN: Key = Key {
+    name: "inclination_motion_gain",
+    ty: Type::NonNegative,
+    default: DefaultValue::Float(0.1),
+    doc: "how much of the low-passed |a| - g is left in the inclination (its standard \
+          deviation grows by this times it, over g)",
+};
+const ARW: Key = Key {
+    name: "arw",
+    ty: Type::Positive(1e6),
+    default: DefaultValue::Derived("`predict.bias`'s (without one: 0)"),
+    doc: "the gyro's angle random walk N, deg/sqrt(h), that the heading's standard deviation \
+          grows by besides the bias's",
+};
+
+/// `attitude.6d`.
+pub const KIND: Kind = Kind {
+    name: "attitude.6d",
+    role: Role::Process,
+    summary: "the orientation (roll, pitch, relative heading) from the corrected gyro and the \
+              accelerometer, with its standard deviation",
+    keys: &[
+        TAU_ACC_S,
+        VQF_BIAS,
+        MIN_G,
+        MAX_G,
+        INCLINATION_FLOOR_DEG,
+        INCLINATION_MOTION_GAIN,
+        ARW,
+    ],
+    parse,
+};
+
+/// `attitude.6d` parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeParams {
+    /// The filter's settings; `arw` as given (None: the chain's).
+    pub filter: AttitudeConfig,
+}
+
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+    if t.cx.axes != 3 {
+        return Err(t.error(format!(
+            "attitude.6d needs the three axes of the gyro (the pipeline has axes = {})",
+            t.cx.axes
+        )));
+    }
+    let vqf_bias = match t.choice_or_default(&VQF_BIAS, "vqf_bias", true)?.as_str() {
+        "rest" => VqfBias::Rest,
+        "off" => VqfBias::Off,
+        _ => VqfBias::Full,
+    };
+    let filter = AttitudeConfig {
+        tau_acc_s: t.float_or_default(&TAU_ACC_S)?,
+        vqf_bias,
+        min_g: t.float_or_default(&MIN_G)?,
+        max_g: t.float_or_default(&MAX_G)?,
+        inclination_floor_deg: t.float_or_default(&INCLINATION_FLOOR_DEG)?,
+        inclination_motion_gain: t.float_or_default(&INCLINATION_MOTION_GAIN)?,
+        // deg/sqrt(h) as predict.bias reads it, to rad/sqrt(s).
+        arw: t.float(&ARW)?.map(|n| (n / 60.0).to_radians()),
+    };
+    filter.check().map_err(|e| t.error(e))?;
+    Ok(Box::new(AttitudeParams { filter }))
+}
+
+impl AttitudeParams {
+    /// The settings the stage runs with in the chain `cx`: `arw` from the chain's
+    /// `predict.bias` where the table gives none.
+    fn config(&self, cx: &Context) -> AttitudeConfig {
+        AttitudeConfig {
+            arw: self.filter.arw.or(cx.white_noise.map(f64::to_radians)),
+            ..self.filter
+        }
+    }
+}
+
+impl Params for AttitudeParams {
+    fn stage(&self, cx: &Context) -> Result<Box<dyn Stage>, String> {
+        Ok(Box::new(AttitudeStage {
+            filter: Attitude::new(cx.rate_hz, self.config(cx))?,
+            coasting: 0,
+            no_gravity: 0,
+            samples: 0,
+        }))
+    }
+
+    fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
+        let f = &self.filter;
+        vec![format!(
+            "tau_acc {} s, VQF's bias estimation {}, flagged outside {}..{} g; arw {}",
+            f.tau_acc_s,
+            format!("{:?}", f.vqf_bias).to_lowercase(),
+            f.min_g,
+            f.max_g,
+            f.arw.map_or("from predict.bias".into(), |n| format!(
+                "{:.3} deg/sqrt(h)",
+                n.to_degrees() * 60.0
+            ))
+        )]
+    }
+}
+
+/// The stage: one attitude filter, and what it saw.
+pub struct AttitudeStage {
+    filter: Attitude,
+    coasting: u64,
+    no_gravity: u64,
+    samples: u64,
+}
+
+impl Stage for AttitudeStage {
+    fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
+        let mut out = *input;
+        let bias_sd = input
+            .drift_std
+            .iter()
+            .all(|s| *s >= 0.0)
+            .then_some(input.drift_std);
+        let step = self.filter.push(input.rate, input.accel_reading(), bias_sd);
+        let [w, x, y, z] = step.quat;
+        out.orientation = [x, y, z, w];
+        // The inclination's error is a tilt in any horizontal direction: half its variance
+        // about each horizontal axis.
+        let tilt = step.inclination_sd * std::f64::consts::FRAC_1_SQRT_2;
+        out.orientation_std = [
+            tilt,
+            tilt,
+            step.heading_sd.unwrap_or(DRIFT_STD_NOT_PROVIDED),
+        ];
+        out.sensors |= SENSOR_ORIENTATION;
+        if step.coasting {
+            out.sensors |= SENSOR_ORIENTATION_COASTING;
+            self.coasting += 1;
+        }
+        if step.no_gravity {
+            out.sensors |= SENSOR_ORIENTATION_NO_GRAVITY;
+            self.no_gravity += 1;
+        }
+        self.samples += 1;
+        Some(out)
+    }
+
+    fn learnt(&self) -> Vec<String> {
+        vec![format!(
+            "attitude: {} samples, {} coasting on the gyro (no valid accelerometer), {} in free \
+             fall or a shock",
+            self.samples, self.coasting, self.no_gravity
+        )]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::allan::STANDARD_GRAVITY;
+    use crate::stages::schema::{AccelUnits, Units};
+    use crate::transport::{SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
+
+    fn cx(white_noise: Option<f64>) -> Context {
+        Context {
+            rate_hz: 100.0,
+            axes: 3,
+            units: Units::DegPerSec,
+            accel_units: AccelUnits::MPerS2,
+            white_noise,
+        }
+    }
+
+    fn stage(white_noise: Option<f64>) -> Box<dyn Stage> {
+        AttitudeParams {
+            filter: AttitudeConfig::default(),
+        }
+        .stage(&cx(white_noise))
+        .unwrap()
+    }
+
+    /// A body tilted 20 deg about x, still: the sample carries its orientation, every other
+    /// field as it came.
+    #[test]
+    fn the_sample_gains_its_orientation_and_keeps_the_rest() {
+        let mut s = stage(Some(0.002));
+        let tilt = 20f64.to_radians();
+        let input = GyroSample {
+            seq: 7,
+            rate: [1e-4, -2e-4, 3e-4],
+            drift: [1e-3, 0.0, 0.0],
+            drift_std: [1e-5, 1e-5, 2e-5],
+            accel: [0.0, tilt.sin(), tilt.cos()].map(|v| v * STANDARD_GRAVITY),
+            sensors: SENSOR_ACCEL,
+            ..GyroSample::default()
+        };
+        let mut out = None;
+        for _ in 0..1000 {
+            out = s.process(&input);
+        }
+        let out = out.unwrap();
+        let kept = GyroSample {
+            orientation: input.orientation,
+            orientation_std: input.orientation_std,
+            sensors: input.sensors,
+            ..out
+        };
+        assert_eq!(kept, input);
+        assert_eq!(out.sensors, SENSOR_ACCEL | SENSOR_ORIENTATION);
+        let [x, _, _, w] = out.orientation;
+        // A rotation of 20 deg about x takes the body's up, (0, sin 20, cos 20), to the
+        // earth's (x, y, z, w order).
+        let about_x = 2.0 * x.atan2(w);
+        assert!((about_x.to_degrees() - 20.0).abs() < 0.5, "{out:?}");
+        assert!(out.orientation_std.iter().all(|s| *s > 0.0), "{out:?}");
+        // 10 s at 2e-5 rad/s on z (the body's z is 20 deg off the vertical) and N 0.002 deg/s.
+        let h = out.orientation_std[2];
+        assert!(h > 2e-5 * 10.0 * tilt.cos() && h < 1e-3, "{h}");
+        assert!(s.learnt()[0].starts_with("attitude: 1000 samples, 0 coasting"));
+    }
+
+    /// No accelerometer, a held one, no drift_std: flagged coasting, the heading's sd not
+    /// provided, never a NaN.
+    #[test]
+    fn without_the_accelerometer_it_coasts_and_says_so() {
+        let mut s = stage(None);
+        for sensors in [0, SENSOR_ACCEL | SENSOR_ACCEL_INVALID] {
+            let out = s
+                .process(&GyroSample {
+                    accel: [f64::NAN; 3],
+                    sensors,
+                    ..GyroSample::default()
+                })
+                .unwrap();
+            assert_eq!(
+                out.sensors & (SENSOR_ORIENTATION | SENSOR_ORIENTATION_COASTING),
+                SENSOR_ORIENTATION | SENSOR_ORIENTATION_COASTING
+            );
+            assert_eq!(out.orientation_std[2], DRIFT_STD_NOT_PROVIDED);
+            assert!(out.orientation.iter().all(|v| v.is_finite()));
+        }
+    }
+}
