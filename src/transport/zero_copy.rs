@@ -38,7 +38,7 @@ mod tests {
         // SAFETY: type_name only returns a static string.
         unsafe {
             assert_eq!(RawSample::type_name(), "driftless::RawSample.v2");
-            assert_eq!(GyroSample::type_name(), "driftless::GyroSample.v3");
+            assert_eq!(GyroSample::type_name(), "driftless::GyroSample.v4");
             assert_eq!(StatsSnapshot::type_name(), "driftless::StatsSnapshot.v3");
             assert_eq!(StopSignal::type_name(), "driftless::StopSignal");
         }
