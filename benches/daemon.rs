@@ -30,8 +30,10 @@
 //!    corrected service; N daemons against one daemon;
 //! 7. fed by a sensor driver, as deployed: this process publishes a raw sample each 1 ms on
 //!    "sensor/raw" and reads the corrected service; the consumer is the bare chain of the same
-//!    hops in its own process (this binary again), `pipelines/navigator.toml`, then
-//!    `pipelines/external-sensor.toml`. Their CPU is judged against the bare chain's.
+//!    hops in its own process (this binary again), `pipelines/navigator.toml`,
+//!    `pipelines/navigator-attitude.toml` (one hop more), then `pipelines/external-sensor.toml`.
+//!    Their CPU is judged against the bare chain's, and the attitude stage's compute time
+//!    against its budget.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -1115,10 +1117,11 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
     }
 }
 
-/// Run 7's rows and goals: the bare chain, `navigator.toml` and `external-sensor.toml`, each
-/// fed by the same driver for `secs`.
+/// Run 7's rows and goals: the bare chain, `navigator.toml`, `navigator-attitude.toml` and
+/// `external-sensor.toml`, each fed by the same driver for `secs`.
 fn driver_fed_rows(secs: f64, dir: &Path) {
     let nav = root().join("pipelines/navigator.toml");
+    let att = root().join("pipelines/navigator-attitude.toml");
     let ext = root().join("pipelines/external-sensor.toml");
     let runs = [
         ("bare iceoryx2 chain, 4 hops", Fed::Bare, "fedbare"),
@@ -1126,6 +1129,11 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
             "navigator.toml (bias filter, no denoiser)",
             Fed::Daemon(&nav, "nav/corrected", 0),
             "fednav",
+        ),
+        (
+            "navigator-attitude.toml (bias filter, attitude.6d; 5 hops)",
+            Fed::Daemon(&att, "nav/corrected", 0),
+            "fedatt",
         ),
         (
             "external-sensor.toml (denoiser, lag 64)",
@@ -1174,8 +1182,13 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
             1.5,
         ),
         (
-            "driver-fed external-sensor.toml CPU <= 2.5x the bare chain's",
+            "driver-fed navigator-attitude.toml CPU <= 1.5x the bare chain's",
             &runs[2].1,
+            1.5,
+        ),
+        (
+            "driver-fed external-sensor.toml CPU <= 2.5x the bare chain's",
+            &runs[3].1,
             2.5,
         ),
     ] {
@@ -1186,5 +1199,33 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
             unexplained(r),
             r.lost
         );
+    }
+    // The attitude stage's own cost, and what it adds to the sample's way to a navigator.
+    let (nav_run, att_run) = (&runs[1].1, &runs[2].1);
+    let p50 = |r: &FedRun| r.sub.value_at_quantile(0.5).max(1) as f64;
+    println!(
+        "  goal driver-fed navigator-attitude.toml p50 <= 2x the bare chain's: {} (x{:.2}; \
+         navigator.toml x{:.2})",
+        p50(att_run) <= 2.0 * p50(&runs[0].1),
+        p50(att_run) / p50(&runs[0].1),
+        p50(nav_run) / p50(&runs[0].1)
+    );
+    let stage = att_run.report.as_ref().and_then(|v| {
+        v["stages"]
+            .as_array()?
+            .iter()
+            .find(|s| s["kind"] == "attitude.6d")
+            .map(|s| s["compute_ns"].clone())
+    });
+    match stage {
+        Some(c) => println!(
+            "  goal attitude.6d p99.9 <= 5 us: {} (p50 {} / p99 {} / p99.9 {} / max {} us)",
+            c["p999"].as_u64().is_some_and(|ns| ns <= 5_000),
+            us(c["p50"].as_u64().unwrap_or(0)),
+            us(c["p99"].as_u64().unwrap_or(0)),
+            us(c["p999"].as_u64().unwrap_or(0)),
+            us(c["max"].as_u64().unwrap_or(0)),
+        ),
+        None => println!("  goal attitude.6d p99.9 <= 5 us: no attitude.6d stage in the report"),
     }
 }

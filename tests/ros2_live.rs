@@ -273,13 +273,6 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
     }
     offline.finish(&mut |s| want.push(mapping.gyro(&s).unwrap().clone()));
     assert_eq!(want.len(), N);
-    let floats = |v: &serde_json::Value| -> Vec<f64> {
-        v.as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
     for (i, (m, w)) in msgs.iter().zip(&want).enumerate() {
         let rate = floats(&m["angular_velocity"]);
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -1094,6 +1087,32 @@ fn peer_accel(i: usize) -> [f64; 3] {
     ]
 }
 
+/// A JSON array of numbers.
+fn floats(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// The messages the rclpy navigator got from `daemon` while the rclpy driver sent N Imu with
+/// acceleration (every one of them, or the test fails); the daemon stopped.
+fn accel_driven(daemon: Child) -> Vec<serde_json::Value> {
+    let mut nav = navigator(N);
+    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_ACCEL", "1")]);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(daemon);
+    let msgs: Vec<serde_json::Value> = got
+        .into_iter()
+        .filter(|v| v.get("stamp").is_some())
+        .collect();
+    assert_eq!(msgs.len(), N, "every message through: {err}");
+    msgs
+}
+
 #[test]
 fn a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covariance() {
     if !in_netns(
@@ -1101,22 +1120,7 @@ fn a_drivers_acceleration_reaches_the_navigator_bit_for_bit_with_a_finite_covari
     ) {
         return;
     }
-    let d = daemon("accel");
-    let mut nav = navigator(N);
-    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_ACCEL", "1")]);
-    assert!(driver.wait().unwrap().success());
-    let got = lines(&mut nav);
-    assert!(nav.wait().unwrap().success());
-    let err = stop(d);
-    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
-    assert_eq!(msgs.len(), N, "every message through: {err}");
-    let floats = |v: &serde_json::Value| -> Vec<f64> {
-        v.as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
+    let msgs = accel_driven(daemon("accel"));
     for (i, m) in msgs.iter().enumerate() {
         assert_eq!(
             m["stamp"][1],
@@ -1154,24 +1158,11 @@ fn the_attitude_pipeline_fills_the_orientation_and_its_covariance() {
         return;
     }
     let pipeline = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2-attitude.toml");
-    let d = daemon_of(std::path::Path::new(pipeline), "attitude")
-        .spawn()
-        .expect("the daemon runs");
-    let mut nav = navigator(N);
-    let mut driver = peer_with("talk", "/imu/data_raw", N, &[("PEER_ACCEL", "1")]);
-    assert!(driver.wait().unwrap().success());
-    let got = lines(&mut nav);
-    assert!(nav.wait().unwrap().success());
-    let err = stop(d);
-    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
-    assert_eq!(msgs.len(), N, "every message through: {err}");
-    let floats = |v: &serde_json::Value| -> Vec<f64> {
-        v.as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
+    let msgs = accel_driven(
+        daemon_of(std::path::Path::new(pipeline), "attitude")
+            .spawn()
+            .expect("the daemon runs"),
+    );
     let mut last_yaw_var = 0.0;
     for (i, m) in msgs.iter().enumerate() {
         // The acceleration still passes bit for bit beside the orientation.

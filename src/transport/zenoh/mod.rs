@@ -252,9 +252,13 @@ impl std::fmt::Display for Rejected {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             // Without an encoding schema, the size is all there is to go on.
-            Rejected::Size(n) => match [super::GYRO_V1_SIZE, super::GYRO_V2_SIZE]
-                .iter()
-                .position(|size| size == n)
+            Rejected::Size(n) => match [
+                super::GYRO_V1_SIZE,
+                super::GYRO_V2_SIZE,
+                super::GYRO_V3_SIZE,
+            ]
+            .iter()
+            .position(|size| size == n)
             {
                 Some(i) => write!(
                     f,
@@ -347,7 +351,16 @@ mod tests {
             ),
             "{why}"
         );
-        assert!(decode_payload::<GyroSample>(&enc(GYRO_TYPE_NAME), &[0; 208]).is_ok());
+        assert!(decode_payload::<GyroSample>(&enc(GYRO_TYPE_NAME), &[0; 264]).is_ok());
+        let why =
+            decode_payload::<GyroSample>(&enc("driftless::GyroSample.v3"), &[0; 208]).unwrap_err();
+        assert!(
+            why.to_string()
+                .contains("(layout v3, 208 bytes, from an older driftless)"),
+            "{why}"
+        );
+        let why = decode_payload::<GyroSample>("application/octet-stream", &[0; 208]).unwrap_err();
+        assert!(why.to_string().contains("layout v3"), "{why}");
         let why =
             decode_payload::<GyroSample>(&enc("driftless::GyroSample.v2"), &[0; 128]).unwrap_err();
         assert!(
