@@ -46,6 +46,7 @@
 //! up (VQF's; ENU up to the heading, which is relative).
 
 use crate::allan::STANDARD_GRAVITY as GRAVITY;
+use crate::sim::force::rotate;
 use vqf_rs::{Params, VQF};
 
 /// How much of VQF's own gyro bias estimation runs on the (already corrected) rate.
@@ -157,8 +158,9 @@ pub struct Attitude {
     /// The sample period, s.
     dt: f64,
     /// The heading's error from the rate's bias (added linearly), rad, and from its white
-    /// noise (a variance), rad²; NaN once a sample came without the bias's uncertainty.
-    heading_bias: f64,
+    /// noise (a variance), rad²; the first None once a sample came without the bias's
+    /// uncertainty.
+    heading_bias: Option<f64>,
     heading_noise: f64,
     /// The inclination's error gathered while coasting, as the heading's: rad and rad².
     coast_bias: f64,
@@ -199,7 +201,7 @@ impl Attitude {
             keep: (-1.0 / (rate_hz * cfg.tau_acc_s)).exp(),
             motion: 0.0,
             dt: 1.0 / rate_hz,
-            heading_bias: 0.0,
+            heading_bias: Some(0.0),
             heading_noise: 0.0,
             coast_bias: 0.0,
             coast_noise: 0.0,
@@ -247,8 +249,7 @@ impl Attitude {
             inclination_sd: (floor * floor + moving * moving + coast).sqrt(),
             heading_sd: self
                 .heading_bias
-                .is_finite()
-                .then(|| (self.heading_bias * self.heading_bias + self.heading_noise).sqrt()),
+                .map(|b| (b * b + self.heading_noise).sqrt()),
         }
     }
 
@@ -256,25 +257,11 @@ impl Attitude {
     /// vertical into the heading's, about the horizontal axes into the inclination's while
     /// `coasting` (and that part fades with the accelerometer's low-pass once it is back).
     fn integrate_errors(&mut self, quat: [f64; 4], bias_sd: Option<[f64; 3]>, measured: bool) {
+        // The earth's x, y and z in body coordinates (the rows of the body-to-earth rotation):
+        // the inverse rotation of each axis.
         let [w, x, y, z] = quat;
-        // Rows of the body-to-earth rotation: the earth's x, y and z in body coordinates.
-        let rows = [
-            [
-                1.0 - 2.0 * (y * y + z * z),
-                2.0 * (x * y - w * z),
-                2.0 * (x * z + w * y),
-            ],
-            [
-                2.0 * (x * y + w * z),
-                1.0 - 2.0 * (x * x + z * z),
-                2.0 * (y * z - w * x),
-            ],
-            [
-                2.0 * (x * z - w * y),
-                2.0 * (y * z + w * x),
-                1.0 - 2.0 * (x * x + y * y),
-            ],
-        ];
+        let rows = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+            .map(|axis| rotate([w, -x, -y, -z], axis));
         let bias_sd = bias_sd.filter(|s| s.iter().all(|v| v.is_finite() && *v >= 0.0));
         let about = |row: &[f64; 3], sd: &[f64; 3]| -> f64 {
             row.iter()
@@ -284,10 +271,10 @@ impl Attitude {
                 .sqrt()
         };
         let noise = self.cfg.arw.unwrap_or(0.0).powi(2) * self.dt;
-        match bias_sd {
-            Some(sd) => self.heading_bias += about(&rows[2], &sd) * self.dt,
-            None => self.heading_bias = f64::NAN,
-        }
+        self.heading_bias = self
+            .heading_bias
+            .zip(bias_sd)
+            .map(|(b, sd)| b + about(&rows[2], &sd) * self.dt);
         self.heading_noise += noise;
         if measured {
             self.coast_bias *= self.keep;
@@ -304,7 +291,7 @@ impl Attitude {
     pub fn reset(&mut self) {
         self.vqf.reset_state();
         self.motion = 0.0;
-        self.heading_bias = 0.0;
+        self.heading_bias = Some(0.0);
         self.heading_noise = 0.0;
         self.coast_bias = 0.0;
         self.coast_noise = 0.0;
@@ -325,7 +312,6 @@ pub fn roll_pitch_yaw(q: [f64; 4]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::force::rotate;
 
     /// Angle (deg) between the body's z axis in the earth frame and up: the inclination.
     fn inclination_deg(q: [f64; 4], body_up: [f64; 3]) -> f64 {

@@ -464,6 +464,15 @@ pub struct AccelReading {
     pub std: [f64; 3],
 }
 
+/// A row-major 3x3 covariance with `v` on its diagonal.
+fn diagonal(v: [f64; 3]) -> [f64; 9] {
+    let mut cov = [0.0; 9];
+    for (a, x) in v.into_iter().enumerate() {
+        cov[4 * a] = x;
+    }
+    cov
+}
+
 /// How our samples become `sensor_msgs/msg/Imu` messages: one mapping for the bags `record`
 /// writes and the topics the daemon publishes.
 /// - `angular_velocity`: the rate in rad/s; the stamp: the sample's time `t_ns`.
@@ -585,17 +594,16 @@ impl ImuMapping {
             std: s.accel_std,
         });
         (self.imu.orientation, self.imu.orientation_covariance) = match s.orientation_estimate() {
-            Some(q) => {
-                let mut cov = [0.0; 9];
-                for (a, sd) in s.orientation_std.iter().enumerate() {
-                    cov[4 * a] = if *sd >= 0.0 {
+            Some(q) => (
+                q,
+                diagonal(s.orientation_std.map(|sd| {
+                    if sd >= 0.0 {
                         sd * sd
                     } else {
                         std::f64::consts::PI.powi(2)
-                    };
-                }
-                (q, cov)
-            }
+                    }
+                })),
+            ),
             None => ([0.0, 0.0, 0.0, 1.0], NOT_PROVIDED),
         };
         self.fill(s.t_ns, s.rate, s.drift_std, accel, held)
@@ -609,17 +617,10 @@ impl ImuMapping {
 
     /// [`ImuMapping::accel_covariance`], None where it is unknown.
     fn accel_covariance_known(&self, std: [f64; 3]) -> Option<[f64; 9]> {
-        let diag = |v: [f64; 3]| {
-            let mut cov = [0.0; 9];
-            for a in 0..3 {
-                cov[4 * a] = v[a];
-            }
-            cov
-        };
         if std.iter().all(|s| s.is_finite() && *s >= 0.0) {
-            Some(diag(std.map(|s| s * s)))
+            Some(diagonal(std.map(|s| s * s)))
         } else if let Some(var) = self.accel_noise_var {
-            Some(diag([var; 3]))
+            Some(diagonal([var; 3]))
         } else {
             self.accel_cov_in
         }
