@@ -1210,6 +1210,25 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
         p50(att_run) / p50(&runs[0].1),
         p50(nav_run) / p50(&runs[0].1)
     );
+    // Every stage's time (its compute and the publish of its output), for scale.
+    if let Some(stages) = att_run
+        .report
+        .as_ref()
+        .and_then(|v| v["stages"].as_array().cloned())
+    {
+        for s in &stages {
+            let c = &s["compute_ns"];
+            println!(
+                "  {} ({}): p50 {} / p99 {} / p99.9 {} / max {} us",
+                s["name"].as_str().unwrap_or("?"),
+                s["kind"].as_str().unwrap_or("?"),
+                us(c["p50"].as_u64().unwrap_or(0)),
+                us(c["p99"].as_u64().unwrap_or(0)),
+                us(c["p999"].as_u64().unwrap_or(0)),
+                us(c["max"].as_u64().unwrap_or(0)),
+            );
+        }
+    }
     let stage = att_run.report.as_ref().and_then(|v| {
         v["stages"]
             .as_array()?

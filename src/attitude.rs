@@ -180,6 +180,25 @@ impl std::fmt::Debug for Attitude {
     }
 }
 
+/// A copy: VQF is not `Clone`, so the same settings build a new one and the state is copied.
+/// `clone_from` a filter of the same settings copies the state alone (no coefficients
+/// recomputed): what a spare to run [`Attitude::push`]'s code on needs.
+impl Clone for Attitude {
+    fn clone(&self) -> Self {
+        let mut copy = Attitude::with_period(self.dt, self.cfg);
+        copy.copy_state(self);
+        copy
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        if self.cfg == source.cfg && self.dt == source.dt {
+            self.copy_state(source);
+        } else {
+            *self = source.clone();
+        }
+    }
+}
+
 impl Attitude {
     /// A filter for samples at `rate_hz`.
     pub fn new(rate_hz: f64, cfg: AttitudeConfig) -> Result<Self, String> {
@@ -189,23 +208,38 @@ impl Attitude {
                 "attitude: rate must be a number > 0 Hz, not {rate_hz}"
             ));
         }
+        Ok(Attitude::with_period(1.0 / rate_hz, cfg))
+    }
+
+    /// A filter for samples `dt` s apart, of settings already checked.
+    fn with_period(dt: f64, cfg: AttitudeConfig) -> Self {
         let params = Params {
             tau_acc: cfg.tau_acc_s,
             rest_bias_est_enabled: cfg.vqf_bias != VqfBias::Off,
             motion_bias_est_enabled: cfg.vqf_bias == VqfBias::Full,
             ..Params::default()
         };
-        Ok(Attitude {
-            vqf: VQF::new(1.0 / rate_hz, None, None, Some(params)),
+        Attitude {
+            vqf: VQF::new(dt, None, None, Some(params)),
             cfg,
-            keep: (-1.0 / (rate_hz * cfg.tau_acc_s)).exp(),
+            keep: (-dt / cfg.tau_acc_s).exp(),
             motion: 0.0,
-            dt: 1.0 / rate_hz,
+            dt,
             heading_bias: Some(0.0),
             heading_noise: 0.0,
             coast_bias: 0.0,
             coast_noise: 0.0,
-        })
+        }
+    }
+
+    /// Everything `source` learnt (a filter of the same settings).
+    fn copy_state(&mut self, source: &Attitude) {
+        *self.vqf.state_mut() = *source.vqf.state();
+        self.motion = source.motion;
+        self.heading_bias = source.heading_bias;
+        self.heading_noise = source.heading_noise;
+        self.coast_bias = source.coast_bias;
+        self.coast_noise = source.coast_noise;
     }
 
     /// The settings.
@@ -459,6 +493,41 @@ mod tests {
         assert_eq!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd, None);
         f.reset();
         assert!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd.unwrap() < 1e-3);
+    }
+
+    /// A spare brought up to date with `clone_from` goes on exactly as the filter it copies;
+    /// running it leaves the filter as it was.
+    #[test]
+    fn a_spare_copies_everything_the_filter_learnt() {
+        let sway = |k: usize| {
+            let t = k as f64 / 100.0;
+            let w = [0.5 * t.sin(), 0.3 * (1.3 * t).cos(), 0.2 * (0.7 * t).sin()];
+            let a = [0.8 * (0.9 * t).sin(), 0.6 * (1.1 * t).cos(), GRAVITY];
+            (
+                w,
+                (k % 7 != 0).then_some(a),
+                (k % 5 != 0).then_some([1e-5; 3]),
+            )
+        };
+        let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
+        let mut spare = f.clone();
+        for k in 0..500 {
+            let (w, a, sd) = sway(k);
+            f.push(w, a, sd);
+        }
+        spare.clone_from(&f);
+        for k in 500..600 {
+            let (w, a, sd) = sway(k);
+            assert_eq!(spare.push(w, a, sd), f.push(w, a, sd), "sample {k}");
+        }
+        // A fresh clone, and a clone_from across settings, are the same filter too.
+        let mut other = Attitude::new(50.0, AttitudeConfig::default()).unwrap();
+        other.clone_from(&f);
+        let mut fresh = f.clone();
+        let (w, a, sd) = sway(600);
+        let want = f.push(w, a, sd);
+        assert_eq!(fresh.push(w, a, sd), want);
+        assert_eq!(other.push(w, a, sd), want);
     }
 
     #[test]

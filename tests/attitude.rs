@@ -163,3 +163,45 @@ fn the_orientation_rides_with_every_sample_and_follows_the_body() {
     let sd = got[N - 1].orientation_std[2].to_degrees();
     assert!(sd > 0.01 && sd < 10.0, "{sd}");
 }
+
+/// Prewarming (`prewarm_us`: before each paced sample the attitude stage runs VQF once on a
+/// spare copy, to bring its code back into the cache) changes no output: two real-time runs of
+/// the log's first 3 s, with and without it, publish the same samples bit for bit.
+#[test]
+fn prewarming_changes_no_orientation() {
+    const ROWS: usize = 300;
+    let dir = Dir::new();
+    let head: String = log()
+        .lines()
+        .take(ROWS + 1)
+        .map(|l| l.to_owned() + "\n")
+        .collect();
+    dir.write("log.csv", &head);
+    let paced = PIPELINE.replace("pace = \"asap\"", "pace = \"realtime\"");
+    let warmed = paced.replace("input_units", "prewarm_us = 2000.0\ninput_units");
+    assert_ne!(paced, warmed);
+    let [plain, prewarmed] = [("plain", paced), ("prewarmed", warmed)].map(|(name, text)| {
+        let file = dir.write(&format!("{name}.toml"), &text);
+        let prefix = Prefix::new(&format!("attwarm{name}"));
+        let mut daemon = start(&file, &prefix, &[]);
+        wait_ready(&prefix, "att/stats", &mut daemon);
+        let node = Transport::new(&prefix.0, "att-probe", Default::default()).unwrap();
+        let input = node.open_input::<GyroSample>("att/corrected").unwrap();
+        let got = common::collect(&input, ROWS, Duration::from_secs(30));
+        let (code, err) = finish(daemon, Duration::from_secs(20));
+        assert_eq!(code, Some(0), "{name}: {err}");
+        assert_eq!(got.len(), ROWS, "{name}: every sample");
+        // What the clock stamps differs from run to run; nothing else may.
+        got.into_iter()
+            .map(|s| GyroSample {
+                ingest_ns: 0,
+                epoch: 0,
+                ..s
+            })
+            .collect::<Vec<_>>()
+    });
+    assert!(plain.iter().all(|s| s.sensors & SENSOR_ORIENTATION != 0));
+    for (i, (p, w)) in plain.iter().zip(&prewarmed).enumerate() {
+        assert_eq!(p, w, "sample {i}");
+    }
+}

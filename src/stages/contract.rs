@@ -51,10 +51,10 @@ pub trait Stage {
         0
     }
 
-    /// Read what the next [`process`](Self::process) touches, changing nothing, so that it
-    /// finds it in the cache: after the hot thread's sleep between paced samples a stage's
-    /// state has left it. Called `prewarm_us` before a sample is due. Default: nothing.
-    fn prewarm(&self) {}
+    /// Bring what the next [`process`](Self::process) touches back into the cache, changing
+    /// no output: after the hot thread's sleep between paced samples a stage's state (and its
+    /// code) has left it. Called `prewarm_us` before a sample is due. Default: nothing.
+    fn prewarm(&mut self) {}
 
     /// What the stage learnt while running, one line each, for `run`'s report (called once,
     /// after the last sample; may allocate). Default: nothing.

@@ -322,7 +322,7 @@ impl Stage for Wavelet {
         self.denoiser.lag()
     }
 
-    fn prewarm(&self) {
+    fn prewarm(&mut self) {
         self.denoiser.prewarm();
         if let Some(d) = &self.accel {
             d.prewarm();

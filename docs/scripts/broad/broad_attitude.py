@@ -258,6 +258,8 @@ def main():
     ap.add_argument("--target", default=os.path.join(REPO, "target", "release"),
                     help="where driftless is built (the unit's terms for --example)")
     ap.add_argument("--json", help="write the numbers to this file")
+    ap.add_argument("--attitude-key", action="append", default=[], metavar="KEY=VALUE",
+                    help="a key of the attitude.6d stage (TOML), e.g. vqf_bias='\"rest\"'; repeatable")
     args = ap.parse_args()
     if not args.broad:
         sys.exit("give the BROAD clone's path, or set DRIFTLESS_BROAD")
@@ -299,7 +301,9 @@ def main():
             keys, _ = stage_keys(driftless, rests, trials[0][2]["rate"], work)
             pipeline = os.path.join(work, "broad.toml")
             with open(pipeline, "w") as f:
-                f.write(ATTITUDE_PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"'))
+                text = ATTITUDE_PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"')
+                own = 'kind = "attitude.6d"\n'
+                f.write(text.replace(own, own + "".join(k + "\n" for k in args.attitude_key)))
         for n, name, d in trials:
             rate = d["rate"]
             gyr = np.asarray(d["imu_gyr"], float)

@@ -304,8 +304,8 @@ impl Chain {
     }
 
     /// [`Stage::prewarm`] of every stage, and the metrics slot the sample will fill.
-    pub(super) fn prewarm(&self) {
-        for stage in &self.stages {
+    pub(super) fn prewarm(&mut self) {
+        for stage in &mut self.stages {
             stage.prewarm();
         }
         // A copy is a read: a reference alone would not touch the memory.

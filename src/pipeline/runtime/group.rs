@@ -547,8 +547,9 @@ pub(super) fn serve(
                 .flatten()
             {
                 if crate::clock::sleep_until(early, stop) {
-                    for r in group.iter() {
-                        if let (Some(Some(d)), Some((_, chain))) = (r.next_due(), &r.hot) {
+                    for r in group.iter_mut() {
+                        let next = r.next_due();
+                        if let (Some(Some(d)), Some((_, chain))) = (next, &mut r.hot) {
                             if d <= due {
                                 chain.prewarm();
                             }
