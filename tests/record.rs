@@ -184,6 +184,8 @@ fn a_recording_of_the_raw_service_replays_to_the_recorded_corrected_samples_bit_
             out.to_str().unwrap(),
             "--raw-units",
             "deg/s",
+            "--raw-accel-units",
+            "m/s^2",
         ],
     );
     let me = Transport::new(&live.0, "driver", qos(BUFFER)).expect("node");
@@ -243,6 +245,36 @@ fn a_recording_of_the_raw_service_replays_to_the_recorded_corrected_samples_bit_
             rate.map(f64::to_bits),
             "raw values kept"
         );
+    }
+    // The raw channel names the units it was recorded in; a pipeline of other units is refused.
+    let raw_channel = Recording::open(&out)
+        .expect("a complete recording")
+        .channels()
+        .into_iter()
+        .find(|c| c.topic == "/rec/raw")
+        .expect("the raw channel");
+    assert_eq!(raw_channel.metadata["rate_units"], "deg/s");
+    assert_eq!(raw_channel.metadata["accel_units"], "m/s^2");
+    for (units, says) in [
+        (
+            "input_units = \"rad/s\"",
+            "was recorded in deg/s, but the pipeline's input_units is rad/s",
+        ),
+        (
+            "accel_units = \"g\"",
+            "was recorded in m/s^2, but the pipeline's accel_units is g",
+        ),
+    ] {
+        let p = mcap_pipeline(&dir, &out, Some("rec/raw"));
+        let toml = std::fs::read_to_string(&p).unwrap();
+        std::fs::write(
+            &p,
+            toml.replace("rate_hz = 1000.0", &format!("rate_hz = 1000.0\n{units}")),
+        )
+        .unwrap();
+        let o = common::driftless(&["validate", p.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{units}");
+        assert!(text(&o).1.contains(says), "{}", text(&o).1);
     }
     let meta = metadata(&out);
     assert_eq!(meta["rec/raw.samples"], N.to_string());

@@ -56,9 +56,9 @@ pub struct Args {
     /// zeros ("unknown"; robot_localization then trusts it far too much).
     #[arg(long, value_name = "M_PER_S2")]
     pub accel_noise: Option<f64>,
-    /// With --format ros2: units of raw services' accelerometer readings (the pipeline's
-    /// accel_units), to write them in m/s^2; without it a raw reading is written "not
-    /// provided".
+    /// Units of raw services' accelerometer readings (the pipeline's accel_units), stored with
+    /// their channels; with --format ros2, needed to write them in m/s^2 (without it a raw
+    /// reading is written "not provided").
     #[arg(long, value_parser = ["m/s^2", "g"])]
     pub raw_accel_units: Option<String>,
 }
@@ -99,11 +99,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    if args.raw_accel_units.is_some() && !ros2 {
-        return Err(CliError::input(
-            "--raw-accel-units is for --format ros2 (a recording keeps raw readings as they came)",
-        ));
-    }
     if args.frame_id != crate::transport::ros2::DEFAULT_FRAME_ID && !ros2 {
         return Err(CliError::input("--frame-id is for --format ros2"));
     }
@@ -128,6 +123,7 @@ fn record(args: &Args, prefix: &str) -> Result<(), CliError> {
         services: args.services.clone(),
         output: args.output.clone(),
         raw_units: args.raw_units.clone(),
+        raw_accel_units: args.raw_accel_units.clone(),
         ros2: (args.format == "ros2").then(|| Ros2Bag {
             frame_id: args.frame_id.clone(),
             rate_noise: args.rate_noise,

@@ -51,6 +51,9 @@ pub struct Settings {
     pub output: PathBuf,
     /// Units of raw services' rates (`deg/s` or `rad/s`, the pipeline's input_units).
     pub raw_units: Option<String>,
+    /// Units of raw services' accelerometer readings (`m/s^2` or `g`, the pipeline's
+    /// accel_units).
+    pub raw_accel_units: Option<String>,
     /// A ROS 2 bag instead of our JSON messages.
     pub ros2: Option<Ros2Bag>,
 }
@@ -275,7 +278,7 @@ fn add_channel(
     writer: &mut McapWriter,
     service: &str,
     wire: WireType,
-    raw_units: Option<&str>,
+    settings: &Settings,
 ) -> mcap::McapResult<u16> {
     let (name, schema) = match wire {
         WireType::Raw => (recording::RAW_SCHEMA, recording::raw_schema()),
@@ -288,12 +291,21 @@ fn add_channel(
     meta.insert("service".to_string(), service.to_string());
     meta.insert("wire_type".to_string(), wire.type_name().to_string());
     if wire == WireType::Raw {
-        meta.insert(
-            recording::RATE_UNITS_KEY.to_string(),
-            raw_units
-                .unwrap_or("the pipeline's input_units (not given: record --raw-units)")
-                .to_string(),
-        );
+        for (key, units, flag) in [
+            (
+                recording::RATE_UNITS_KEY,
+                &settings.raw_units,
+                "input_units (not given: record --raw-units)",
+            ),
+            (
+                recording::ACCEL_UNITS_KEY,
+                &settings.raw_accel_units,
+                "accel_units (not given: record --raw-accel-units)",
+            ),
+        ] {
+            let units = units.clone().unwrap_or(format!("the pipeline's {flag}"));
+            meta.insert(key.to_string(), units);
+        }
     }
     writer.add_channel(
         schema_id,
@@ -375,8 +387,7 @@ impl Recorder {
                     (channel, Some(m))
                 }
                 None => {
-                    let raw_units = settings.raw_units.as_deref();
-                    let channel = add_channel(&mut writer, service, input.wire_type(), raw_units)
+                    let channel = add_channel(&mut writer, service, input.wire_type(), settings)
                         .map_err(write_error)?;
                     (channel, None)
                 }

@@ -9,7 +9,8 @@
 //! - log and publish time: the wall clock (CLOCK_REALTIME, ns) when the recorder took the sample;
 //!   the sensor time is the message's `t_ns` (exact) and `t_s` (for plots);
 //! - rates in rad/s as published (`rate_rad_s.x` ...); raw rates in the pipeline's input units,
-//!   named by the channel's `rate_units` metadata;
+//!   named by the channel's `rate_units` metadata, and raw accelerometer readings in its
+//!   `accel_units`, named by `accel_units`;
 //! - floats as Rust's shortest round-trip text, so every value reads back bit for bit; a
 //!   non-finite raw rate (a replayed bad CSV row) is `null` and reads back as NaN;
 //! - a metadata record [`METADATA_NAME`] written when the recording stops: per service the
@@ -44,6 +45,8 @@ pub const STATS_SCHEMA: &str = "driftless.StatsSnapshot";
 pub const METADATA_NAME: &str = "driftless.recording";
 /// Channel metadata key naming the units of a raw channel's `rate`.
 pub const RATE_UNITS_KEY: &str = "rate_units";
+/// Channel metadata key naming the units of a raw channel's `accel`.
+pub const ACCEL_UNITS_KEY: &str = "accel_units";
 /// The recording format's version, in the metadata record. 2: statistics channels hold
 /// [`StatsMessage`] (times in ns, as `driftless stats --json`); 1: they held times in s, ms
 /// and us (`uptime_s`, `end_to_end_us`, ...).

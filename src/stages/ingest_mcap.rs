@@ -283,18 +283,33 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
             ),
         ));
     }
-    if let Some(units) = channel.metadata.get(recording::RATE_UNITS_KEY) {
-        let ours = t.cx.units.name();
-        if (units == "deg/s" || units == "rad/s") && units != ours {
-            return Err(src.at(
-                at_topic,
-                format!(
-                    "topic {} of {} was recorded in {units}, but the pipeline's input_units is \
-                     {ours}",
-                    channel.topic,
-                    file.display()
-                ),
-            ));
+    // Units the recorder was told (a recording without them is taken as the pipeline's).
+    for (key, known, ours, pipeline_key) in [
+        (
+            recording::RATE_UNITS_KEY,
+            ["deg/s", "rad/s"],
+            t.cx.units.name(),
+            "input_units",
+        ),
+        (
+            recording::ACCEL_UNITS_KEY,
+            ["m/s^2", "g"],
+            t.cx.accel_units.name(),
+            "accel_units",
+        ),
+    ] {
+        if let Some(units) = channel.metadata.get(key) {
+            if known.contains(&units.as_str()) && units != ours {
+                return Err(src.at(
+                    at_topic,
+                    format!(
+                        "topic {} of {} was recorded in {units}, but the pipeline's \
+                         {pipeline_key} is {ours}",
+                        channel.topic,
+                        file.display()
+                    ),
+                ));
+            }
         }
     }
     if channel.messages == 0 {
