@@ -4,6 +4,7 @@
     python3 -m venv target/pyenv && target/pyenv/bin/pip install -r examples/python/requirements.txt
     cargo build --release
     target/pyenv/bin/python examples/python/check.py          # --help for the options
+    target/pyenv/bin/python examples/python/check.py --attitude   # with attitude.6d before publish
 
 1. `driftless run <pipeline> --quiet` (default pipelines/external-sensor.toml: ingest.iceoryx2 on
    sensor/raw, wavelet denoiser with lag 64, corrected rates on external/corrected), under a
@@ -17,7 +18,10 @@
    0x10) before it exits 0 (docs/operations.md, "Restarts and crashes");
 5. asserts: driver, daemon and subscriber exit 0; the subscriber got seq 0..N-1 exactly once, in
    order, in one epoch (the daemon's), with the driver's values, `lag` of them flushed at
-   shutdown, each with drift_std "not provided" (-1: no bias filter in the pipeline); the daemon's report says N in, N out, nothing lost, no source restart.
+   shutdown, each with drift_std "not provided" (-1: no bias filter in the pipeline); with
+   --attitude (an attitude.6d stage inserted before publish) each with a unit quaternion and
+   its standard deviations (the heading's -1: no bias filter says how far to trust it); the
+   daemon's report says N in, N out, nothing lost, no source restart.
 
 Creates nothing outside its temporary directory but iceoryx2's shared memory, /dev/shm/<prefix>*,
 removed at the end. Exit 0 when every assertion held, 1 otherwise (saying which, with the logs).
@@ -52,9 +56,9 @@ def pipeline_facts(path: str) -> dict:
     if len(ingest) != 1 or len(publish) != 1:
         raise CheckFailed(f"{path}: needs one ingest.iceoryx2 stage and one publish stage")
     if any(s.get("kind") not in ("ingest.iceoryx2", "denoise.wavelet", "denoise.none",
-                                 "predict.none", "publish") for s in stages):
-        raise CheckFailed(f"{path}: only ingest.iceoryx2, denoise.*, predict.none and publish "
-                          "stages keep the driver's values checkable")
+                                 "predict.none", "attitude.6d", "publish") for s in stages):
+        raise CheckFailed(f"{path}: only ingest.iceoryx2, denoise.*, predict.none, attitude.6d "
+                          "and publish stages keep the driver's values checkable")
     # denoise.wavelet's lag: 64 by default (at most the full lag; external-sensor.toml sets it).
     lag = sum(s.get("lag", 64) for s in stages if s.get("kind") == "denoise.wavelet")
     return {
@@ -64,7 +68,24 @@ def pipeline_facts(path: str) -> dict:
         "buffer_size": p.get("iceoryx2", {}).get("buffer_size", 256),
         "max_subscribers": p.get("iceoryx2", {}).get("max_subscribers", 8),
         "lag": lag,
+        "before_publish": publish[0]["input"],
+        "attitude": any(s.get("kind") == "attitude.6d" for s in stages),
     }
+
+
+def with_attitude(path: str, facts: dict, out: str) -> None:
+    """Write to `out` the pipeline at `path` with an attitude.6d stage before its publish."""
+    with open(path) as f:
+        text = f.read()
+    before = facts["before_publish"]
+    publish = f'[[stage]]\nname = "publish"\nkind = "publish"\ninput = "{before}"\n'
+    if text.count(publish) != 1:
+        raise CheckFailed(f"{path}: --attitude needs the publish stage written as\n{publish}")
+    service = before.rsplit("/", 1)[0] + "/attitude"
+    attitude = (f'[[stage]]\nname = "attitude"\nkind = "attitude.6d"\ninput = "{before}"\n'
+                f'output = "{service}"\n\n')
+    with open(out, "w") as f:
+        f.write(text.replace(publish, attitude + publish.replace(before, service)))
 
 
 def wait_for(what: str, cond, timeout: float, procs: dict) -> None:
@@ -94,6 +115,8 @@ def main() -> int:
     ap.add_argument("--count", type=int, default=5000, help="samples the driver sends")
     ap.add_argument("--python", default=sys.executable,
                     help="interpreter with iceoryx2==0.10.0 for driver.py and subscriber.py")
+    ap.add_argument("--attitude", action="store_true",
+                    help="insert an attitude.6d stage before the pipeline's publish stage")
     ap.add_argument("--driver-arg", action="append", default=[],
                     help="extra argument for driver.py (e.g. --driver-arg=--skip=2500 must fail)")
     args = ap.parse_args()
@@ -102,6 +125,7 @@ def main() -> int:
         ap.error(f"--count must exceed the pipeline's denoiser lag ({facts['lag']})")
 
     tmp = tempfile.mkdtemp(prefix="driftless-pycheck-")
+    args.pipeline_used = args.pipeline
     prefix = f"dlpy{os.getpid()}-{os.urandom(3).hex()}_"
     env = dict(os.environ, DRIFTLESS_IOX2_PREFIX=prefix,
                DRIFTLESS_IOX2_ROOT=os.path.join(tmp, "iceoryx2"),
@@ -119,6 +143,10 @@ def main() -> int:
 
     ok = False
     try:
+        if args.attitude:
+            args.pipeline_used = os.path.join(tmp, "pipeline.toml")
+            with_attitude(args.pipeline, facts, args.pipeline_used)
+            facts = pipeline_facts(args.pipeline_used)
         ok = run(args, facts, tmp, start, procs)
     except CheckFailed as e:
         print(f"check: FAILED: {e}", file=sys.stderr)
@@ -157,7 +185,7 @@ def run(args, facts: dict, tmp: str, start, procs: dict) -> bool:
         raise CheckFailed(f"{args.binary}: not built (cargo build --release)")
     t0 = time.monotonic()
     daemon_report = os.path.join(tmp, "daemon.json")
-    daemon = start("daemon", [args.binary, "run", args.pipeline, "--quiet",
+    daemon = start("daemon", [args.binary, "run", args.pipeline_used, "--quiet",
                               "--report", daemon_report])
 
     ready = os.path.join(tmp, "subscriber.ready")
@@ -166,6 +194,7 @@ def run(args, facts: dict, tmp: str, start, procs: dict) -> bool:
     sub = start("subscriber", [args.python, os.path.join(HERE, "subscriber.py"),
                                "--service", facts["corrected"], "--count", str(n),
                                "--expect-pattern", "--rate", str(rate),
+                               *(["--expect-orientation"] if facts["attitude"] else []),
                                "--timeout", str(n / rate * 3 + 60),
                                "--ready-file", ready, "--progress-file", progress,
                                "--report", sub_report])
@@ -236,7 +265,8 @@ def run(args, facts: dict, tmp: str, start, procs: dict) -> bool:
     expect = {"received": n, "first_seq": 0, "last_seq": n - 1, "epochs": 1, "missing": 0,
               "disorder": 0, "flagged": 0, "pattern_errors": 0, "flushed": lag,
               "drift_std_not_provided": n, "drift_std_bad": 0,
-              "drift_std_last": [-1.0, -1.0, -1.0], "ok": True}
+              "drift_std_last": [-1.0, -1.0, -1.0], "ok": True,
+              "orientation": n if facts["attitude"] else 0, "orientation_bad": 0}
     wrong = {k: (s.get(k), v) for k, v in expect.items() if s.get(k) != v}
     if wrong:
         raise CheckFailed("subscriber report: " + ", ".join(
@@ -252,7 +282,11 @@ def run(args, facts: dict, tmp: str, start, procs: dict) -> bool:
     print(f"check: driver sent {n} samples at {rate:g} Hz in {t_sent - t_send:.2f} s; "
           f"subscriber got {s['received']} (seq 0..{n - 1}, one epoch, each once, in order; "
           f"{n - lag} live + {s['flushed']} flushed at SIGTERM), heading {s['heading_deg']:+.3f} deg "
-          f"(expected {s['expected_heading_deg']:+.3f}); latency ingest->python p50 "
+          f"(expected {s['expected_heading_deg']:+.3f}); "
+          + (f"an orientation on each, the last roll/pitch/yaw "
+             + "/".join(f"{a:+.1f}" for a in s["rpy_last_deg"]) + " deg; "
+             if facts["attitude"] else "")
+          + f"latency ingest->python p50 "
           f"{lat['p50'] / 1e3:.0f} us, p99 {lat['p99'] / 1e3:.0f} us, max {lat['max'] / 1e3:.0f} us; "
           f"daemon: {counts['samples_in']} in, {counts['samples_out']} out, {counts['lost']} lost, "
           f"exit 0 {t_exit - t_term:.2f} s after SIGTERM; total {time.monotonic() - t0:.1f} s",

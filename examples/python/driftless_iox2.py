@@ -67,6 +67,11 @@ SENSOR_ACCEL = 1
 SENSOR_MAG = 1 << 1
 SENSOR_ACCEL_INVALID = 1 << 2
 SENSOR_MAG_INVALID = 1 << 3
+# ... and the attitude stage's: an orientation is present; it coasted on the gyro (no valid
+# accelerometer); the accelerometer read free fall or a shock.
+SENSOR_ORIENTATION = 1 << 4
+SENSOR_ORIENTATION_COASTING = 1 << 5
+SENSOR_ORIENTATION_NO_GRAVITY = 1 << 6
 
 # GyroSample.drift_std where no stage estimates the drift's uncertainty (predict.none,
 # predict.rbf, no predict stage): transport::DRIFT_STD_NOT_PROVIDED. Never NaN.
@@ -161,6 +166,16 @@ def accel_pattern(seq: int) -> tuple:
     """The specific force driver.py sends at `seq`, m/s^2: gravity on z and a small tilt that
     changes with seq, so that a subscriber can tell each sample's reading from its neighbours'."""
     return (0.001 * (seq % 101), -0.002 * (seq % 53), -9.80665)
+
+
+def roll_pitch_yaw(q) -> tuple:
+    """Roll, pitch and yaw (rad; ZYX, as ROS tf2) of a body-to-earth quaternion (x, y, z, w),
+    as driftless::attitude::roll_pitch_yaw."""
+    x, y, z, w = q
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
 
 
 def t_ns_of(seq: int, rate_hz: float) -> int:

@@ -23,6 +23,9 @@ once (the service lends a subscriber only 2 samples at a time).
 Checks, within each epoch (seq restarts when the epoch changes): seq rises by exactly one (a jump
 is a loss, a repeat or step back an error), t_ns rises, no sample is flagged invalid, gap, time
 backwards or repaired, drift_std is -1 ("not provided") or a finite 1-sigma > 0 on each axis;
+a sample with an orientation (an attitude.6d stage ran) carries a unit quaternion and, about
+each earth axis, a finite 1-sigma >= 0 or -1 (with --expect-orientation every sample must have
+one); the newest roll, pitch and yaw are printed;
 with --expect-pattern also the values driver.py sends (t_ns, rates within a tolerance after the
 denoiser, rate = denoised - drift, heading). With --count N it stops after
 N samples and exits 0 only if N came, each once and in order, and every check held; 1 otherwise
@@ -63,6 +66,10 @@ class Checker:
         # value that is neither that nor a finite positive 1-sigma (NaN, 0, another negative).
         self.drift_std_not_provided = self.drift_std_bad = 0
         self.drift_std_last = None  # the newest sample's, rad/s
+        # Samples carrying an orientation, those whose quaternion or sd is not one, the newest
+        # roll/pitch/yaw (deg) and sd (rad).
+        self.orientation = self.orientation_bad = 0
+        self.rpy_last = self.orientation_std_last = None
         self.epochs = 0
         self.first_seq = self.last_seq = None
         self.heading_deg = self.expected_heading_deg = 0.0
@@ -95,6 +102,8 @@ class Checker:
         elif not all(v == dl.DRIFT_STD_NOT_PROVIDED or (math.isfinite(v) and v > 0) for v in sd):
             self.drift_std_bad += 1
             self.problem(f"seq {s.seq}: drift_std {sd} (neither -1 nor a finite 1-sigma > 0)")
+        if s.sensors & dl.SENSOR_ORIENTATION:
+            self.check_orientation(s)
         last = self.last
         if last is not None and last[0] == s.epoch:
             _, seq, t_ns = last
@@ -117,6 +126,17 @@ class Checker:
         if self.expect_pattern:
             self.check_pattern(s)
 
+    def check_orientation(self, s: dl.GyroSample) -> None:
+        self.orientation += 1
+        q, sd = list(s.orientation), list(s.orientation_std)
+        self.rpy_last = [math.degrees(a) for a in dl.roll_pitch_yaw(q)]
+        self.orientation_std_last = sd
+        norm = math.sqrt(sum(v * v for v in q))
+        sd_ok = all(v == dl.DRIFT_STD_NOT_PROVIDED or (math.isfinite(v) and v >= 0) for v in sd)
+        if not (abs(norm - 1.0) < 1e-9 and sd_ok):
+            self.orientation_bad += 1
+            self.problem(f"seq {s.seq}: orientation {q} (norm {norm}), sd {sd}")
+
     def check_pattern(self, s: dl.GyroSample) -> None:
         bad = []
         if s.t_ns != dl.t_ns_of(s.seq, self.rate_hz):
@@ -137,9 +157,14 @@ class Checker:
             self.pattern_errors += 1
             self.problem(f"seq {s.seq}: " + "; ".join(bad))
 
-    def verdict(self, count: int) -> list:
+    def verdict(self, count: int, expect_orientation: bool = False) -> list:
         """Why the run failed; empty when it passed."""
         why = []
+        if self.orientation_bad:
+            why.append(f"{self.orientation_bad} samples with an orientation that is not a unit "
+                       "quaternion or a standard deviation that is neither >= 0 nor -1")
+        if expect_orientation and self.orientation < self.received:
+            why.append(f"{self.received - self.orientation} samples without an orientation")
         if count and self.received < count:
             why.append(f"only {self.received} of {count} samples arrived")
         if self.missing:
@@ -173,6 +198,8 @@ class Checker:
             "flushed": self.flushed, "warming_up": self.warming_up,
             "drift_std_not_provided": self.drift_std_not_provided,
             "drift_std_bad": self.drift_std_bad, "drift_std_last": self.drift_std_last,
+            "orientation": self.orientation, "orientation_bad": self.orientation_bad,
+            "rpy_last_deg": self.rpy_last, "orientation_std_last": self.orientation_std_last,
             "heading_deg": self.heading_deg, "expected_heading_deg": self.expected_heading_deg,
             "latency_ns": {"count": len(lat), "p50": q(0.5), "p99": q(0.99), "max": lat[-1] if lat else 0},
         }
@@ -219,6 +246,8 @@ def main() -> int:
     ap.add_argument("--root-path", help="iceoryx2 root (default: $DRIFTLESS_IOX2_ROOT or /tmp/iceoryx2)")
     ap.add_argument("--expect-pattern", action="store_true", help="check the values driver.py sends")
     ap.add_argument("--rate", type=float, default=1000.0, help="driver.py's --rate (for --expect-pattern)")
+    ap.add_argument("--expect-orientation", action="store_true",
+                    help="every sample must carry an orientation (an attitude.6d stage)")
     ap.add_argument("--ready-file", help="create this file once subscribed")
     ap.add_argument("--report", help="write the summary as JSON to this file")
     ap.add_argument("--progress-file", help="keep the number of samples received so far in this file "
@@ -240,13 +269,17 @@ def main() -> int:
 
     s = check.summary()
     s["elapsed_s"] = elapsed
-    why = check.verdict(args.count)
+    why = check.verdict(args.count, args.expect_orientation)
     s["ok"] = not why
     lat = s["latency_ns"]
     print(f"subscriber: {s['received']} received (seq {s['first_seq']}..{s['last_seq']}, "
           f"{s['epochs']} epochs, {s['flushed']} flushed at shutdown, {s['warming_up']} warming up), "
           f"{s['missing']} missing, {s['disorder']} out of order, {s['flagged']} flagged; "
-          f"heading {s['heading_deg']:+.4f} deg; latency (ingest to receipt) p50 {lat['p50']} ns, "
+          f"heading {s['heading_deg']:+.4f} deg; "
+          + (f"{s['orientation']} with an orientation, the last roll/pitch/yaw "
+             + "/".join(f"{a:+.2f}" for a in s["rpy_last_deg"]) + " deg; "
+             if s["rpy_last_deg"] else "")
+          + f"latency (ingest to receipt) p50 {lat['p50']} ns, "
           f"p99 {lat['p99']} ns, max {lat['max']} ns; {elapsed:.2f} s")
     if args.report:
         with open(args.report, "w") as f:
