@@ -31,9 +31,9 @@
 //! 7. fed by a sensor driver, as deployed: this process publishes a raw sample each 1 ms on
 //!    "sensor/raw" and reads the corrected service; the consumer is the bare chain of the same
 //!    hops in its own process (this binary again), `pipelines/navigator.toml`,
-//!    `pipelines/navigator-attitude.toml` (one hop more), then `pipelines/external-sensor.toml`.
-//!    Their CPU is judged against the bare chain's, and the attitude stage's compute time
-//!    against its budget.
+//!    `pipelines/navigator-attitude.toml` (one hop more), `pipelines/external-sensor.toml`, then
+//!    the bare chain again. Their CPU and p50 are judged against the mean of the two bare runs,
+//!    and the attitude stage's compute time against its budget.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -1117,8 +1117,10 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
     }
 }
 
-/// Run 7's rows and goals: the bare chain, `navigator.toml`, `navigator-attitude.toml` and
-/// `external-sensor.toml`, each fed by the same driver for `secs`.
+/// Run 7's rows and goals: the bare chain, `navigator.toml`, `navigator-attitude.toml`,
+/// `external-sensor.toml` and the bare chain again, each fed by the same driver for `secs`. The
+/// baseline is the mean of the two bare runs: the machine's drift over the run shows in their
+/// difference rather than in one pipeline's ratio.
 fn driver_fed_rows(secs: f64, dir: &Path) {
     let nav = root().join("pipelines/navigator.toml");
     let att = root().join("pipelines/navigator-attitude.toml");
@@ -1140,12 +1142,13 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
             Fed::Daemon(&ext, "external/corrected", DEMO_LAG),
             "fedext",
         ),
+        ("bare iceoryx2 chain, again", Fed::Bare, "fedbare2"),
     ]
     .map(|(label, fed, tag)| (label, driver_fed(fed, tag, secs, dir)));
     println!();
-    println!("| 1 kHz, fed by a sensor driver | CPU | x the bare chain's | send to receipt p50 / p99 / p99.9 / max us | misses (the kernel's) | lost |");
+    println!("| 1 kHz, fed by a sensor driver | CPU | x the bare chain's (mean of both runs) | send to receipt p50 / p99 / p99.9 / max us | misses (the kernel's) | lost |");
     println!("|---|---:|---:|---:|---:|---:|");
-    let bare_cpu = runs[0].1.cpu.max(1e-9);
+    let bare_cpu = ((runs[0].1.cpu + runs[4].1.cpu) / 2.0).max(1e-9);
     for (label, r) in &runs {
         let misses = r.report.as_ref().map_or("-".into(), |v| {
             format!(
@@ -1203,12 +1206,13 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
     // The attitude stage's own cost, and what it adds to the sample's way to a navigator.
     let (nav_run, att_run) = (&runs[1].1, &runs[2].1);
     let p50 = |r: &FedRun| r.sub.value_at_quantile(0.5).max(1) as f64;
+    let bare_p50 = (p50(&runs[0].1) + p50(&runs[4].1)) / 2.0;
     println!(
         "  goal driver-fed navigator-attitude.toml p50 <= 2x the bare chain's: {} (x{:.2}; \
          navigator.toml x{:.2})",
-        p50(att_run) <= 2.0 * p50(&runs[0].1),
-        p50(att_run) / p50(&runs[0].1),
-        p50(nav_run) / p50(&runs[0].1)
+        p50(att_run) <= 2.0 * bare_p50,
+        p50(att_run) / bare_p50,
+        p50(nav_run) / bare_p50
     );
     // Every stage's time (its compute and the publish of its output), for scale.
     if let Some(stages) = att_run

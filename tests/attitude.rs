@@ -98,19 +98,25 @@ fn log() -> String {
     csv
 }
 
+/// Run the pipeline `file` in a daemon under a prefix of `tag`: up to `n` published samples, and
+/// its stderr once it ended with exit 0.
+fn run(file: &std::path::Path, tag: &str, n: usize) -> (Vec<GyroSample>, String) {
+    let prefix = Prefix::new(tag);
+    let mut daemon = start(file, &prefix, &[]);
+    wait_ready(&prefix, "att/stats", &mut daemon);
+    let node = Transport::new(&prefix.0, "att-probe", Default::default()).unwrap();
+    let input = node.open_input::<GyroSample>("att/corrected").unwrap();
+    let got = common::collect(&input, n, Duration::from_secs(30));
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{tag}: {err}");
+    (got, err)
+}
+
 #[test]
 fn the_orientation_rides_with_every_sample_and_follows_the_body() {
     let dir = Dir::new();
     dir.write("log.csv", &log());
-    let file = dir.write("p.toml", PIPELINE);
-    let prefix = Prefix::new("attitude");
-    let mut daemon = start(&file, &prefix, &[]);
-    wait_ready(&prefix, "att/stats", &mut daemon);
-    let node = Transport::new(&prefix.0, "att-probe", Default::default()).unwrap();
-    let input = node.open_input::<GyroSample>("att/corrected").unwrap();
-    let got = common::collect(&input, N, Duration::from_secs(30));
-    let (code, err) = finish(daemon, Duration::from_secs(20));
-    assert_eq!(code, Some(0), "{err}");
+    let (got, err) = run(&dir.write("p.toml", PIPELINE), "attitude", N);
     assert!(
         err.contains("attitude: 1400 samples, 1 coasting on the gyro"),
         "{err}"
@@ -182,14 +188,7 @@ fn prewarming_changes_no_orientation() {
     assert_ne!(paced, warmed);
     let [plain, prewarmed] = [("plain", paced), ("prewarmed", warmed)].map(|(name, text)| {
         let file = dir.write(&format!("{name}.toml"), &text);
-        let prefix = Prefix::new(&format!("attwarm{name}"));
-        let mut daemon = start(&file, &prefix, &[]);
-        wait_ready(&prefix, "att/stats", &mut daemon);
-        let node = Transport::new(&prefix.0, "att-probe", Default::default()).unwrap();
-        let input = node.open_input::<GyroSample>("att/corrected").unwrap();
-        let got = common::collect(&input, ROWS, Duration::from_secs(30));
-        let (code, err) = finish(daemon, Duration::from_secs(20));
-        assert_eq!(code, Some(0), "{name}: {err}");
+        let (got, _) = run(&file, &format!("attwarm{name}"), ROWS);
         assert_eq!(got.len(), ROWS, "{name}: every sample");
         // What the clock stamps differs from run to run; nothing else may.
         got.into_iter()
