@@ -12,9 +12,10 @@
 //! bias through the inclination, which a test of each axis's stillness cannot. Measured on
 //! BROAD (docs/attitude.md).
 //!
-//! **No NaN ever.** A sample with no accelerometer or a non-finite one is not used: the filter
-//! coasts on the gyro and the step says so ([`AttitudeStep::coasting`]). A non-finite rate is
-//! not integrated: the attitude is held ([`AttitudeStep::held`]).
+//! **No NaN ever.** A sample with no accelerometer, or one that is not finite or beyond any
+//! accelerometer's range ([`MAX_READING`]), is not used: the filter coasts on the gyro and the
+//! step says so ([`AttitudeStep::coasting`]). Such a rate is not integrated: the attitude is
+//! held ([`AttitudeStep::held`]). A property test feeds NaN, infinities and 1e300.
 //!
 //! **Free fall and shocks are flagged, not dropped** ([`AttitudeStep::no_gravity`]: the norm
 //! below [`AttitudeConfig::min_g`] or above [`AttitudeConfig::max_g`]). VQF corrects towards the
@@ -48,6 +49,16 @@
 use crate::allan::STANDARD_GRAVITY as GRAVITY;
 use crate::sim::force::rotate;
 use vqf_rs::{Params, VQF};
+
+/// The largest norm of a reading the filter uses (rad/s, m/s², and rad/s for a bias's sd):
+/// beyond any gyro's or accelerometer's range (10^5 g), so a corrupted value. Squares of
+/// anything below it stay far from overflow, and VQF from NaN.
+pub const MAX_READING: f64 = 1e6;
+
+/// A reading of finite norm within [`MAX_READING`].
+fn usable(v: &[f64; 3]) -> bool {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() <= MAX_READING
+}
 
 /// How much of VQF's own gyro bias estimation runs on the (already corrected) rate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -132,13 +143,14 @@ impl AttitudeConfig {
 pub struct AttitudeStep {
     /// Body to earth (z up), (w, x, y, z), unit norm.
     pub quat: [f64; 4],
-    /// The accelerometer was not used at this sample (absent or not finite): the inclination
-    /// rests on the gyro alone.
+    /// The accelerometer was not used at this sample (absent, not finite or beyond
+    /// [`MAX_READING`]): the inclination rests on the gyro alone.
     pub coasting: bool,
     /// The accelerometer's norm says free fall or a shock ([`AttitudeConfig::min_g`],
     /// [`AttitudeConfig::max_g`]); used all the same (see the module documentation).
     pub no_gravity: bool,
-    /// The rate was not finite: the attitude is held, not integrated.
+    /// The rate was not finite or beyond [`MAX_READING`]: the attitude is held, not
+    /// integrated.
     pub held: bool,
     /// Standard deviation of the inclination (the tilt of the estimated vertical), rad.
     pub inclination_sd: f64,
@@ -256,11 +268,11 @@ impl Attitude {
         accel: Option<[f64; 3]>,
         bias_sd: Option<[f64; 3]>,
     ) -> AttitudeStep {
-        let held = !gyro.iter().all(|v| v.is_finite());
+        let held = !usable(&gyro);
         if !held {
             self.vqf.update_gyr(gyro);
         }
-        let accel = accel.filter(|a| a.iter().all(|v| v.is_finite()));
+        let accel = accel.filter(usable);
         let mut no_gravity = false;
         if let Some(a) = accel {
             let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
@@ -296,7 +308,7 @@ impl Attitude {
         let [w, x, y, z] = quat;
         let rows = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
             .map(|axis| rotate([w, -x, -y, -z], axis));
-        let bias_sd = bias_sd.filter(|s| s.iter().all(|v| v.is_finite() && *v >= 0.0));
+        let bias_sd = bias_sd.filter(|s| usable(s) && s.iter().all(|v| *v >= 0.0));
         let about = |row: &[f64; 3], sd: &[f64; 3]| -> f64 {
             row.iter()
                 .zip(sd)
@@ -493,6 +505,52 @@ mod tests {
         assert_eq!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd, None);
         f.reset();
         assert!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd.unwrap() < 1e-3);
+    }
+
+    /// Any value a corrupted sample may hold, weighted towards the ordinary.
+    fn any_value() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            6 => -20.0..20.0f64,
+            1 => Just(0.0),
+            1 => prop_oneof![Just(f64::NAN), Just(f64::INFINITY), Just(f64::NEG_INFINITY)],
+            1 => prop_oneof![Just(1e300), Just(-1e300), Just(f64::MIN_POSITIVE / 4.0), Just(f64::MAX)],
+            1 => any::<f64>(),
+        ]
+    }
+
+    proptest::proptest! {
+        /// Whatever comes in (NaN, infinities, 1e300, subnormals, no accelerometer, no bias
+        /// sd), every step is a unit quaternion with finite standard deviations: no NaN ever.
+        #[test]
+        fn no_input_makes_a_nan(
+            steps in proptest::collection::vec(
+                (
+                    proptest::array::uniform3(any_value()),
+                    proptest::option::of(proptest::array::uniform3(any_value())),
+                    proptest::option::of(proptest::array::uniform3(any_value())),
+                ),
+                1..200,
+            )
+        ) {
+            let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
+            for (k, (w, a, sd)) in steps.into_iter().enumerate() {
+                let s = f.push(w, a, sd);
+                let norm: f64 = s.quat.iter().map(|v| v * v).sum::<f64>().sqrt();
+                proptest::prop_assert!(
+                    s.quat.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() < 1e-6,
+                    "step {}: {:?} {:?} {:?}: {:?}", k, w, a, sd, s
+                );
+                proptest::prop_assert!(
+                    s.inclination_sd.is_finite() && s.inclination_sd >= 0.0,
+                    "step {}: {:?}", k, s
+                );
+                proptest::prop_assert!(
+                    s.heading_sd.is_none_or(|h| h.is_finite() && h >= 0.0),
+                    "step {}: {:?}", k, s
+                );
+            }
+        }
     }
 
     /// A spare brought up to date with `clone_from` goes on exactly as the filter it copies;
