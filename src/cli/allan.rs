@@ -74,7 +74,7 @@ pub struct Args {
     /// Write the tau table as CSV.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: Option<PathBuf>,
-    /// Print a ready `predict.bias` [[stage]] table with the fitted terms instead of the tables:
+    /// Print a ready `predict.bias` `[[stage]]` table with the fitted terms instead of the tables:
     /// every gyro term given (no sensor's defaults fill in), one set for all axes (N the largest, B
     /// the median, K 0, Q the largest; a term the record cannot identify is never the fit's
     /// guess), and per term and column what was taken and why in its comments. With

@@ -31,7 +31,7 @@ pub enum StampFault {
     Leap,
 }
 
-/// The judgment of one stream's stamps ([module docs](self)).
+/// The judgment of one stream's stamps (the module docs of `clock::stamps`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StampCheck {
     zero_is_unset: bool,

@@ -266,7 +266,7 @@ pub type Publish<'a> = Box<dyn FnMut(&StatsSnapshot) + 'a>;
 /// final snapshot. Returns the final reports in the order given. It polls rather than
 /// blocks: a blocked receiver would make every `try_send` of the hot loop a futex wake-up (a
 /// system call and a context switch on the other core); one thread polling for all keeps the
-/// wake-ups at one per [`POLL`] whatever the number of pipelines.
+/// wake-ups at one per `POLL` (50 ms) whatever the number of pipelines.
 pub fn run_all(mut reporters: Vec<(Reporter, Receiver<Batch>, Publish<'_>)>) -> Vec<Report> {
     let mut done: Vec<Option<Report>> = reporters.iter().map(|_| None).collect();
     while done.iter().any(Option::is_none) {

@@ -1,7 +1,7 @@
 //! What a navigator sees of a corrected rate: the heading error, the integral of (corrected -
 //! true rate), and summaries of it over many windows.
 //!
-//! The integral is the rectangle rule, h[k] = sum_{i <= k} (c[i] - truth[i]) dt: what a strapdown
+//! The integral is the rectangle rule, `h[k] = sum_{i <= k} (c[i] - truth[i]) dt`: what a strapdown
 //! integrator at the sample rate accumulates (any other rule differs by less than one sample's
 //! step).
 

@@ -8,7 +8,7 @@
 //! - [`chains`]: the methods that run a pipeline's stages offline ([`Chain`]): the product's
 //!   chain, the same reading the true stops as a vehicle's stop signal, the paper's RBF chain and
 //!   its AR(p), and any pipeline file.
-//! - [`bench`]: the window loop ([`Bench::run`]) and what it finds ([`Outcome`]).
+//! - [`mod@bench`]: the window loop ([`Bench::run`]) and what it finds ([`Outcome`]).
 //!
 //! The room sits above [`crate::pipeline`] (it runs the daemon's stages,
 //! [`crate::pipeline::offline::Offline`]) and below [`crate::cli`], which parses the command's

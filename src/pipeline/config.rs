@@ -77,7 +77,7 @@ pub struct Pipeline {
     /// CPU the hot thread is pinned to (None: not pinned).
     pub cpu: Option<usize>,
     /// How long before a paced sample is due the hot thread wakes to bring the stages' state
-    /// into the cache ([`Stage::prewarm`](super::stage::Stage::prewarm)); zero: it does not.
+    /// into the cache ([`Stage::prewarm`](crate::stages::contract::Stage::prewarm)); zero: it does not.
     pub prewarm: Duration,
     /// iceoryx2 settings.
     pub iceoryx2: Iceoryx2Settings,

@@ -28,9 +28,9 @@
 //!    asks for (`required_str` for a required key, an `*_or_default` reader for a typed
 //!    default, an optional one for the rest; it checks types, ranges and anything else `run`
 //!    needs, positioning every error) and returning its parameters; a parameters
-//!    type implementing [`Params`](crate::stages::contract::Params) (how the stage or source is
+//!    type implementing [`Params`] (how the stage or source is
 //!    built, what `validate` says of it); and a `pub const KIND: Kind` tying them together with
-//!    its name, [`Role`](crate::stages::contract::Role) and one-line summary.
+//!    its name, [`Role`] and one-line summary.
 //! 2. Add `pub mod <kind>;` below and its `KIND` to [`KINDS`].
 //!
 //! Nothing else changes: the pipeline file's reader finds the kind in [`KINDS`], rejects keys

@@ -40,7 +40,7 @@ pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
 ///
 /// | offset | type | field |
 /// |---:|---|---|
-/// | 0 | u64 | `t_ns` CLOCK_MONOTONIC ns when the state was measured ([`monotonic_ns`]) |
+/// | 0 | u64 | `t_ns` CLOCK_MONOTONIC ns when the state was measured ([`monotonic_ns`](crate::clock::monotonic_ns)) |
 /// | 8 | f64 | `speed_m_s` speed, m/s (NaN: not measured) |
 /// | 16 | u32 | `stopped` 1: stands, 0: moves, anything else: unknown |
 /// | 20 | u32 | `reserved` 0 |

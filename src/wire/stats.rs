@@ -104,7 +104,7 @@ pub struct StatsSnapshot {
     /// The hot thread's time off a CPU during the latest miss, ns; [`OFF_CPU_NOT_MEASURED`]
     /// when not measured.
     pub last_miss_off_cpu_ns: u64,
-    /// Of `flagged`, samples whose stamp was not believed ([`FLAG_STAMP_FAULT`]); never counted
+    /// Of `flagged`, samples whose stamp was not believed ([`FLAG_STAMP_FAULT`](crate::wire::flags::FLAG_STAMP_FAULT)); never counted
     /// in `lost` (version 3).
     pub stamp_faults: u64,
     /// How the pipeline's state-keeping stage started: one of the `WARM_START_*` codes.

@@ -27,7 +27,7 @@
 //! as a measurement H = [1, ..., 1]. O(states^2) per sample, fixed arrays, no allocation.
 //!
 //! # Stillness and the delay window ([`BiasTracker`])
-//! Its own [`StillnessDetector`] on the rate, thresholds from the same terms
+//! Its own [`StillnessDetector`](crate::drift::stillness::StillnessDetector) on the rate, thresholds from the same terms
 //! ([`stillness_from_terms`]). A detector sees motion onset only some samples after it began (the
 //! first samples of a slow ramp look still). So a sample enters the filter only once the detector
 //! has stayed still for `delay` samples after it: still samples wait in a fixed ring. While they

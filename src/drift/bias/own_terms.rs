@@ -126,7 +126,7 @@ pub struct OwnAccelTerms {
     pub choices: [TermChoices; 2],
 }
 
-/// What [the module's rules](self) take of `term` in one column (`no_n`: the error when N is
+/// What the module's rules take of `term` in one column (`no_n`: the error when N is
 /// not identified).
 fn choose(
     c: &ColumnFit<'_>,
@@ -170,7 +170,7 @@ fn largest(v: Vec<f64>) -> f64 {
     v.into_iter().fold(0.0, f64::max)
 }
 
-/// The terms of [the module's rules](self) from each column's fit; `lsb` in deg/s.
+/// The terms of the module's rules (`drift::bias::own_terms`) from each column's fit; `lsb` in deg/s.
 pub fn own_terms(columns: &[ColumnFit<'_>], lsb: f64) -> Result<OwnTerms, BiasError> {
     let choices = choices(
         columns,
@@ -190,7 +190,7 @@ pub fn own_terms(columns: &[ColumnFit<'_>], lsb: f64) -> Result<OwnTerms, BiasEr
     Ok(OwnTerms { terms, choices })
 }
 
-/// An accelerometer's terms by [the module's rules](self) from each of its columns' fits
+/// An accelerometer's terms by the module's rules (`drift::bias::own_terms`) from each of its columns' fits
 /// (fitted in m/s^2); at least one column.
 pub fn own_accel_terms(columns: &[ColumnFit<'_>]) -> Result<OwnAccelTerms, BiasError> {
     let choices = choices(columns, [Term::N, Term::B], BiasError::NoVrw)?;

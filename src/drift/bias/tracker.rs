@@ -746,7 +746,7 @@ impl BiasTracker {
     /// One rate sample with a stop signal from outside (a vehicle's own sensors), `None`
     /// when it is unknown or stale. Our detector runs on every sample: it decides while the
     /// signal is unknown, and a signal of "stands" while the gyro clearly turns (the mean of
-    /// the last [`CHECK_S`] beyond [`CHECK_SIGMAS`] from the estimate) is not trusted: the
+    /// the last `CHECK_S` beyond `CHECK_SIGMAS` from the estimate) is not trusted: the
     /// sample counts as moving and [`BiasStep::contradicted`] says so. "Moves" is trusted.
     pub fn push_signal(&mut self, x: f64, stopped: Option<bool>) -> BiasStep {
         self.push_signal_with(x, stopped, Aid::Unknown)

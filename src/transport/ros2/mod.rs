@@ -58,7 +58,7 @@ pub struct Ros2Settings {
     /// History depth of every topic (default 100).
     pub depth: usize,
     /// `header.frame_id` of the messages we publish; None: the Imu input's own frame, else
-    /// `imu_link` ([`bridge`]'s module docs).
+    /// `imu_link` (the module docs of `transport::ros2::bridge`).
     pub frame_id: Option<String>,
     /// White rate noise per sample, deg/s (1 sigma): the published covariance's first term.
     /// None: the covariance is unknown (all zeros).
