@@ -55,9 +55,14 @@ use vqf_rs::{Params, VQF};
 /// anything below it stay far from overflow, and VQF from NaN.
 pub const MAX_READING: f64 = 1e6;
 
+/// The Euclidean norm of a reading.
+fn norm(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
 /// A reading of finite norm within [`MAX_READING`].
 fn usable(v: &[f64; 3]) -> bool {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() <= MAX_READING
+    norm(v) <= MAX_READING
 }
 
 /// How much of VQF's own gyro bias estimation runs on the (already corrected) rate.
@@ -272,10 +277,12 @@ impl Attitude {
         if !held {
             self.vqf.update_gyr(gyro);
         }
-        let accel = accel.filter(usable);
+        // The reading with its norm, taken once: it decides both use and the flag.
+        let accel = accel
+            .map(|a| (a, norm(&a)))
+            .filter(|(_, n)| *n <= MAX_READING);
         let mut no_gravity = false;
-        if let Some(a) = accel {
-            let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        if let Some((a, norm)) = accel {
             no_gravity = norm < self.cfg.min_g * GRAVITY || norm > self.cfg.max_g * GRAVITY;
             self.vqf.update_acc(a);
             let off = norm - GRAVITY;
