@@ -303,7 +303,9 @@ fn add_channel(
                 "accel_units (not given: record --raw-accel-units)",
             ),
         ] {
-            let units = units.clone().unwrap_or(format!("the pipeline's {flag}"));
+            let units = units
+                .clone()
+                .unwrap_or_else(|| format!("the pipeline's {flag}"));
             meta.insert(key.to_string(), units);
         }
     }
