@@ -18,10 +18,15 @@
 //! 2. **Bare hop in:** an rclpy driver publishes the same way; this process (ros2-client, as the
 //!    daemon) records receipt minus stamp. Not a goal's reference: it is the DDS hop that the
 //!    daemon's path has and the floor has not, shown so the daemon's own share can be read.
-//! 3. **Through the daemon** (`pipelines/ros2.toml`): the rclpy driver on `/imu/data_raw`, the
+//! 3. **Bare relay:** the rclpy driver publishes to this process, which republishes each
+//!    message as it takes it, on the same thread (ros2-client both ways), to the rclpy
+//!    subscriber. The least any node between a driver and a navigator costs with this DDS
+//!    stack, with DDS on the one thread that does everything. The daemon minus this is what
+//!    keeping DDS off the hot thread costs: two hand-overs between threads, and the stages.
+//! 4. **Through the daemon** (`pipelines/ros2.toml`): the rclpy driver on `/imu/data_raw`, the
 //!    rclpy subscriber on `/imu/corrected`. The daemon keeps the driver's stamp, so receipt minus
 //!    stamp is driver publish to navigator receipt.
-//! 4. **ROS 2 output off:** the same daemon fed the same way with no `[[ros2.imu_out]]`, and
+//! 5. **ROS 2 output off:** the same daemon fed the same way with no `[[ros2.imu_out]]`, and
 //!    beside it the same rclpy subscriber fed at 1 kHz by this process (so the machine carries
 //!    the same load): the reference for the iceoryx2 path's p99.9 and misses.
 //!
@@ -98,6 +103,7 @@ fn main() {
         let r = Run {
             bare: bare_floor(n),
             hop_in: bare_in(n),
+            relay: bare_relay(n),
             through: through_daemon(n, true),
             output_off: through_daemon(n, false),
         };
@@ -119,6 +125,12 @@ fn main() {
             "  daemon minus bare: p50 {d50:+.1} us (goal <= +100), p99 {d99:+.1} us (goal <= +300); lost {lost} (goal 0)"
         );
         println!(
+            "  daemon minus relay: p50 {:+.1} us, p99 {:+.1} us; relay minus bare: p50 {:+.1} us",
+            med(&|r| f(&r.through.0, "p50_us") - f(&r.relay, "p50_us")),
+            med(&|r| f(&r.through.0, "p99_us") - f(&r.relay, "p99_us")),
+            med(&|r| f(&r.relay, "p50_us") - f(&r.bare, "p50_us")),
+        );
+        println!(
             "  hop in p50 {:.1} us; daemon p99.9 {:.1} us with ROS 2 output, {:.1} us without; misses {} and {}; ROS 2 side CPU {:.1}% (goal <= 10%)",
             med(&|r| f(&r.hop_in, "p50_us")),
             med(&|r| r.through.1.p999_us),
@@ -130,10 +142,11 @@ fn main() {
     }
 }
 
-/// One run's four paths.
+/// One run's five paths.
 struct Run {
     bare: Value,
     hop_in: Value,
+    relay: Value,
     through: (Value, DaemonSide),
     output_off: (Value, DaemonSide),
 }
@@ -152,12 +165,18 @@ impl Run {
         };
         row("bare floor", &self.bare);
         row("bare hop in", &self.hop_in);
+        row("bare relay", &self.relay);
         row("through daemon", &self.through.0);
         let d50 = f(&self.through.0, "p50_us") - f(&self.bare, "p50_us");
         let d99 = f(&self.through.0, "p99_us") - f(&self.bare, "p99_us");
         println!(
             "  daemon minus bare: p50 {d50:+.1} us (goal <= +100), p99 {d99:+.1} us (goal <= +300); lost {} (goal 0)",
             self.lost(n)
+        );
+        println!(
+            "  daemon minus relay: p50 {:+.1} us, p99 {:+.1} us",
+            f(&self.through.0, "p50_us") - f(&self.relay, "p50_us"),
+            f(&self.through.0, "p99_us") - f(&self.relay, "p99_us"),
         );
         for (label, d) in [
             ("ROS 2 out on ", &self.through.1),
@@ -226,11 +245,7 @@ fn bare_on(topic: &str, n: usize) -> Value {
     let (child, out) = listener(topic, n);
     let mut node = Ros2Node::new("/", "bench_bare").unwrap();
     let publisher = node.imu_publisher(topic, 100).unwrap();
-    let end = Instant::now() + Duration::from_secs(20);
-    while node.peer_types(topic, false).is_empty() && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    std::thread::sleep(Duration::from_millis(500));
+    wait_for_subscriber(&node, topic);
     let mut mapping = ImuMapping::new("imu_link", 1.0, Some(1.2));
     let start = Instant::now();
     for i in 0..n {
@@ -250,18 +265,56 @@ fn bare_on(topic: &str, n: usize) -> Value {
     result(child, out)
 }
 
+/// Wait until a subscriber on `topic` is discovered (20 s at most), and half a second more for
+/// it to match.
+fn wait_for_subscriber(node: &Ros2Node, topic: &str) {
+    let end = Instant::now() + Duration::from_secs(20);
+    while node.peer_types(topic, false).is_empty() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+}
+
 /// An rclpy driver publishing to this process: the DDS hop into a ros2-client node.
 fn bare_in(n: usize) -> Value {
-    use driftless::transport::ros2::DdsReadiness;
-    let topic = "/bench/in";
     let mut node = Ros2Node::new("/", "bench_in").unwrap();
+    take_from_driver(&mut node, "/bench/in", n, |imu| {
+        let stamp = imu.stamp.sec as i64 * 1_000_000_000 + imu.stamp.nanosec as i64;
+        Some((realtime_ns() as i64 - stamp) as f64 / 1e3)
+    })
+}
+
+/// The rclpy driver to this process, which republishes each message on the thread that took
+/// it, to the rclpy latency listener: a relay node's floor.
+fn bare_relay(n: usize) -> Value {
+    let (child, out) = listener("/bench/relay_out", n);
+    let mut node = Ros2Node::new("/", "bench_relay").unwrap();
+    let publisher = node.imu_publisher("/bench/relay_out", 100).unwrap();
+    wait_for_subscriber(&node, "/bench/relay_out");
+    take_from_driver(&mut node, "/bench/relay_in", n, |imu| {
+        publisher.publish(&imu).unwrap();
+        None
+    });
+    result(child, out)
+}
+
+/// Subscribe `node` to `topic`, start the rclpy driver on it for `n` messages, and give each
+/// message to `each` as it is taken, sleeping on DDS readiness between; `each`'s latencies
+/// (us), summed up.
+fn take_from_driver(
+    node: &mut Ros2Node,
+    topic: &str,
+    n: usize,
+    mut each: impl FnMut(driftless::transport::ros2::Imu) -> Option<f64>,
+) -> Value {
+    use driftless::transport::ros2::DdsReadiness;
     let mut sub = node.imu_subscription(topic, 100).unwrap();
     let mut ready = DdsReadiness::new().unwrap();
     ready.watch_imu(&mut sub, 0).unwrap();
     let mut driver = peer("pace", topic, n);
     let (mut lat, mut stamps) = (Vec::with_capacity(n), Vec::with_capacity(n));
     let end = Instant::now() + Duration::from_secs_f64(n as f64 / RATE + 30.0);
-    while lat.len() < n && Instant::now() < end {
+    while stamps.len() < n && Instant::now() < end {
         let mut pfd = libc::pollfd {
             fd: ready.fd(),
             events: libc::POLLIN,
@@ -271,9 +324,8 @@ fn bare_in(n: usize) -> Value {
         unsafe { libc::poll(&mut pfd, 1, 100) };
         ready.clear();
         while let Ok(Some((imu, _))) = sub.take() {
-            let stamp = imu.stamp.sec as i64 * 1_000_000_000 + imu.stamp.nanosec as i64;
-            lat.push((realtime_ns() as i64 - stamp) as f64 / 1e3);
-            stamps.push(stamp);
+            stamps.push(imu.stamp.sec as i64 * 1_000_000_000 + imu.stamp.nanosec as i64);
+            lat.extend(each(imu));
         }
     }
     assert!(driver.wait().unwrap().success());
