@@ -34,8 +34,9 @@
 //! run and as medians: the paths' percentiles, messages lost, the daemon's own ingest-to-publish
 //! p99.9 and deadline misses with ROS 2 output on and off, and the CPU of the daemon's threads
 //! other than the hot thread and the reporter (the ROS 2 side: our bridge thread and RustDDS's)
-//! as a share of one core, beside the relay process's (every thread). Goals (issue 39): 0 lost; p50 <= bare + 100 us; p99 <= bare + 300
-//! us; the daemon's p99.9 with output on within the noise of output off, 0 misses; CPU <= 10%.
+//! as a share of one core, beside the relay process's (every thread). Goals (issue 39): 0 lost;
+//! p50 <= bare + 100 us; p99 <= bare + 300 us; the daemon's p99.9 with output on within the
+//! noise of output off, 0 misses; CPU <= 10%.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
