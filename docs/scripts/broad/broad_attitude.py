@@ -258,6 +258,8 @@ def main():
     ap.add_argument("--target", default=os.path.join(REPO, "target", "release"),
                     help="where driftless is built (the unit's terms for --example)")
     ap.add_argument("--json", help="write the numbers to this file")
+    ap.add_argument("--shift-rests", action="store_true",
+                    help="move each first rest to the rests' common mean before taking the terms (broad_heading.py)")
     ap.add_argument("--attitude-key", action="append", default=[], metavar="KEY=VALUE",
                     help="a key of the attitude.6d stage (TOML), e.g. vqf_bias='\"rest\"'; repeatable")
     args = ap.parse_args()
@@ -298,7 +300,7 @@ def main():
             # undisturbed trials (as broad_heading.py takes them), whichever trials are judged.
             rests = [first_rest(d) for d in (load_trial(args.broad, n)[1] for n in DEV) if d is not None]
             driftless = os.path.join(args.target, "driftless")
-            keys, _ = stage_keys(driftless, rests, trials[0][2]["rate"], work)
+            keys, _ = stage_keys(driftless, rests, trials[0][2]["rate"], work, args.shift_rests)
             pipeline = os.path.join(work, "broad.toml")
             with open(pipeline, "w") as f:
                 text = ATTITUDE_PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"')

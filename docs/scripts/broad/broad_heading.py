@@ -91,9 +91,14 @@ def first_rest(d):
 KEYS = ("arw", "bias_instability", "rrw", "quantization", "lsb", "accel_vrw", "accel_bias_instability")
 
 
-def stage_keys(driftless, rests, rate, work):
+def stage_keys(driftless, rests, rate, work, shift=False):
     """`driftless allan --stage` on the concatenated rests: its predict.bias keys, the gyro's
-    and the accelerometer's."""
+    and the accelerometer's. With `shift`, each rest is moved to the rests' common mean first,
+    so the steps between power-ups do not read as in-run drift (docs/navigation.md, "The terms
+    from rests of several power-ups")."""
+    if shift:
+        common = np.mean([r.mean(axis=0) for r in rests], axis=0)
+        rests = [r - r.mean(axis=0) + common for r in rests]
     path = os.path.join(work, "rests.csv")
     np.savetxt(path, np.concatenate(rests), delimiter=",", header="x,y,z,ax,ay,az", comments="", fmt="%.10g")
     accel = [a for c in ("ax", "ay", "az") for a in ("--accel-column", c)]
@@ -175,6 +180,8 @@ def main():
     ap.add_argument("--target", default=os.path.join(REPO, "target", "release"),
                     help="where driftless and examples/broad_rates are built")
     ap.add_argument("--json", help="write the numbers to this file")
+    ap.add_argument("--shift-rests", action="store_true",
+                    help="move each first rest to the rests' common mean before taking the terms")
     args = ap.parse_args()
     if not args.broad:
         sys.exit("give the BROAD clone's path, or set DRIFTLESS_BROAD")
@@ -200,7 +207,7 @@ def main():
 
     results = []
     with tempfile.TemporaryDirectory(prefix="broad-") as work:
-        keys, comments = stage_keys(driftless, [first_rest(d) for _, d in trials], rate, work)
+        keys, comments = stage_keys(driftless, [first_rest(d) for _, d in trials], rate, work, args.shift_rests)
         pipeline = os.path.join(work, "broad.toml")
         with open(pipeline, "w") as f:
             f.write(PIPELINE.format(rate=rate, keys=keys))
