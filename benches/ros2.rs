@@ -281,9 +281,18 @@ fn wait_for_subscriber(node: &Ros2Node, topic: &str) {
 /// An rclpy driver publishing to this process: the DDS hop into a ros2-client node.
 fn bare_in(n: usize) -> Value {
     let mut node = Ros2Node::new("/", "bench_in").unwrap();
-    take_from_driver(&mut node, "/bench/in", n, |imu| {
-        let stamp = imu.stamp.sec as i64 * 1_000_000_000 + imu.stamp.nanosec as i64;
-        Some((realtime_ns() as i64 - stamp) as f64 / 1e3)
+    let mut lat = Vec::with_capacity(n);
+    let in_order = take_from_driver(&mut node, "/bench/in", n, |_, stamp| {
+        lat.push((realtime_ns() as i64 - stamp) as f64 / 1e3);
+    });
+    lat.sort_by(f64::total_cmp);
+    let pct = |q: f64| {
+        lat.get(((q * lat.len() as f64) as usize).min(lat.len().saturating_sub(1)))
+            .copied()
+    };
+    serde_json::json!({
+        "count": lat.len(), "in_order": in_order,
+        "p50_us": pct(0.5), "p99_us": pct(0.99), "p999_us": pct(0.999), "max_us": lat.last(),
     })
 }
 
@@ -297,9 +306,8 @@ fn bare_relay(n: usize) -> Value {
     // Measured as the daemon's ROS 2 side is: from the driver's start to its end.
     let cpu = || -> f64 { thread_cpu(std::process::id()).iter().map(|(_, s)| s).sum() };
     let (cpu0, t0) = (cpu(), Instant::now());
-    take_from_driver(&mut node, "/bench/relay_in", n, |imu| {
-        publisher.publish(&imu).unwrap();
-        None
+    take_from_driver(&mut node, "/bench/relay_in", n, |imu, _| {
+        publisher.publish(imu).unwrap();
     });
     let cpu_pct = 100.0 * (cpu() - cpu0) / t0.elapsed().as_secs_f64();
     let mut r = result(child, out);
@@ -308,22 +316,22 @@ fn bare_relay(n: usize) -> Value {
 }
 
 /// Subscribe `node` to `topic`, start the rclpy driver on it for `n` messages, and give each
-/// message to `each` as it is taken, sleeping on DDS readiness between; `each`'s latencies
-/// (us), summed up.
+/// message and its stamp (ns) to `each` as it is taken, sleeping on DDS readiness between.
+/// Whether the stamps came in order.
 fn take_from_driver(
     node: &mut Ros2Node,
     topic: &str,
     n: usize,
-    mut each: impl FnMut(driftless::transport::ros2::Imu) -> Option<f64>,
-) -> Value {
+    mut each: impl FnMut(&driftless::transport::ros2::Imu, i64),
+) -> bool {
     use driftless::transport::ros2::DdsReadiness;
     let mut sub = node.imu_subscription(topic, 100).unwrap();
     let mut ready = DdsReadiness::new().unwrap();
     ready.watch_imu(&mut sub, 0).unwrap();
     let mut driver = peer("pace", topic, n);
-    let (mut lat, mut stamps) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut taken, mut in_order, mut last) = (0, true, i64::MIN);
     let end = Instant::now() + Duration::from_secs_f64(n as f64 / RATE + 30.0);
-    while stamps.len() < n && Instant::now() < end {
+    while taken < n && Instant::now() < end {
         let mut pfd = libc::pollfd {
             fd: ready.fd(),
             events: libc::POLLIN,
@@ -333,21 +341,15 @@ fn take_from_driver(
         unsafe { libc::poll(&mut pfd, 1, 100) };
         ready.clear();
         while let Ok(Some((imu, _))) = sub.take() {
-            stamps.push(imu.stamp.sec as i64 * 1_000_000_000 + imu.stamp.nanosec as i64);
-            lat.extend(each(imu));
+            let stamp = imu.stamp.sec as i64 * 1_000_000_000 + imu.stamp.nanosec as i64;
+            in_order &= stamp > last;
+            last = stamp;
+            taken += 1;
+            each(&imu, stamp);
         }
     }
     assert!(driver.wait().unwrap().success());
-    let in_order = stamps.windows(2).all(|w| w[1] > w[0]);
-    lat.sort_by(f64::total_cmp);
-    let pct = |q: f64| {
-        lat.get(((q * lat.len() as f64) as usize).min(lat.len().saturating_sub(1)))
-            .copied()
-    };
-    serde_json::json!({
-        "count": lat.len(), "in_order": in_order,
-        "p50_us": pct(0.5), "p99_us": pct(0.99), "p999_us": pct(0.999), "max_us": lat.last(),
-    })
+    in_order
 }
 
 /// What the daemon said of itself.
