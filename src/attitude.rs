@@ -5,12 +5,18 @@
 //! accelerometer's low-passed direction with time constant `tau_acc_s`. Heading is relative
 //! (no magnetometer): it is the integrated gyro's.
 //!
-//! What we add to VQF is the gyro it integrates: the rate after `predict.bias`, whose bias the
-//! filter estimated from the unit's own Allan terms and the stops both sensors confirm. VQF's
-//! own bias estimation stays on by default ([`AttitudeConfig::vqf_bias`]): at rest it finds
-//! what is left of the bias (near nothing), and in motion it sees the horizontal axes' residual
-//! bias through the inclination, which a test of each axis's stillness cannot. Measured on
-//! BROAD (docs/attitude.md).
+//! What we add to VQF is the bias: `predict.bias` estimates it from the unit's own Allan terms
+//! and the stops both sensors confirm ([`Upstream`]). **One bias state, never two.** VQF
+//! integrates the rate with that bias put back, and whenever the bias filter's estimate of an
+//! axis changes (it learnt something: at a stop, or revising one) that estimate and its
+//! variance become VQF's bias state for the axis. Between changes VQF's own estimation runs on
+//! from there ([`AttitudeConfig::vqf_bias`]): in motion it sees the horizontal axes' bias
+//! through the inclination, which no stop can. Fed the corrected rate instead, VQF would learn
+//! the bias filter's own steps as a residual bias: a cold start learns the bias within VQF's
+//! first rest, VQF took part of that step for a residual, and kept it through the motion
+//! (issue 59; the test `a_step_of_the_bias_filter_in_the_first_rest_is_not_learnt_as_a_residual`).
+//! A rate without the bias's uncertainty (`predict.none`, `predict.rbf`) is integrated as it
+//! comes. Measured on BROAD (docs/attitude.md).
 //!
 //! **No NaN ever.** A sample with no accelerometer, or one that is not finite or beyond any
 //! accelerometer's range ([`MAX_READING`]), is not used: the filter coasts on the gyro and the
@@ -65,10 +71,20 @@ fn usable(v: &[f64; 3]) -> bool {
     norm(v) <= MAX_READING
 }
 
-/// How much of VQF's own gyro bias estimation runs on the (already corrected) rate.
+/// What the bias filter before the stage removed from the rate, and how sure it is: rad/s per
+/// axis (`predict.bias`'s `drift` and `drift_std`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Upstream {
+    /// The bias removed.
+    pub bias: [f64; 3],
+    /// Its standard deviation.
+    pub sd: [f64; 3],
+}
+
+/// How much of VQF's own gyro bias estimation runs between the bias filter's changes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum VqfBias {
-    /// None: the rate's bias was removed upstream and nothing is left to find.
+    /// None: the bias filter's estimate alone.
     Off,
     /// VQF's rest bias estimation only.
     Rest,
@@ -81,7 +97,7 @@ pub enum VqfBias {
 pub struct AttitudeConfig {
     /// Time constant of the accelerometer's correction of the inclination, s (VQF's `tauAcc`).
     pub tau_acc_s: f64,
-    /// VQF's own bias estimation on top of ours.
+    /// VQF's own bias estimation between the bias filter's changes.
     pub vqf_bias: VqfBias,
     /// An accelerometer sample whose norm is below this many g is flagged: free fall.
     pub min_g: f64,
@@ -182,6 +198,8 @@ pub struct Attitude {
     /// The inclination's error gathered while coasting, as the heading's: rad and rad².
     coast_bias: f64,
     coast_noise: f64,
+    /// The upstream bias last handed to VQF's bias state, rad/s per axis.
+    adopted: Option<[f64; 3]>,
 }
 
 impl std::fmt::Debug for Attitude {
@@ -246,6 +264,7 @@ impl Attitude {
             heading_noise: 0.0,
             coast_bias: 0.0,
             coast_noise: 0.0,
+            adopted: None,
         }
     }
 
@@ -257,6 +276,7 @@ impl Attitude {
         self.heading_noise = source.heading_noise;
         self.coast_bias = source.coast_bias;
         self.coast_noise = source.coast_noise;
+        self.adopted = source.adopted;
     }
 
     /// The settings.
@@ -265,17 +285,27 @@ impl Attitude {
     }
 
     /// One sample: the corrected rate (rad/s), the specific force (m/s²) if the sample carries
-    /// one, and the standard deviation of the rate's remaining bias per axis (rad/s; the bias
-    /// filter's), if known.
+    /// one, and the bias the filter before removed from it with its standard deviation, if
+    /// known (see the module documentation: VQF then integrates the rate with that bias put
+    /// back, and takes the filter's estimate into its own bias state whenever it changes).
     pub fn push(
         &mut self,
         gyro: [f64; 3],
         accel: Option<[f64; 3]>,
-        bias_sd: Option<[f64; 3]>,
+        upstream: Option<Upstream>,
     ) -> AttitudeStep {
+        let upstream =
+            upstream.filter(|u| usable(&u.bias) && usable(&u.sd) && u.sd.iter().all(|v| *v >= 0.0));
         let held = !usable(&gyro);
         if !held {
-            self.vqf.update_gyr(gyro);
+            let rate = match upstream {
+                Some(u) => {
+                    self.adopt(&u);
+                    [0, 1, 2].map(|i| gyro[i] + u.bias[i])
+                }
+                None => gyro,
+            };
+            self.vqf.update_gyr(rate);
         }
         // The reading with its norm, taken once: it decides both use and the flag.
         let accel = accel
@@ -290,7 +320,7 @@ impl Attitude {
         }
         let q = self.vqf.quat_6d();
         let quat = [q.0, q.1, q.2, q.3];
-        self.integrate_errors(quat, bias_sd, accel.is_some());
+        self.integrate_errors(quat, upstream.map(|u| u.sd), accel.is_some());
         let floor = self.cfg.inclination_floor_deg.to_radians();
         let moving = self.cfg.inclination_motion_gain * self.motion.sqrt() / GRAVITY;
         let coast = self.coast_bias * self.coast_bias + self.coast_noise;
@@ -304,6 +334,29 @@ impl Attitude {
                 .heading_bias
                 .map(|b| (b * b + self.heading_noise).sqrt()),
         }
+    }
+
+    /// The upstream filter's estimate of each axis whose estimate changed since the last
+    /// sample (it learnt something: at a stop, or revising one) becomes VQF's, with its
+    /// variance, and no correlation with the other axes. Between changes VQF's own rest and
+    /// motion estimation runs on from there.
+    fn adopt(&mut self, u: &Upstream) {
+        let p0 = self.vqf.coeffs().bias_p0;
+        let state = self.vqf.state_mut();
+        for i in 0..3 {
+            if self.adopted.is_some_and(|a| a[i] == u.bias[i]) {
+                continue;
+            }
+            state.bias[i] = u.bias[i];
+            // VQF keeps its covariance in (0.01 deg/s)^2.
+            let p = (u.sd[i].to_degrees() * 100.0).powi(2).min(p0);
+            for j in 0..3 {
+                state.bias_p.0[i][j] = 0.0;
+                state.bias_p.0[j][i] = 0.0;
+            }
+            state.bias_p.0[i][i] = p;
+        }
+        self.adopted = Some(u.bias);
     }
 
     /// One sample period of the rate's error, turned into the earth frame by `quat`: about the
@@ -348,6 +401,7 @@ impl Attitude {
         self.heading_noise = 0.0;
         self.coast_bias = 0.0;
         self.coast_noise = 0.0;
+        self.adopted = None;
     }
 }
 
@@ -365,6 +419,11 @@ pub fn roll_pitch_yaw(q: [f64; 4]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bias filter before the stage whose estimate is only this standard deviation off.
+    fn known(sd: [f64; 3]) -> Option<Upstream> {
+        Some(Upstream { bias: [0.0; 3], sd })
+    }
 
     /// Angle (deg) between the body's z axis in the earth frame and up: the inclination.
     fn inclination_deg(q: [f64; 4], body_up: [f64; 3]) -> f64 {
@@ -478,7 +537,7 @@ mod tests {
         // x and y bias sd that must not reach the heading.
         let sd = [5e-3, 5e-3, 1e-4];
         let s = (0..1000)
-            .map(|_| f.push([0.0; 3], Some(up), Some(sd)))
+            .map(|_| f.push([0.0; 3], Some(up), known(sd)))
             .last()
             .unwrap();
         let want = ((1e-4f64 * 10.0).powi(2) + n * n * 10.0).sqrt();
@@ -491,7 +550,7 @@ mod tests {
         );
         // Coasting 2 s: they do, about sd x t on each horizontal axis (and the noise's).
         let c = (0..200)
-            .map(|_| f.push([0.0; 3], None, Some(sd)))
+            .map(|_| f.push([0.0; 3], None, known(sd)))
             .last()
             .unwrap();
         let tilt = (2.0f64 * (5e-3 * 2.0f64).powi(2) + 2.0 * n * n * 2.0).sqrt();
@@ -503,15 +562,15 @@ mod tests {
         );
         // The accelerometer back: the coasting part fades with the low-pass (3 s).
         let back = (0..1500)
-            .map(|_| f.push([0.0; 3], Some(up), Some(sd)))
+            .map(|_| f.push([0.0; 3], Some(up), known(sd)))
             .last()
             .unwrap();
         assert!(back.inclination_sd < 0.3f64.to_radians() * 1.05, "{back:?}");
         // A sample without the bias's sd: the heading's is unknown from then on.
         assert_eq!(f.push([0.0; 3], Some(up), None).heading_sd, None);
-        assert_eq!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd, None);
+        assert_eq!(f.push([0.0; 3], Some(up), known(sd)).heading_sd, None);
         f.reset();
-        assert!(f.push([0.0; 3], Some(up), Some(sd)).heading_sd.unwrap() < 1e-3);
+        assert!(f.push([0.0; 3], Some(up), known(sd)).heading_sd.unwrap() < 1e-3);
     }
 
     /// Any value a corrupted sample may hold, weighted towards the ordinary.
@@ -535,18 +594,22 @@ mod tests {
                 (
                     proptest::array::uniform3(any_value()),
                     proptest::option::of(proptest::array::uniform3(any_value())),
-                    proptest::option::of(proptest::array::uniform3(any_value())),
+                    proptest::option::of((
+                        proptest::array::uniform3(any_value()),
+                        proptest::array::uniform3(any_value()),
+                    )),
                 ),
                 1..200,
             )
         ) {
             let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
-            for (k, (w, a, sd)) in steps.into_iter().enumerate() {
-                let s = f.push(w, a, sd);
+            for (k, (w, a, up)) in steps.into_iter().enumerate() {
+                let up = up.map(|(bias, sd)| Upstream { bias, sd });
+                let s = f.push(w, a, up);
                 let norm: f64 = s.quat.iter().map(|v| v * v).sum::<f64>().sqrt();
                 proptest::prop_assert!(
                     s.quat.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() < 1e-6,
-                    "step {}: {:?} {:?} {:?}: {:?}", k, w, a, sd, s
+                    "step {}: {:?} {:?} {:?}: {:?}", k, w, a, up, s
                 );
                 proptest::prop_assert!(
                     s.inclination_sd.is_finite() && s.inclination_sd >= 0.0,
@@ -571,7 +634,10 @@ mod tests {
             (
                 w,
                 (k % 7 != 0).then_some(a),
-                (k % 5 != 0).then_some([1e-5; 3]),
+                (k % 5 != 0).then_some(Upstream {
+                    bias: [2e-3, -1e-3, 5e-4],
+                    sd: [1e-5; 3],
+                }),
             )
         };
         let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
@@ -646,5 +712,53 @@ mod tests {
         ] {
             assert!(bad.check().is_err(), "{bad:?}");
         }
+    }
+
+    /// The bias filter before the stage learns the bias within VQF's first rest, as at a cold
+    /// start: its estimate steps from 0 to the bias there. VQF must not take that step in its
+    /// input for a residual bias and keep it through the motion (issue 59: it cost the chain
+    /// its heading against VQF alone on trials with a short first rest). Level, 2.5 s still,
+    /// then 60 s of turning about the vertical at 30 deg/s, where no accelerometer sees the
+    /// vertical bias: the heading with the filter before is no worse than VQF's alone.
+    #[test]
+    fn a_step_of_the_bias_filter_in_the_first_rest_is_not_learnt_as_a_residual() {
+        let rate = 100.0;
+        let bias = [0.004, -0.003, 0.0045]; // about 0.25 deg/s
+        let up = [0.0, 0.0, GRAVITY];
+        let turn = 30f64.to_radians();
+        let mut alone = Attitude::new(rate, AttitudeConfig::default()).unwrap();
+        let mut chain = alone.clone();
+        let (mut yaw_alone, mut yaw_chain) = (0.0, 0.0);
+        for k in 0..6250 {
+            let t = k as f64 / rate;
+            let w = if t < 2.5 { 0.0 } else { turn };
+            let raw = [bias[0], bias[1], w + bias[2]];
+            // Learnt 1.8 s in: 0 (sd 1 deg/s) before, the bias (sd 0.01 deg/s) after.
+            let learnt = t >= 1.8;
+            let removed = if learnt { bias } else { [0.0; 3] };
+            let sd = if learnt { 1.75e-4 } else { 1.75e-2 };
+            let corrected = [0, 1, 2].map(|i| raw[i] - removed[i]);
+            let a = alone.push(raw, Some(up), None);
+            let c = chain.push(
+                corrected,
+                Some(up),
+                Some(Upstream {
+                    bias: removed,
+                    sd: [sd; 3],
+                }),
+            );
+            let truth = w * (t - 2.5).max(0.0);
+            let err = |q: [f64; 4]| {
+                let yaw = roll_pitch_yaw([q[1], q[2], q[3], q[0]])[2];
+                let e = yaw - truth;
+                e.sin().atan2(e.cos()).to_degrees()
+            };
+            (yaw_alone, yaw_chain) = (err(a.quat), err(c.quat));
+        }
+        assert!(
+            yaw_chain.abs() <= yaw_alone.abs() + 0.05,
+            "heading error after 60 s of turning: {yaw_chain:.3} deg with the bias filter \
+             before, {yaw_alone:.3} deg with VQF alone"
+        );
     }
 }

@@ -10,16 +10,17 @@
 //! # tau_acc_s = 3.0              # how fast the accelerometer pulls the inclination, s
 //! ```
 //!
-//! What it takes from the stages before it: the corrected rate (`predict.bias` removed the
-//! bias from the unit's own Allan terms and the stops both sensors or the vehicle confirm),
-//! that bias's uncertainty (`drift_std`) and the gyro's white noise (`predict.bias`'s `arw`)
-//! for the heading's uncertainty. The sample gains `orientation` (x, y, z, w, body to an earth
+//! What it takes from the stages before it: the corrected rate, the bias `predict.bias`
+//! removed (`drift`, from the unit's own Allan terms and the stops both sensors or the vehicle
+//! confirm) with its uncertainty (`drift_std`), which VQF takes as its own bias state whenever
+//! it changes ([`crate::attitude`]: one bias state, never two), and the gyro's white noise
+//! (`predict.bias`'s `arw`) for the heading's uncertainty. The sample gains `orientation` (x, y, z, w, body to an earth
 //! frame with z up; the heading relative, 0 where the stage started) and `orientation_std`
 //! (about the earth's x, y, z). A sample without a valid accelerometer coasts on the gyro and
 //! says so (`SENSOR_ORIENTATION_COASTING`); free fall and shocks are flagged
 //! (`SENSOR_ORIENTATION_NO_GRAVITY`). docs/attitude.md gives the method and its figures.
 
-use crate::attitude::{Attitude, AttitudeConfig, VqfBias};
+use crate::attitude::{Attitude, AttitudeConfig, Upstream, VqfBias};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
@@ -39,8 +40,8 @@ const VQF_BIAS: Key = Key {
     name: "vqf_bias",
     ty: Type::Choice(&["full", "rest", "off"]),
     default: DefaultValue::Word("full"),
-    doc: "VQF's own bias estimation on top of `predict.bias`'s: at rest and in motion (full), \
-          at rest only, or none",
+    doc: "VQF's own bias estimation, from `predict.bias`'s estimate whenever that changes: at \
+          rest and in motion (full), at rest only, or none (`predict.bias`'s alone)",
 };
 const MIN_G: Key = Key {
     name: "min_g",
@@ -179,18 +180,21 @@ pub struct AttitudeStage {
     samples: u64,
 }
 
-/// What [`Attitude::push`] takes: the rate, the accelerometer's reading, the bias's sd.
-type Inputs = ([f64; 3], Option<[f64; 3]>, Option<[f64; 3]>);
+/// What [`Attitude::push`] takes: the rate, the accelerometer's reading, the bias removed.
+type Inputs = ([f64; 3], Option<[f64; 3]>, Option<Upstream>);
 
 impl Stage for AttitudeStage {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
-        let bias_sd = input
+        let upstream = input
             .drift_std
             .iter()
             .all(|s| *s >= 0.0)
-            .then_some(input.drift_std);
-        let inputs = (input.rate, input.accel_reading(), bias_sd);
+            .then_some(Upstream {
+                bias: input.drift,
+                sd: input.drift_std,
+            });
+        let inputs = (input.rate, input.accel_reading(), upstream);
         self.last = Some(inputs);
         let step = self.filter.push(inputs.0, inputs.1, inputs.2);
         let [w, x, y, z] = step.quat;
@@ -219,9 +223,9 @@ impl Stage for AttitudeStage {
     /// After a sleep VQF's code has left the cache more than its state (`benches/attitude.rs`):
     /// run it once on a copy, with the last sample.
     fn prewarm(&mut self) {
-        if let Some((rate, accel, bias_sd)) = self.last {
+        if let Some((rate, accel, upstream)) = self.last {
             self.spare.clone_from(&self.filter);
-            std::hint::black_box(self.spare.push(rate, accel, bias_sd));
+            std::hint::black_box(self.spare.push(rate, accel, upstream));
         }
     }
 

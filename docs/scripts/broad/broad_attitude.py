@@ -98,6 +98,17 @@ def source(broad, number):
     return "hdf5" if glob.glob(os.path.join(broad, "data_hdf5", f"{number:02d}_*.hdf5")) else "mat"
 
 
+def cut_rest(d, seconds):
+    """The trial cut to the last `seconds` of its first rest and its motion, every later rest
+    dropped (the truth is still through a rest, so the motion on both sides of one joins)."""
+    moving = np.asarray(d["movement"], bool)
+    k = int(np.argmax(moving))
+    keep = moving.copy()
+    keep[max(0, k - int(round(seconds * d["rate"]))):k] = True
+    return {**{key: np.asarray(d[key])[keep] for key in ("imu_gyr", "imu_acc", "opt_quat", "movement")},
+            "rate": d["rate"]}
+
+
 def run_vqf(gyr, acc, rate):
     import vqf
 
@@ -260,6 +271,15 @@ def main():
     ap.add_argument("--json", help="write the numbers to this file")
     ap.add_argument("--shift-rests", action="store_true",
                     help="move each first rest to the rests' common mean before taking the terms (broad_heading.py)")
+    ap.add_argument("--cut-rest", type=float, metavar="S",
+                    help="cut each trial to the last S seconds of its first rest and its motion, every "
+                         "later rest dropped: a short start-up rest, then motion with no rest (issue 59)")
+    ap.add_argument("--shipped", action="store_true",
+                    help="judge pipelines/navigator-attitude.toml's chain (no denoiser, the ADIS16405's "
+                         "terms, no stop signal) at each trial's rate, instead of the chain with BROAD's "
+                         "own terms")
+    ap.add_argument("--peers", default=",".join(m for m, _ in PEERS),
+                    help="the peers to run, comma-separated (default: all; vqf,gyro_raw is quick)")
     ap.add_argument("--attitude-key", action="append", default=[], metavar="KEY=VALUE",
                     help="a key of the attitude.6d stage (TOML), e.g. vqf_bias='\"rest\"'; repeatable")
     args = ap.parse_args()
@@ -279,7 +299,8 @@ def main():
         "fusion_bias": lambda g, a, r: run_fusion(g, a, r, bu.quatmult, with_bias=True),
     }
     labels = dict(PEERS)
-    methods = [m for m, _ in PEERS]
+    methods = [m for m, _ in PEERS if m in args.peers.split(",")]
+    runners = {m: run for m, run in runners.items() if m in methods}
     seconds = {m: 0.0 for m in methods}
     results = []
     start = time.time()
@@ -293,9 +314,16 @@ def main():
             if name is None:
                 print(f"trial {n:02d}: not in this copy, skipped", file=sys.stderr)
                 continue
-            trials.append((n, name, d))
+            trials.append((n, name, cut_rest(d, args.cut_rest) if args.cut_rest is not None else d))
         pipeline = None
-        if args.example and trials:
+        if args.example and trials and args.shipped:
+            pipeline = os.path.join(work, "navigator-attitude.toml")
+            with open(os.path.join(REPO, "pipelines", "navigator-attitude.toml")) as f:
+                text = f.read()
+            assert "rate_hz = 1000.0\n" in text
+            with open(pipeline, "w") as f:
+                f.write(text.replace("rate_hz = 1000.0\n", f"rate_hz = {trials[0][2]['rate']!r}\n"))
+        elif args.example and trials:
             # One parameter set for every trial: the unit's terms from the first rests of the
             # undisturbed trials (as broad_heading.py takes them), whichever trials are judged.
             rests = [first_rest(d) for d in (load_trial(args.broad, n)[1] for n in DEV) if d is not None]
@@ -320,9 +348,12 @@ def main():
                 est[m] = run(gyr, acc, rate)
                 seconds[m] += time.time() - t
             t = time.time()
-            est["gyro_raw"] = integrate(gyr, q_ref, 1.0 / rate)
-            est["gyro_zaru"] = integrate(gyr - zaru_bias(gyr, ~moving, int(round(rate))), q_ref, 1.0 / rate)
-            seconds["gyro_raw"] += time.time() - t  # both integrations
+            if "gyro_raw" in methods:
+                est["gyro_raw"] = integrate(gyr, q_ref, 1.0 / rate)
+            if "gyro_zaru" in methods:
+                est["gyro_zaru"] = integrate(gyr - zaru_bias(gyr, ~moving, int(round(rate))), q_ref, 1.0 / rate)
+            if "gyro_raw" in seconds:
+                seconds["gyro_raw"] += time.time() - t  # both integrations
             if args.example:
                 found, sds = ours(name, d, pipeline, args.example, work)
                 for m, q in found.items():
