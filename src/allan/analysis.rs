@@ -1,11 +1,13 @@
 //! A record's whole Allan analysis, as `driftless allan` reports it: the deviation curve with
 //! intervals on the grid asked for, the octave OADEV curve (in the sensor's base unit, deg/s or
 //! m/s^2) that the IEEE 952 fit and the read-offs use, the fit and the read-offs. A curve says how far it has got as it goes
-//! ([`Progress`]): a long grid on a long record takes minutes.
+//! ([`Progress`]): a long grid on a long record takes minutes. Several records' analyses pool
+//! into one ([`pool_analyses`]).
 
 use super::chi2;
 use super::deviation::{self, add_intervals, AllanError, AllanPoint, Kind, TauGrid};
 use super::fit::{fit_terms, read_offs, FitError, NoiseFit, TermFit};
+use super::pool::{self, LogCurve};
 
 /// Which curve a [`Progress`] report is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -126,6 +128,43 @@ pub fn analyse(
     })
 }
 
+/// Several records' analyses pooled ([`pool_analyses`]).
+#[derive(Debug, Clone)]
+pub struct PooledAnalysis {
+    /// The pooled analysis: `samples` those of every record, the curves pooled per tau, the fit
+    /// and the read-offs of the pooled octave curve.
+    pub analysis: Analysis,
+    /// Per point of [`Analysis::points`], how many records reached its tau.
+    pub logs: Vec<usize>,
+}
+
+/// The analyses of several records of one column (one rate, `kind` on one grid, as [`analyse`]
+/// gave them) pooled per tau ([`pool::pool`]), never joined: the fit and the read-offs run on the
+/// pooled octave curve.
+pub fn pool_analyses(kind: Kind, logs: &[Analysis]) -> PooledAnalysis {
+    let ci = chi2::ONE_SIGMA;
+    let curves = |octave: bool| -> Vec<LogCurve<'_>> {
+        logs.iter()
+            .map(|a| LogCurve {
+                points: if octave { &a.octave } else { &a.points },
+                phase_len: a.samples + 1,
+            })
+            .collect()
+    };
+    let asked = pool::pool(kind, &curves(false), ci);
+    let octave = pool::pool(Kind::Oadev, &curves(true), ci).points;
+    PooledAnalysis {
+        analysis: Analysis {
+            samples: logs.iter().map(|a| a.samples).sum(),
+            points: asked.points,
+            fit: fit_terms(&octave, ci),
+            read_offs: read_offs(&octave),
+            octave,
+        },
+        logs: asked.logs,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -169,6 +208,40 @@ mod tests {
         assert_eq!(heard.iter().filter(|p| **p == Progress::Done).count(), 2);
         assert!(a.fit.as_ref().unwrap().get(Term::N).estimate.is_some());
         assert_eq!(a.samples, 20_000);
+    }
+
+    /// One record pooled is that record's analysis; a record and its copy give its curve and
+    /// its terms with narrower intervals.
+    #[test]
+    fn pooled_analyses_keep_one_record_and_narrow_with_more() {
+        let y = noise(20_000);
+        let a = analyse(&y, 100.0, Kind::Hdev, &TauGrid::Octave, 2.0, &mut |_| {}).unwrap();
+        let one = pool_analyses(Kind::Hdev, std::slice::from_ref(&a));
+        assert_eq!(one.analysis.points, a.points);
+        assert_eq!(one.analysis.samples, a.samples);
+        let close = |u: f64, v: f64| (u - v).abs() <= 1e-12 * v.abs();
+        for (p, q) in one.analysis.octave.iter().zip(&a.octave) {
+            assert!(close(p.dev, q.dev) && close(p.lo, q.lo) && close(p.hi, q.hi));
+        }
+        let two = pool_analyses(Kind::Hdev, &[a.clone(), a.clone()]);
+        assert_eq!(two.analysis.samples, 40_000);
+        assert!(two.logs.iter().all(|&k| k == 2));
+        let (n1, n2) = (
+            a.fit.as_ref().unwrap().get(Term::N).estimate.unwrap(),
+            two.analysis
+                .fit
+                .as_ref()
+                .unwrap()
+                .get(Term::N)
+                .estimate
+                .unwrap(),
+        );
+        // The same curve, but twice the degrees of freedom weigh (and identify) its points anew.
+        assert!(
+            (n1.value - n2.value).abs() < 0.01 * n1.value,
+            "{n1:?} vs {n2:?}"
+        );
+        assert!(n2.hi - n2.lo < n1.hi - n1.lo, "{n1:?} vs {n2:?}");
     }
 
     #[test]

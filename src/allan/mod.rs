@@ -12,6 +12,8 @@
 //! * [`fit`]: the IEEE Std 952 terms Q, N, B, K, R by a weighted non-negative least-squares fit,
 //!   with intervals, plus the classic slope-line read-offs.
 //! * [`units`]: rate and acceleration units in, term names and units out, per [`Sensor`].
+//! * [`pool`]: several records' curves pooled per tau (never joined end to end), with the
+//!   summed degrees of freedom.
 //! * [`analysis`]: a record's whole analysis as `driftless allan` reports it: the curve asked
 //!   for, the octave curve, the fit and the read-offs, telling its progress.
 
@@ -20,6 +22,7 @@ pub mod chi2;
 pub mod deviation;
 pub mod edf;
 pub mod fit;
+pub mod pool;
 pub mod units;
 
 pub use deviation::{allan, AllanError, AllanPoint, Kind, NoiseId, TauGrid};
