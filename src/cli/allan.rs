@@ -1,7 +1,10 @@
 //! `driftless allan`: Allan deviation of a rate log (and of its accelerometer columns) with
 //! intervals, and its IEEE Std 952 noise terms ([`crate::allan::analysis`]); with `--stage`, the
 //! `predict.bias` table of the unit's own terms ([`crate::drift::bias::own_terms`], and the
-//! accelerometer's: [`crate::drift::bias::own_accel_terms`]).
+//! accelerometer's: [`crate::drift::bias::own_accel_terms`]). Several logs of one unit pool per
+//! tau, never joined ([`pooled`]).
+
+mod pooled;
 
 use super::CliError;
 use crate::allan::analysis::{self, Curve, Progress};
@@ -21,6 +24,7 @@ use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
 use crate::io::rate_log::{self, RateLog};
 use crate::io::{progress, write_table};
 use crate::stages::accel_terms::{ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
+use pooled::{Pooling, Reference};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 
@@ -28,8 +32,11 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Rate log: CSV with a header, or headerless (.gz read transparently), or a ROS 2 bag
-    /// (an MCAP file or a rosbag2 directory, see --topic).
-    pub input: PathBuf,
+    /// (an MCAP file or a rosbag2 directory, see --topic). Several logs of one unit (one per
+    /// power-up, one per day) are pooled per tau, never joined end to end: they must share rate,
+    /// units and columns.
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
     /// Sample rate in Hz (required for CSV; a bag's comes from its stamps).
     #[arg(long, allow_hyphen_values = true)]
     pub rate: Option<String>,
@@ -102,6 +109,8 @@ struct ColumnResult {
     read_offs: Vec<TermFit>,
     /// The octave OADEV points the fit and the read-offs use (base unit: deg/s, m/s^2).
     octave: Vec<AllanPoint>,
+    /// Per point, how many logs reached its tau: empty for one log.
+    logs: Vec<usize>,
 }
 
 impl ColumnResult {
@@ -171,6 +180,7 @@ fn analyse(
         fit: a.fit,
         read_offs: a.read_offs,
         octave: a.octave,
+        logs: Vec::new(),
     })
 }
 
@@ -283,11 +293,11 @@ fn format_term(t: &TermFit, units: TermUnits, sensor: Sensor) -> String {
 /// and column what was taken and why (`lsb` in the gyro columns' units).
 fn stage_table(
     results: &[ColumnResult],
-    args: &Args,
+    shown: &str,
+    pooling: Option<&Pooling>,
     rate: f64,
     lsb: f64,
 ) -> Result<String, CliError> {
-    let shown = args.input.display();
     let (gyro, accel): (Vec<&ColumnResult>, Vec<&ColumnResult>) =
         results.iter().partition(|r| r.sensor() == Sensor::Gyro);
     let Some(unit) = gyro.first().map(|r| r.unit) else {
@@ -332,13 +342,23 @@ fn stage_table(
         ));
     }
     let samples = results.first().map_or(0, |r| r.samples);
+    let samples = match pooling {
+        Some(p) => format!("{samples} samples in {} logs", p.logs.len()),
+        None => format!("{samples} samples"),
+    };
     let mut out = format!(
-        "# predict.bias with the noise terms of {shown} ({}; {samples} samples at {rate} Hz, {units}),\n\
+        "# predict.bias with the noise terms of {shown} ({}; {samples} at {rate} Hz, {units}),\n\
          # from `driftless allan ... --stage`. One set for every axis; each term says how it was\n\
          # taken. Every gyro term is given, so no sensor's defaults fill in. The pipeline's\n\
          # input_units must be {unit} (lsb is in them). Set input and output to your chain's services.\n",
         columns.join(", ")
     );
+    if let Some(p) = pooling {
+        out.push_str("# The logs, pooled per tau (never joined):\n");
+        for line in p.lines() {
+            out.push_str(&format!("#   {line}\n"));
+        }
+    }
     for n in notes {
         out.push_str(&n);
         out.push('\n');
@@ -467,21 +487,20 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .kind
         .parse()
         .map_err(|e| CliError::input(format!("--kind: {e}")))?;
-    let (log, units) = read_columns(&args)?;
-    let rate = log.origin.rate(given_rate).map_err(CliError::input)?;
-    let table = log.table;
-    let shown = args.input.display().to_string();
-    let mut results = Vec::new();
-    for ((name, y), &unit) in table.names.iter().zip(&table.columns).zip(&units) {
-        let r = analyse(y, rate, kind, &grid, unit, name)
-            .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
-        results.push(r);
-    }
+    let (results, rate, pooling) = analyse_logs(&args, given_rate, kind, &grid)?;
+    let shown = match &pooling {
+        Some(p) => format!("{} pooled logs", p.logs.len()),
+        None => args.inputs[0].display().to_string(),
+    };
     if let Some(out) = &args.output {
         write_csv(out, &results)?;
+        if let Some(p) = &pooling {
+            let to = p.write_csv(out)?;
+            eprintln!("driftless: the pooled logs are listed in {}", to.display());
+        }
     }
     if let Some(path) = &args.plot {
-        write_plots(path, &results, kind)?;
+        write_plots(path, &results, kind, pooling.as_ref())?;
     }
     if args.stage {
         let lsb = super::simulate::parse_number("--lsb", &args.lsb)?;
@@ -491,13 +510,24 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 args.lsb
             )));
         }
-        print!("{}", stage_table(&results, &args, rate, lsb)?);
+        print!(
+            "{}",
+            stage_table(&results, &shown, pooling.as_ref(), rate, lsb)?
+        );
         return Ok(());
     }
     if args.json {
         let columns: Vec<Value> = results.iter().map(|r| column_json(r, rate, kind)).collect();
-        println!("{}", json!({ "columns": columns }));
+        let mut out = json!({ "columns": columns });
+        if let Some(p) = &pooling {
+            out["pooled"] = p.logs.len().into();
+            out["logs"] = p.json();
+        }
+        println!("{out}");
         return Ok(());
+    }
+    if let Some(p) = &pooling {
+        println!("{}", p.text());
     }
     for r in &results {
         print_column(r, rate, kind, args.term_units);
@@ -505,16 +535,68 @@ pub fn run(args: Args) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The log's columns to analyse and the unit of each: the gyro's (`--column`, or every other
-/// numeric column) in `--units`, the accelerometer's (`--accel-column`) in `--accel-units`.
-fn read_columns(args: &Args) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
+/// Each log read and analysed in turn (one log's samples in memory at a time) at the first log's
+/// rate; several are pooled ([`pooled::pool_columns`]) after each was checked against the first.
+fn analyse_logs(
+    args: &Args,
+    given_rate: Option<f64>,
+    kind: Kind,
+    grid: &TauGrid,
+) -> Result<(Vec<ColumnResult>, f64, Option<Pooling>), CliError> {
+    let several = args.inputs.len() > 1;
+    let mut per_log = Vec::with_capacity(args.inputs.len());
+    let mut reference: Option<Reference> = None;
+    for path in &args.inputs {
+        let (log, units) = read_columns(args, path)?;
+        let own_rate = log.origin.rate(given_rate).map_err(CliError::input)?;
+        let rate = match &reference {
+            Some(r) => {
+                r.check(path, &log, &units, own_rate)?;
+                r.rate
+            }
+            None => {
+                reference
+                    .insert(Reference::of(path, &log, &units, own_rate))
+                    .rate
+            }
+        };
+        let shown = path.display().to_string();
+        let table = log.table;
+        let mut results = Vec::new();
+        for ((name, y), &unit) in table.names.iter().zip(&table.columns).zip(&units) {
+            let label = match several {
+                true => format!("{shown}: {name}"),
+                false => name.clone(),
+            };
+            let mut r = analyse(y, rate, kind, grid, unit, &label)
+                .map_err(|e| CliError::input(format!("{shown}: column '{name}': {e}")))?;
+            r.name.clone_from(name);
+            results.push(r);
+        }
+        per_log.push(results);
+    }
+    let Some(rate) = reference.map(|r| r.rate) else {
+        return Err(CliError::input("no log given"));
+    };
+    if !several {
+        return Ok((per_log.into_iter().flatten().collect(), rate, None));
+    }
+    let paths: Vec<&Path> = args.inputs.iter().map(PathBuf::as_path).collect();
+    let (results, pooling) = pooled::pool_columns(kind, &paths, per_log);
+    Ok((results, rate, Some(pooling)))
+}
+
+/// The columns to analyse of the log at `path` and the unit of each: the gyro's (`--column`, or
+/// every other numeric column) in `--units`, the accelerometer's (`--accel-column`) in
+/// `--accel-units`.
+fn read_columns(args: &Args, path: &Path) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
     let accel = &args.accel_columns;
     if let Some(both) = args.columns.iter().find(|c| accel.contains(c)) {
         return Err(CliError::input(format!(
             "column '{both}' is named by both --column and --accel-column: a column is one sensor's"
         )));
     }
-    let bag = rate_log::is_bag(&args.input);
+    let bag = rate_log::is_bag(path);
     // Without --column the gyro's are the rest: every numeric column of a CSV file, read all
     // at once; a bag's x, y, z.
     let wanted: Vec<String> = match (args.columns.is_empty(), accel.is_empty(), bag) {
@@ -526,7 +608,7 @@ fn read_columns(args: &Args) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
             .collect(),
         (false, _, _) => args.columns.iter().chain(accel).cloned().collect(),
     };
-    let log = log_input::open(&args.input, &wanted, &args.bag, false)?;
+    let log = log_input::open(path, &wanted, &args.bag, false)?;
     let gyro = SampleUnit::Rate(log_input::rate_unit(&log.origin, args.units.as_deref())?);
     let accel_unit = log
         .origin
@@ -538,7 +620,7 @@ fn read_columns(args: &Args) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
         if !log.table.names.contains(name) {
             return Err(CliError::input(format!(
                 "{}: no column named '{name}' (columns: {})",
-                args.input.display(),
+                path.display(),
                 log.table.names.join(", ")
             )));
         }
@@ -581,10 +663,16 @@ fn gravity_check(log: &RateLog, units: &[SampleUnit], given: AccelUnit) {
 }
 
 /// `-o`: the tau table as CSV. Every column has the same grid (it depends only on the length),
-/// so one tau column serves.
+/// so one tau column serves; pooled, a `logs` column beside it.
 fn write_csv(out: &Path, results: &[ColumnResult]) -> Result<(), CliError> {
     let mut names = vec!["tau_s".to_string()];
     let mut cols: Vec<Vec<f64>> = vec![results[0].points.iter().map(|p| p.tau).collect()];
+    // Pooled: how many logs reached each tau (the same for every column: it depends only on
+    // the logs' lengths).
+    if !results[0].logs.is_empty() {
+        names.push("logs".to_string());
+        cols.push(results[0].logs.iter().map(|&k| k as f64).collect());
+    }
     for r in results {
         for (suffix, f) in [
             ("dev", (|p: &AllanPoint| p.dev) as fn(&AllanPoint) -> f64),
@@ -612,14 +700,19 @@ fn column_json(r: &ColumnResult, rate: f64, kind: Kind) -> Value {
     let points: Vec<Value> = r
         .points
         .iter()
-        .map(|p| {
+        .enumerate()
+        .map(|(j, p)| {
             let (noise_id, plausible) = match p.noise_id {
                 NoiseId::Slope => ("slope", Value::Null),
                 NoiseId::Widest { lo, hi } => ("widest", json!([lo, hi])),
             };
-            json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi,
+            let mut point = json!({"tau": p.tau, "dev": p.dev, "n": p.n, "lo": p.lo, "hi": p.hi,
                    "edf": p.edf, "alpha": p.alpha, "noise_id": noise_id,
-                   "alpha_plausible": plausible})
+                   "alpha_plausible": plausible});
+            if let Some(&k) = r.logs.get(j) {
+                point["logs"] = k.into();
+            }
+            point
         })
         .collect();
     let sensor = r.sensor();
@@ -658,19 +751,26 @@ fn print_column(r: &ColumnResult, rate: f64, kind: Kind, term_units: TermUnits) 
         Sensor::Gyro => "",
         Sensor::Accel => "accelerometer, ",
     };
+    let pooled = !r.logs.is_empty();
+    let (samples, logs_head) = match pooled {
+        true => (
+            format!("{} samples in {} logs", r.samples, r.logs[0]),
+            " logs",
+        ),
+        false => (format!("{} samples", r.samples), ""),
+    };
     println!(
-        "{} ({whose}{} samples at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
+        "{} ({whose}{samples} at {} Hz): {kind} in {unit}, {:.1}% chi-squared intervals (Greenhall EDF)",
         r.name,
-        r.samples,
         rate,
         chi2::ONE_SIGMA * 100.0
     );
     println!(
-        "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10} {:>6}",
+        "{:>12} {:>14} {:>14} {:>14} {:>10} {:>10} {:>6}{logs_head}",
         "tau (s)", "dev", "lo", "hi", "n", "edf", "alpha"
     );
     let mut widest = None;
-    for p in &r.points {
+    for (j, p) in r.points.iter().enumerate() {
         let alpha = match p.noise_id {
             NoiseId::Slope => p.alpha.to_string(),
             NoiseId::Widest { lo, hi } => {
@@ -678,8 +778,9 @@ fn print_column(r: &ColumnResult, rate: f64, kind: Kind, term_units: TermUnits) 
                 format!("{}*", p.alpha)
             }
         };
+        let logs = r.logs.get(j).map_or(String::new(), |k| format!(" {k:>4}"));
         println!(
-            "{:>12.6} {:>14} {:>14} {:>14} {:>10} {:>10.1} {:>6}",
+            "{:>12.6} {:>14} {:>14} {:>14} {:>10} {:>10.1} {:>6}{logs}",
             p.tau,
             sig(p.dev, 7),
             sig(p.lo, 7),
@@ -721,11 +822,16 @@ fn print_column(r: &ColumnResult, rate: f64, kind: Kind, term_units: TermUnits) 
 
 /// `--plot`: one chart per sensor, as the columns' units differ: the gyro's (or the only
 /// sensor's) to `path`, the accelerometer's beside the gyro's to `<stem>-accel.<ext>`.
-fn write_plots(path: &Path, results: &[ColumnResult], kind: Kind) -> Result<(), CliError> {
+fn write_plots(
+    path: &Path,
+    results: &[ColumnResult],
+    kind: Kind,
+    pooling: Option<&Pooling>,
+) -> Result<(), CliError> {
     let (gyro, accel): (Vec<&ColumnResult>, Vec<&ColumnResult>) =
         results.iter().partition(|r| r.sensor() == Sensor::Gyro);
     if !gyro.is_empty() {
-        plot::write_loglog(path, &chart(&gyro, kind)).map_err(CliError::input)?;
+        plot::write_loglog(path, &chart(&gyro, kind, pooling)).map_err(CliError::input)?;
     }
     if !accel.is_empty() {
         let to = if gyro.is_empty() {
@@ -737,7 +843,7 @@ fn write_plots(path: &Path, results: &[ColumnResult], kind: Kind) -> Result<(), 
                 .map_or(String::new(), |e| format!(".{}", e.to_string_lossy()));
             path.with_file_name(format!("{stem}-accel{ext}"))
         };
-        plot::write_loglog(&to, &chart(&accel, kind)).map_err(CliError::input)?;
+        plot::write_loglog(&to, &chart(&accel, kind, pooling)).map_err(CliError::input)?;
         if !gyro.is_empty() {
             eprintln!(
                 "driftless: the accelerometer's plot is {} (the gyro's {})",
@@ -749,8 +855,8 @@ fn write_plots(path: &Path, results: &[ColumnResult], kind: Kind) -> Result<(), 
     Ok(())
 }
 
-/// The chart of `results`, columns of one sensor in one unit.
-fn chart(results: &[&ColumnResult], kind: Kind) -> LogLogChart {
+/// The chart of `results`, columns of one sensor in one unit (pooled from `pooling`'s logs).
+fn chart(results: &[&ColumnResult], kind: Kind, pooling: Option<&Pooling>) -> LogLogChart {
     let Some(first) = results.first() else {
         unreachable!("a chart of no column")
     };
@@ -812,9 +918,18 @@ fn chart(results: &[&ColumnResult], kind: Kind) -> LogLogChart {
         Sensor::Gyro => "",
         Sensor::Accel => " of the accelerometer",
     };
+    let mut pooled = String::new();
+    if let Some(p) = pooling {
+        pooled = format!(", {} logs pooled per tau", p.logs.len());
+        notes.push(format!(
+            "{} logs pooled per tau (never joined):",
+            p.logs.len()
+        ));
+        notes.extend(p.lines().into_iter().map(|l| format!("  {l}")));
+    }
     LogLogChart {
         title: format!(
-            "{}{whose} with {:.1}% intervals and IEEE 952 terms",
+            "{}{whose} with {:.1}% intervals and IEEE 952 terms{pooled}",
             kind.to_string().to_uppercase(),
             chi2::ONE_SIGMA * 100.0
         ),
