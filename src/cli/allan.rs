@@ -7,7 +7,7 @@
 mod pooled;
 
 use super::CliError;
-use crate::allan::analysis::{self, Curve, Progress};
+use crate::allan::analysis::{self, Analysis, Curve, Progress};
 use crate::allan::deviation::{AllanPoint, NoiseId};
 use crate::allan::fit::b_read_off_unidentified;
 use crate::allan::{
@@ -117,6 +117,31 @@ impl ColumnResult {
     fn sensor(&self) -> Sensor {
         self.unit.sensor()
     }
+
+    /// The column `name` of samples in `unit`, analysed as `a` (one log's: no `logs`).
+    fn of(name: String, unit: SampleUnit, a: Analysis) -> Self {
+        ColumnResult {
+            name,
+            unit,
+            samples: a.samples,
+            points: a.points,
+            fit: a.fit,
+            read_offs: a.read_offs,
+            octave: a.octave,
+            logs: Vec::new(),
+        }
+    }
+
+    /// The analysis back, for pooling.
+    fn into_analysis(self) -> Analysis {
+        Analysis {
+            samples: self.samples,
+            points: self.points,
+            octave: self.octave,
+            fit: self.fit,
+            read_offs: self.read_offs,
+        }
+    }
 }
 
 /// Terms a curve sums from which it shows a progress bar (about half a second here).
@@ -172,16 +197,7 @@ fn analyse(
             }
         }
     })?;
-    Ok(ColumnResult {
-        name: name.to_string(),
-        unit,
-        samples: a.samples,
-        points: a.points,
-        fit: a.fit,
-        read_offs: a.read_offs,
-        octave: a.octave,
-        logs: Vec::new(),
-    })
+    Ok(ColumnResult::of(name.to_string(), unit, a))
 }
 
 fn term_json(t: &TermFit, sensor: Sensor) -> Value {
@@ -581,8 +597,25 @@ fn analyse_logs(
     if !several {
         return Ok((per_log.into_iter().flatten().collect(), rate, None));
     }
+    // The columns' names and units are the first log's (every log was checked against it).
+    let named: Vec<(String, SampleUnit)> = per_log
+        .first()
+        .map(|cols| cols.iter().map(|r| (r.name.clone(), r.unit)).collect())
+        .unwrap_or_default();
+    let analyses = per_log
+        .into_iter()
+        .map(|cols| cols.into_iter().map(ColumnResult::into_analysis).collect())
+        .collect();
     let paths: Vec<&Path> = args.inputs.iter().map(PathBuf::as_path).collect();
-    let (results, pooling) = pooled::pool_columns(kind, &paths, per_log);
+    let (pooled, pooling) = pooled::pool_columns(kind, &paths, analyses);
+    let results = named
+        .into_iter()
+        .zip(pooled)
+        .map(|((name, unit), p)| ColumnResult {
+            logs: p.logs,
+            ..ColumnResult::of(name, unit, p.analysis)
+        })
+        .collect();
     Ok((results, rate, Some(pooling)))
 }
 

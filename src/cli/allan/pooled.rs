@@ -4,9 +4,8 @@
 //! the checks that the logs can pool, the pooling of each column, and what the output says about
 //! the logs.
 
-use super::{ColumnResult, SampleUnit};
-use crate::allan::analysis::{pool_analyses, Analysis};
-use crate::allan::Kind;
+use crate::allan::analysis::{pool_analyses, Analysis, PooledAnalysis};
+use crate::allan::{Kind, SampleUnit};
 use crate::cli::CliError;
 use crate::io::rate_log::{RateLog, RATE_TOLERANCE};
 use crate::io::InputError;
@@ -89,24 +88,13 @@ impl Reference {
     }
 }
 
-/// A column's result back as the analysis it came from.
-fn into_analysis(r: ColumnResult) -> Analysis {
-    Analysis {
-        samples: r.samples,
-        points: r.points,
-        octave: r.octave,
-        fit: r.fit,
-        read_offs: r.read_offs,
-    }
-}
-
-/// Each log's column results (`per_log[i][c]`: log i, column c, the same columns in each) pooled
-/// per column, with what the output says about the logs (`paths` in the order of `per_log`).
+/// Each log's analyses (`per_log[i][c]`: log i, column c, the same columns in each) pooled per
+/// column, with what the output says about the logs (`paths` in the order of `per_log`).
 pub(super) fn pool_columns(
     kind: Kind,
     paths: &[&Path],
-    per_log: Vec<Vec<ColumnResult>>,
-) -> (Vec<ColumnResult>, Pooling) {
+    per_log: Vec<Vec<Analysis>>,
+) -> (Vec<PooledAnalysis>, Pooling) {
     let logs = paths
         .iter()
         .zip(&per_log)
@@ -120,32 +108,17 @@ pub(super) fn pool_columns(
         })
         .collect();
     let columns = per_log.first().map_or(0, Vec::len);
-    let mut by_column: Vec<Vec<ColumnResult>> = (0..columns).map(|_| Vec::new()).collect();
+    let mut by_column: Vec<Vec<Analysis>> = (0..columns).map(|_| Vec::new()).collect();
     for cols in per_log {
-        for (c, r) in cols.into_iter().enumerate() {
-            by_column[c].push(r);
+        for (c, a) in cols.into_iter().enumerate() {
+            by_column[c].push(a);
         }
     }
-    let results = by_column
-        .into_iter()
-        .filter_map(|rs| {
-            let (name, unit) = rs.first().map(|r| (r.name.clone(), r.unit))?;
-            let analyses: Vec<Analysis> = rs.into_iter().map(into_analysis).collect();
-            let pooled = pool_analyses(kind, &analyses);
-            let a = pooled.analysis;
-            Some(ColumnResult {
-                name,
-                unit,
-                samples: a.samples,
-                points: a.points,
-                fit: a.fit,
-                read_offs: a.read_offs,
-                octave: a.octave,
-                logs: pooled.logs,
-            })
-        })
+    let pooled = by_column
+        .iter()
+        .map(|analyses| pool_analyses(kind, analyses))
         .collect();
-    (results, Pooling { logs })
+    (pooled, Pooling { logs })
 }
 
 impl Pooling {
