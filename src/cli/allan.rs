@@ -326,11 +326,8 @@ fn stage_table(
             "{shown}: {e}: the record cannot give predict.bias its terms"
         ))
     };
-    let own = own_terms(
-        &column_fits(&gyro, &shown.to_string(), rate)?,
-        lsb * unit.to_base(),
-    )
-    .map_err(refused)?;
+    let own =
+        own_terms(&column_fits(&gyro, shown, rate)?, lsb * unit.to_base()).map_err(refused)?;
     let mut notes = term_notes(Sensor::Gyro, &own.choices, |t| stage_key(&own.terms, t));
     let mut terms = own.terms;
     // The stage reads lsb in the pipeline's input units, which are the log's here.
@@ -339,8 +336,7 @@ fn stage_table(
     let mut columns: Vec<&str> = gyro.iter().map(|r| r.name.as_str()).collect();
     let mut units = format!("{unit}");
     if let Some(a) = accel.first() {
-        let own =
-            own_accel_terms(&column_fits(&accel, &shown.to_string(), rate)?).map_err(refused)?;
+        let own = own_accel_terms(&column_fits(&accel, shown, rate)?).map_err(refused)?;
         notes.extend(term_notes(Sensor::Accel, &own.choices, |t| {
             accel_stage_key(&own.terms, t)
         }));
