@@ -2,7 +2,7 @@
 //! intervals, and its IEEE Std 952 noise terms ([`crate::allan::analysis`]); with `--stage`, the
 //! `predict.bias` table of the unit's own terms ([`crate::drift::bias::own_terms`], and the
 //! accelerometer's: [`crate::drift::bias::own_accel_terms`]). Several logs of one unit pool per
-//! tau, never joined ([`pooled`]).
+//! tau, never joined ([`crate::allan::pool`]; `pooled` here).
 
 mod pooled;
 
