@@ -142,6 +142,11 @@ impl PaceClock {
         }
     }
 
+    /// When it started, in monotonic ns ([`monotonic_ns`]).
+    pub fn start_ns(&self) -> u64 {
+        self.start_ns
+    }
+
     /// The instant `offset` after the start.
     pub fn at(&self, offset: Duration) -> Instant {
         self.start + offset

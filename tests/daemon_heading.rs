@@ -178,3 +178,68 @@ output = "l/corrected"
         assert!(walk != configured && walk >= lo && walk <= hi, "{learns}");
     }
 }
+
+/// `--duration` on a paced source ends at the sample due that long after the clock started,
+/// however late the daemon runs: the same samples, so the same heading figures, on a busy
+/// machine (issue 59: README's demo moved with the load). The daemon is stopped (SIGSTOP) for
+/// 2.5 s across the end of its 2 s and then resumed: it must catch up and publish every sample
+/// due by then, not end at the first one it takes after the wall clock passed the end.
+#[test]
+fn a_late_daemon_runs_its_duration_to_the_same_samples() {
+    let prefix = Prefix::new("late");
+    let dir = Dir::new();
+    let text = r#"
+name = "late"
+rate_hz = 1000.0
+axes = 3
+report_interval_s = 60.0
+
+[[stage]]
+name = "sensor"
+kind = "ingest.sim"
+output = "late/raw"
+profile = "adis16405"
+motion = "stop-and-go"
+seed = 5
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "late/raw"
+output = "late/denoised"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "late/denoised"
+output = "late/corrected"
+"#;
+    let file = dir.write("p.toml", text);
+    let child = start(
+        &file,
+        &prefix,
+        &[
+            "--duration",
+            "2s",
+            "--report",
+            dir.path("report.json").to_str().unwrap(),
+        ],
+    );
+    let signal = |name: &str| {
+        let ok = std::process::Command::new("kill")
+            .args([name, &child.id().to_string()])
+            .status()
+            .expect("kill")
+            .success();
+        assert!(ok, "kill {name}");
+    };
+    // The run's 2 s end lies between 1.5 s and 4 s after the spawn, whatever its start-up.
+    std::thread::sleep(Duration::from_millis(1500));
+    signal("-STOP");
+    std::thread::sleep(Duration::from_millis(2500));
+    signal("-CONT");
+    let (code, err) = finish(child, Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    // Samples 0 to 2000: the last one due at 2 s.
+    assert_eq!(report(&dir)["samples_out"], 2001, "{err}");
+}

@@ -79,7 +79,8 @@ enum Command {
     /// Put services on Zenoh key expressions for other machines (driftless/<service>), or raw
     /// samples from Zenoh into a service (needs the `zenoh` feature).
     Bridge(bridge::Args),
-    /// Allan deviation of a rate log with intervals, and its IEEE Std 952 noise terms.
+    /// Allan deviation of a rate log (several still logs: pooled per tau, never joined) with
+    /// intervals, and its IEEE Std 952 noise terms.
     Allan(allan::Args),
     /// Simulate a gyro log with known IEEE Std 952 noise terms.
     Simulate(simulate::Args),

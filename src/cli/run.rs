@@ -18,7 +18,9 @@ pub struct Args {
     /// IMUs), those due together in the order given.
     #[arg(value_name = "PIPELINE", required = true)]
     pub pipelines: Vec<PathBuf>,
-    /// Stop by itself after this long: "10s", "500ms", "1.5s", "90min", or seconds.
+    /// Stop by itself after this long: "10s", "500ms", "1.5s", "90min", or seconds. A paced
+    /// source (a simulator, a replay) ends at its sample due that long after it started, so a
+    /// run is the same samples however late a busy machine runs it.
     #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
     pub duration: Option<Duration>,
     /// Write the final report as JSON to this file (several pipelines: an array of their

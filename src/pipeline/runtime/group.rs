@@ -375,15 +375,15 @@ impl<'a> Running<'a> {
         self.hot.as_ref().and_then(|(source, _)| source.waker())
     }
 
-    /// Ask the source once and run what it gives through the chain; returns the ingest time of
-    /// a sample.
+    /// Ask the source once and run what it gives through the chain; returns when a sample was
+    /// due (a paced source's, on its clock) or else taken, in monotonic ns.
     pub(super) fn step(&mut self, stop: &AtomicBool) -> Option<u64> {
         let (source, chain) = self.hot.as_mut()?;
         let poll = source.poll(stop);
         self.more = matches!(poll, Poll::Sample(..));
         match poll {
             Poll::Sample(raw, ingest_ns, late_ns) => match chain.ingest(&raw, ingest_ns, late_ns) {
-                Ok(()) => Some(ingest_ns),
+                Ok(()) => Some(ingest_ns.saturating_sub(late_ns.unwrap_or(0))),
                 Err(e) => {
                     self.fail(e.into());
                     None
@@ -497,10 +497,14 @@ pub(super) fn serve(
 ) {
     let stop = &*opts.stop;
     // The end of --duration on the clock the ingest stamps samples with (no extra clock read
-    // per sample).
-    let end_ns = opts.duration.map_or(u64::MAX, |d| {
-        monotonic_ns().saturating_add(d.as_nanos() as u64)
-    });
+    // per sample). Once the paced sources share a clock it counts from that clock's start and
+    // is judged on when a sample was due, not when it was taken: a paced run is then the same
+    // samples however late a busy machine wakes the thread (issue 59).
+    let until = |start_ns: u64| {
+        opts.duration
+            .map_or(u64::MAX, |d| start_ns.saturating_add(d.as_nanos() as u64))
+    };
+    let mut end_ns = until(monotonic_ns());
     let mut first_round = true;
     while !stop.load(Ordering::Relaxed) {
         let mut due: Option<std::time::Instant> = None;
@@ -567,7 +571,7 @@ pub(super) fn serve(
             if matches!(r.next_due(), Some(Some(d)) if d > now) {
                 continue;
             }
-            ended |= r.step(stop).is_some_and(|ingest_ns| ingest_ns >= end_ns);
+            ended |= r.step(stop).is_some_and(|due_ns| due_ns >= end_ns);
         }
         // Sources that do not pace themselves may give nothing for a long time.
         if ended || ((ask_now || notified.is_some()) && monotonic_ns() >= end_ns) {
@@ -578,6 +582,7 @@ pub(super) fn serve(
             // clock starts once they are through, so that their cost makes no later sample late.
             first_round = false;
             let clock = crate::clock::PaceClock::now();
+            end_ns = until(clock.start_ns());
             for r in group.iter_mut() {
                 if let Some((source, _)) = &mut r.hot {
                     source.share_clock(clock);
