@@ -1,7 +1,8 @@
 //! Numeric CSV tables: read named columns with file/line/column errors, write them back atomically.
 //!
 //! A first row in which every cell is a number is data (the columns are then named `c0`, `c1`, ...);
-//! otherwise it is the header. NaN and Inf cells are errors: a sample is never silently altered.
+//! otherwise it is the header. NaN and Inf cells are errors: a sample is never silently altered
+//! (but a [`RowReader`] column whose NaN means "unknown", a replay's stop column, takes it so).
 //! A gzip-compressed file is decompressed on the fly, whatever its name
 //! ([`crate::io::content`]: its content decides, not its `.gz`).
 
@@ -497,6 +498,11 @@ fn check_cell(
     }
 }
 
+/// Whether a cell reads as NaN (any spelling `str::parse::<f64>` takes: `nan`, `NaN`, `-nan`).
+fn nan_cell(cell: &[u8]) -> bool {
+    parse_cell(cell).is_some_and(f64::is_nan)
+}
+
 /// Reads `inner` with every `\r\n` turned into `\n`, so that the csv crate counts lines right
 /// in CRLF files: it counts a line at each `\n`, and a record that ended at a `\r` took the
 /// position of the next one before that `\n` was read (every error one line short). Cells are
@@ -592,7 +598,8 @@ fn read_from<R: Read>(
 /// What [`RowReader::next_row`] found.
 #[derive(Debug)]
 pub enum RowRead {
-    /// A good row: its selected values were written.
+    /// A good row: its selected values were written (NaN only in a column read by
+    /// [`RowReader::nan_unknown`]).
     Row,
     /// A bad row (not a number, not finite, ragged), with its position: the reader goes on
     /// after it.
@@ -624,6 +631,8 @@ pub struct RowReader {
     record: csv::ByteRecord,
     /// The first data row, read with the header, still to be returned.
     first_pending: bool,
+    /// Per selected column: whether a NaN cell is an unknown value ([`RowReader::nan_unknown`]).
+    nan_unknown: Vec<bool>,
 }
 
 impl std::fmt::Debug for RowReader {
@@ -659,6 +668,7 @@ impl RowReader {
             .from_reader(source);
         let head = read_head(&mut rdr, path, wanted, false)?;
         Ok(RowReader {
+            nan_unknown: vec![false; head.selected.len()],
             rdr,
             path: path.to_path_buf(),
             fields: head.fields,
@@ -667,6 +677,17 @@ impl RowReader {
             record: head.first,
             first_pending: true,
         })
+    }
+
+    /// Take a NaN cell (`nan`, `NaN`, `-nan`: any spelling `str::parse::<f64>` reads as NaN) in
+    /// selected column `k` as an unknown value: written as NaN, the row good. For a column whose
+    /// NaN means "not known" (a replay's stop column); in every other column it stays a bad
+    /// cell, and an infinity or a cell that is no number stays one in this column too.
+    pub fn nan_unknown(mut self, k: usize) -> Self {
+        if let Some(u) = self.nan_unknown.get_mut(k) {
+            *u = true;
+        }
+        self
     }
 
     /// The selected columns' names, in the order their values are written.
@@ -707,10 +728,12 @@ impl RowReader {
             }));
         }
         let mut fast = true;
-        for (o, &i) in out.iter_mut().zip(&self.selected) {
+        for ((o, &i), &unknown) in out.iter_mut().zip(&self.selected).zip(&self.nan_unknown) {
             // The csv crate's ASCII trim (the reference trims the record), then fast-float2.
-            match csv_fast::fast_number(row[i].trim_ascii()) {
+            let cell = row[i].trim_ascii();
+            match csv_fast::fast_number(cell) {
                 Some(v) => *o = v,
+                None if unknown && nan_cell(cell) => *o = f64::NAN,
                 None => {
                     fast = false;
                     break;
@@ -726,6 +749,10 @@ impl RowReader {
         // Every cell judged on its own, so a reader can keep what is good in the row.
         let (mut bad, mut first) = (Vec::new(), None);
         for (k, &i) in self.selected.iter().enumerate() {
+            if self.nan_unknown[k] && nan_cell(&trimmed[i]) {
+                out[k] = f64::NAN;
+                continue;
+            }
             match check_cell(&trimmed, &self.path, &self.names, i) {
                 Ok(v) => out[k] = v,
                 Err(e) => {
@@ -1288,5 +1315,53 @@ mod tests {
         write_table(&p, &["x".into()], &[&x]).unwrap();
         let t = read_table(&p, &[]).unwrap();
         assert_eq!(t.columns[0], x);
+    }
+
+    /// A column read with `nan_unknown` takes each spelling of NaN as an unknown value (a good
+    /// row), in the first data row and later ones, by the fast path and beside a cell that sends
+    /// the row to the reference path; an infinity or a word there, and a NaN in any other
+    /// column, stay bad cells with their positions.
+    #[test]
+    fn a_nan_unknown_column_takes_nan_as_unknown_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.csv");
+        std::fs::write(
+            &p,
+            "x,stop\n1,nan\n2,NaN\n3, -nan \n4,1\nabc,NAN\n6,inf\n7,abc\nnan,0\n",
+        )
+        .unwrap();
+        let wanted = ["x".to_string(), "stop".to_string()];
+        let mut rows = RowReader::open(&p, &wanted).unwrap().nan_unknown(1);
+        let mut out = [0.0; 2];
+        let mut got = Vec::new();
+        loop {
+            let read = rows.next_row(&mut out).unwrap();
+            got.push(match read {
+                RowRead::End => break,
+                RowRead::Row => format!("{} {}", out[0], out[1]),
+                RowRead::Bad(e) => format!("bad {e}"),
+                RowRead::BadCells { bad, error } => format!("{bad:?} {error}"),
+            });
+        }
+        assert_eq!(
+            got,
+            [
+                "1 NaN",
+                "2 NaN",
+                "3 NaN",
+                "4 1",
+                "[0] t.csv:6:1: column 'x': 'abc' is not a number",
+                "[1] t.csv:7:3: column 'stop': inf is not a finite sample",
+                "[1] t.csv:8:3: column 'stop': 'abc' is not a number",
+                "[0] t.csv:9:1: column 'x': NaN is not a finite sample",
+            ]
+            .map(|s| s.replace("t.csv", &p.display().to_string()))
+        );
+        // Without it, a NaN stays a bad cell.
+        let mut rows = RowReader::open(&p, &wanted).unwrap();
+        assert!(matches!(
+            rows.next_row(&mut out).unwrap(),
+            RowRead::BadCells { bad, .. } if bad == [1]
+        ));
     }
 }

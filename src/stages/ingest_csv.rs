@@ -216,11 +216,11 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let accel_columns = accel_key.map(Spanned::into_inner);
     let time_column = time_key.as_ref().map(|t| t.get_ref().clone());
     let stop_column = stop_key.map(Spanned::into_inner);
-    let wanted = Layout::of(&columns, &accel_columns, &time_column, &stop_column).wanted;
+    let layout = Layout::of(&columns, &accel_columns, &time_column, &stop_column);
     let at_time = columns.len() + accel_columns.as_ref().map_or(0, Vec::len);
     // The header, and the first rows as the replay will read them: a wrong file fails here.
-    let mut rows = RowReader::open(&file, &wanted)?;
-    let mut values = vec![0.0; wanted.len()];
+    let mut rows = layout.open(&file)?;
+    let mut values = vec![0.0; layout.wanted.len()];
     let mut n = 0;
     let mut times_ns: Vec<i64> = Vec::new();
     let mut rates: Vec<Vec<f64>> = vec![Vec::new(); axes];
@@ -314,6 +314,15 @@ impl Layout {
             stop,
         }
     }
+
+    /// The rows of `file` in this layout: a NaN in the stop column is unknown, not a bad cell.
+    fn open(&self, file: &std::path::Path) -> Result<RowReader, InputError> {
+        let rows = RowReader::open(file, &self.wanted)?;
+        Ok(match self.stop {
+            Some(k) => rows.nan_unknown(k),
+            None => rows,
+        })
+    }
 }
 
 /// The reader thread: the file's rows as raw samples (sequence numbers from 0 across loops,
@@ -335,7 +344,7 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
     let mut beside_bad = 0u64;
     loop {
-        let mut rows = match RowReader::open(&params.file, wanted) {
+        let mut rows = match layout.open(&params.file) {
             Ok(r) => r,
             Err(e) => {
                 eprintln!("driftless: error: {e} (the replay ends here)");
