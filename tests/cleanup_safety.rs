@@ -1,7 +1,7 @@
 //! The clean-up deletes only what is ours, on a machine shared with other users and programs
 //! (issue 38): another user's files, another prefix's live daemon, symlinks planted in
-//! `/dev/shm` (to a root-only directory, in a loop), a full `/dev/shm`, and a stop at any
-//! moment of the start.
+//! `/dev/shm` (to a root-only directory, in a loop, at the names a daemon's segments get:
+//! issue 59), a full `/dev/shm`, and a stop at any moment of the start.
 //!
 //! Each scenario runs in a private mount namespace with its own tmpfs on `/dev/shm` and on
 //! iceoryx2's root directory, never on the host's: the test re-runs itself (this test binary,
@@ -310,6 +310,189 @@ fn a_symlink_to_a_root_only_directory_is_never_followed() {
             link.display()
         );
     }
+}
+
+/// A file's content and what says whether it was written, truncated, replaced or re-moded.
+fn fingerprint(path: &Path) -> (Vec<u8>, u64, u32, u32, i64, i64, u64) {
+    let m = std::fs::symlink_metadata(path).expect("the target is still there");
+    let text = std::fs::read(path).expect("read");
+    (
+        text,
+        m.len(),
+        m.mode(),
+        m.uid(),
+        m.mtime(),
+        m.mtime_nsec(),
+        m.ino(),
+    )
+}
+
+/// `args` run by another user (nobody) with setpriv(1), as that user would from a shell.
+fn as_other(args: &[&str]) {
+    let id = OTHER_UID.to_string();
+    let out = Command::new("setpriv")
+        .args(["--reuid", &id, "--regid", &id, "--clear-groups", "--"])
+        .args(args)
+        .output()
+        .expect("setpriv runs");
+    assert!(out.status.success(), "{args:?} as nobody: {out:?}");
+}
+
+/// Issue 59: `/dev/shm` is outside the root's trust check, on the belief that iceoryx2's
+/// `shm_open` never follows a link (glibc adds `O_NOFOLLOW`) and that the sticky `/dev/shm`
+/// lets no one replace our files. Another user links the exact names iceoryx2 gave a daemon's
+/// segments (found by running one) to root-only files outside `/dev/shm`. A root daemon never
+/// follows them: at the global management segment's name, the one a node opens by a name known
+/// beforehand, it is refused with exit 2 and a line naming the link, its maker and the fix (it
+/// failed with `UnableToGenerateUniqueNodeId` before, naming nothing); at the other names (ids
+/// drawn anew at each start) it runs and never touches them. The clean-up neither follows nor
+/// removes any of them. Another user's empty file at that name (a hang before) and a
+/// `/dev/shm` without its sticky bit are refused as well.
+#[test]
+fn links_at_our_segments_names_are_never_followed_and_the_global_ones_is_refused_by_name() {
+    if !in_namespace(
+        "links_at_our_segments_names_are_never_followed_and_the_global_ones_is_refused_by_name",
+        "64m",
+    ) {
+        return;
+    }
+    let shm = Path::new("/dev/shm");
+    eprintln!(
+        "fs.protected_symlinks = {:?}",
+        std::fs::read_to_string("/proc/sys/fs/protected_symlinks").map(|s| s.trim().to_string())
+    );
+    // The names a daemon's segments get: read while one runs.
+    let demo_file = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml");
+    let live = Command::new(bin())
+        .args([
+            "run",
+            demo_file,
+            "--prefix",
+            "driftless_",
+            "--duration",
+            "60s",
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let end = Instant::now() + Duration::from_secs(30);
+    let find = |seen: &[String], suffix: &str| seen.iter().find(|n| n.ends_with(suffix)).cloned();
+    let (global, data, dynamic) = loop {
+        let seen = names(shm);
+        if let (Some(g), Some(d), Some(y)) = (
+            find(&seen, ".global_mgmt"),
+            find(&seen, ".data"),
+            find(&seen, ".dynamic"),
+        ) {
+            break (g, d, y);
+        }
+        assert!(Instant::now() < end, "no segments seen: {seen:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    common::signal(&live, libc::SIGTERM);
+    let (code, err) = finish(live, Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(names(shm), Vec::<String>::new(), "the daemon cleaned up");
+
+    // Root-only files outside /dev/shm, one per name.
+    let secret = tempfile::tempdir().unwrap();
+    std::fs::set_permissions(secret.path(), std::fs::Permissions::from_mode(0o700)).unwrap();
+    let mut links = Vec::new();
+    for name in [&global, &data, &dynamic] {
+        let target = secret
+            .path()
+            .join(format!("{}.secret", &name[name.len() - 12..]));
+        std::fs::write(&target, format!("root's own, for {name}\n")).unwrap();
+        std::fs::set_permissions(&target, std::fs::Permissions::from_mode(0o600)).unwrap();
+        let link = shm.join(name);
+        as_other(&["ln", "-s", target.to_str().unwrap(), link.to_str().unwrap()]);
+        links.push((link, target));
+    }
+    let targets = || -> Vec<_> { links.iter().map(|(_, t)| fingerprint(t)).collect() };
+    let before = (targets(), names(secret.path()));
+    let untouched = |when: &str, links: &[(PathBuf, PathBuf)]| {
+        assert_eq!(
+            (targets(), names(secret.path())),
+            before,
+            "{when}: targets unchanged"
+        );
+        for (link, target) in links {
+            let m = link
+                .symlink_metadata()
+                .unwrap_or_else(|e| panic!("{when}: {e}"));
+            assert!(m.file_type().is_symlink() && m.uid() == OTHER_UID, "{when}");
+            assert_eq!(std::fs::read_link(link).unwrap(), *target, "{when}");
+        }
+    };
+
+    // The global segment's name: refused by name, before anything is made.
+    let planted = names(shm);
+    let (code, err) = demo("driftless_", "1s");
+    assert_eq!(code, Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    for want in [
+        format!(
+            "{}, the name of this prefix's global management segment",
+            links[0].0.display()
+        ),
+        format!(
+            "is a symbolic link (to {}, made by nobody (uid 65534))",
+            links[0].1.display()
+        ),
+        "Remove it".into(),
+        "--prefix".into(),
+    ] {
+        assert!(err.contains(&want), "no {want:?} in: {err}");
+    }
+    untouched("a refused daemon", &links);
+    assert_eq!(names(shm), planted, "the refused daemon made nothing");
+    // The clean-up: `list --clean` is refused the same way (it makes a node); `list` looks.
+    let (code, err) = run_within(&["list", "--clean"], Duration::from_secs(30));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("is a symbolic link (to "), "{err}");
+    let (code, err) = run_within(&["list"], Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    untouched("list --clean and list", &links);
+    assert_eq!(names(shm), planted);
+
+    // Removed (as the message says), the other two stay: names a new start never draws. The
+    // daemon serves, its clean-up at exit and list --clean leave them and their targets.
+    std::fs::remove_file(&links[0].0).unwrap();
+    let (code, err) = demo("driftless_", "1s");
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = run_within(&["list", "--clean"], Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    untouched(
+        "a daemon beside the other links, and list --clean",
+        &links[1..],
+    );
+    let mut left = vec![data.clone(), dynamic.clone()];
+    left.sort();
+    assert_eq!(names(shm), left, "only the links are left");
+
+    // Another user's empty file there held a node's start forever: refused, at once.
+    let empty = shm.join(&global);
+    as_other(&["sh", "-c", &format!(": > '{}'", empty.display())]);
+    let (code, err) = demo("driftless_", "1s");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("belongs to nobody (uid 65534), mode "),
+        "{err}"
+    );
+    std::fs::remove_file(&empty).unwrap();
+
+    // A /dev/shm others could write into without the sticky bit: refused, named.
+    std::fs::set_permissions(shm, std::fs::Permissions::from_mode(0o777)).unwrap();
+    let (code, err) = demo("driftless_", "1s");
+    std::fs::set_permissions(shm, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("the shared memory directory /dev/shm can be written by other users"),
+        "{err}"
+    );
+    untouched("the end", &links[1..]);
 }
 
 fn umask() -> u32 {

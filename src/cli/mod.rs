@@ -10,7 +10,8 @@
 //! - 2: bad usage or bad input: an unknown option or a bad value (clap's own code for usage
 //!   errors), an input file missing, unreadable or malformed, a pipeline file that does not
 //!   validate, a model that does not fit the data, an output path that cannot be written, an
-//!   iceoryx2 root directory another user controls (`transport::TransportError::Untrusted`).
+//!   iceoryx2 root directory or `/dev/shm` name another user controls
+//!   (`transport::TransportError::Untrusted`).
 
 use clap::{Parser, Subcommand};
 use std::io::Write as _;

@@ -54,9 +54,11 @@ pub enum TransportError {
     /// iceoryx2's root directory, a directory above it, or its `nodes` or `services`, is
     /// another user's, a link, or open to others' writes: refused before iceoryx2 touches it
     /// (iceoryx2 follows links there, so that user would choose where this process writes).
+    /// Also `/dev/shm` another user controls, or anything but a regular file of ours or root's
+    /// at the name of the prefix's global management segment.
     #[error("{message}")]
     Untrusted {
-        /// The directory refused.
+        /// The directory or file refused.
         path: std::path::PathBuf,
         /// The whole sentence: which directory, whose it is, and the ways out.
         message: String,

@@ -21,7 +21,7 @@
 //! | `ros2/` | ROS 2 messages, and live topics over DDS (feature `ros2`) |
 //! | `zenoh/` | Zenoh sessions, and the bridge of our services over them (feature `zenoh`) |
 //! | `cleanup.rs` | what iceoryx2 leaves behind, removed: only what is provably ours |
-//! | `trust.rs` | the root directory checked before iceoryx2 uses it: none another user controls; every node's and listing's `Config` |
+//! | `trust.rs` | the root directory checked before iceoryx2 uses it, and `/dev/shm` and the global segment's name before a node: none another user controls; every node's and listing's `Config` |
 //! | `error.rs`, `permissions.rs` | [`TransportError`], and whose files a refusal is about |
 //!
 //! The files stand in layers, each using only files below it: `error`, `names` and `zero_copy` on

@@ -22,6 +22,14 @@
 /// 255.
 const MAX_PREFIX_LEN: usize = 64;
 
+/// The name of a prefix's global management segment in `/dev/shm` after the prefix: the one
+/// segment every node of the prefix opens by a name known beforehand (its node counter; every
+/// other segment's name holds an id drawn when it is made). iceoryx2 0.10 names it by the
+/// SHA-1 of the type it holds, `iceoryx2::node::global_management_segment::State`, then
+/// `_node.` and its own version (tests/cleanup_safety.rs finds this name in a daemon's run).
+pub(super) const GLOBAL_SEGMENT: &[u8] =
+    b"9204dd183d1c4d8e1ff592a30766ffa6765aa8b5_node.0_10_0.global_mgmt";
+
 /// The directories iceoryx2 keeps its files in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Place {
@@ -225,6 +233,8 @@ mod tests {
             }
         }
         assert!(is_segment(seen(Place::Shm)[0].as_bytes()));
+        let global = [b"probe_", GLOBAL_SEGMENT].concat();
+        assert!(is_ours(Place::Shm, b"probe_", &global));
         assert!(!is_segment(b"pulse-shm-12345"));
         assert!(is_node_dir(D.as_bytes()));
         assert!(!is_node_dir(b"probe_1"));

@@ -37,7 +37,8 @@ impl Transport {
     /// resources of dead nodes (a daemon killed with SIGKILL) of the same prefix.
     ///
     /// Refused with [`TransportError::Untrusted`], before anything is created, when another
-    /// user controls iceoryx2's root directory (see `trust.rs`).
+    /// user controls iceoryx2's root directory, `/dev/shm`, or what stands at the prefix's
+    /// global management segment's name there (see `trust.rs`).
     pub fn new(prefix: &str, node_name: &str, qos: Qos) -> Result<Self, TransportError> {
         let cfg = node_config(prefix)?;
         install_sigbus_guard();

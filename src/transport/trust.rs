@@ -1,6 +1,8 @@
 //! iceoryx2's root directory, checked before iceoryx2 uses it: a root that another user
-//! controls is refused ([`TransportError::Untrusted`]). Nodes and listings take their iceoryx2
-//! `Config` from here ([`node_config`], [`listing_config`]), so none is had unchecked.
+//! controls is refused ([`TransportError::Untrusted`]); before a node, `/dev/shm` and the one
+//! name in it a node opens that is known beforehand, too (below). Nodes and listings take
+//! their iceoryx2 `Config` from here ([`node_config`], [`listing_config`]), so none is had
+//! unchecked.
 //!
 //! iceoryx2 0.10 never opens its directories without following links: it names its files by
 //! path (`<root>/nodes/<id>/...`, `<root>/services/...`), `stat`s and `mkdir`s each missing
@@ -32,6 +34,19 @@
 //! is, not at every directory it passes through on the way; a listing with `nodes` missing in a
 //! sticky root others can write into may read through a link planted after the check (it
 //! writes nothing there). The check runs again at every node and every listing.
+//!
+//! `/dev/shm` is outside iceoryx2's root, and needs less: glibc's `shm_open` adds `O_NOFOLLOW`
+//! (a link there is never followed, whoever made it: tested in this module and in
+//! tests/cleanup_safety.rs) and iceoryx2 names no directory in it. What another user can still
+//! do there is put something at the one name a node opens that is known beforehand, the
+//! prefix's global management segment ([`GLOBAL_SEGMENT`]): iceoryx2 then fails with
+//! `UnableToGenerateUniqueNodeId`, naming nothing, and after an empty file or a fifo the
+//! process hung. So before a node, `/dev/shm` is judged as the root is (ours or root's; written by
+//! others only if sticky, or they could replace our segments) and that name must be missing or
+//! a regular file of ours or root's (root's, for another user: iceoryx2's own refusal of its
+//! permissions then says whose). Every other segment's name holds an id drawn when it is made,
+//! with `O_EXCL`. What it does not: something put there between the check and iceoryx2's open
+//! (still never followed; only the message is then iceoryx2's).
 
 use std::ffi::OsStr;
 use std::os::fd::AsFd;
@@ -43,9 +58,10 @@ use rustix::io::Errno;
 
 use iceoryx2::config::Config;
 
-use super::cleanup::{is_own, SafeDir};
-use super::config::{explicit_config, root, ROOT_ENV};
+use super::cleanup::{is_own, SafeDir, SHM_DIR};
+use super::config::{explicit_config, root, PREFIX_ENV, ROOT_ENV};
 use super::error::TransportError;
+use super::names::GLOBAL_SEGMENT;
 use super::permissions::{owner_and_mode, who};
 
 /// The directories iceoryx2 0.10 makes in its root for the services and nodes we create.
@@ -72,6 +88,8 @@ enum Place {
     Root,
     /// `nodes` or `services` in the root.
     Sub,
+    /// `/dev/shm`, where the segments are.
+    Shm,
 }
 
 impl Place {
@@ -80,6 +98,7 @@ impl Place {
             Place::Above => "the directory above iceoryx2's root,",
             Place::Root => "iceoryx2's root directory",
             Place::Sub => "iceoryx2's directory",
+            Place::Shm => "the shared memory directory",
         }
     }
 }
@@ -89,6 +108,7 @@ impl Place {
 /// it made.
 pub(super) fn node_config(prefix: &str) -> Result<Config, TransportError> {
     check_root_dirs(&root(), Missing::Make)?;
+    check_shm(Path::new(SHM_DIR), prefix)?;
     explicit_config(prefix)
 }
 
@@ -152,6 +172,57 @@ fn steps(root: &Path) -> Vec<Vec<u8>> {
             _ => None,
         })
         .collect()
+}
+
+/// Refuse `shm` (`/dev/shm`) if another user controls it, or what stands at the name of
+/// `prefix`'s global management segment in it if it is not a regular file of ours or root's
+/// (module docs). Missing, or not ours to look into: left to iceoryx2's own error.
+fn check_shm(shm: &Path, prefix: &str) -> Result<(), TransportError> {
+    // Followed if a link (as shm_open's path is): judged where it leads.
+    let Ok(dir) = open_dir(rustix::fs::CWD, shm.as_os_str().as_bytes(), false) else {
+        return Ok(());
+    };
+    judge(shm, &dir.stat_self(), Place::Shm)?;
+    let name = [prefix.as_bytes(), GLOBAL_SEGMENT].concat();
+    let Some(st) = dir.stat(&name) else {
+        return Ok(());
+    };
+    let (uid, kind) = (st.st_uid, FileType::from_raw_mode(st.st_mode));
+    let problem = if kind == FileType::Symlink {
+        let target = rustix::fs::readlinkat(dir.as_fd(), OsStr::from_bytes(&name), Vec::new())
+            .map(|t| String::from_utf8_lossy(t.as_bytes()).into_owned())
+            .unwrap_or_else(|_| "?".into());
+        format!(
+            "is a symbolic link (to {target}, made by {}): iceoryx2 does not follow it \
+             (O_NOFOLLOW), but cannot start a node with it there",
+            who(uid)
+        )
+    } else if kind != FileType::RegularFile {
+        format!(
+            "is not a regular file (it belongs to {}): iceoryx2 would fail or wait on it \
+             forever",
+            who(uid)
+        )
+    } else if !is_own(&st) && uid != 0 {
+        format!(
+            "{}, {}: that user decides what every node of this prefix reads at its start (an \
+             empty file holds it forever)",
+            owner_and_mode(uid, st.st_mode),
+            not_ours()
+        )
+    } else {
+        return Ok(());
+    };
+    let path = shm.join(OsStr::from_bytes(&name));
+    Err(TransportError::Untrusted {
+        message: format!(
+            "{}, the name of this prefix's global management segment (every node of the prefix \
+             opens it), {problem}. Remove it (its owner or root can), or give driftless another \
+             prefix: --prefix or {PREFIX_ENV}=..., the same for the daemon and its subscribers",
+            path.display()
+        ),
+        path,
+    })
 }
 
 /// Open `name` in `dir` as the next directory on the way, judged by what was opened; make it if
@@ -225,35 +296,47 @@ fn judge(path: &Path, st: &Option<Stat>, place: Place) -> Result<(), TransportEr
     };
     let (uid, mode) = (st.st_uid, st.st_mode);
     if !is_own(st) && uid != 0 {
-        let me = rustix::process::geteuid().as_raw();
-        let not = if me == 0 {
-            "not to root, who runs this process".to_string()
-        } else {
-            format!("not to {}, who runs this process, nor to root", who(me))
+        let could = match place {
+            Place::Shm => "replace this process's shared memory segments",
+            _ => "choose where iceoryx2 writes this process's files",
         };
         return Err(untrusted(
             path,
             place,
             format!(
-                "{}, {not}: that user could choose where iceoryx2 writes this process's files",
-                owner_and_mode(uid, mode)
+                "{}, {}: that user could {could}",
+                owner_and_mode(uid, mode),
+                not_ours()
             ),
         ));
     }
     let sticky_ok = place != Place::Sub;
     if mode & 0o022 != 0 && !(sticky_ok && mode & 0o1000 != 0) {
         let sticky = if sticky_ok { ", no sticky bit" } else { "" };
+        let could = match place {
+            Place::Shm => "remove or replace this process's segments",
+            _ => "put a link in it, and iceoryx2 would follow it",
+        };
         return Err(untrusted(
             path,
             place,
             format!(
-                "can be written by other users (it {}{sticky}): any of them could put a link \
-                 in it, and iceoryx2 would follow it",
+                "can be written by other users (it {}{sticky}): any of them could {could}",
                 owner_and_mode(uid, mode)
             ),
         ));
     }
     Ok(())
+}
+
+/// `not to NAME, who runs this process[, nor to root]`.
+fn not_ours() -> String {
+    let me = rustix::process::geteuid().as_raw();
+    if me == 0 {
+        "not to root, who runs this process".to_string()
+    } else {
+        format!("not to {}, who runs this process, nor to root", who(me))
+    }
 }
 
 /// The refusal of `name` in `dir`, found not to be a directory (a link, or something else).
@@ -287,6 +370,16 @@ fn untrusted(path: &Path, place: Place, problem: String) -> TransportError {
     let give = match place {
         Place::Above => "Give",
         Place::Root | Place::Sub => "Remove it (its owner or root can), or give",
+        Place::Shm => {
+            return TransportError::Untrusted {
+                path: path.to_path_buf(),
+                message: format!(
+                    "{} {} {problem}. Mount it as the system does: root's, mode 1777",
+                    place.label(),
+                    path.display()
+                ),
+            }
+        }
     };
     TransportError::Untrusted {
         path: path.to_path_buf(),
@@ -399,5 +492,112 @@ mod tests {
         );
         assert!(m.contains("DRIFTLESS_IOX2_ROOT"), "{m}");
         assert!(!root.join("nodes").exists(), "nothing made in it");
+    }
+
+    /// The name of `prefix`'s global management segment in `/dev/shm`.
+    fn global_segment(prefix: &str) -> PathBuf {
+        Path::new(SHM_DIR).join(OsStr::from_bytes(
+            &[prefix.as_bytes(), GLOBAL_SEGMENT].concat(),
+        ))
+    }
+
+    /// A link at the global management segment's name, the one iceoryx2 opens by a name known
+    /// beforehand: iceoryx2 itself (asked directly, past our check) fails and never follows it;
+    /// our check refuses it by name first. The link is this process's own, so the kernel's
+    /// `protected_symlinks` (which stops following another user's link in a sticky directory)
+    /// plays no part: only `O_NOFOLLOW` keeps the target whole.
+    #[test]
+    fn a_link_at_the_global_segments_name_is_never_followed_and_refused_by_name() {
+        use iceoryx2::prelude::{NodeBuilder, SignalHandlingMode};
+        let prefix = format!("dltrust{}_", std::process::id());
+        let t = tempfile::tempdir().unwrap();
+        let target = t.path().join("secret");
+        std::fs::write(&target, "secret").unwrap();
+        chmod(&target, 0o600);
+        let before = std::fs::metadata(&target).unwrap();
+        let link = global_segment(&prefix);
+        symlink(&target, &link).unwrap();
+        let mut cfg = explicit_config(&prefix).unwrap();
+        let iox_root = super::super::config::iox_root(&t.path().join("iox")).unwrap();
+        cfg.global.set_root_path(&iox_root);
+        let node = || {
+            NodeBuilder::new()
+                .config(&cfg)
+                .signal_handling_mode(SignalHandlingMode::Disabled)
+                .create::<super::super::config::Svc>()
+        };
+        let through_the_link = node().map(drop);
+        let refused = check_shm(Path::new(SHM_DIR), &prefix);
+        let still_a_link = link.symlink_metadata().map(|m| m.file_type().is_symlink());
+        std::fs::remove_file(&link).unwrap();
+        // Without the link the same node is made (so the link was why it was not).
+        let without = node().map(drop);
+        let _ = std::fs::remove_file(&link);
+        assert!(without.is_ok(), "{without:?}");
+        assert!(
+            through_the_link.is_err(),
+            "iceoryx2 made a node through the link"
+        );
+        let after = std::fs::metadata(&target).unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"secret");
+        assert_eq!(
+            (
+                after.len(),
+                after.mode(),
+                after.mtime(),
+                after.mtime_nsec(),
+                after.ino()
+            ),
+            (
+                before.len(),
+                before.mode(),
+                before.mtime(),
+                before.mtime_nsec(),
+                before.ino()
+            )
+        );
+        assert!(matches!(still_a_link, Ok(true)), "the link left as it was");
+        let m = message(refused);
+        assert!(
+            m.starts_with(&format!("{}, the name of", link.display())),
+            "{m}"
+        );
+        assert!(
+            m.contains(&format!(
+                "is a symbolic link (to {}, made by",
+                target.display()
+            )),
+            "{m}"
+        );
+        assert!(m.contains("--prefix"), "{m}");
+    }
+
+    #[test]
+    fn dev_shm_is_judged_as_the_root_and_a_file_of_ours_at_the_name_passes() {
+        let t = tempfile::tempdir().unwrap();
+        let shm = t.path().join("shm");
+        std::fs::create_dir(&shm).unwrap();
+        chmod(&shm, 0o1777);
+        let seg = shm.join(OsStr::from_bytes(&[b"p_", GLOBAL_SEGMENT].concat()));
+        std::fs::write(&seg, [0u8; 64]).unwrap();
+        check_shm(&shm, "p_").unwrap();
+        // Another prefix's name is not looked at.
+        std::fs::remove_file(&seg).unwrap();
+        std::fs::create_dir(&seg).unwrap();
+        check_shm(&shm, "q_").unwrap();
+        let m = message(check_shm(&shm, "p_"));
+        assert!(m.contains("is not a regular file (it belongs to"), "{m}");
+        std::fs::remove_dir(&seg).unwrap();
+        chmod(&shm, 0o777);
+        let m = message(check_shm(&shm, "p_"));
+        assert!(
+            m.starts_with(&format!(
+                "the shared memory directory {} can be written",
+                shm.display()
+            )),
+            "{m}"
+        );
+        assert!(m.contains("mode 0777, no sticky bit"), "{m}");
+        assert!(m.ends_with("root's, mode 1777"), "{m}");
     }
 }
