@@ -361,14 +361,14 @@ impl Attitude {
 
     /// One sample period of the rate's error, turned into the earth frame by `quat`: about the
     /// vertical into the heading's, about the horizontal axes into the inclination's while
-    /// `coasting` (and that part fades with the accelerometer's low-pass once it is back).
+    /// `coasting` (and that part fades with the accelerometer's low-pass once it is back);
+    /// `bias_sd` as [`Attitude::push`] checked it.
     fn integrate_errors(&mut self, quat: [f64; 4], bias_sd: Option<[f64; 3]>, measured: bool) {
         // The earth's x, y and z in body coordinates (the rows of the body-to-earth rotation):
         // the inverse rotation of each axis.
         let [w, x, y, z] = quat;
         let rows = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
             .map(|axis| rotate([w, -x, -y, -z], axis));
-        let bias_sd = bias_sd.filter(|s| usable(s) && s.iter().all(|v| *v >= 0.0));
         let about = |row: &[f64; 3], sd: &[f64; 3]| -> f64 {
             row.iter()
                 .zip(sd)
