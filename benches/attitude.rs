@@ -14,7 +14,7 @@ mod support;
 use criterion::{criterion_group, Criterion, Throughput};
 use driftless::attitude::{Attitude, AttitudeConfig, Upstream};
 use driftless::drift::bias::BiasTracker;
-use driftless::transport::{GyroSample, SENSOR_ACCEL};
+use driftless::wire::{GyroSample, SENSOR_ACCEL};
 use hdrhistogram::Histogram;
 use std::hint::black_box;
 use std::time::{Duration, Instant};

@@ -20,7 +20,8 @@ use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use driftless::transport::{monotonic_ns, GyroSample, Qos, Transport, WireBytes, FLAG_FLUSHED};
+use driftless::transport::{monotonic_ns, Qos, Transport};
+use driftless::wire::{GyroSample, WireBytes, FLAG_FLUSHED};
 use hdrhistogram::Histogram;
 use serde_json::Value;
 use zenoh::Wait;

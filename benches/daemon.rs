@@ -48,10 +48,8 @@ use support::{
     start_daemon, start_group, wait_exit,
 };
 
-use driftless::transport::{
-    monotonic_ns, GyroSample, Qos, RawSample, StatsSnapshot, Transport, WakeSet, FLAG_FLUSHED,
-    RAW_ACCEL,
-};
+use driftless::transport::{monotonic_ns, Qos, Transport, WakeSet};
+use driftless::wire::{GyroSample, RawSample, StatsSnapshot, FLAG_FLUSHED, RAW_ACCEL};
 use hdrhistogram::Histogram;
 use serde_json::Value;
 

@@ -10,7 +10,8 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use driftless::transport::{GyroSample, Qos, Transport};
+use driftless::transport::{Qos, Transport};
+use driftless::wire::GyroSample;
 use serde_json::Value;
 
 const N: u64 = 1_000_000;

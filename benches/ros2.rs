@@ -43,7 +43,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use driftless::transport::ros2::{ImuMapping, Ros2Node};
-use driftless::transport::GyroSample;
+use driftless::wire::GyroSample;
 use serde_json::Value;
 
 mod support;

@@ -34,7 +34,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use driftless::transport::{GyroSample, Qos, StatsSnapshot, Transport};
+use driftless::transport::{Qos, Transport};
+use driftless::wire::{GyroSample, StatsSnapshot};
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
 

@@ -18,7 +18,7 @@
 //!   integrate from the truth: what a navigator without an attitude stage gets from us.
 
 use driftless::pipeline::offline::Offline;
-use driftless::transport::GyroSample;
+use driftless::wire::GyroSample;
 use std::error::Error;
 use std::io::{BufWriter, Write};
 

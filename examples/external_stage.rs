@@ -20,7 +20,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser;
-use driftless::transport::{self, GyroSample, Transport};
+use driftless::transport::{self, Transport};
+use driftless::wire::GyroSample;
 
 /// An `external` pipeline stage in its own process: scales and offsets `rate` and `denoised` of
 /// a GyroSample service and publishes (and notifies) another.

@@ -21,9 +21,8 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 use driftless::cli::duration::parse_duration;
-use driftless::transport::{
-    self, monotonic_ns, GyroSample, Transport, TransportError, FLAG_FLUSHED,
-};
+use driftless::transport::{self, monotonic_ns, Transport, TransportError};
+use driftless::wire::{GyroSample, FLAG_FLUSHED};
 use hdrhistogram::Histogram;
 
 /// A navigation consumer in its own process: integrates heading from a pipeline's corrected

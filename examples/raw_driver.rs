@@ -21,7 +21,8 @@ use clap::Parser;
 use driftless::cli::duration::parse_duration;
 use driftless::sim::force::SimAccel;
 use driftless::sim::{Motion, SimConfig, Simulator};
-use driftless::transport::{self, RawSample, Transport, RAW_ACCEL};
+use driftless::transport::{self, Transport};
+use driftless::wire::{RawSample, RAW_ACCEL};
 
 /// A stand-in sensor driver: publishes simulated raw gyro samples (deg/s) at a fixed rate and
 /// notifies after each one, for `ingest.iceoryx2` (pipelines/external-sensor.toml).

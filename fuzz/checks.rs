@@ -26,7 +26,7 @@ pub fn scratch_file(name: &str, data: &[u8]) -> std::path::PathBuf {
 pub fn check_pipeline_toml(data: &[u8]) {
     use driftless::pipeline::config::parse;
     use driftless::pipeline::offline::Offline;
-    use driftless::transport::RawSample;
+    use driftless::wire::RawSample;
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
@@ -43,7 +43,7 @@ pub fn check_pipeline_toml(data: &[u8]) {
             t_ns: seq * 1_000_000,
             seq,
             rate: [0.01, -0.02, 0.03],
-            flags: driftless::transport::RAW_ACCEL,
+            flags: driftless::wire::RAW_ACCEL,
             accel: [0.1, -0.2, 9.8],
             ..RawSample::default()
         };

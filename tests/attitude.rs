@@ -11,9 +11,9 @@ use std::time::Duration;
 use common::{finish, start, wait_ready, Dir, Prefix};
 use driftless::allan::STANDARD_GRAVITY;
 use driftless::attitude::roll_pitch_yaw;
-use driftless::transport::{
-    GyroSample, Transport, SENSOR_ACCEL, SENSOR_ACCEL_INVALID, SENSOR_ORIENTATION,
-    SENSOR_ORIENTATION_COASTING,
+use driftless::transport::Transport;
+use driftless::wire::{
+    GyroSample, SENSOR_ACCEL, SENSOR_ACCEL_INVALID, SENSOR_ORIENTATION, SENSOR_ORIENTATION_COASTING,
 };
 
 const RATE_HZ: f64 = 100.0;

@@ -54,7 +54,7 @@ fn push_allocates_nothing_in_any_mode() {
 #[test]
 fn the_predict_bias_stage_allocates_nothing_per_sample() {
     use driftless::pipeline::config;
-    use driftless::transport::{GyroSample, FLAG_MOVING, FLAG_STILL};
+    use driftless::wire::{GyroSample, FLAG_MOVING, FLAG_STILL};
     let dir = tempfile::tempdir().unwrap();
     let text = r#"
 name = "a"

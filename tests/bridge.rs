@@ -13,7 +13,8 @@ use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
 use common::{finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix};
-use driftless::transport::{GyroSample, RawSample, StatsSnapshot, Transport};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, RawSample, StatsSnapshot};
 use iceoryx2::prelude::ZeroCopySend;
 use zenoh::Wait;
 

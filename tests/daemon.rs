@@ -9,9 +9,10 @@ use common::{
     collect, csv, csv_pipeline, external_pipeline, finish, offline_denoised, qos, raw, report,
     signal, start, test_rates, wait_ready, Dir, Prefix,
 };
-use driftless::transport::{
-    GyroSample, RawSample, Transport, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
-    FLAG_MOVING, FLAG_STAMP_FAULT, FLAG_STILL, FLAG_TIME_BACKWARDS, FLAG_WARMING_UP, RAW_INVALID,
+use driftless::transport::Transport;
+use driftless::wire::{
+    GyroSample, RawSample, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID, FLAG_MOVING,
+    FLAG_STAMP_FAULT, FLAG_STILL, FLAG_TIME_BACKWARDS, FLAG_WARMING_UP, RAW_INVALID,
 };
 
 const SIGINT: i32 = 2;
@@ -829,7 +830,7 @@ fn tap_echoes_a_service_and_stats_shows_the_live_snapshot() {
         let flags = v["flags"].as_u64().unwrap() as u32;
         assert_eq!(
             v["flag_names"],
-            serde_json::json!(driftless::transport::flag_names(flags))
+            serde_json::json!(driftless::wire::flag_names(flags))
         );
     }
     // `--hz`: the rate is the output asked for, on stdout; nothing on stderr.
@@ -1306,7 +1307,7 @@ output = "r/corrected"
 
 #[test]
 fn predict_rbf_removes_the_bias_keeps_a_constant_turn_and_refuses_bad_models() {
-    use driftless::transport::{FLAG_MOVING, FLAG_STILL};
+    use driftless::wire::{FLAG_MOVING, FLAG_STILL};
     const N: usize = 9000;
     let prefix = Prefix::new("rbf");
     let dir = Dir::new();

@@ -47,7 +47,7 @@ fn push_allocates_nothing_in_any_mode() {
 #[test]
 fn the_predict_rbf_stage_allocates_nothing_per_sample() {
     use driftless::pipeline::config;
-    use driftless::transport::GyroSample;
+    use driftless::wire::GyroSample;
     use std::process::Command;
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("log.csv");

@@ -381,7 +381,7 @@ fn bad_input_is_refused_with_exit_code_2() {
 fn predict_rbf_with_the_ar_predictor_is_the_models_ar_in_the_same_compensator() {
     use driftless::drift::compensator::Compensator;
     use driftless::pipeline::config;
-    use driftless::transport::GyroSample;
+    use driftless::wire::GyroSample;
     let dir = tempfile::tempdir().unwrap();
     let log = sim_log(dir.path(), "log.csv", 15_000, 5);
     let model_path = dir.path().join("m.json");

@@ -20,7 +20,8 @@ mod alloc_counter;
 /// subscribes, sends each with a notification and stops the daemon after the last) through
 /// `ingest.iceoryx2`: the hot thread sleeps on the driver's listener between samples.
 fn driver_allocations_for(rows: usize, tag: &str) -> (u64, u64) {
-    use driftless::transport::{RawSample, Transport};
+    use driftless::transport::Transport;
+    use driftless::wire::RawSample;
     let dir = Dir::new();
     let prefix = Prefix::new(tag);
     let denoise =

@@ -8,7 +8,8 @@ mod common;
 use std::time::Duration;
 
 use common::{collect, finish, qos, report, start, Dir, Prefix};
-use driftless::transport::{GyroSample, Transport};
+use driftless::transport::Transport;
+use driftless::wire::GyroSample;
 
 const N: usize = 200_000;
 const BUFFER: usize = 65_536;

@@ -12,9 +12,10 @@ use common::{
     collect, finish, qos, raw, report, signal, start, test_rates, wait_ready, Dir, Prefix,
 };
 use driftless::stages::external::transform;
-use driftless::transport::{GyroSample, RawSample, Transport};
+use driftless::transport::Transport;
 use driftless::wavelet::stream::{Sigma, StreamConfig, StreamingDenoiser};
 use driftless::wavelet::threshold::ThresholdFn;
+use driftless::wire::{GyroSample, RawSample};
 
 const SIGTERM: i32 = 15;
 const SCALE: f64 = 2.0;

@@ -10,7 +10,8 @@ use common::{
     collect, csv, external_pipeline, finish, offline_denoised, qos, raw, signal, start, test_rates,
     wait_ready, Dir, Prefix,
 };
-use driftless::transport::{GyroSample, RawSample, Transport};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, RawSample};
 
 const SIGTERM: i32 = 15;
 

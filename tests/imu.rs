@@ -11,9 +11,8 @@ use std::time::Duration;
 use common::{finish, start, wait_ready, Dir, Prefix};
 use driftless::allan::STANDARD_GRAVITY;
 use driftless::drift::bias::AccelTerms;
-use driftless::transport::{
-    GyroSample, Transport, FLAG_INPUT_INVALID, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
-};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, FLAG_INPUT_INVALID, SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
 
 const N: usize = 2000;
 /// The row whose accelerometer cell is not a number (past the 1000 rows validation checks).

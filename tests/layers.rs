@@ -624,6 +624,138 @@ fn only_transport_touches_iceoryx2_and_only_the_bridge_zenoh_and_only_dds_ros2_c
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
+/// The names `src/wire` exports: its files' top-level `pub` items (a method, indented, is not
+/// one).
+fn wire_names() -> BTreeSet<String> {
+    let mut paths = Vec::new();
+    rust_files(&src().join("wire"), &mut paths);
+    let mut names = BTreeSet::new();
+    for path in paths {
+        for line in std::fs::read_to_string(&path).unwrap().lines() {
+            let mut words = line.split_whitespace();
+            if !line.starts_with("pub ") || words.next() != Some("pub") {
+                continue;
+            }
+            let kinds = ["struct", "const", "enum", "fn", "type", "trait", "static"];
+            if !words.next().is_some_and(|kind| kinds.contains(&kind)) {
+                continue;
+            }
+            if let Some(word) = words.next() {
+                let name: String = word
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                names.insert(name);
+            }
+        }
+    }
+    names
+}
+
+/// Each name of `names` that `text` reaches through `transport` (`transport::GyroSample`,
+/// `driftless::transport::{self, RawSample}`, a `use` group over several lines), with its line.
+fn through_transport(text: &str, names: &BTreeSet<String>) -> Vec<(usize, String)> {
+    let ident = |s: &str| -> String {
+        s.trim_start()
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut found = Vec::new();
+    for (at, _) in text.match_indices("transport::") {
+        let before = text[..at].chars().next_back();
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+            continue; // `ingest_transport::`, not our module
+        }
+        let line = text[..at].matches('\n').count() + 1;
+        let after = &text[at + "transport::".len()..];
+        let mut used = Vec::new();
+        if let Some(group) = after.strip_prefix('{') {
+            // The group's top-level items: `transport::{ros2::X}` is not `transport::X`.
+            let (mut depth, mut start) = (0, 0);
+            for (i, c) in group.char_indices() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => {
+                        used.push(ident(&group[start..i]));
+                        break;
+                    }
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => {
+                        used.push(ident(&group[start..i]));
+                        start = i + 1;
+                    }
+                    _ => {}
+                }
+            }
+        } else {
+            used.push(ident(after));
+        }
+        found.extend(
+            used.into_iter()
+                .filter(|name| names.contains(name))
+                .map(|name| (line, name)),
+        );
+    }
+    found
+}
+
+/// The wire types have one home: `transport` marks them for iceoryx2 but re-exports none of
+/// them, and no file of the crate, its examples, tests, benches or fuzz targets names one
+/// through `transport` (code or comment).
+#[test]
+fn the_wire_types_are_imported_from_wire_never_through_transport() {
+    let names = wire_names();
+    for must in [
+        "GyroSample",
+        "RawSample",
+        "StopSignal",
+        "StatsSnapshot",
+        "FLAG_STILL",
+    ] {
+        assert!(
+            names.contains(must),
+            "src/wire exports no `{must}`: {names:?}"
+        );
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut paths = Vec::new();
+    for dir in ["src", "examples", "tests", "benches", "fuzz"] {
+        if root.join(dir).is_dir() {
+            rust_files(&root.join(dir), &mut paths);
+        }
+    }
+    paths.sort();
+    let mut wrong = Vec::new();
+    for path in paths {
+        let r = rel(&path);
+        if r == "tests/layers.rs" || r.starts_with("fuzz/target/") {
+            continue; // this check's own examples; the fuzz crate's build
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        for (n, name) in through_transport(&text, &names) {
+            wrong.push(format!(
+                "{r}:{n}: `{name}` through `transport`: import it from `wire`"
+            ));
+        }
+        if r.starts_with("src/transport/") {
+            let (uses, _) = paths_of(&code(&text));
+            for u in uses.iter().filter(|u| u.public) {
+                for (path, known_as) in use_paths(&u.tree) {
+                    if path.starts_with(&["crate".into(), "wire".into()])
+                        || names.contains(&known_as)
+                    {
+                        let n = u.line;
+                        let tree = &u.tree;
+                        wrong.push(format!("{r}:{n}: transport re-exports the wire: {tree}"));
+                    }
+                }
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
 /// A side runs beside the chain and reaches it only through its services: it never names what
 /// runs on the hot thread (a `Stage`, a `Source`, the runtime, the metrics' records), and the
 /// runtime starts it in `runtime/sides.rs` alone, on a thread of its own.
@@ -843,6 +975,22 @@ fn the_checks_see_what_they_check() {
     assert_eq!(at("super::WakeSet"), Some(path("transport::wake")));
     assert_eq!(at("super::ros2::Imu"), Some(path("transport::ros2::imu")));
     assert_eq!(at("std::fmt::Debug"), None);
+    let names = wire_names();
+    let through = |s: &str| through_transport(s, &names);
+    assert_eq!(
+        through("use crate::transport::GyroSample;"),
+        [(1, "GyroSample".into())]
+    );
+    assert_eq!(
+        through("use driftless::transport::{\n    self,\n    Qos,\n    RawSample as R,\n};"),
+        [(1, "RawSample".into())]
+    );
+    assert_eq!(
+        through("x\nlet f = driftless::transport::FLAG_STILL | transport::FLAG_MOVING;"),
+        [(2, "FLAG_STILL".into()), (2, "FLAG_MOVING".into())]
+    );
+    assert!(through("use crate::transport::{ros2::{GyroSample}, Qos};").is_empty());
+    assert!(through("use crate::wire::GyroSample; _transport::GyroSample").is_empty());
     let text = "pub fn a(\n    x: u8,\n) -> u8 {\n    x\n}\nfn b() {}\ntrait T {\n    fn c();\n    fn d(&self) {\n        let _ = 1;\n    }\n}\n#[cfg(test)]\nfn e() {\n}\n";
     assert_eq!(
         functions(text),

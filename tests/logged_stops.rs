@@ -8,8 +8,9 @@ use std::path::Path;
 use std::time::Duration;
 
 use common::{driftless, finish, start, text, wait_ready, Dir, Prefix};
-use driftless::transport::{
-    GyroSample, Transport, FLAG_INPUT_INVALID, FLAG_MOVING, FLAG_OUTPUT_REPAIRED, FLAG_STILL,
+use driftless::transport::Transport;
+use driftless::wire::{
+    GyroSample, FLAG_INPUT_INVALID, FLAG_MOVING, FLAG_OUTPUT_REPAIRED, FLAG_STILL,
     FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
 };
 

@@ -10,7 +10,8 @@ use common::{collect, finish, qos, start, Dir, Prefix};
 use driftless::pipeline::config;
 use driftless::pipeline::offline::Offline;
 use driftless::sim::{Motion, SimConfig, Simulator};
-use driftless::transport::{GyroSample, RawSample, Transport};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, RawSample};
 
 const N: usize = 25_000;
 

@@ -10,7 +10,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::{finish, qos, report, start, Dir, Prefix};
-use driftless::transport::{GyroSample, Transport, FLAG_STILL, FLAG_VEHICLE_STOPPED};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, FLAG_STILL, FLAG_VEHICLE_STOPPED};
 
 const RATE_HZ: f64 = 200.0;
 /// Larger than any log here: no subscriber loses a sample, however fast the replay.

@@ -9,7 +9,7 @@ use driftless::nav::baselines::{BiasEstimator, Zaru};
 use driftless::pipeline::config;
 use driftless::pipeline::offline::Offline;
 use driftless::sim::{Motion, SimConfig, Simulator};
-use driftless::transport::{
+use driftless::wire::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP,
 };
 

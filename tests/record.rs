@@ -19,7 +19,8 @@ use common::{
 use driftless::io::recording::{
     GyroMessage, RawMessage, Recording, StatsMessage, METADATA_NAME, RAW_SCHEMA,
 };
-use driftless::transport::{GyroSample, Percentiles, RawSample, Transport};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, Percentiles, RawSample};
 use serde_json::Value;
 
 const BUFFER: usize = 4096;
@@ -721,7 +722,7 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
             let mut r = raw(i as u64, m.stamp.ns() as u64, m.angular_velocity);
             if m.accel_reading().is_some() {
                 r.accel = m.linear_acceleration;
-                r.flags |= driftless::transport::RAW_ACCEL;
+                r.flags |= driftless::wire::RAW_ACCEL;
             }
             r
         })

@@ -15,9 +15,8 @@ use std::time::Duration;
 use common::{collect, driftless, finish, qos, start, text, Dir, Prefix};
 use driftless::io::ros2::{Imu, ImuBagWriter, Time, IMU_TYPE};
 use driftless::sim::{SimConfig, Simulator};
-use driftless::transport::{
-    GyroSample, Transport, FLAG_INPUT_INVALID, FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS,
-};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, FLAG_INPUT_INVALID, FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS};
 use serde_json::Value;
 
 fn fixture(name: &str) -> PathBuf {

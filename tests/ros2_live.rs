@@ -13,7 +13,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use driftless::transport::ros2::{Imu, ImuMapping, Ros2Node};
-use driftless::transport::GyroSample;
+use driftless::wire::GyroSample;
 
 /// Set in the child that runs inside the namespace.
 const CHILD: &str = "DRIFTLESS_TEST_IN_NETNS";
@@ -262,7 +262,7 @@ fn a_driver_node_feeds_the_daemon_and_a_navigator_node_reads_the_corrected_rate(
     let mut mapping = ImuMapping::new("imu_link", 1.0, Some(rate_noise));
     let mut want = Vec::new();
     for i in 0..N {
-        let raw = driftless::transport::RawSample {
+        let raw = driftless::wire::RawSample {
             t_ns: 1_700_000_000_000_000_000 + i as u64 * 1_000_000,
             seq: i as u64,
             rate: [0.001 * i as f64, -0.002 * i as f64, 0.5],

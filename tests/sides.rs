@@ -14,7 +14,8 @@ use common::Prefix;
 use driftless::pipeline::config::{parse, Pipeline};
 use driftless::pipeline::runtime::{run_group, RunError, RunOptions};
 use driftless::sides::{Kind, Ready, Side, SideSpec, Start};
-use driftless::transport::{GyroSample, Transport};
+use driftless::transport::Transport;
+use driftless::wire::GyroSample;
 
 /// What the test side saw.
 #[derive(Debug, Default)]

@@ -9,9 +9,9 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::{collect, finish, qos, raw, report, signal, start, wait_ready, Dir, Prefix};
-use driftless::transport::{
-    monotonic_ns, GyroSample, RawSample, StopSignal, Transport, FLAG_MOVING, FLAG_STILL,
-    FLAG_STOP_CONTRADICTED,
+use driftless::transport::{monotonic_ns, Transport};
+use driftless::wire::{
+    GyroSample, RawSample, StopSignal, FLAG_MOVING, FLAG_STILL, FLAG_STOP_CONTRADICTED,
 };
 use libc::SIGTERM;
 
@@ -227,6 +227,6 @@ fn all_still(got: &[GyroSample], range: std::ops::Range<usize>) {
         "{} of samples {range:?} not still, the first {} with flags {:?}",
         not.len(),
         not[0],
-        driftless::transport::flag_names(got[not[0]].flags)
+        driftless::wire::flag_names(got[not[0]].flags)
     );
 }

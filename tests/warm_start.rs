@@ -10,7 +10,8 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::{finish, signal, start, wait_ready, Dir, Prefix};
-use driftless::transport::{GyroSample, Transport, FLAG_WARMING_UP};
+use driftless::transport::Transport;
+use driftless::wire::{GyroSample, FLAG_WARMING_UP};
 
 /// The gyro's bias on each axis, deg/s: what a warm start must remove from the first sample.
 const BIAS: [f64; 3] = [0.5, -0.3, 0.2];

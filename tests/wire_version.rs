@@ -8,9 +8,10 @@
 mod common;
 
 use common::{text, Prefix};
-use driftless::transport::{
-    GyroSample, Qos, StatsSnapshot, Transport, TransportError, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME,
-    RAW_V1_SIZE, RAW_V1_TYPE_NAME, STATS_V1_SIZE, STATS_V1_TYPE_NAME,
+use driftless::transport::{Qos, Transport, TransportError};
+use driftless::wire::{
+    GyroSample, StatsSnapshot, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME, RAW_V1_SIZE, RAW_V1_TYPE_NAME,
+    STATS_V1_SIZE, STATS_V1_TYPE_NAME,
 };
 use iceoryx2::prelude::*;
 

@@ -47,7 +47,7 @@ ROOT_ENV = "DRIFTLESS_IOX2_ROOT"  # transport::ROOT_ENV
 BUFFER_SIZE = 256
 MAX_SUBSCRIBERS = 8
 
-# Output flags (transport::FLAG_*).
+# Output flags (wire::FLAG_*).
 FLAG_WARMING_UP = 1
 FLAG_INPUT_INVALID = 1 << 1
 FLAG_GAP_BEFORE = 1 << 2
@@ -59,10 +59,10 @@ FLAG_STAMP_FAULT = 1 << 11
 FLAGS_BAD = (FLAG_INPUT_INVALID | FLAG_GAP_BEFORE | FLAG_TIME_BACKWARDS | FLAG_OUTPUT_REPAIRED
              | FLAG_STAMP_FAULT)
 
-# Raw-sample flags (transport::RAW_*): the sample carries an accelerometer / magnetometer reading.
+# Raw-sample flags (wire::RAW_*): the sample carries an accelerometer / magnetometer reading.
 RAW_ACCEL = 1 << 4
 RAW_MAG = 1 << 5
-# GyroSample.sensors (transport::SENSOR_*): which readings are present, which were held.
+# GyroSample.sensors (wire::SENSOR_*): which readings are present, which were held.
 SENSOR_ACCEL = 1
 SENSOR_MAG = 1 << 1
 SENSOR_ACCEL_INVALID = 1 << 2
@@ -74,14 +74,14 @@ SENSOR_ORIENTATION_COASTING = 1 << 5
 SENSOR_ORIENTATION_NO_GRAVITY = 1 << 6
 
 # GyroSample.drift_std where no stage estimates the drift's uncertainty (predict.none,
-# predict.rbf, no predict stage): transport::DRIFT_STD_NOT_PROVIDED. Never NaN.
+# predict.rbf, no predict stage): wire::DRIFT_STD_NOT_PROVIDED. Never NaN.
 DRIFT_STD_NOT_PROVIDED = -1.0
 
 
 class RawSample(ctypes.Structure):
     """`driftless::RawSample.v2`, 96 bytes: what a driver publishes for `ingest.iceoryx2`.
 
-    Layout version 2 (transport::RAW_VERSION): version 1 (`driftless::RawSample`, 48 bytes)
+    Layout version 2 (wire::RAW_VERSION): version 1 (`driftless::RawSample`, 48 bytes)
     ended at `epoch`. A gyro-only driver leaves RAW_ACCEL and RAW_MAG clear."""
 
     _fields_ = [
@@ -96,14 +96,14 @@ class RawSample(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        """iceoryx2's type name (Rust `transport::RAW_TYPE_NAME`)."""
+        """iceoryx2's type name (Rust `wire::RAW_TYPE_NAME`)."""
         return "driftless::RawSample.v2"
 
 
 class GyroSample(ctypes.Structure):
     """`driftless::GyroSample.v4`, 264 bytes: every hop after the ingest, and the public output.
 
-    Layout version 4 (transport::GYRO_VERSION): version 3 (`driftless::GyroSample.v3`, 208
+    Layout version 4 (wire::GYRO_VERSION): version 3 (`driftless::GyroSample.v3`, 208
     bytes) ended at `reserved`, version 2 (`driftless::GyroSample.v2`, 128 bytes) at
     `drift_std`, version 1 (`driftless::GyroSample`, 104 bytes) at `epoch`. A
     service of another version is refused by iceoryx2 with IncompatibleTypes: run the daemon
@@ -131,7 +131,7 @@ class GyroSample(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        """iceoryx2's type name (Rust `transport::GYRO_TYPE_NAME`)."""
+        """iceoryx2's type name (Rust `wire::GYRO_TYPE_NAME`)."""
         return "driftless::GyroSample.v4"
 
 

@@ -15,9 +15,10 @@ use crate::cli::CliError;
 use crate::pipeline::runtime::{node_name, stats_node_name};
 use crate::transport::ros2;
 use crate::transport::{
-    self, display_name, ListedNode, ListedService, Listing, NodeLife, ServiceKind, StatsSnapshot,
-    Transport, WireType,
+    self, display_name, ListedNode, ListedService, Listing, NodeLife, ServiceKind, Transport,
+    WireType,
 };
+use crate::wire::StatsSnapshot;
 
 /// Arguments of `driftless list`.
 #[derive(Debug, clap::Args)]
@@ -216,7 +217,7 @@ fn type_text(kind: &ServiceKind) -> String {
         ServiceKind::PubSub {
             wire: None,
             type_name,
-        } => crate::transport::other_layout_of(type_name)
+        } => crate::wire::other_layout_of(type_name)
             .map_or_else(|| "foreign".into(), |t| format!("{t} (other version)")),
         ServiceKind::Event => "event".into(),
         ServiceKind::Other(pattern) => pattern.to_string(),

@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
 use crate::pipeline::config;
-use crate::transport::{self, StatsSnapshot, Transport};
+use crate::transport::{self, Transport};
+use crate::wire::StatsSnapshot;
 
 /// Arguments of `driftless stats`.
 #[derive(Debug, clap::Args)]

@@ -6,9 +6,8 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
-use crate::transport::{
-    self, AnyInput, Carried, GyroSample, RawSample, StatsSnapshot, Transport, WireType,
-};
+use crate::transport::{self, AnyInput, Carried, Transport, WireType};
+use crate::wire::{self, GyroSample, RawSample, StatsSnapshot};
 
 /// How samples are printed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -186,7 +185,7 @@ impl Printer {
     fn std_values(&self, sd: [f64; 3]) -> [f64; 3] {
         sd.map(|v| {
             if v < 0.0 {
-                transport::DRIFT_STD_NOT_PROVIDED
+                wire::DRIFT_STD_NOT_PROVIDED
             } else {
                 v * self.units.scale()
             }
@@ -266,9 +265,9 @@ impl Printer {
                     s.t_ns as f64 * 1e-9,
                     r[0], r[1], r[2], d[0], d[1], d[2], sd[0], sd[1], sd[2], n[0], n[1], n[2],
                     self.units.name(),
-                    accel_text((s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel), "m/s²"),
+                    accel_text((s.sensors & wire::SENSOR_ACCEL != 0).then_some(s.accel), "m/s²"),
                     attitude_text(s),
-                    joined(&transport::flag_names(s.flags), ",")
+                    joined(&wire::flag_names(s.flags), ",")
                 )
             }
             (Format::Text, Item::Raw(s)) => format!(
@@ -280,7 +279,7 @@ impl Printer {
                 s.rate[1],
                 s.rate[2],
                 accel_text(s.accel_reading(), "(input units)"),
-                joined(&transport::raw_flag_names(s.flags), ",")
+                joined(&wire::raw_flag_names(s.flags), ",")
             ),
             (Format::Text, Item::Stats(s)) => crate::metrics::format_snapshot(&self.service, s),
             (Format::Csv, Item::Gyro(s)) => {
@@ -292,7 +291,7 @@ impl Printer {
                     .collect();
                 // Not provided stays -1 in every unit (a sentinel, not a rate).
                 let sd = self.std_values(s.drift_std).map(|v| v.to_string());
-                let accel = s.sensors & transport::SENSOR_ACCEL != 0;
+                let accel = s.sensors & wire::SENSOR_ACCEL != 0;
                 format!(
                     "{},{},{},{},{},{},{},{},{},{},{},{}",
                     s.epoch,
@@ -300,11 +299,11 @@ impl Printer {
                     s.t_ns as f64 * 1e-9,
                     cells.join(","),
                     s.flags,
-                    joined(&transport::flag_names(s.flags), "|"),
+                    joined(&wire::flag_names(s.flags), "|"),
                     sd.join(","),
                     optional_cells(accel.then_some(s.accel)),
                     optional_cells(accel.then_some(s.accel_std)),
-                    joined(&transport::sensor_names(s.sensors), "|"),
+                    joined(&wire::sensor_names(s.sensors), "|"),
                     optional_cells(s.orientation_estimate()),
                     optional_cells(s.orientation_estimate().map(|_| s.orientation_std)),
                 )
@@ -318,7 +317,7 @@ impl Printer {
                 s.rate[1],
                 s.rate[2],
                 s.flags,
-                joined(&transport::raw_flag_names(s.flags), "|"),
+                joined(&wire::raw_flag_names(s.flags), "|"),
                 optional_cells(s.accel_reading())
             ),
             (Format::Csv, Item::Stats(_)) => return Err(no_csv_for_stats(&self.service)),
@@ -333,10 +332,10 @@ impl Printer {
                 "denoised": scaled(s.denoised),
                 "drift_std": self.std_values(s.drift_std),
                 "flags": s.flags,
-                "flag_names": transport::flag_names(s.flags),
-                "accel": (s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel),
-                "accel_std": (s.sensors & transport::SENSOR_ACCEL != 0).then_some(s.accel_std),
-                "sensors": transport::sensor_names(s.sensors),
+                "flag_names": wire::flag_names(s.flags),
+                "accel": (s.sensors & wire::SENSOR_ACCEL != 0).then_some(s.accel),
+                "accel_std": (s.sensors & wire::SENSOR_ACCEL != 0).then_some(s.accel_std),
+                "sensors": wire::sensor_names(s.sensors),
                 "orientation": s.orientation_estimate(),
                 "orientation_std": s.orientation_estimate().map(|_| s.orientation_std),
             })
@@ -348,7 +347,7 @@ impl Printer {
                 "units": "input",
                 "rate": s.rate,
                 "flags": s.flags,
-                "flag_names": transport::raw_flag_names(s.flags),
+                "flag_names": wire::raw_flag_names(s.flags),
                 "accel": s.accel_reading(),
             })
             .to_string(),
@@ -595,9 +594,9 @@ mod tests {
             rate: [std::f64::consts::PI, 0.0, -1.0],
             drift: [0.5, 0.0, 0.0],
             denoised: [1.0, 0.0, 0.0],
-            flags: crate::transport::FLAG_STILL,
+            flags: crate::wire::FLAG_STILL,
             epoch: 3,
-            drift_std: [0.25, crate::transport::DRIFT_STD_NOT_PROVIDED, 0.0],
+            drift_std: [0.25, crate::wire::DRIFT_STD_NOT_PROVIDED, 0.0],
             ..GyroSample::default()
         };
         let item = Item::Gyro(s);
@@ -633,7 +632,7 @@ mod tests {
         assert_eq!(json["accel"], serde_json::Value::Null);
         let with = Item::Gyro(GyroSample {
             accel: [0.5, -0.25, 9.75],
-            sensors: crate::transport::SENSOR_ACCEL,
+            sensors: crate::wire::SENSOR_ACCEL,
             ..s
         });
         assert!(rad
@@ -650,7 +649,7 @@ mod tests {
         let turned = Item::Gyro(GyroSample {
             orientation: [0.0, 0.0, h, h],
             orientation_std: [0.01, 0.01, -1.0],
-            sensors: crate::transport::SENSOR_ORIENTATION,
+            sensors: crate::wire::SENSOR_ORIENTATION,
             ..s
         });
         let text = printer(Format::Text, RateUnits::DegS)
@@ -697,13 +696,13 @@ mod tests {
 
     #[test]
     fn flags_read_by_name_and_unknown_bits_stay_visible() {
-        use crate::transport::{flag_names, FLAG_GAP_BEFORE, FLAG_STILL};
+        use crate::wire::{flag_names, FLAG_GAP_BEFORE, FLAG_STILL};
         assert_eq!(
             flag_names(FLAG_STILL | FLAG_GAP_BEFORE | 1 << 20),
             ["gap_before", "still", "0x100000"]
         );
         assert_eq!(
-            transport::raw_flag_names(transport::RAW_INVALID | 4 | 1 << 9),
+            wire::raw_flag_names(wire::RAW_INVALID | 4 | 1 << 9),
             ["invalid", "vehicle_moving", "0x200"]
         );
         assert_eq!(joined(&[], ","), "-");

@@ -28,10 +28,8 @@ use crate::io::recording::{
     SCHEMA_ENCODING,
 };
 use crate::io::ros2::{self, ImuMapping, IMU_TYPE};
-use crate::transport::{
-    AnyInput, Carried, Transport, TransportError, WireType, GYRO_TYPE_NAME, RAW_TYPE_NAME,
-    STATS_TYPE_NAME,
-};
+use crate::transport::{AnyInput, Carried, Transport, TransportError, WireType};
+use crate::wire::{GYRO_TYPE_NAME, RAW_TYPE_NAME, STATS_TYPE_NAME};
 
 /// How often the open chunk is written out (the most a SIGKILL loses) and progress is shown.
 const FLUSH_EVERY: Duration = Duration::from_secs(1);

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::transport::{
+use crate::wire::{
     GyroSample, Percentiles, RawSample, StatsSnapshot, DRIFT_STD_NOT_PROVIDED, RAW_ACCEL, RAW_MAG,
     SENSOR_ACCEL, SENSOR_MAG, SENSOR_ORIENTATION,
 };
@@ -414,7 +414,7 @@ impl From<&StatsSnapshot> for StatsMessage {
             lost: s.lost,
             flagged: s.flagged,
             stamp_faults: s.stamp_faults,
-            warm_start: crate::transport::warm_start_name(s.warm_start).to_string(),
+            warm_start: crate::wire::warm_start_name(s.warm_start).to_string(),
             gap_samples: s.gap_samples,
             metric_drops: s.metric_drops,
             algorithmic_delay_ns: s.algorithmic_delay_ns,
@@ -742,7 +742,7 @@ mod tests {
             sensors: SENSOR_ACCEL
                 | SENSOR_MAG
                 | SENSOR_ORIENTATION
-                | crate::transport::SENSOR_ORIENTATION_COASTING,
+                | crate::wire::SENSOR_ORIENTATION_COASTING,
             reserved: 0,
             orientation: [0.1 + 0.2, -0.5, 0.5, (1.0f64 - 0.34 - 0.25 - 0.25).sqrt()],
             orientation_std: [1e-3 / 3.0, 2e-3, 0.7],
@@ -793,7 +793,7 @@ mod tests {
 
     #[test]
     fn the_stats_form_is_what_stats_json_printed_and_reads_back() {
-        use crate::transport::{StageStats, WARM_START_WARM};
+        use crate::wire::{StageStats, WARM_START_WARM};
         let pct = |base: u64| Percentiles {
             count: base,
             p50: base + 1,
@@ -820,7 +820,7 @@ mod tests {
             deadline_misses_explained: 1,
             last_miss_uptime_ns: 1_200_000_000,
             last_miss_e2e_ns: 1_800_000,
-            last_miss_off_cpu_ns: crate::transport::OFF_CPU_NOT_MEASURED,
+            last_miss_off_cpu_ns: crate::wire::OFF_CPU_NOT_MEASURED,
             stamp_faults: 7,
             warm_start: WARM_START_WARM,
             ..StatsSnapshot::default()

@@ -17,9 +17,8 @@ use crossbeam_channel::{Receiver, TryRecvError};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 
-use crate::transport::{
-    Losses, Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES, OFF_CPU_NOT_MEASURED,
-};
+use crate::transport::Losses;
+use crate::wire::{Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES, OFF_CPU_NOT_MEASURED};
 
 /// Most stages of a pipeline.
 pub const MAX_STAGES: usize = MAX_STATS_STAGES;
@@ -172,7 +171,7 @@ impl HeadingTracker {
     }
 
     /// A raw sample as the guard admitted it (rad/s).
-    pub fn raw(&mut self, s: &crate::transport::GyroSample) {
+    pub fn raw(&mut self, s: &crate::wire::GyroSample) {
         let truth = self.truth_at(s.t_ns);
         let mut part = self.summary.raw;
         self.add(&mut part, &s.rate, &truth);
@@ -180,7 +179,7 @@ impl HeadingTracker {
     }
 
     /// A published sample: its denoised and corrected rates (rad/s).
-    pub fn published(&mut self, s: &crate::transport::GyroSample) {
+    pub fn published(&mut self, s: &crate::wire::GyroSample) {
         let truth = self.truth_at(s.t_ns);
         let (mut den, mut cor) = (self.summary.denoised, self.summary.corrected);
         self.add(&mut den, &s.denoised, &truth);
@@ -250,7 +249,7 @@ pub struct Layout {
     /// How the stages that keep state across runs started, one line each after the stage's
     /// name (`predict: cold: ...`), for the report.
     pub warm_start: Vec<String>,
-    /// The worst of their outcomes, for the stats ([`crate::transport::WARM_START_NONE`] and
+    /// The worst of their outcomes, for the stats ([`crate::wire::WARM_START_NONE`] and
     /// its siblings).
     pub warm_start_outcome: u64,
 }
@@ -616,10 +615,10 @@ pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
         stamp_faults_text(s.stamp_faults),
         s.metric_drops
     );
-    if s.warm_start != crate::transport::WARM_START_NONE {
+    if s.warm_start != crate::wire::WARM_START_NONE {
         out.push_str(&format!(
             "warm start: {}\n",
-            crate::transport::warm_start_name(s.warm_start)
+            crate::wire::warm_start_name(s.warm_start)
         ));
     }
     if let Some(explained) = s.last_miss_explained() {
@@ -733,7 +732,7 @@ mod tests {
             !text.contains("warm start"),
             "no state-keeping stage: {text}"
         );
-        s.warm_start = crate::transport::WARM_START_UNUSABLE;
+        s.warm_start = crate::wire::WARM_START_UNUSABLE;
         s.stamp_faults = 3;
         let text = format_snapshot("demo", &s);
         assert!(
@@ -800,7 +799,7 @@ mod tests {
             interval: Duration::from_secs(60),
             print: false,
             warm_start: Vec::new(),
-            warm_start_outcome: crate::transport::WARM_START_NONE,
+            warm_start_outcome: crate::wire::WARM_START_NONE,
         };
         Reporter::new(layout, Arc::default(), Vec::new())
     }

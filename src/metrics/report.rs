@@ -92,13 +92,13 @@ pub struct Flagged {
 /// up: a drift stage flags motion while it waits for its first stop).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Outputs {
-    /// Flagged still ([`crate::transport::FLAG_STILL`]): the drift estimate was re-measured.
+    /// Flagged still ([`crate::wire::FLAG_STILL`]): the drift estimate was re-measured.
     pub still: u64,
-    /// Flagged moving ([`crate::transport::FLAG_MOVING`]): the estimate was held.
+    /// Flagged moving ([`crate::wire::FLAG_MOVING`]): the estimate was held.
     pub moving: u64,
-    /// Flagged warming up ([`crate::transport::FLAG_WARMING_UP`]).
+    /// Flagged warming up ([`crate::wire::FLAG_WARMING_UP`]).
     pub warming_up: u64,
-    /// Flushed at shutdown ([`crate::transport::FLAG_FLUSHED`]): held in the chain's delay when
+    /// Flushed at shutdown ([`crate::wire::FLAG_FLUSHED`]): held in the chain's delay when
     /// the input ended; published but not timed end to end.
     pub flushed: u64,
 }
@@ -106,10 +106,10 @@ pub struct Outputs {
 impl Outputs {
     /// The flags counted, in the order of [`Counters::outputs`].
     pub const FLAGS: [u32; 4] = [
-        crate::transport::FLAG_STILL,
-        crate::transport::FLAG_MOVING,
-        crate::transport::FLAG_WARMING_UP,
-        crate::transport::FLAG_FLUSHED,
+        crate::wire::FLAG_STILL,
+        crate::wire::FLAG_MOVING,
+        crate::wire::FLAG_WARMING_UP,
+        crate::wire::FLAG_FLUSHED,
     ];
 
     pub(super) fn from_counts([still, moving, warming_up, flushed]: [u64; 4]) -> Self {
@@ -175,7 +175,7 @@ pub struct Report {
     /// Samples subscribers that went away had stopped taking before they left (a `tap
     /// --count` that had its count): not lost, nobody wanted them ([`crate::transport::Losses`]).
     pub left_unread: u64,
-    /// The stream's epoch at start ([`crate::transport::GyroSample::epoch`]).
+    /// The stream's epoch at start ([`crate::wire::GyroSample::epoch`]).
     pub epoch: u32,
     /// New epochs after the first: source restarts, and sequence numbers that repeated or
     /// stepped back (each started the next epoch).
@@ -183,7 +183,7 @@ pub struct Report {
     /// Flagged input.
     pub flagged: Flagged,
     /// How the state-keeping stages started, the worst of them
-    /// ([`crate::transport::warm_start_name`] of the stats' code; `warm_start` has each line).
+    /// ([`crate::wire::warm_start_name`] of the stats' code; `warm_start` has each line).
     #[serde(serialize_with = "warm_start_words")]
     pub warm_start_outcome: u64,
     /// The published outputs by their flags.
@@ -222,7 +222,7 @@ pub struct Report {
 }
 
 fn warm_start_words<S: serde::Serializer>(code: &u64, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(crate::transport::warm_start_name(*code))
+    s.serialize_str(crate::wire::warm_start_name(*code))
 }
 
 impl Report {
@@ -454,7 +454,7 @@ impl Report {
             1 => "; 1 stamp fault (flagged, not lost)".to_string(),
             n => format!("; {n} stamp faults (flagged, not lost)"),
         };
-        let warm = if self.warm_start_outcome == crate::transport::WARM_START_UNUSABLE {
+        let warm = if self.warm_start_outcome == crate::wire::WARM_START_UNUSABLE {
             "; started COLD: the saved state was unusable (moved aside)"
         } else {
             ""

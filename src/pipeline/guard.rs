@@ -9,7 +9,7 @@
 
 use crate::clock::{StampCheck, StampFault};
 use crate::pipeline::config::{AccelUnits, Units};
-use crate::transport::{
+use crate::wire::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
     FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
     RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
@@ -300,7 +300,7 @@ mod tests {
         let mut g = Guard::new(Units::RadPerSec, AccelUnits::G, 3, 7);
         let with = |seq, accel: [f64; 3]| RawSample {
             accel,
-            flags: crate::transport::RAW_ACCEL,
+            flags: crate::wire::RAW_ACCEL,
             ..raw(seq, seq * 10, 1.0)
         };
         // Absent stays absent (never a zero reading).

@@ -8,7 +8,7 @@
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, SideInput, SideValue, Stage};
-use crate::transport::{GyroSample, RawSample, StopSignal, RAW_ACCEL};
+use crate::wire::{GyroSample, RawSample, StopSignal, RAW_ACCEL};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
 pub const OFFLINE_EPOCH: u32 = 1;

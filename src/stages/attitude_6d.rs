@@ -24,7 +24,7 @@ use crate::attitude::{Attitude, AttitudeConfig, Upstream, VqfBias};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::transport::{
+use crate::wire::{
     GyroSample, DRIFT_STD_NOT_PROVIDED, SENSOR_ORIENTATION, SENSOR_ORIENTATION_COASTING,
     SENSOR_ORIENTATION_NO_GRAVITY,
 };
@@ -243,7 +243,7 @@ mod tests {
     use super::*;
     use crate::allan::STANDARD_GRAVITY;
     use crate::stages::schema::{AccelUnits, Units};
-    use crate::transport::{SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
+    use crate::wire::{SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
 
     fn cx(white_noise: Option<f64>) -> Context {
         Context {

@@ -344,12 +344,10 @@ impl WarmStart {
         }
     }
 
-    /// The outcome as the stats service carries it ([`crate::transport::WARM_START_WARM`]
+    /// The outcome as the stats service carries it ([`crate::wire::WARM_START_WARM`]
     /// and its siblings; the larger, the worse).
     pub fn code(&self) -> u64 {
-        use crate::transport::{
-            WARM_START_COLD, WARM_START_NONE, WARM_START_UNUSABLE, WARM_START_WARM,
-        };
+        use crate::wire::{WARM_START_COLD, WARM_START_NONE, WARM_START_UNUSABLE, WARM_START_WARM};
         match self {
             WarmStart::NotConfigured => WARM_START_NONE,
             WarmStart::Warm { .. } => WARM_START_WARM,

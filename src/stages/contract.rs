@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use crate::io::InputError;
 use crate::stages::schema::{Context, Key, Table};
-use crate::transport::{GyroSample, RawSample, StopSignal};
+use crate::wire::{GyroSample, RawSample, StopSignal};
 
 /// What a side input carries: a service a stage reads beside its chain input
 /// ([`Params::side_inputs`]).

@@ -16,11 +16,11 @@
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, WordOr};
-use crate::transport::{
-    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP, SENSOR_ACCEL,
-};
 use crate::wavelet::stream::{LaneDenoiser, Sigma, StreamConfig, StreamingDenoiser};
 use crate::wavelet::threshold::ThresholdFn;
+use crate::wire::{
+    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_FLUSHED, FLAG_WARMING_UP, SENSOR_ACCEL,
+};
 
 const WAVELET: Key = Key {
     name: "wavelet",

@@ -25,7 +25,8 @@ use std::time::Duration;
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role};
 use crate::stages::schema::{Table, POLL_TIMEOUT_US};
-use crate::transport::{GyroSample, Qos, Transport, TransportError};
+use crate::transport::{Qos, Transport, TransportError};
+use crate::wire::GyroSample;
 
 /// `external`.
 pub const KIND: Kind = Kind {

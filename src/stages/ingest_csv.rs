@@ -33,9 +33,7 @@ use crate::io::{InputError, RowRead, RowReader};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::transport::{
-    RawSample, RAW_ACCEL, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
-};
+use crate::wire::{RawSample, RAW_ACCEL, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED};
 
 const FILE: Key = Key {
     name: "file",

@@ -1,5 +1,5 @@
 //! `ingest.iceoryx2`: raw samples that a sensor driver in another process publishes on an
-//! iceoryx2 service ([`crate::transport::RawSample`]). The daemon's hot thread sleeps on the
+//! iceoryx2 service ([`crate::wire::RawSample`]). The daemon's hot thread sleeps on the
 //! event service of the same name (a driver should notify it after each sample), together with
 //! every other source of the daemon, and with a timeout, so a driver that does not notify is
 //! still read within `poll_timeout_us`.
@@ -19,7 +19,8 @@ use std::time::Duration;
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Poll, Role, Source};
 use crate::stages::schema::{Context, Table, POLL_TIMEOUT_US};
-use crate::transport::{Input, RawSample, Transport, TransportError, Waker};
+use crate::transport::{Input, Transport, TransportError, Waker};
+use crate::wire::RawSample;
 
 /// `ingest.iceoryx2`.
 pub const KIND: Kind = Kind {

@@ -56,7 +56,7 @@ use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DE
 use crate::stages::schema::{AccelUnits, Units};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
-use crate::transport::{
+use crate::wire::{
     RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
 

@@ -31,7 +31,7 @@ use crate::sim::{SimConfig, Simulator};
 use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::stages::replay::{read_pace, PACE_TYPE};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, Units};
-use crate::transport::{RawSample, RAW_ACCEL};
+use crate::wire::{RawSample, RAW_ACCEL};
 
 const PROFILE: Key = Key {
     name: "profile",

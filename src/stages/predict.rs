@@ -24,9 +24,7 @@ use crate::drift::{ModelPredictor, PredictorKind};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::transport::{
-    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP,
-};
+use crate::wire::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 
 const MODEL: Key = Key {
     name: "model",

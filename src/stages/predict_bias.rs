@@ -38,12 +38,12 @@ use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::contract::{SideInput, SideValue};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
-use crate::transport::{
+use crate::wire::{
     GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
     SENSOR_ACCEL,
 };
 #[cfg(doc)]
-use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use crate::wire::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 use std::path::PathBuf;
 use std::time::Duration;
 

@@ -13,9 +13,7 @@
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::transport::{
-    GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_OUTPUT_REPAIRED, SENSOR_ORIENTATION,
-};
+use crate::wire::{GyroSample, DRIFT_STD_NOT_PROVIDED, FLAG_OUTPUT_REPAIRED, SENSOR_ORIENTATION};
 
 const NOTIFY: Key = Key {
     name: "notify",
@@ -132,7 +130,7 @@ mod tests {
         let s = GyroSample {
             accel: [0.0, f64::NAN, 9.8],
             accel_std: [f64::NAN, 1e-3, 1e-3],
-            sensors: crate::transport::SENSOR_ACCEL,
+            sensors: crate::wire::SENSOR_ACCEL,
             ..GyroSample::default()
         };
         let o = Publish.process(&s).unwrap();

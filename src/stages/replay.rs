@@ -15,7 +15,7 @@ use crate::clock::{Pace, PaceClock};
 use crate::io::InputError;
 use crate::stages::contract::{Poll, Source};
 use crate::stages::schema::{DefaultValue, Key, Table, Type, WordOr};
-use crate::transport::RawSample;
+use crate::wire::RawSample;
 
 /// Samples per block the reader thread hands to the hot thread.
 const BLOCK_ROWS: usize = 4096;

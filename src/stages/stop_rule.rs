@@ -1,7 +1,7 @@
 //! The vehicle's stop rule: whether a stop signal says the vehicle stands, moves, or nothing.
 //! One definition, keys and judgment, for every stage that reads the vehicle's motion:
 //! `ingest.mcap`'s `stop_topic` (a bag's motion messages, judged by sample time) and
-//! `predict.bias`'s `stop_input` (a live [`crate::transport::StopSignal`], judged by its age
+//! `predict.bias`'s `stop_input` (a live [`crate::wire::StopSignal`], judged by its age
 //! at ingest).
 
 use crate::io::InputError;

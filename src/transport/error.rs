@@ -64,7 +64,7 @@ pub enum TransportError {
         message: String,
     },
     /// The service carries another layout version of one of our types (a driftless of another
-    /// release publishes it): the whole sentence, from [`super::wire_version_mismatch`].
+    /// release publishes it): the whole sentence, from [`crate::wire::wire_version_mismatch`].
     #[error("{0}")]
     Version(String),
     /// `/dev/shm` cannot hold the segments just created (a full or too small tmpfs).

@@ -1,15 +1,17 @@
-//! Everything iceoryx2: the wire types, where its files live, node and port set-up, discovery,
-//! clean-up and waking on other processes.
+//! Everything iceoryx2: the wire types' marking, where its files live, node and port set-up,
+//! discovery, clean-up and waking on other processes.
 //!
 //! This is the only module that imports `iceoryx2` (and its submodule `zenoh/` the only one that
 //! imports `zenoh`, feature `zenoh`); the rest of the crate sees plain Rust types
-//! ([`RawSample`], [`GyroSample`], [`StatsSnapshot`]) and the small port wrappers
-//! ([`Output`], [`Input`], [`Waker`], [`WakeSet`]). Everything public is re-exported here, so
-//! callers write `transport::X` whichever file `X` lives in:
+//! ([`crate::wire`]'s [`RawSample`](crate::wire::RawSample),
+//! [`GyroSample`](crate::wire::GyroSample), [`StatsSnapshot`](crate::wire::StatsSnapshot)) and
+//! the small port wrappers ([`Output`], [`Input`], [`Waker`], [`WakeSet`]). Everything public of
+//! its own is re-exported here, so callers write `transport::X` whichever file `X` lives in; the
+//! wire types are not (they are `crate::wire`'s, and imported from there):
 //!
 //! | file | concern |
 //! |---|---|
-//! | `zero_copy.rs` | our wire types ([`crate::wire`], re-exported here) marked for iceoryx2 under their type names |
+//! | `zero_copy.rs` | our wire types ([`crate::wire`], not re-exported here) marked for iceoryx2 under their type names |
 //! | `wire_type.rs` | [`WireType`]: which of them a service carries, and [`AnyInput`] of it |
 //! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`], the service flavour |
 //! | `node.rs` | [`Transport`]: one node and the services and ports it sets up |
@@ -60,7 +62,6 @@ pub mod zenoh;
 /// code generic over them.
 pub use iceoryx2::prelude::ZeroCopySend;
 
-pub use crate::wire::*;
 pub use config::{
     check_root, check_service_name, quiet_logging, root, set_root, Qos, DEFAULT_PREFIX,
     DEFAULT_ROOT, PREFIX_ENV, ROOT_ENV,

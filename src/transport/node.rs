@@ -339,7 +339,7 @@ impl Transport {
 
     /// The refusal of service `name` when it carries another layout version of one of our
     /// types (a driftless of another release publishes it), from
-    /// [`super::wire_version_mismatch`]; None otherwise.
+    /// [`crate::wire::wire_version_mismatch`]; None otherwise.
     pub fn version_mismatch(&self, name: &str) -> Option<String> {
         let found = self.payload_type_name(name).ok().flatten()?;
         wire_version_mismatch(&format!("service {name:?}"), &found)

@@ -172,7 +172,7 @@ mod tests {
             assert_eq!(WireType::of(w.type_name(), w.size()), Some(w));
             assert_eq!(WireType::of(w.type_name(), w.size() + 8), None);
         }
-        assert_eq!(WireType::named(super::super::GYRO_V1_TYPE_NAME), None);
+        assert_eq!(WireType::named(crate::wire::GYRO_V1_TYPE_NAME), None);
         assert_eq!(WireType::named("driftless::Percentiles"), None);
     }
 }

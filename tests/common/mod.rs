@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use driftless::transport::{GyroSample, Input, Qos, RawSample, StatsSnapshot, Transport};
+use driftless::transport::{Input, Qos, Transport};
+use driftless::wire::{GyroSample, RawSample, StatsSnapshot};
 
 /// A test's own iceoryx2 prefix; its files are removed on drop.
 pub struct Prefix(pub String);

@@ -74,7 +74,8 @@ pub fn process() -> u64 {
 /// allocation tests allow per hop.
 #[allow(dead_code)]
 pub fn iceoryx2_allocations_per_send(prefix: &str) -> u64 {
-    use driftless::transport::{GyroSample, Qos, Transport};
+    use driftless::transport::{Qos, Transport};
+    use driftless::wire::GyroSample;
     let t = Transport::new(prefix, "cal", Qos::default()).expect("node");
     let out = t.output::<GyroSample>("cal/x", false).expect("publisher");
     let input = t.input::<GyroSample>("cal/x").expect("subscriber");

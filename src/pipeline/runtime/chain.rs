@@ -17,9 +17,9 @@ use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, SideInput, SideValue, Source, Stage};
 use crate::stages::WarmStart;
-use crate::transport::{
-    monotonic_ns, GyroSample, Input, Losses, Output, Qos, RawSample, StopSignal, Transport,
-    TransportError, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
+use crate::transport::{monotonic_ns, Input, Losses, Output, Qos, Transport, TransportError};
+use crate::wire::{
+    GyroSample, RawSample, StopSignal, FLAG_FLUSHED, FLAG_GAP_BEFORE, FLAG_OUTPUT_REPAIRED,
 };
 
 /// A side input's subscriber ([`crate::stages::Params::side_inputs`]).

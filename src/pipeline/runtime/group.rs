@@ -16,9 +16,8 @@ use crate::metrics::{run_all, Batch, Counters, Layout, Publish, Report, Reporter
 use crate::pipeline::config::Pipeline;
 use crate::stages::contract::{Poll, Source};
 use crate::stages::WarmStart;
-use crate::transport::{
-    monotonic_ns, Losses, Qos, RawSample, StatsSnapshot, Transport, TransportError, WakeSet, Waker,
-};
+use crate::transport::{monotonic_ns, Losses, Qos, Transport, TransportError, WakeSet, Waker};
+use crate::wire::{RawSample, StatsSnapshot};
 
 /// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
 const METRICS_CAPACITY: usize = 1 << 12;
@@ -351,7 +350,7 @@ impl<'a> Running<'a> {
                 .iter()
                 .map(|(_, w)| w.code())
                 .max()
-                .unwrap_or(crate::transport::WARM_START_NONE),
+                .unwrap_or(crate::wire::WARM_START_NONE),
         };
         r.stats = Some(Stats {
             reporter: Reporter::new(layout, counters, lost),

@@ -38,9 +38,9 @@ use super::imu::{ImuMapping, Time, IMU_TYPE};
 use super::motion::MotionKind;
 use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
-use crate::transport::{
-    GyroSample, Input, Output, Qos, RawSample, StatsSnapshot, StopSignal, Transport,
-    TransportError, WakeSet, Waker, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
+use crate::transport::{Input, Output, Qos, Transport, TransportError, WakeSet, Waker};
+use crate::wire::{
+    GyroSample, RawSample, StatsSnapshot, StopSignal, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
 };
 
 /// How long a topic may go unmatched before stderr says so.

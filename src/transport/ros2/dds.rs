@@ -33,7 +33,8 @@ use serde::{Deserialize, Serialize};
 
 use super::imu::{Imu, Time};
 use super::motion::MotionKind;
-use crate::transport::{StopSignal, TransportError};
+use crate::transport::TransportError;
+use crate::wire::StopSignal;
 
 /// Wakes a thread when a watched subscription has messages: its descriptor turns readable
 /// (edge-triggered: [`DdsReadiness::clear`] before taking everything, then wait again).

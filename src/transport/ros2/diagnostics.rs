@@ -6,7 +6,7 @@
 //! [`DiagnosticStatus`]. No I/O here: the bridge (`bridge.rs`) publishes what these make.
 
 use super::imu::{CdrError, Time};
-use crate::transport::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use crate::wire::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
 
 /// The ROS 2 type of the bias message.
 pub const VECTOR3_STAMPED_TYPE: &str = "geometry_msgs/msg/Vector3Stamped";

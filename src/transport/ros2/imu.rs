@@ -947,7 +947,7 @@ mod tests {
 
     #[test]
     fn the_orientation_goes_out_with_its_covariance_and_only_when_given() {
-        use crate::transport::{GyroSample, SENSOR_ORIENTATION};
+        use crate::wire::{GyroSample, SENSOR_ORIENTATION};
         let mut m = ImuMapping::new("imu_link", 1.0, Some(0.1));
         let q = [0.1, -0.2, 0.3, (1.0f64 - 0.14).sqrt()];
         let with = GyroSample {

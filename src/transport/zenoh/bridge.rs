@@ -19,9 +19,10 @@ use super::{
     close, config, key_expr, open, KeyExpr, Options, Receiver, Sender, Session, ZenohError,
 };
 use crate::transport::{
-    check_service_name, AnyInput, Carried, GyroSample, Input, Qos, RawSample, Transport,
-    TransportError, Waker, WireBytes, WireType, ZeroCopySend,
+    check_service_name, AnyInput, Carried, Input, Qos, Transport, TransportError, Waker, WireType,
+    ZeroCopySend,
 };
+use crate::wire::{GyroSample, RawSample, WireBytes};
 
 /// Which way the bridge carries samples.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -1,5 +1,5 @@
 //! Everything Zenoh (feature `zenoh`): the session's configuration, a publisher and a subscriber
-//! of our wire types as their documented little-endian bytes ([`super::WireBytes`]), and the
+//! of our wire types as their documented little-endian bytes ([`crate::wire::WireBytes`]), and the
 //! bridge that carries our services over them (`bridge.rs`, [`run_bridge`]; `driftless bridge`
 //! is its command).
 //!
@@ -27,7 +27,7 @@ pub use zenoh::key_expr::KeyExpr;
 /// A Zenoh session (zenoh's own type; cheap to clone, shared between threads).
 pub use zenoh::Session;
 
-use super::WireBytes;
+use crate::wire::WireBytes;
 
 /// How to configure the session: a standard Zenoh JSON5 file, then these settings over it.
 #[derive(Debug, Clone, Default)]
@@ -244,7 +244,7 @@ pub enum Rejected {
     /// The sample's encoding names another type.
     Encoding(String),
     /// The sample's encoding names another layout version of the type (a bridge of another
-    /// driftless release): the sentence of [`super::wire_version_mismatch`].
+    /// driftless release): the sentence of [`crate::wire::wire_version_mismatch`].
     Version(String),
 }
 
@@ -253,9 +253,9 @@ impl std::fmt::Display for Rejected {
         match self {
             // Without an encoding schema, the size is all there is to go on.
             Rejected::Size(n) => match [
-                super::GYRO_V1_SIZE,
-                super::GYRO_V2_SIZE,
-                super::GYRO_V3_SIZE,
+                crate::wire::GYRO_V1_SIZE,
+                crate::wire::GYRO_V2_SIZE,
+                crate::wire::GYRO_V3_SIZE,
             ]
             .iter()
             .position(|size| size == n)
@@ -264,10 +264,10 @@ impl std::fmt::Display for Rejected {
                     f,
                     "payload of {n} bytes, the size of {} layout v{} (from an older \
                      driftless); this driftless reads {} ({} bytes)",
-                    super::GYRO_V1_TYPE_NAME,
+                    crate::wire::GYRO_V1_TYPE_NAME,
                     i + 1,
-                    super::GYRO_TYPE_NAME,
-                    <super::GyroSample as WireBytes>::SIZE
+                    crate::wire::GYRO_TYPE_NAME,
+                    <crate::wire::GyroSample as WireBytes>::SIZE
                 ),
                 None => write!(f, "payload of {n} bytes"),
             },
@@ -320,7 +320,7 @@ fn decode_payload<T: WireBytes>(enc: &str, bytes: &[u8]) -> Result<T, Rejected> 
     if let Some((_, schema)) = enc.split_once(';') {
         if schema != T::TYPE_NAME {
             return Err(
-                match super::wire_version_mismatch(&format!("the sample ({enc})"), schema) {
+                match crate::wire::wire_version_mismatch(&format!("the sample ({enc})"), schema) {
                     Some(m) => Rejected::Version(m),
                     None => Rejected::Encoding(enc.to_string()),
                 },
@@ -336,7 +336,7 @@ mod tests {
 
     #[test]
     fn an_old_gyro_payload_is_refused_by_its_version() {
-        use crate::transport::{GyroSample, GYRO_TYPE_NAME, GYRO_V1_TYPE_NAME};
+        use crate::wire::{GyroSample, GYRO_TYPE_NAME, GYRO_V1_TYPE_NAME};
         let enc = |schema: &str| {
             Encoding::APPLICATION_OCTET_STREAM
                 .with_schema(schema.to_string())
