@@ -331,50 +331,43 @@ fn fit_with_model_error(points: &[AllanPoint], eps: f64) -> Option<WlsFit> {
     result
 }
 
-/// Fit the IEEE Std 952 terms to Allan deviation points in deg/s (intended: octave-spaced OADEV
-/// with their EDF), with intervals at two-sided confidence `ci`.
-pub fn fit_terms(points: &[AllanPoint], ci: f64) -> Result<NoiseFit, FitError> {
-    let points: Vec<AllanPoint> = points
-        .iter()
-        .copied()
-        .filter(|p| p.dev > 0.0 && p.edf > 0.0 && p.tau > 0.0)
-        .collect();
-    if points.len() < 3 {
-        return Err(FitError::TooFewPoints(points.len()));
-    }
-    let Some(first) = fit_with_model_error(&points, 0.0) else {
-        return Err(FitError::TooFewPoints(points.len()));
-    };
-    // Model error: if the residuals exceed the sampling noise (chi^2 / dof > 1), find the
-    // relative model error eps that brings chi^2 / dof to 1 (bisection on log eps).
+/// Model error: if the residuals exceed the sampling noise (chi^2 / dof > 1), find the
+/// relative model error eps that brings chi^2 / dof to 1 (bisection on log eps); the fit with
+/// it, and eps (0 when the first fit needs none).
+fn with_model_error(points: &[AllanPoint], first: WlsFit) -> (WlsFit, f64) {
     let mut best = first;
     let mut eps = 0.0;
     if best.chi2_per_dof > 1.0 {
         let (mut lo, mut hi) = (1e-6_f64.ln(), 10f64.ln());
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
-            match fit_with_model_error(&points, mid.exp()) {
+            match fit_with_model_error(points, mid.exp()) {
                 Some(f) if f.chi2_per_dof > 1.0 => lo = mid,
                 _ => hi = mid,
             }
         }
         eps = hi.exp();
-        if let Some(f) = fit_with_model_error(&points, eps) {
+        if let Some(f) = fit_with_model_error(points, eps) {
             best = f;
         }
     }
+    (best, eps)
+}
+
+/// The terms' covariance by the sandwich: Cov = B M B, B = (A^T W A)^-1, M = A^T W V W A,
+/// V_ij = rho^octaves(i, j) s_i s_j with s_j^2 = 2 sigma_j^4 / edf_j + (eps sigma_j^2)^2 the
+/// variance the weights assume.
+fn sandwich_cov(points: &[AllanPoint], fit: &WlsFit, eps: f64) -> [[f64; 5]; 5] {
     let WlsFit {
         theta,
         bread,
         var_model,
         ..
-    } = best;
-    // Sandwich: Cov = B M B, B = (A^T W A)^-1, M = A^T W V W A, V_ij = rho^octaves(i, j) s_i s_j
-    // with s_j^2 = 2 sigma_j^4 / edf_j + (eps sigma_j^2)^2 the variance the weights assume.
+    } = fit;
     let support: Vec<usize> = (0..5).filter(|&k| theta[k] > 0.0).collect();
     let sd: Vec<f64> = points
         .iter()
-        .zip(&var_model)
+        .zip(var_model)
         .map(|(p, v)| (2.0 * v * v / p.edf + (eps * v).powi(2)).sqrt())
         .collect();
     let mut meat = [[0.0; 5]; 5];
@@ -402,6 +395,26 @@ pub fn fit_terms(points: &[AllanPoint], ci: f64) -> Result<NoiseFit, FitError> {
             cov[k][l] = s;
         }
     }
+    cov
+}
+
+/// Fit the IEEE Std 952 terms to Allan deviation points in deg/s (intended: octave-spaced OADEV
+/// with their EDF), with intervals at two-sided confidence `ci`.
+pub fn fit_terms(points: &[AllanPoint], ci: f64) -> Result<NoiseFit, FitError> {
+    let points: Vec<AllanPoint> = points
+        .iter()
+        .copied()
+        .filter(|p| p.dev > 0.0 && p.edf > 0.0 && p.tau > 0.0)
+        .collect();
+    if points.len() < 3 {
+        return Err(FitError::TooFewPoints(points.len()));
+    }
+    let Some(first) = fit_with_model_error(&points, 0.0) else {
+        return Err(FitError::TooFewPoints(points.len()));
+    };
+    let (best, eps) = with_model_error(&points, first);
+    let cov = sandwich_cov(&points, &best, eps);
+    let theta = best.theta;
     let tau_range = (points[0].tau, points[points.len() - 1].tau);
     let terms = Term::ALL
         .iter()
