@@ -235,49 +235,41 @@ impl LogOrigin {
     }
 }
 
-/// Read a rate log, by what the file holds whatever its name: a bag (a directory, or an MCAP
-/// file) through its Imu topic (`topic`, or its only one), or CSV text (gzip-compressed too)
-/// as [`read_table`] (with `keep_time`, [`read_table_keeping_time`]) does; anything else is
-/// refused, saying what it holds. `wanted` names columns (a bag's: `x`, `y`, `z`); empty,
-/// every rate column. `topic` with a CSV file is an error.
-pub fn read_log(
+/// A CSV rate log (gzip-compressed too), as [`read_table`] or [`read_table_keeping_time`]
+/// reads it; `topic` is an error here.
+fn read_csv_log(
     path: &Path,
     wanted: &[String],
     topic: Option<&str>,
     keep_time: bool,
+    sniffed: &super::content::Sniffed,
 ) -> Result<RateLog, InputError> {
-    let sniffed = sniff(path)?;
-    let is_bag = matches!(sniffed.content, Content::Directory | Content::Mcap);
-    if !is_bag && !sniffed.content.is_text() {
-        return Err(sniffed.refuse(RATE_LOG_TAKES));
+    if let Some(t) = topic {
+        return Err(InputError::file(
+            path,
+            format!("--topic {t}: not a ROS 2 bag (an MCAP file or a rosbag2 directory)"),
+        ));
     }
-    if !is_bag {
-        if let Some(t) = topic {
-            return Err(InputError::file(
-                path,
-                format!("--topic {t}: not a ROS 2 bag (an MCAP file or a rosbag2 directory)"),
-            ));
-        }
-        let table = if keep_time {
-            read_table_keeping_time(path, wanted)?
-        } else {
-            read_table(path, wanted)?
-        };
-        let origin = LogOrigin {
-            path: path.to_path_buf(),
-            bag: None,
-            format_note: sniffed.csv_note(),
-        };
-        return Ok(RateLog { table, origin });
-    }
-    let bag = Bag::open(path)?;
-    let topic = bag.imu_topic(topic)?;
-    // Picks index the six columns a bag has: x, y, z, ax, ay, az.
-    let all: Vec<&str> = BAG_COLUMNS
-        .iter()
-        .chain(&BAG_ACCEL_COLUMNS)
-        .copied()
-        .collect();
+    let table = if keep_time {
+        read_table_keeping_time(path, wanted)?
+    } else {
+        read_table(path, wanted)?
+    };
+    let origin = LogOrigin {
+        path: path.to_path_buf(),
+        bag: None,
+        format_note: sniffed.csv_note(),
+    };
+    Ok(RateLog { table, origin })
+}
+
+/// The bag columns `wanted` names, as indices into `all` (x, y, z, ax, ay, az); empty, x, y, z.
+fn bag_picks(
+    path: &Path,
+    topic: &str,
+    wanted: &[String],
+    all: &[&str],
+) -> Result<Vec<usize>, InputError> {
     let mut picks = Vec::with_capacity(wanted.len().max(3));
     for w in wanted {
         match all.iter().position(|c| c == w) {
@@ -296,6 +288,71 @@ pub fn read_log(
     if picks.is_empty() {
         picks.extend(0..3);
     }
+    Ok(picks)
+}
+
+/// The table of a bag's picked columns (and its stamps as a time column with `keep_time`).
+fn bag_table(
+    path: &Path,
+    picks: &[usize],
+    all: &[&str],
+    axes: &mut [Vec<f64>; 6],
+    stamps: &[i64],
+    keep_time: bool,
+) -> Table {
+    let time = keep_time.then(|| TimeColumn {
+        name: "t_s".into(),
+        position: 0,
+        cells: stamps.iter().map(|&ns| seconds_text(ns)).collect(),
+    });
+    Table {
+        path: path.to_path_buf(),
+        names: picks.iter().map(|&i| all[i].to_string()).collect(),
+        // Each axis moved out at its last pick, copied only for a column named twice.
+        columns: picks
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                if picks[k + 1..].contains(&i) {
+                    axes[i].clone()
+                } else {
+                    std::mem::take(&mut axes[i])
+                }
+            })
+            .collect(),
+        has_header: true,
+        time,
+    }
+}
+
+/// Read a rate log, by what the file holds whatever its name: a bag (a directory, or an MCAP
+/// file) through its Imu topic (`topic`, or its only one), or CSV text (gzip-compressed too)
+/// as [`read_table`] (with `keep_time`, [`read_table_keeping_time`]) does; anything else is
+/// refused, saying what it holds. `wanted` names columns (a bag's: `x`, `y`, `z`); empty,
+/// every rate column. `topic` with a CSV file is an error.
+pub fn read_log(
+    path: &Path,
+    wanted: &[String],
+    topic: Option<&str>,
+    keep_time: bool,
+) -> Result<RateLog, InputError> {
+    let sniffed = sniff(path)?;
+    let is_bag = matches!(sniffed.content, Content::Directory | Content::Mcap);
+    if !is_bag && !sniffed.content.is_text() {
+        return Err(sniffed.refuse(RATE_LOG_TAKES));
+    }
+    if !is_bag {
+        return read_csv_log(path, wanted, topic, keep_time, &sniffed);
+    }
+    let bag = Bag::open(path)?;
+    let topic = bag.imu_topic(topic)?;
+    // Picks index the six columns a bag has: x, y, z, ax, ay, az.
+    let all: Vec<&str> = BAG_COLUMNS
+        .iter()
+        .chain(&BAG_ACCEL_COLUMNS)
+        .copied()
+        .collect();
+    let picks = bag_picks(path, &topic, wanted, &all)?;
     let accel = picks.iter().any(|&i| i >= 3);
     let needed: [bool; 6] = std::array::from_fn(|i| picks.contains(&i));
     let shown = path.display();
@@ -363,29 +420,7 @@ pub fn read_log(
             format!("topic {topic}: no messages"),
         ));
     }
-    let time = keep_time.then(|| TimeColumn {
-        name: "t_s".into(),
-        position: 0,
-        cells: stamps.iter().map(|&ns| seconds_text(ns)).collect(),
-    });
-    let table = Table {
-        path: path.to_path_buf(),
-        names: picks.iter().map(|&i| all[i].to_string()).collect(),
-        // Each axis moved out at its last pick, copied only for a column named twice.
-        columns: picks
-            .iter()
-            .enumerate()
-            .map(|(k, &i)| {
-                if picks[k + 1..].contains(&i) {
-                    axes[i].clone()
-                } else {
-                    std::mem::take(&mut axes[i])
-                }
-            })
-            .collect(),
-        has_header: true,
-        time,
-    };
+    let table = bag_table(path, &picks, &all, &mut axes, &stamps, keep_time);
     Ok(RateLog {
         table,
         origin: LogOrigin {
