@@ -102,32 +102,10 @@ pub fn read_truth(path: &Path, rate_hz: f64) -> Result<Truth, InputError> {
     }
 }
 
-fn read_from<R: Read>(reader: R, path: &Path, rate_hz: f64) -> Result<Truth, InputError> {
-    let shown = path.display().to_string();
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(super::csv_table::CrlfToLf::new(reader));
-    let mut row = csv::ByteRecord::new();
-    if !rdr
-        .read_byte_record(&mut row)
-        .map_err(|e| csv_error(path, e))?
-    {
-        return Err(InputError::file(path, "the file is empty"));
-    }
-    if row.iter().all(|c| parse_cell(c).is_some()) {
-        return Err(InputError::At {
-            path: shown,
-            line: row.position().map_or(1, |p| p.line()),
-            column: 1,
-            message: "a truth file needs a header row naming its columns (rates in deg/s, optionally `still` and a time column)".into(),
-        });
-    }
-    let names: Vec<String> = row
-        .iter()
-        .map(|c| String::from_utf8_lossy(c).trim().to_string())
-        .collect();
+/// What each column of the header is (the first time column time, `still...` columns still,
+/// the rest rates), and how many rate and still columns there are; refused with no rate column,
+/// or a still count that is neither one nor the rates'.
+fn column_roles(path: &Path, names: &[String]) -> Result<(Vec<Role>, usize, usize), InputError> {
     // Only the first time column is time; a second one would be a signal named like time.
     let time_at = names
         .iter()
@@ -164,6 +142,36 @@ fn read_from<R: Read>(reader: R, path: &Path, rate_hz: f64) -> Result<Truth, Inp
             ),
         ));
     }
+    Ok((roles, n_rate, n_still))
+}
+
+fn read_from<R: Read>(reader: R, path: &Path, rate_hz: f64) -> Result<Truth, InputError> {
+    let shown = path.display().to_string();
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(super::csv_table::CrlfToLf::new(reader));
+    let mut row = csv::ByteRecord::new();
+    if !rdr
+        .read_byte_record(&mut row)
+        .map_err(|e| csv_error(path, e))?
+    {
+        return Err(InputError::file(path, "the file is empty"));
+    }
+    if row.iter().all(|c| parse_cell(c).is_some()) {
+        return Err(InputError::At {
+            path: shown,
+            line: row.position().map_or(1, |p| p.line()),
+            column: 1,
+            message: "a truth file needs a header row naming its columns (rates in deg/s, optionally `still` and a time column)".into(),
+        });
+    }
+    let names: Vec<String> = row
+        .iter()
+        .map(|c| String::from_utf8_lossy(c).trim().to_string())
+        .collect();
+    let (roles, n_rate, n_still) = column_roles(path, &names)?;
     let mut rates: Vec<(String, Vec<f64>)> = Vec::with_capacity(n_rate);
     let mut still: Vec<Vec<bool>> = Vec::with_capacity(n_still);
     for (n, r) in names.iter().zip(&roles) {
