@@ -325,33 +325,7 @@ impl<'a> Running<'a> {
         }
         drop(tx);
 
-        let layout = Layout {
-            pipeline: p.name.clone(),
-            stages: p
-                .stages
-                .iter()
-                .map(|s| (s.name.clone(), s.kind.name.to_string()))
-                .collect(),
-            deadline: p.deadline,
-            algorithmic_delay: Duration::from_secs_f64(lag_total as f64 / p.rate_hz),
-            interval: p.report_interval,
-            print: print_summary,
-            // Only stages with a state file: a line for each start of the others says nothing.
-            warm_start: r
-                .warm_starts
-                .iter()
-                .filter(|(_, w)| *w != WarmStart::NotConfigured)
-                .map(|(stage, w)| format!("{stage}: {w}"))
-                .collect(),
-            // The stats carry one outcome: the worst of the stages' (a second state-keeping
-            // stage is rare; its line is in the report).
-            warm_start_outcome: r
-                .warm_starts
-                .iter()
-                .map(|(_, w)| w.code())
-                .max()
-                .unwrap_or(crate::wire::WARM_START_NONE),
-        };
+        let layout = layout(p, &r.warm_starts, lag_total, print_summary);
         r.stats = Some(Stats {
             reporter: Reporter::new(layout, counters, lost),
             rx,
@@ -588,5 +562,40 @@ pub(super) fn serve(
                 }
             }
         }
+    }
+}
+
+/// What the reporter shows of the pipeline: its stages, deadline and delay, and how each
+/// stage with a state file started.
+fn layout(
+    p: &Pipeline,
+    warm_starts: &[(String, WarmStart)],
+    lag_total: usize,
+    print_summary: bool,
+) -> Layout {
+    Layout {
+        pipeline: p.name.clone(),
+        stages: p
+            .stages
+            .iter()
+            .map(|s| (s.name.clone(), s.kind.name.to_string()))
+            .collect(),
+        deadline: p.deadline,
+        algorithmic_delay: Duration::from_secs_f64(lag_total as f64 / p.rate_hz),
+        interval: p.report_interval,
+        print: print_summary,
+        // Only stages with a state file: a line for each start of the others says nothing.
+        warm_start: warm_starts
+            .iter()
+            .filter(|(_, w)| *w != WarmStart::NotConfigured)
+            .map(|(stage, w)| format!("{stage}: {w}"))
+            .collect(),
+        // The stats carry one outcome: the worst of the stages' (a second state-keeping
+        // stage is rare; its line is in the report).
+        warm_start_outcome: warm_starts
+            .iter()
+            .map(|(_, w)| w.code())
+            .max()
+            .unwrap_or(crate::wire::WARM_START_NONE),
     }
 }
