@@ -238,6 +238,75 @@ impl StopConfig {
     }
 }
 
+/// `walk_min` and `walk_max` (deg/h/sqrt(h)) as the tracker's learnt walk's range, either
+/// one defaulting around the walk `terms` configure; `None` if neither is given.
+fn walk_range(t: &mut Table<'_, '_>, terms: &BiasTerms) -> Result<Option<(f64, f64)>, InputError> {
+    let walk_min = t.float(&WALK_MIN)?;
+    let walk_max = t.float(&WALK_MAX)?;
+    if walk_min.is_some() || walk_max.is_some() {
+        let configured = BiasModel::new(terms, t.cx.rate_hz, Instability::from_terms(terms))
+            .map(|m| m.walk_per_s(t.cx.rate_hz))
+            .unwrap_or(0.0);
+        let (lo, hi) = default_walk_bounds(configured);
+        let from_rrw = |k: f64| (k / 216_000.0).powi(2);
+        let (lo, hi) = (walk_min.map_or(lo, from_rrw), walk_max.map_or(hi, from_rrw));
+        if lo > hi {
+            return Err(t.error(format!(
+                "predict.bias: walk_min ({}) is above walk_max ({}) deg/h/sqrt(h)",
+                walk_to_rrw(lo),
+                walk_to_rrw(hi)
+            )));
+        }
+        return Ok(Some((lo, hi)));
+    }
+    Ok(None)
+}
+
+/// The saved state's settings (`state_file`, `state_every_s`, `state_required`), with the
+/// state loaded and checked against this stage now; `None` without a `state_file`.
+fn state(
+    t: &mut Table<'_, '_>,
+    terms: &BiasTerms,
+    tracker: &TrackerConfig,
+) -> Result<Option<StateConfig>, InputError> {
+    let src = t.src;
+    Ok(match t.get::<String>(&STATE_FILE)? {
+        Some(file) => {
+            let path = src.resolve(file.get_ref());
+            let every_s = t.float_or_default(&STATE_EVERY_S)?;
+            let required = t.bool_or_default(&STATE_REQUIRED)?;
+            let owner = Owner {
+                pipeline: t.owner.0.to_string(),
+                stage: t.owner.1.to_string(),
+                axes: t.cx.axes,
+                rate_hz: t.cx.rate_hz,
+                terms: *terms,
+            };
+            let probe = BiasTracker::new(terms, t.cx.rate_hz, tracker)
+                .map_err(|e| t.error(format!("predict.bias: {e}")))?;
+            let loaded = load_checked(&path, &owner, &probe);
+            if let (Loaded::Unusable(u), true) = (&loaded, required) {
+                return Err(src.span(&file, refusal(u)));
+            }
+            Some(StateConfig {
+                path,
+                owner,
+                every: ((every_s * t.cx.rate_hz).round() as u64).max(1),
+                required,
+                loaded,
+            })
+        }
+        None => {
+            for key in [&STATE_EVERY_S, &STATE_REQUIRED] {
+                if t.has(key) {
+                    return Err(t.error(format!("predict.bias: {} needs state_file", key.name)));
+                }
+            }
+            None
+        }
+    })
+}
+
 fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let src = t.src;
     let profile = t.choice(&PROFILE, "profile", false)?;
@@ -309,24 +378,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             tracker.learn_walk = l;
         }
     }
-    let walk_min = t.float(&WALK_MIN)?;
-    let walk_max = t.float(&WALK_MAX)?;
-    if walk_min.is_some() || walk_max.is_some() {
-        let configured = BiasModel::new(&terms, t.cx.rate_hz, Instability::from_terms(&terms))
-            .map(|m| m.walk_per_s(t.cx.rate_hz))
-            .unwrap_or(0.0);
-        let (lo, hi) = default_walk_bounds(configured);
-        let from_rrw = |k: f64| (k / 216_000.0).powi(2);
-        let (lo, hi) = (walk_min.map_or(lo, from_rrw), walk_max.map_or(hi, from_rrw));
-        if lo > hi {
-            return Err(t.error(format!(
-                "predict.bias: walk_min ({}) is above walk_max ({}) deg/h/sqrt(h)",
-                walk_to_rrw(lo),
-                walk_to_rrw(hi)
-            )));
-        }
-        tracker.walk_range = Some((lo, hi));
-    }
+    tracker.walk_range = walk_range(t, &terms)?;
     let input = t.get::<String>(&STOP_INPUT)?;
     let (rule, set) = StopRule::parse(t, &STOP_SPEED_OF_SIGNAL)?;
     let stop = match input {
@@ -343,41 +395,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             None => None,
         },
     };
-    let state = match t.get::<String>(&STATE_FILE)? {
-        Some(file) => {
-            let path = src.resolve(file.get_ref());
-            let every_s = t.float_or_default(&STATE_EVERY_S)?;
-            let required = t.bool_or_default(&STATE_REQUIRED)?;
-            let owner = Owner {
-                pipeline: t.owner.0.to_string(),
-                stage: t.owner.1.to_string(),
-                axes: t.cx.axes,
-                rate_hz: t.cx.rate_hz,
-                terms,
-            };
-            let probe = BiasTracker::new(&terms, t.cx.rate_hz, &tracker)
-                .map_err(|e| t.error(format!("predict.bias: {e}")))?;
-            let loaded = load_checked(&path, &owner, &probe);
-            if let (Loaded::Unusable(u), true) = (&loaded, required) {
-                return Err(src.span(&file, refusal(u)));
-            }
-            Some(StateConfig {
-                path,
-                owner,
-                every: ((every_s * t.cx.rate_hz).round() as u64).max(1),
-                required,
-                loaded,
-            })
-        }
-        None => {
-            for key in [&STATE_EVERY_S, &STATE_REQUIRED] {
-                if t.has(key) {
-                    return Err(t.error(format!("predict.bias: {} needs state_file", key.name)));
-                }
-            }
-            None
-        }
-    };
+    let state = state(t, &terms, &tracker)?;
     let params = BiasParams {
         terms,
         accel,
