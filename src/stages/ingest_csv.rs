@@ -323,6 +323,53 @@ impl Layout {
     }
 }
 
+/// A readable row's sample: its rates, its accelerometer (when the layout has one) and its
+/// stop flag (when it has a stop column and the cell is known).
+fn fill_sample(sample: &mut RawSample, values: &[f64], layout: &Layout, axes: usize) {
+    sample.rate[..axes].copy_from_slice(&values[..axes]);
+    if let Some(k) = layout.accel {
+        sample.accel.copy_from_slice(&values[k..k + 3]);
+        if sample.accel.iter().any(|v| !v.is_finite()) {
+            // The accelerometer is there, its reading unknown: the guard holds
+            // the last good one and flags it.
+            sample.accel = [f64::NAN; 3];
+        }
+        sample.flags |= RAW_ACCEL;
+    }
+    match layout.stop.map(|k| values[k]) {
+        Some(v) if v.is_nan() => {}
+        Some(v) if v >= 0.5 => sample.flags |= RAW_VEHICLE_STOPPED,
+        Some(_) => sample.flags |= RAW_VEHICLE_MOVING,
+        None => {}
+    }
+}
+
+/// An unreadable row's sample: marked invalid, its rates (and accelerometer) unknown.
+fn mark_invalid(sample: &mut RawSample, layout: &Layout) {
+    sample.rate = [f64::NAN; 3];
+    sample.flags = RAW_INVALID;
+    if layout.accel.is_some() {
+        // The accelerometer is still there, its reading unknown.
+        sample.accel = [f64::NAN; 3];
+        sample.flags |= RAW_ACCEL;
+    }
+}
+
+/// The warning for the first pass's `bad`th bad row (data row `i + 1`): the first
+/// [`REPORTED_BAD_ROWS`] each with their position, then one line that more are not listed.
+fn warn_bad_row(row: &RowRead, bad: u64, shown: &std::path::Display<'_>, i: u64) {
+    if bad <= REPORTED_BAD_ROWS {
+        let why = match row {
+            RowRead::Bad(e) | RowRead::BadCells { error: e, .. } => e.to_string(),
+            _ => format!("{shown}: data row {}: negative time", i + 1),
+        };
+        eprintln!("driftless: warning: {why} (replayed as an invalid sample: flagged)");
+    }
+    if bad == REPORTED_BAD_ROWS + 1 {
+        eprintln!("driftless: warning: {shown}: more bad rows, flagged but not listed");
+    }
+}
+
 /// The reader thread: the file's rows as raw samples (sequence numbers from 0 across loops,
 /// timestamps increasing across loops), a bad row as a sample marked invalid with its position
 /// on stderr. Ends at the end of the file (without `loop`), at a read error, or when the replay
@@ -381,16 +428,7 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
             match read {
                 RowRead::End => break,
                 ref row if usable && time >= 0.0 => {
-                    sample.rate[..axes].copy_from_slice(&values[..axes]);
-                    if let Some(k) = layout.accel {
-                        sample.accel.copy_from_slice(&values[k..k + 3]);
-                        if sample.accel.iter().any(|v| !v.is_finite()) {
-                            // The accelerometer is there, its reading unknown: the guard holds
-                            // the last good one and flags it.
-                            sample.accel = [f64::NAN; 3];
-                        }
-                        sample.flags |= RAW_ACCEL;
-                    }
+                    fill_sample(&mut sample, &values, &layout, axes);
                     if let RowRead::BadCells { error, .. } = row {
                         if pass == 0 {
                             beside_bad += 1;
@@ -402,12 +440,6 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                             }
                         }
                     }
-                    match layout.stop.map(|k| values[k]) {
-                        Some(v) if v.is_nan() => {}
-                        Some(v) if v >= 0.5 => sample.flags |= RAW_VEHICLE_STOPPED,
-                        Some(_) => sample.flags |= RAW_VEHICLE_MOVING,
-                        None => {}
-                    }
                     sample.t_ns = if params.time_column.is_some() {
                         (time * 1e9).round() as u64
                     } else {
@@ -417,31 +449,10 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 // Not dropped: the sample is replayed marked invalid (the guard holds the last
                 // good rate, flags and counts it), its time held, its position on stderr.
                 other => {
-                    sample.rate = [f64::NAN; 3];
-                    sample.flags = RAW_INVALID;
-                    if layout.accel.is_some() {
-                        // The accelerometer is still there, its reading unknown.
-                        sample.accel = [f64::NAN; 3];
-                        sample.flags |= RAW_ACCEL;
-                    }
+                    mark_invalid(&mut sample, &layout);
                     if pass == 0 {
                         bad += 1;
-                        if bad <= REPORTED_BAD_ROWS {
-                            let why = match other {
-                                RowRead::Bad(e) | RowRead::BadCells { error: e, .. } => {
-                                    e.to_string()
-                                }
-                                _ => format!("{shown}: data row {}: negative time", i + 1),
-                            };
-                            eprintln!(
-                                "driftless: warning: {why} (replayed as an invalid sample: flagged)"
-                            );
-                        }
-                        if bad == REPORTED_BAD_ROWS + 1 {
-                            eprintln!(
-                                "driftless: warning: {shown}: more bad rows, flagged but not listed"
-                            );
-                        }
+                        warn_bad_row(&other, bad, &shown, i);
                     }
                 }
             }
