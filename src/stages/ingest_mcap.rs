@@ -204,6 +204,38 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
             ),
         ));
     }
+    let channel = raw_channel(t, &file, &channels, &file_key, topic_key.as_ref())?;
+    let at_topic = topic_key
+        .as_ref()
+        .map_or(file_key.span().start, |k| k.span().start);
+    check_channel(t, &file, channel, at_topic)?;
+    for m in rec
+        .messages::<RawMessage>(&channel.topic)
+        .take(CHECKED_MESSAGES)
+    {
+        m.map_err(|e| src.at(at_topic, e))?;
+    }
+    Ok(McapParams {
+        file,
+        format: Format::Recording,
+        topic: channel.topic.clone(),
+        messages: channel.messages,
+        replay,
+        stops: None,
+        note,
+    })
+}
+
+/// The raw-sample channel of a `driftless record` recording to replay: `topic`'s (which must
+/// hold raw samples), or the only raw one.
+fn raw_channel<'c>(
+    t: &Table<'_, '_>,
+    file: &std::path::Path,
+    channels: &'c [recording::ChannelInfo],
+    file_key: &Spanned<String>,
+    topic_key: Option<&Spanned<String>>,
+) -> Result<&'c recording::ChannelInfo, InputError> {
+    let src = t.src;
     let topics = || {
         let list: Vec<String> = channels
             .iter()
@@ -216,7 +248,7 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
         }
     };
     let raw: Vec<_> = channels.iter().filter(|c| c.schema == RAW_SCHEMA).collect();
-    let channel = match &topic_key {
+    Ok(match topic_key {
         Some(k) => {
             let want = recording::topic(k.get_ref());
             let Some(c) = channels.iter().find(|c| c.topic == want) else {
@@ -246,7 +278,7 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
             [c] => *c,
             [] => {
                 return Err(src.span(
-                    &file_key,
+                    file_key,
                     format!(
                         "no {RAW_SCHEMA} or {IMU_TYPE} topic in {} (topics: {}): neither a \
                          `driftless record` recording of a raw service nor a ROS 2 bag of an IMU",
@@ -267,10 +299,18 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
                 ));
             }
         },
-    };
-    let at_topic = topic_key
-        .as_ref()
-        .map_or(file_key.span().start, |k| k.span().start);
+    })
+}
+
+/// A recording's raw channel checked before the replay: its encoding, the units it was
+/// recorded in against the pipeline's, and that it has messages.
+fn check_channel(
+    t: &Table<'_, '_>,
+    file: &std::path::Path,
+    channel: &recording::ChannelInfo,
+    at_topic: usize,
+) -> Result<(), InputError> {
+    let src = t.src;
     if channel.encoding != recording::MESSAGE_ENCODING {
         return Err(src.at(
             at_topic,
@@ -322,21 +362,7 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
             ),
         ));
     }
-    for m in rec
-        .messages::<RawMessage>(&channel.topic)
-        .take(CHECKED_MESSAGES)
-    {
-        m.map_err(|e| src.at(at_topic, e))?;
-    }
-    Ok(McapParams {
-        file,
-        format: Format::Recording,
-        topic: channel.topic.clone(),
-        messages: channel.messages,
-        replay,
-        stops: None,
-        note,
-    })
+    Ok(())
 }
 
 impl Params for McapParams {
