@@ -285,34 +285,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     );
     let name = t.required_str(&NAME)?;
     let rate_hz = t.required_float(&RATE_HZ)?;
-    if name.get_ref().is_empty()
-        || !name
-            .get_ref()
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-    {
-        return Err(src.span(
-            &name,
-            "name must be non-empty ASCII letters, digits, '-' or '_'",
-        ));
-    }
+    valid_name(&src, &name)?;
     let name = name.into_inner();
     let deadline_us = t.float(&DEADLINE_US)?;
     let axes = t.int_or_default(&AXES)?;
-    let input_units = match t
-        .choice_or_default(&INPUT_UNITS, "input_units", true)?
-        .as_str()
-    {
-        "rad/s" => Units::RadPerSec,
-        _ => Units::DegPerSec,
-    };
-    let accel_units = match t
-        .choice_or_default(&ACCEL_UNITS, "accel_units", true)?
-        .as_str()
-    {
-        "g" => AccelUnits::G,
-        _ => AccelUnits::MPerS2,
-    };
+    let (input_units, accel_units) = units(&mut t)?;
     let report_interval = Duration::from_secs_f64(t.float_or_default(&REPORT_INTERVAL_S)?);
     let realtime_priority = t.int(&REALTIME_PRIORITY)?.map(|p| p as i32);
     let cpu = t.int(&CPU)?;
@@ -352,46 +329,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         entries.push(registry::stage(&src, value, cx, &name)?);
     }
     let stages = chain(&src, entries, stage_span.start)?;
-    let deadline = match deadline_us {
-        Some(us) => Duration::from_secs_f64(us * 1e-6),
-        // One period of the samples as they fall due: a replay at pace 10 takes one every
-        // tenth of a period, and a chain slower than that falls behind.
-        None => {
-            let speed = stages
-                .first()
-                .and_then(|s| s.params.pace())
-                .and_then(crate::clock::Pace::factor)
-                .unwrap_or(1.0);
-            Duration::from_secs_f64(1.0 / (rate_hz * speed))
-        }
-    };
-    let warnings = step_warning(&stages, input_units)
-        .into_iter()
-        .chain(stages.iter().flat_map(|s| {
-            let name = &s.name;
-            s.params
-                .warnings()
-                .into_iter()
-                .map(move |w| format!("stage {name:?}: {w}"))
-        }))
-        .collect();
+    let deadline = deadline(deadline_us, &stages, rate_hz);
+    let warnings = warnings(&stages, input_units);
     let chain = Chain {
         pipeline: &name,
         cx,
         stages: &stages,
         stats_service: &iceoryx2.stats_service,
     };
-    let mut sides = Vec::new();
-    for (kind, (at, table)) in side_tables {
-        let valid: Vec<&'static str> = kind.keys.iter().map(|k| k.name).collect();
-        let own = split(&src, table, &valid)?;
-        let mut t = Table::new(&src, cx, at, at, None, (&name, kind.table), own);
-        let side = (kind.read)(&mut t, &chain)?;
-        sides.push(SideSpec {
-            kind,
-            side: Arc::from(side),
-        });
-    }
+    let sides = sides(&src, side_tables, &name, &chain)?;
     Ok(Pipeline {
         path: path.to_path_buf(),
         name,
@@ -409,6 +355,93 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
         warnings,
         stages,
     })
+}
+
+/// A pipeline's name: non-empty ASCII letters, digits, '-' or '_'.
+fn valid_name(src: &Src<'_>, name: &Spanned<String>) -> Result<(), InputError> {
+    if name.get_ref().is_empty()
+        || !name
+            .get_ref()
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+    {
+        return Err(src.span(
+            name,
+            "name must be non-empty ASCII letters, digits, '-' or '_'",
+        ));
+    }
+    Ok(())
+}
+
+/// The rate units and the accelerometer's (`input_units`, `accel_units`).
+fn units(t: &mut Table<'_, '_>) -> Result<(Units, AccelUnits), InputError> {
+    let input_units = match t
+        .choice_or_default(&INPUT_UNITS, "input_units", true)?
+        .as_str()
+    {
+        "rad/s" => Units::RadPerSec,
+        _ => Units::DegPerSec,
+    };
+    let accel_units = match t
+        .choice_or_default(&ACCEL_UNITS, "accel_units", true)?
+        .as_str()
+    {
+        "g" => AccelUnits::G,
+        _ => AccelUnits::MPerS2,
+    };
+    Ok((input_units, accel_units))
+}
+
+/// The deadline: `deadline_us`, or one period of the samples as they fall due.
+fn deadline(deadline_us: Option<f64>, stages: &[StageSpec], rate_hz: f64) -> Duration {
+    match deadline_us {
+        Some(us) => Duration::from_secs_f64(us * 1e-6),
+        // One period of the samples as they fall due: a replay at pace 10 takes one every
+        // tenth of a period, and a chain slower than that falls behind.
+        None => {
+            let speed = stages
+                .first()
+                .and_then(|s| s.params.pace())
+                .and_then(crate::clock::Pace::factor)
+                .unwrap_or(1.0);
+            Duration::from_secs_f64(1.0 / (rate_hz * speed))
+        }
+    }
+}
+
+/// The pipeline's warnings: the step a stage assumes against the data's, then each stage's own.
+fn warnings(stages: &[StageSpec], input_units: Units) -> Vec<String> {
+    step_warning(stages, input_units)
+        .into_iter()
+        .chain(stages.iter().flat_map(|s| {
+            let name = &s.name;
+            s.params
+                .warnings()
+                .into_iter()
+                .map(move |w| format!("stage {name:?}: {w}"))
+        }))
+        .collect()
+}
+
+/// The side tables read against the chain, in the file's order.
+fn sides<'i>(
+    src: &Src<'_>,
+    side_tables: Vec<(&'static crate::sides::Kind, (usize, DeTable<'i>))>,
+    name: &str,
+    chain: &Chain<'_>,
+) -> Result<Vec<SideSpec>, InputError> {
+    let mut sides = Vec::new();
+    for (kind, (at, table)) in side_tables {
+        let valid: Vec<&'static str> = kind.keys.iter().map(|k| k.name).collect();
+        let own = split(src, table, &valid)?;
+        let mut t = Table::new(src, chain.cx, at, at, None, (name, kind.table), own);
+        let side = (kind.read)(&mut t, chain)?;
+        sides.push(SideSpec {
+            kind,
+            side: Arc::from(side),
+        });
+    }
+    Ok(sides)
 }
 
 /// The step the data shows against the step a stage assumes (a profile's `lsb`): one line when
