@@ -474,29 +474,7 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
             ),
         ));
     }
-    // Unique names and outputs.
-    for (i, e) in entries.iter().enumerate() {
-        if let Some(prev) = entries[..i].iter().find(|p| p.spec.name == e.spec.name) {
-            let pos = src.at(prev.name_at, "");
-            return Err(src.at(
-                e.name_at,
-                format!(
-                    "duplicate stage name {:?} (first used at {})",
-                    e.spec.name,
-                    position(&pos)
-                ),
-            ));
-        }
-        if let Some(prev) = entries[..i].iter().find(|p| p.spec.output == e.spec.output) {
-            return Err(src.at(
-                e.output_at,
-                format!(
-                    "service {:?} is already the output of stage {:?}: each service has one publisher",
-                    e.spec.output, prev.spec.name
-                ),
-            ));
-        }
-    }
+    unique_names(src, &entries)?;
     let ingests: Vec<&Entry> = entries.iter().filter(|e| e.spec.kind.is_ingest()).collect();
     let Some(ingest) = ingests.first() else {
         let ingests: Vec<&str> = registry::KINDS
@@ -536,6 +514,67 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
             ));
         }
     }
+    let order = walk(src, &entries, &ingest.spec.name)?;
+    externals_placed(src, &entries, &order)?;
+    let last = &entries[*order.last().unwrap_or(&0)];
+    if last.spec.kind.role != Role::Publish {
+        return Err(src.at(
+            last.output_at,
+            format!(
+                "the chain ends at stage {:?} ({}), not at a publish stage",
+                last.spec.name, last.spec.kind.name
+            ),
+        ));
+    }
+    for &i in &order[1..order.len() - 1] {
+        if entries[i].spec.kind.role == Role::Publish {
+            return Err(src.at(
+                entries[i].name_at,
+                "a publish stage must be the last of the chain",
+            ));
+        }
+    }
+    if order.len() < 2 {
+        return Err(src.at(at, "a pipeline needs an ingest and a publish stage"));
+    }
+    let mut slots: Vec<Option<Entry>> = entries.into_iter().map(Some).collect();
+    Ok(order
+        .into_iter()
+        .filter_map(|i| slots[i].take().map(|e| e.spec))
+        .collect())
+}
+
+/// Unique stage names and outputs: each service has one publisher.
+fn unique_names(src: &Src<'_>, entries: &[Entry]) -> Result<(), InputError> {
+    // Unique names and outputs.
+    for (i, e) in entries.iter().enumerate() {
+        if let Some(prev) = entries[..i].iter().find(|p| p.spec.name == e.spec.name) {
+            let pos = src.at(prev.name_at, "");
+            return Err(src.at(
+                e.name_at,
+                format!(
+                    "duplicate stage name {:?} (first used at {})",
+                    e.spec.name,
+                    position(&pos)
+                ),
+            ));
+        }
+        if let Some(prev) = entries[..i].iter().find(|p| p.spec.output == e.spec.output) {
+            return Err(src.at(
+                e.output_at,
+                format!(
+                    "service {:?} is already the output of stage {:?}: each service has one publisher",
+                    e.spec.output, prev.spec.name
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The chain's order, walked from the ingest (`entries`' first ingest stage, named `ingest`):
+/// each output read by at most one stage, no cycle, every stage reached.
+fn walk(src: &Src<'_>, entries: &[Entry], ingest: &str) -> Result<Vec<usize>, InputError> {
     // Walk from the ingest.
     let mut order: Vec<usize> = Vec::with_capacity(entries.len());
     let mut current = entries
@@ -573,10 +612,16 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
             entries[stray].input_at,
             format!(
                 "cycle: stage {:?} is not reachable from the ingest {:?}",
-                entries[stray].spec.name, ingest.spec.name
+                entries[stray].spec.name, ingest
             ),
         ));
     }
+    Ok(order)
+}
+
+/// External stages in the chain `order`: neither first after the ingest nor last, nor two in
+/// a row.
+fn externals_placed(src: &Src<'_>, entries: &[Entry], order: &[usize]) -> Result<(), InputError> {
     let is_external = |i: usize| entries[i].spec.kind.role == Role::External;
     for (pos, &i) in order.iter().enumerate() {
         if !is_external(i) {
@@ -612,32 +657,7 @@ fn chain(src: &Src<'_>, entries: Vec<Entry>, at: usize) -> Result<Vec<StageSpec>
             ));
         }
     }
-    let last = &entries[*order.last().unwrap_or(&0)];
-    if last.spec.kind.role != Role::Publish {
-        return Err(src.at(
-            last.output_at,
-            format!(
-                "the chain ends at stage {:?} ({}), not at a publish stage",
-                last.spec.name, last.spec.kind.name
-            ),
-        ));
-    }
-    for &i in &order[1..order.len() - 1] {
-        if entries[i].spec.kind.role == Role::Publish {
-            return Err(src.at(
-                entries[i].name_at,
-                "a publish stage must be the last of the chain",
-            ));
-        }
-    }
-    if order.len() < 2 {
-        return Err(src.at(at, "a pipeline needs an ingest and a publish stage"));
-    }
-    let mut slots: Vec<Option<Entry>> = entries.into_iter().map(Some).collect();
-    Ok(order
-        .into_iter()
-        .filter_map(|i| slots[i].take().map(|e| e.spec))
-        .collect())
+    Ok(())
 }
 
 fn position(e: &InputError) -> Cow<'static, str> {
