@@ -2,8 +2,8 @@
 //! only modules of a lower layer, and inside one no files import each other in a loop; only
 //! `transport` touches iceoryx2 (and only its `zenoh/` folder touches Zenoh, only its
 //! `ros2/dds.rs` ros2-client), the maths does no I/O, no source file holds more than 1,000
-//! lines of non-test code (the generated filter bank excepted), and no function of a command
-//! (`src/cli/`) is over 120 lines.
+//! lines of non-test code (the generated filter bank excepted), and no function is over 120
+//! lines (two ROS 2 ones excepted while they are restructured).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -850,10 +850,17 @@ fn no_source_file_holds_over_1000_lines_of_code() {
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
-/// The longest function a command's file may hold, lines from its `fn` line to its closing
-/// brace: `cli` parses, calls the library and prints; a longer function is doing the library's
-/// work, or printing what wants a function of its own.
-const CLI_FN_MAX_LINES: usize = 120;
+/// The longest function a file may hold, lines from its `fn` line to its closing brace: in
+/// `cli` a longer function is doing the library's work, or printing what wants a function of
+/// its own; anywhere, it is doing several steps that want names of their own.
+const FN_MAX_LINES: usize = 120;
+
+/// Functions allowed over [`FN_MAX_LINES`] for now, as (file, function): "ROS 2 in one room"
+/// (issue 60 part 2) restructures them. Nothing else goes here: split the function instead.
+const LONG_FNS_ALLOWED: &[(&str, &str)] = &[
+    ("src/transport/ros2/bridge.rs", "run_bridge"),
+    ("src/sides/ros2.rs", "read"),
+];
 
 /// Each function with a body before the unit tests: its name, its first line (1-based) and its
 /// length in lines, from the `fn` line to the closing brace at the `fn` line's indentation (as
@@ -908,19 +915,31 @@ fn functions(text: &str) -> Vec<(String, usize, usize)> {
 }
 
 #[test]
-fn no_function_of_a_command_is_over_120_lines() {
+fn no_function_is_over_120_lines() {
     let mut wrong = Vec::new();
+    let mut allowed_seen = BTreeSet::new();
     for (path, text) in files() {
         let r = rel(&path);
-        if !r.starts_with("src/cli/") {
-            continue;
-        }
         for (name, line, len) in functions(&text) {
-            if len > CLI_FN_MAX_LINES {
-                wrong.push(format!(
-                    "{r}:{line}: fn {name} is {len} lines (at most {CLI_FN_MAX_LINES}): move its computation below cli, or split it"
-                ));
+            if len <= FN_MAX_LINES {
+                continue;
             }
+            let key = (r.as_str(), name.as_str());
+            if let Some(&allowed) = LONG_FNS_ALLOWED.iter().find(|&&a| a == key) {
+                allowed_seen.insert(allowed);
+                continue;
+            }
+            wrong.push(format!(
+                "{r}:{line}: fn {name} is {len} lines (at most {FN_MAX_LINES}): split it into named steps{}",
+                if r.starts_with("src/cli/") { ", or move its computation below cli" } else { "" }
+            ));
+        }
+    }
+    for &(file, name) in LONG_FNS_ALLOWED {
+        if !allowed_seen.contains(&(file, name)) {
+            wrong.push(format!(
+                "{file}: fn {name} is allowed over {FN_MAX_LINES} lines but is not (or is gone): take it off LONG_FNS_ALLOWED"
+            ));
         }
     }
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
