@@ -34,5 +34,6 @@ pub mod sim;
 pub mod stages;
 pub mod synthetic;
 pub mod transport;
+pub mod units;
 pub mod wavelet;
 pub mod wire;

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 /// layers below, never one above. Within the maths, the order is what they build on.
 const LAYERS: &[(&str, u32)] = &[
     ("clock", 0),
+    ("units", 0),
     ("wire", 1),
     ("bigbuf", 0),
     ("quality", 0),
@@ -34,6 +35,7 @@ const LAYERS: &[(&str, u32)] = &[
 
 /// The maths: pure computation, usable as a library without a daemon.
 const MATHS: &[&str] = &[
+    "units",
     "bigbuf",
     "quality",
     "synthetic",

@@ -25,8 +25,9 @@ pub mod fit;
 pub mod pool;
 pub mod units;
 
+pub use crate::units::{AccelUnit, RateUnit, STANDARD_GRAVITY};
 pub use deviation::{allan, AllanError, AllanPoint, Kind, NoiseId, TauGrid};
 pub use fit::{fit_terms, read_offs, Estimate, FitError, NoiseFit, TermFit};
 pub use units::Term;
 pub use units::TermUnits;
-pub use units::{AccelUnit, RateUnit, SampleUnit, Sensor, STANDARD_GRAVITY};
+pub use units::{SampleUnit, Sensor};

@@ -1,5 +1,6 @@
-//! Units: the unit of the input (a gyro's rate or an accelerometer's specific force), and the
-//! display units and names of the IEEE Std 952 terms of each [`Sensor`].
+//! Units: the unit of a record's samples (a gyro's rate or an accelerometer's specific force, in
+//! the units of [`crate::units`]), and the display units and names of the IEEE Std 952 terms of
+//! each [`Sensor`].
 //!
 //! Inside [`crate::allan::fit`] every term is in the sensor's base units, built from its base
 //! unit and s. A gyro's (deviation in deg/s): Q deg, N deg/sqrt(s), B deg/s, K deg/s/sqrt(s),
@@ -9,102 +10,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-/// The unit of the rate samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum RateUnit {
-    /// Degrees per second.
-    #[default]
-    DegPerS,
-    /// Radians per second.
-    RadPerS,
-}
-
-impl RateUnit {
-    /// Factor that turns a rate in this unit into deg/s.
-    pub fn to_deg_per_s(self) -> f64 {
-        match self {
-            RateUnit::DegPerS => 1.0,
-            RateUnit::RadPerS => 180.0 / std::f64::consts::PI,
-        }
-    }
-}
-
-impl FromStr for RateUnit {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "deg/s" => Ok(RateUnit::DegPerS),
-            "rad/s" => Ok(RateUnit::RadPerS),
-            _ => Err(format!("unknown rate unit '{s}' (deg/s or rad/s)")),
-        }
-    }
-}
-
-impl fmt::Display for RateUnit {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            RateUnit::DegPerS => "deg/s",
-            RateUnit::RadPerS => "rad/s",
-        })
-    }
-}
-
-/// Standard gravity, m/s^2 per g (ISO 80000-3): the unit `g` of an accelerometer's reading, in
-/// `allan` and `accel_units` (the simulator keeps its own copy: it sits beside `allan`).
-pub const STANDARD_GRAVITY: f64 = 9.806_65;
-
-/// The unit of an accelerometer's samples (specific force).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum AccelUnit {
-    /// Metres per second squared.
-    #[default]
-    MPerS2,
-    /// Standard gravities ([`STANDARD_GRAVITY`]).
-    G,
-}
-
-impl AccelUnit {
-    /// Factor that turns a reading in this unit into m/s^2.
-    pub fn to_m_per_s2(self) -> f64 {
-        match self {
-            AccelUnit::MPerS2 => 1.0,
-            AccelUnit::G => STANDARD_GRAVITY,
-        }
-    }
-
-    /// The unit in which a still accelerometer's three axes reading a gravity of `norm` (the
-    /// length of their mean vector, as the numbers read) would read 1 g: `G` for 0.5 to 1.5,
-    /// `MPerS2` for 5 to 15 (half to one and a half g either way); None for anything else.
-    pub fn implied_by_gravity(norm: f64) -> Option<AccelUnit> {
-        if (0.5..=1.5).contains(&norm) {
-            Some(AccelUnit::G)
-        } else if (5.0..=15.0).contains(&norm) {
-            Some(AccelUnit::MPerS2)
-        } else {
-            None
-        }
-    }
-}
-
-impl FromStr for AccelUnit {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "m/s^2" => Ok(AccelUnit::MPerS2),
-            "g" => Ok(AccelUnit::G),
-            _ => Err(format!("unknown accelerometer unit '{s}' (m/s^2 or g)")),
-        }
-    }
-}
-
-impl fmt::Display for AccelUnit {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            AccelUnit::MPerS2 => "m/s^2",
-            AccelUnit::G => "g",
-        })
-    }
-}
+use crate::units::{AccelUnit, RateUnit, STANDARD_GRAVITY};
 
 /// Which sensor a record comes from: it names the terms and gives their units.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

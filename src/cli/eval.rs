@@ -13,6 +13,7 @@ use crate::drift::evaluation::{evaluate, Evaluation, Terms, MIN_SAMPLES, PAPER_R
 use crate::drift::model::DriftModel;
 use crate::io::model_file::{read_model, sha256_file};
 use crate::io::plot::{write_panels, Panel, PanelStyle, Series};
+use crate::units::RateUnit;
 use serde::Serialize;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -314,11 +315,10 @@ fn print_report(r: &Report, term_units: TermUnits) {
     let mut table = super::table::new(&header, 2);
     // The fit works in the log's angle unit per second; terms are shown in degrees, in the
     // chosen convention (the same as `driftless allan`).
-    let to_deg = if r.units == "rad/s" {
-        180.0 / std::f64::consts::PI
-    } else {
-        1.0
-    };
+    let to_deg = r
+        .units
+        .parse::<RateUnit>()
+        .map_or(1.0, RateUnit::to_deg_per_s);
     let cell = |v: f64, raw: f64, first: bool, mark: &str| {
         if first {
             format!("{}{mark}", sig(v, 4))

@@ -257,6 +257,19 @@ pub fn print_warnings(p: &crate::pipeline::config::Pipeline) {
     }
 }
 
+/// The parser of a unit argument (`--units deg/s`): clap lists and checks `names` (a unit
+/// type's names, in the order and with the help the command shows), the unit's own parser
+/// (`FromStr`, in [`crate::units`]) makes the unit of the name.
+pub fn unit_arg<U>(
+    names: impl IntoIterator<Item = impl Into<clap::builder::PossibleValue>>,
+) -> impl clap::builder::TypedValueParser<Value = U>
+where
+    U: std::str::FromStr<Err = String> + Clone + Send + Sync + 'static,
+{
+    use clap::builder::TypedValueParser as _;
+    clap::builder::PossibleValuesParser::new(names).try_map(|name| name.parse::<U>())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

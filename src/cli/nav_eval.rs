@@ -22,8 +22,8 @@ use crate::io::rate_log::RateLog;
 use crate::io::truth::{read_truth, Truth};
 use crate::nav::{format_table_labelled, MethodSummary, Profile};
 use crate::nav_eval::{Bench, Chain, HeadingTraces, Motion, NavEvalError, Outcome, Source};
-use crate::sim::force::STANDARD_GRAVITY;
 use crate::sim::SimConfig;
+use crate::units::AccelUnit;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 
@@ -327,15 +327,11 @@ fn split_accel(log: &mut RateLog, args: &Args) -> Result<Option<Vec<[f64; 3]>>, 
             "--accel-column: nav-eval reads the accelerometer from a CSV log, not from a bag",
         ));
     }
-    let scale = match args.accel_units.as_str() {
-        "m/s^2" => 1.0,
-        "g" => STANDARD_GRAVITY,
-        other => {
-            return Err(CliError::input(format!(
-                "--accel-units {other}: m/s^2 or g"
-            )))
-        }
-    };
+    let scale = args
+        .accel_units
+        .parse::<AccelUnit>()
+        .map_err(|_| CliError::input(format!("--accel-units {}: m/s^2 or g", args.accel_units)))?
+        .to_m_per_s2();
     let table = &mut log.table;
     let mut cols = Vec::with_capacity(3);
     for name in &args.accel_columns {

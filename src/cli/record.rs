@@ -11,8 +11,8 @@ use std::time::Duration;
 
 use crate::cli::CliError;
 use crate::io::recorder::{Progress, RecordError, Recorder, Ros2Bag, Settings, Summary};
-use crate::stages::schema::AccelUnits;
 use crate::transport::{self, WireType};
+use crate::units::{AccelUnit, RateUnit};
 
 /// Arguments of `driftless record`.
 #[derive(Debug, clap::Args)]
@@ -35,8 +35,8 @@ pub struct Args {
     pub iceoryx2: crate::cli::iceoryx2::Iceoryx2Args,
     /// Units of raw services' rates (the pipeline's input_units), stored with their channels
     /// (with --format ros2, needed to write a raw service in rad/s).
-    #[arg(long, value_parser = ["deg/s", "rad/s"])]
-    pub raw_units: Option<String>,
+    #[arg(long, value_parser = super::unit_arg::<RateUnit>(RateUnit::NAMES))]
+    pub raw_units: Option<RateUnit>,
     /// What to write: `mcap`, our samples as JSON that Foxglove plots; or `ros2`, a ROS 2 bag
     /// (profile ros2, sensor_msgs/msg/Imu in CDR, topic /SERVICE) as `ros2 bag record` writes.
     #[arg(long, default_value = "mcap", value_parser = ["mcap", "ros2"])]
@@ -59,8 +59,8 @@ pub struct Args {
     /// Units of raw services' accelerometer readings (the pipeline's accel_units), stored with
     /// their channels; with --format ros2, needed to write them in m/s^2 (without it a raw
     /// reading is written "not provided").
-    #[arg(long, value_parser = ["m/s^2", "g"])]
-    pub raw_accel_units: Option<String>,
+    #[arg(long, value_parser = super::unit_arg::<AccelUnit>(AccelUnit::NAMES))]
+    pub raw_accel_units: Option<AccelUnit>,
 }
 
 /// Subscribe to SERVICE... and record them until stopped.
@@ -122,16 +122,13 @@ fn record(args: &Args, prefix: &str) -> Result<(), CliError> {
     let settings = Settings {
         services: args.services.clone(),
         output: args.output.clone(),
-        raw_units: args.raw_units.clone(),
-        raw_accel_units: args.raw_accel_units.clone(),
+        raw_units: args.raw_units,
+        raw_accel_units: args.raw_accel_units,
         ros2: (args.format == "ros2").then(|| Ros2Bag {
             frame_id: args.frame_id.clone(),
             rate_noise: args.rate_noise,
             accel_noise: args.accel_noise,
-            raw_accel_to_m_s2: args.raw_accel_units.as_deref().map(|u| match u {
-                "g" => AccelUnits::G.to_m_per_s2(),
-                _ => AccelUnits::MPerS2.to_m_per_s2(),
-            }),
+            raw_accel_to_m_s2: args.raw_accel_units.map(AccelUnit::to_m_per_s2),
         }),
     };
     // Installed in main, before anything exists on disk: a signal ends the recording cleanly.

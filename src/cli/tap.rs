@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use crate::cli::CliError;
 use crate::transport::{self, AnyInput, Carried, Transport, WireType};
+use crate::units::RateUnit;
 use crate::wire::{self, GyroSample, RawSample, StatsSnapshot};
 
 /// How samples are printed.
@@ -20,39 +21,14 @@ pub enum Format {
     Json,
 }
 
-/// Units the processed rates are printed in (the wire carries rad/s).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum RateUnits {
-    /// Radians per second, as on the wire.
-    #[value(name = "rad/s")]
-    RadS,
-    /// Degrees per second.
-    #[value(name = "deg/s")]
-    DegS,
-}
-
-impl RateUnits {
-    fn scale(self) -> f64 {
-        match self {
-            RateUnits::RadS => 1.0,
-            RateUnits::DegS => 180.0 / std::f64::consts::PI,
-        }
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            RateUnits::RadS => "rad/s",
-            RateUnits::DegS => "deg/s",
-        }
-    }
-
-    /// Column-name suffix, as `driftless simulate` names its columns.
-    fn suffix(self) -> &'static str {
-        match self {
-            RateUnits::RadS => "rads",
-            RateUnits::DegS => "degps",
-        }
-    }
+/// The units the processed rates may be printed in, as `--units` lists them (the wire carries
+/// rad/s).
+fn units_arg() -> impl clap::builder::TypedValueParser<Value = RateUnit> {
+    use clap::builder::PossibleValue;
+    super::unit_arg([
+        PossibleValue::new(RateUnit::RadPerS.name()).help("Radians per second, as on the wire"),
+        PossibleValue::new(RateUnit::DegPerS.name()).help("Degrees per second"),
+    ])
 }
 
 /// Arguments of `driftless tap`.
@@ -68,8 +44,8 @@ pub struct Args {
     pub format: Format,
     /// Units of the processed rates (rate, drift, denoised). Raw samples are printed in the
     /// pipeline's input_units, as the driver sent them.
-    #[arg(long, value_enum, default_value = "rad/s")]
-    pub units: RateUnits,
+    #[arg(long, value_parser = units_arg(), default_value = "rad/s")]
+    pub units: RateUnit,
     /// Only the rate line, once a second, on stdout, with the interval between sample
     /// timestamps (min / max / standard deviation), as `ros2 topic hz`; no samples.
     #[arg(long)]
@@ -174,7 +150,7 @@ fn joined(names: &[String], sep: &str) -> String {
 /// The printing side: format, units, and the CSV header once.
 struct Printer {
     format: Format,
-    units: RateUnits,
+    units: RateUnit,
     service: String,
     header_done: bool,
 }
@@ -187,7 +163,7 @@ impl Printer {
             if v < 0.0 {
                 wire::DRIFT_STD_NOT_PROVIDED
             } else {
-                v * self.units.scale()
+                v * self.units.from_rad_per_s()
             }
         })
     }
@@ -214,7 +190,7 @@ impl Printer {
         };
         Some(match item {
             Item::Gyro(_) => {
-                let u = self.units.suffix();
+                let u = self.units.column_suffix();
                 format!(
                     "epoch,seq,t_s,{},{},{},flags,flag_names,{},{},{},sensors,\
                      orientation_x,orientation_y,orientation_z,orientation_w,{}",
@@ -251,7 +227,7 @@ impl Printer {
     }
 
     fn line(&self, item: &Item) -> Result<String, CliError> {
-        let k = self.units.scale();
+        let k = self.units.from_rad_per_s();
         let scaled = |v: [f64; 3]| v.map(|x| x * k);
         Ok(match (self.format, item) {
             (Format::Text, Item::Gyro(s)) => {
@@ -577,7 +553,7 @@ mod tests {
         assert_eq!(Intervals::default().describe(), "no interval");
     }
 
-    fn printer(format: Format, units: RateUnits) -> Printer {
+    fn printer(format: Format, units: RateUnit) -> Printer {
         Printer {
             format,
             units,
@@ -600,9 +576,12 @@ mod tests {
             ..GyroSample::default()
         };
         let item = Item::Gyro(s);
-        let json: serde_json::Value =
-            serde_json::from_str(&printer(Format::Json, RateUnits::DegS).line(&item).unwrap())
-                .unwrap();
+        let json: serde_json::Value = serde_json::from_str(
+            &printer(Format::Json, RateUnit::DegPerS)
+                .line(&item)
+                .unwrap(),
+        )
+        .unwrap();
         assert_eq!(json["rate"][0], 180.0);
         assert_eq!(json["rate"][2], -180.0 / std::f64::consts::PI);
         assert_eq!(json["flag_names"], serde_json::json!(["still"]));
@@ -611,7 +590,7 @@ mod tests {
             json["drift_std"],
             serde_json::json!([0.25 * (180.0 / std::f64::consts::PI), -1.0, 0.0])
         );
-        let rad = printer(Format::Csv, RateUnits::RadS);
+        let rad = printer(Format::Csv, RateUnit::RadPerS);
         assert_eq!(
             rad.header(&item).unwrap(),
             "epoch,seq,t_s,rate_x_rads,rate_y_rads,rate_z_rads,drift_x_rads,drift_y_rads,\
@@ -639,7 +618,9 @@ mod tests {
             .line(&with)
             .unwrap()
             .ends_with(",0.5,-0.25,9.75,-1,-1,-1,accel,,,,,,,"));
-        let text = printer(Format::Text, RateUnits::DegS).line(&with).unwrap();
+        let text = printer(Format::Text, RateUnit::DegPerS)
+            .line(&with)
+            .unwrap();
         assert!(
             text.contains("accel [+0.500000 -0.250000 +9.750000] m/s² flags still"),
             "{text}"
@@ -652,7 +633,7 @@ mod tests {
             sensors: crate::wire::SENSOR_ORIENTATION,
             ..s
         });
-        let text = printer(Format::Text, RateUnits::DegS)
+        let text = printer(Format::Text, RateUnit::DegPerS)
             .line(&turned)
             .unwrap();
         assert!(
@@ -666,7 +647,7 @@ mod tests {
             .unwrap()
             .ends_with(&format!(",,orientation,0,0,{h},{h},0.01,0.01,-1")));
         let json: serde_json::Value = serde_json::from_str(
-            &printer(Format::Json, RateUnits::DegS)
+            &printer(Format::Json, RateUnit::DegPerS)
                 .line(&turned)
                 .unwrap(),
         )
@@ -676,7 +657,9 @@ mod tests {
             json["orientation_std"],
             serde_json::json!([0.01, 0.01, -1.0])
         );
-        let text = printer(Format::Text, RateUnits::DegS).line(&item).unwrap();
+        let text = printer(Format::Text, RateUnit::DegPerS)
+            .line(&item)
+            .unwrap();
         assert!(
             text.contains("rate [+180.000000 +0.000000 -57.295780] drift"),
             "{text}"
@@ -691,7 +674,9 @@ mod tests {
         );
         assert!(text.ends_with("flags still"), "{text}");
         let stats = Item::Stats(StatsSnapshot::default());
-        assert!(printer(Format::Csv, RateUnits::RadS).line(&stats).is_err());
+        assert!(printer(Format::Csv, RateUnit::RadPerS)
+            .line(&stats)
+            .is_err());
     }
 
     #[test]

@@ -26,7 +26,7 @@ pub const FORMAT: &str = "driftless-drift-model";
 pub const VERSION: u32 = 1;
 
 /// Units a model may be in.
-pub const UNITS: [&str; 2] = ["deg/s", "rad/s"];
+pub const UNITS: [&str; 2] = crate::units::RateUnit::NAMES;
 
 /// The streaming denoiser settings used before the drift was measured.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

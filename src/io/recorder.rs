@@ -29,6 +29,7 @@ use crate::io::recording::{
 };
 use crate::io::ros2::{self, ImuMapping, IMU_TYPE};
 use crate::transport::{AnyInput, Carried, Transport, TransportError, WireType};
+use crate::units::{AccelUnit, RateUnit};
 use crate::wire::{GYRO_TYPE_NAME, RAW_TYPE_NAME, STATS_TYPE_NAME};
 
 /// How often the open chunk is written out (the most a SIGKILL loses) and progress is shown.
@@ -47,11 +48,10 @@ pub struct Settings {
     pub services: Vec<String>,
     /// The file to write (`OUT.part` until the recording stops).
     pub output: PathBuf,
-    /// Units of raw services' rates (`deg/s` or `rad/s`, the pipeline's input_units).
-    pub raw_units: Option<String>,
-    /// Units of raw services' accelerometer readings (`m/s^2` or `g`, the pipeline's
-    /// accel_units).
-    pub raw_accel_units: Option<String>,
+    /// Units of raw services' rates (the pipeline's input_units).
+    pub raw_units: Option<RateUnit>,
+    /// Units of raw services' accelerometer readings (the pipeline's accel_units).
+    pub raw_accel_units: Option<AccelUnit>,
     /// A ROS 2 bag instead of our JSON messages.
     pub ros2: Option<Ros2Bag>,
 }
@@ -292,18 +292,16 @@ fn add_channel(
         for (key, units, flag) in [
             (
                 recording::RATE_UNITS_KEY,
-                &settings.raw_units,
+                settings.raw_units.map(|u| u.to_string()),
                 "input_units (not given: record --raw-units)",
             ),
             (
                 recording::ACCEL_UNITS_KEY,
-                &settings.raw_accel_units,
+                settings.raw_accel_units.map(|u| u.to_string()),
                 "accel_units (not given: record --raw-accel-units)",
             ),
         ] {
-            let units = units
-                .clone()
-                .unwrap_or_else(|| format!("the pipeline's {flag}"));
+            let units = units.unwrap_or_else(|| format!("the pipeline's {flag}"));
             meta.insert(key.to_string(), units);
         }
     }
@@ -377,8 +375,8 @@ impl Recorder {
                 Some(bag) => {
                     let topic = ros2::topic_for_service(service);
                     let channel = add_ros2_channel(&mut writer, &topic).map_err(write_error)?;
-                    let to_rad = match (input.wire_type(), settings.raw_units.as_deref()) {
-                        (WireType::Raw, Some("deg/s")) => std::f64::consts::PI / 180.0,
+                    let to_rad = match input.wire_type() {
+                        WireType::Raw => settings.raw_units.map_or(1.0, RateUnit::to_rad_per_s),
                         _ => 1.0,
                     };
                     let m = ImuMapping::new(&bag.frame_id, to_rad, bag.rate_noise)

@@ -47,8 +47,9 @@ use crate::pipeline::registry::{self, Entry};
 use crate::sides::{Chain, SideSpec, SIDES};
 use crate::stages::contract::Role;
 pub use crate::stages::contract::StageSpec;
+pub use crate::stages::schema::Context;
 use crate::stages::schema::{sort_entries, DefaultValue, Entries, Key, Src, Table, Type};
-pub use crate::stages::schema::{AccelUnits, Context, Units};
+use crate::units::{AccelUnit, RateUnit};
 
 use super::iceoryx2_table::{self, ICEORYX2_TABLE};
 pub use super::iceoryx2_table::{Iceoryx2Settings, ICEORYX2_KEYS};
@@ -67,9 +68,9 @@ pub struct Pipeline {
     /// Number of axes (1..=3); unused axes are 0.
     pub axes: usize,
     /// Units of the raw input.
-    pub input_units: Units,
+    pub input_units: RateUnit,
     /// Units of the raw accelerometer readings.
-    pub accel_units: AccelUnits,
+    pub accel_units: AccelUnit,
     /// Period of the stderr summary and stats snapshot.
     pub report_interval: Duration,
     /// SCHED_FIFO priority of the hot thread (None: the default scheduler).
@@ -132,14 +133,14 @@ const AXES: Key = Key {
 };
 const INPUT_UNITS: Key = Key {
     name: "input_units",
-    ty: Type::Choice(&["deg/s", "rad/s"]),
-    default: DefaultValue::Word("deg/s"),
+    ty: Type::Choice(&RateUnit::NAMES),
+    default: DefaultValue::Word(RateUnit::DegPerS.name()),
     doc: "units of the raw rates; published rates are rad/s",
 };
 const ACCEL_UNITS: Key = Key {
     name: "accel_units",
-    ty: Type::Choice(&["m/s^2", "g"]),
-    default: DefaultValue::Word("m/s^2"),
+    ty: Type::Choice(&AccelUnit::NAMES),
+    default: DefaultValue::Word(AccelUnit::MPerS2.name()),
     doc: "units of the raw accelerometer readings (`g`: 9.80665 m/s²); published readings are \
           m/s²",
 };
@@ -269,8 +270,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Pipeline, InputError> {
     let unknown = Context {
         rate_hz: f64::NAN,
         axes: 0,
-        units: Units::DegPerSec,
-        accel_units: AccelUnits::MPerS2,
+        units: RateUnit::DegPerS,
+        accel_units: AccelUnit::MPerS2,
         white_noise: None,
     };
     let top = split(&src, top, &valid)?;
@@ -374,21 +375,16 @@ fn valid_name(src: &Src<'_>, name: &Spanned<String>) -> Result<(), InputError> {
 }
 
 /// The rate units and the accelerometer's (`input_units`, `accel_units`).
-fn units(t: &mut Table<'_, '_>) -> Result<(Units, AccelUnits), InputError> {
-    let input_units = match t
+fn units(t: &mut Table<'_, '_>) -> Result<(RateUnit, AccelUnit), InputError> {
+    // Choice keys: the table read only their names, which parse.
+    let input_units: RateUnit = t
         .choice_or_default(&INPUT_UNITS, "input_units", true)?
-        .as_str()
-    {
-        "rad/s" => Units::RadPerSec,
-        _ => Units::DegPerSec,
-    };
-    let accel_units = match t
+        .parse()
+        .unwrap_or_default();
+    let accel_units: AccelUnit = t
         .choice_or_default(&ACCEL_UNITS, "accel_units", true)?
-        .as_str()
-    {
-        "g" => AccelUnits::G,
-        _ => AccelUnits::MPerS2,
-    };
+        .parse()
+        .unwrap_or_default();
     Ok((input_units, accel_units))
 }
 
@@ -410,7 +406,7 @@ fn deadline(deadline_us: Option<f64>, stages: &[StageSpec], rate_hz: f64) -> Dur
 }
 
 /// The pipeline's warnings: the step a stage assumes against the data's, then each stage's own.
-fn warnings(stages: &[StageSpec], input_units: Units) -> Vec<String> {
+fn warnings(stages: &[StageSpec], input_units: RateUnit) -> Vec<String> {
     step_warning(stages, input_units)
         .into_iter()
         .chain(stages.iter().flat_map(|s| {
@@ -446,8 +442,8 @@ fn sides<'i>(
 
 /// The step the data shows against the step a stage assumes (a profile's `lsb`): one line when
 /// they differ by more than a quarter (a profile of another sensor, or `lsb` in other units).
-fn step_warning(stages: &[StageSpec], units: Units) -> Option<String> {
-    let deg_per_unit = units.to_rad_per_sec().to_degrees();
+fn step_warning(stages: &[StageSpec], units: RateUnit) -> Option<String> {
+    let deg_per_unit = units.to_rad_per_s().to_degrees();
     let seen = stages.iter().find_map(|s| s.params.data_step())? * deg_per_unit;
     let (stage, assumed) = stages
         .iter()
@@ -695,7 +691,7 @@ mod tests {
             "default: one sample period"
         );
         assert_eq!(p.axes, 3);
-        assert_eq!(p.input_units, Units::DegPerSec);
+        assert_eq!(p.input_units, RateUnit::DegPerS);
         assert_eq!(p.iceoryx2.stats_service, "t/stats");
     }
 

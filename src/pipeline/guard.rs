@@ -8,13 +8,13 @@
 //! epoch, and that sample is flagged and counted as a gap: subscribers count on the rise.
 
 use crate::clock::{StampCheck, StampFault};
-use crate::pipeline::config::{AccelUnits, Units};
 use crate::wire::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
     FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
     RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
     SENSOR_MAG, SENSOR_MAG_INVALID,
 };
+use crate::units::{AccelUnit, RateUnit};
 
 /// Counts of what the guard flagged.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -79,9 +79,9 @@ pub struct Guard {
 impl Guard {
     /// A guard for `axes` axes in `units` (the accelerometer in `accel_units`), whose stream
     /// starts at `epoch` (0 is taken as 1).
-    pub fn new(units: Units, accel_units: AccelUnits, axes: usize, epoch: u32) -> Self {
+    pub fn new(units: RateUnit, accel_units: AccelUnit, axes: usize, epoch: u32) -> Self {
         Guard {
-            scale: units.to_rad_per_sec(),
+            scale: units.to_rad_per_s(),
             accel: Beside {
                 scale: accel_units.to_m_per_s2(),
                 last_good: [0.0; 3],
@@ -233,7 +233,7 @@ mod tests {
 
     #[test]
     fn flags_and_counts_bad_samples() {
-        let mut g = Guard::new(Units::RadPerSec, AccelUnits::MPerS2, 3, 7);
+        let mut g = Guard::new(RateUnit::RadPerS, AccelUnit::MPerS2, 3, 7);
         assert_eq!(g.admit(&raw(0, 10, 1.0), 0).flags, 0);
         let s = g.admit(&raw(1, 20, f64::NAN), 0);
         assert_eq!(s.flags, FLAG_INPUT_INVALID);
@@ -262,7 +262,7 @@ mod tests {
     fn a_stamp_fault_is_flagged_and_counted_never_a_loss() {
         const S: u64 = 1_000_000_000;
         let t0 = 1_700_000_000 * S;
-        let mut g = Guard::new(Units::RadPerSec, AccelUnits::MPerS2, 3, 7);
+        let mut g = Guard::new(RateUnit::RadPerS, AccelUnit::MPerS2, 3, 7);
         let mut faults = Vec::new();
         for k in 0..1_000u64 {
             let mut r = raw(k, t0 + k * S / 100, 1.0);
@@ -297,7 +297,7 @@ mod tests {
 
     #[test]
     fn carries_the_accelerometer_in_m_s2_and_holds_a_bad_one() {
-        let mut g = Guard::new(Units::RadPerSec, AccelUnits::G, 3, 7);
+        let mut g = Guard::new(RateUnit::RadPerS, AccelUnit::G, 3, 7);
         let with = |seq, accel: [f64; 3]| RawSample {
             accel,
             flags: crate::wire::RAW_ACCEL,
@@ -320,7 +320,7 @@ mod tests {
 
     #[test]
     fn converts_degrees() {
-        let mut g = Guard::new(Units::DegPerSec, AccelUnits::MPerS2, 1, 7);
+        let mut g = Guard::new(RateUnit::DegPerS, AccelUnit::MPerS2, 1, 7);
         let s = g.admit(&raw(0, 0, 180.0), 0);
         assert!((s.rate[0] - std::f64::consts::PI).abs() < 1e-15);
         assert_eq!(s.rate[1], 0.0);
@@ -328,7 +328,7 @@ mod tests {
 
     #[test]
     fn a_source_restart_starts_a_new_epoch_instead_of_a_gap() {
-        let mut g = Guard::new(Units::RadPerSec, AccelUnits::MPerS2, 3, 7);
+        let mut g = Guard::new(RateUnit::RadPerS, AccelUnit::MPerS2, 3, 7);
         let mut admit = |r: RawSample| {
             let stamped = g.stamp(&r);
             g.admit(&stamped, 0)

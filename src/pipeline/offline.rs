@@ -147,7 +147,7 @@ impl Offline {
                 p.axes
             ));
         }
-        let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_sec();
+        let to_units = 1.0f64.to_radians() / p.input_units.to_rad_per_s();
         let n = inputs[0].len();
         let mut off = Offline::new(p)?;
         let mut got: Vec<Option<GyroSample>> = vec![None; n];

@@ -10,12 +10,13 @@ use toml::Spanned;
 use super::contract::{Chain, Kind, Ready, Side, Start};
 use crate::io::InputError;
 use crate::stages::contract::SideInput;
-use crate::stages::schema::{AccelUnits, DefaultValue, Key, Table, Type, Units};
+use crate::stages::schema::{DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::{
     Direction, MotionKind, Ros2Settings, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, IMU_TYPE,
     VECTOR3_STAMPED_TYPE,
 };
+use crate::units::{AccelUnit, RateUnit};
 
 const NODE: Key = Key {
     name: "node",
@@ -246,13 +247,13 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
                     format!("imu_in.service {service:?} is no ingest.iceoryx2 stage's input"),
                 ));
             }
-            if chain.cx.units != Units::RadPerSec {
+            if chain.cx.units != RateUnit::RadPerS {
                 return Err(src.span(
                     &raw.service,
                     "imu_in: ROS 2 rates are rad/s (REP 103): set input_units = \"rad/s\"",
                 ));
             }
-            if chain.cx.accel_units != AccelUnits::MPerS2 {
+            if chain.cx.accel_units != AccelUnit::MPerS2 {
                 return Err(src.span(
                     &raw.service,
                     "imu_in: ROS 2 accelerations are m/s^2 (REP 103): set accel_units = \

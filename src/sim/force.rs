@@ -35,9 +35,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::f64::consts::PI;
 
-/// Standard gravity, m/s² (ISO 80000-3). The same value as `allan::STANDARD_GRAVITY`: the
-/// simulator sits beside `allan`, not above it (tests/layers.rs).
-pub const STANDARD_GRAVITY: f64 = 9.806_65;
+pub use crate::units::STANDARD_GRAVITY;
 
 /// A road vehicle's speed: 10 m/s (36 km/h) between 5 s raised-cosine ramps (peak longitudinal
 /// acceleration pi 10 / (2 x 5) = 3.1 m/s², 0.32 g; a 10 deg/s turn at speed is 1.75 m/s²

@@ -242,15 +242,15 @@ impl Stage for AttitudeStage {
 mod tests {
     use super::*;
     use crate::allan::STANDARD_GRAVITY;
-    use crate::stages::schema::{AccelUnits, Units};
+    use crate::units::{AccelUnit, RateUnit};
     use crate::wire::{SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
 
     fn cx(white_noise: Option<f64>) -> Context {
         Context {
             rate_hz: 100.0,
             axes: 3,
-            units: Units::DegPerSec,
-            accel_units: AccelUnits::MPerS2,
+            units: RateUnit::DegPerS,
+            accel_units: AccelUnit::MPerS2,
             white_noise,
         }
     }

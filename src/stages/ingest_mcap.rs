@@ -53,12 +53,12 @@ use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
-use crate::stages::schema::{AccelUnits, Units};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
 use crate::wire::{
     RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
+use crate::units::{AccelUnit, RateUnit};
 
 const FILE: Key = Key {
     name: "file",
@@ -327,13 +327,13 @@ fn check_channel(
     for (key, known, ours, pipeline_key) in [
         (
             recording::RATE_UNITS_KEY,
-            ["deg/s", "rad/s"],
+            RateUnit::NAMES,
             t.cx.units.name(),
             "input_units",
         ),
         (
             recording::ACCEL_UNITS_KEY,
-            ["m/s^2", "g"],
+            AccelUnit::NAMES,
             t.cx.accel_units.name(),
             "accel_units",
         ),
@@ -447,7 +447,7 @@ fn parse_bag(
     };
     let at = topic_key.map_or(file_key.span().start, |k| k.span().start);
     let shown = file.display();
-    if t.cx.units != Units::RadPerSec {
+    if t.cx.units != RateUnit::RadPerS {
         return Err(src.at(
             at,
             format!(
@@ -458,7 +458,7 @@ fn parse_bag(
             ),
         ));
     }
-    if t.cx.accel_units != AccelUnits::MPerS2 {
+    if t.cx.accel_units != AccelUnit::MPerS2 {
         return Err(src.at(
             at,
             format!(

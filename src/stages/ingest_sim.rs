@@ -30,7 +30,8 @@ use crate::sim::force::SimAccel;
 use crate::sim::{SimConfig, Simulator};
 use crate::stages::contract::{Kind, Params, Poll, Role, Source, TrueRate};
 use crate::stages::replay::{read_pace, PACE_TYPE};
-use crate::stages::schema::{Context, DefaultValue, Key, Table, Type, Units};
+use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
+use crate::units::RateUnit;
 use crate::wire::{RawSample, RAW_ACCEL};
 
 const PROFILE: Key = Key {
@@ -95,7 +96,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let motion = t.choice_or_default(&MOTION, "motion", false)?;
     let samples = t.int(&SAMPLES)?;
     let pace = read_pace(t, &PACE)?;
-    if t.cx.units != Units::DegPerSec {
+    if t.cx.units != RateUnit::DegPerS {
         return Err(t.src.at(
             t.kind_at,
             "ingest.sim produces deg/s: set input_units = \"deg/s\"",
@@ -232,13 +233,13 @@ impl Source for SimSource {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stages::schema::{AccelUnits, Units};
+    use crate::units::{AccelUnit, RateUnit};
 
-    fn cx(rate_hz: f64, accel_units: AccelUnits) -> Context {
+    fn cx(rate_hz: f64, accel_units: AccelUnit) -> Context {
         Context {
             rate_hz,
             axes: 3,
-            units: Units::DegPerSec,
+            units: RateUnit::DegPerS,
             accel_units,
             white_noise: None,
         }
@@ -265,8 +266,8 @@ mod tests {
             samples: Some(10_000),
             pace: Pace::Asap,
         };
-        let ms2 = samples(&p, &cx(100.0, AccelUnits::MPerS2));
-        let g = samples(&p, &cx(100.0, AccelUnits::G));
+        let ms2 = samples(&p, &cx(100.0, AccelUnit::MPerS2));
+        let g = samples(&p, &cx(100.0, AccelUnit::G));
         let mut gyro = Simulator::new(&sim_config(&p, 100.0, 3).unwrap()).unwrap();
         for (a, b) in ms2.iter().zip(&g) {
             assert_eq!(a.rate, gyro.next_sample().measured, "the gyro unchanged");
@@ -283,7 +284,7 @@ mod tests {
         };
         assert!((mean(7500..9000) - mean(0..6000)).abs() > 1.5);
         p.profile = "adxrs450".into();
-        for s in samples(&p, &cx(100.0, AccelUnits::MPerS2)) {
+        for s in samples(&p, &cx(100.0, AccelUnit::MPerS2)) {
             assert_eq!(s.flags & RAW_ACCEL, 0);
             assert_eq!(s.accel_reading(), None);
         }
@@ -306,7 +307,7 @@ mod tests {
             }
             got
         };
-        let cx = cx(1000.0, AccelUnits::MPerS2);
+        let cx = cx(1000.0, AccelUnit::MPerS2);
         let mut fast = SimSource::new(&params(Pace::Times(10.0)), &cx).unwrap();
         let Poll::Sample(first, ..) = fast.poll(&stop) else {
             panic!("the first sample at once")

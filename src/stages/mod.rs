@@ -80,7 +80,8 @@ mod tests {
 
     use super::*;
     use crate::io::InputError;
-    use crate::stages::schema::{AccelUnits, Context, DefaultValue, Src, Table, Type, Units};
+    use crate::stages::schema::{Context, DefaultValue, Src, Table, Type};
+    use crate::units::{AccelUnit, RateUnit};
 
     /// Every kind's keys: a typed default is a value of the key's own type and range, and an
     /// `Either` names another key of the same kind.
@@ -123,8 +124,8 @@ mod tests {
         let cx = Context {
             rate_hz: 100.0,
             axes: 3,
-            units: Units::DegPerSec,
-            accel_units: AccelUnits::MPerS2,
+            units: RateUnit::DegPerS,
+            accel_units: AccelUnit::MPerS2,
             white_noise: None,
         };
         let mut t = Table::new(&src, cx, 0, 0, Some("in/raw"), ("keys", "s"), entries);

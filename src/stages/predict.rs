@@ -311,7 +311,7 @@ impl RbfDrift {
         }
         Ok(RbfDrift {
             comps,
-            scale: cx.units.to_rad_per_sec(),
+            scale: cx.units.to_rad_per_s(),
         })
     }
 }

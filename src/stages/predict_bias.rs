@@ -345,7 +345,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         terms.lsb = 0.0;
     }
     // Given terms are in the units `driftless allan` prints; the filter works in deg/s.
-    let to_deg = t.cx.units.to_rad_per_sec().to_degrees();
+    let to_deg = t.cx.units.to_rad_per_s().to_degrees();
     if let Some(n) = arw {
         terms.n = n / 60.0;
     }

@@ -17,60 +17,7 @@ use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 use crate::io::InputError;
-
-/// Input units of the raw rates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Units {
-    /// Degrees per second.
-    DegPerSec,
-    /// Radians per second.
-    RadPerSec,
-}
-
-impl Units {
-    /// Factor converting these units to rad/s.
-    pub fn to_rad_per_sec(self) -> f64 {
-        match self {
-            Units::DegPerSec => std::f64::consts::PI / 180.0,
-            Units::RadPerSec => 1.0,
-        }
-    }
-
-    /// The name used in pipeline and model files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Units::DegPerSec => "deg/s",
-            Units::RadPerSec => "rad/s",
-        }
-    }
-}
-
-/// Units of the raw accelerometer readings.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum AccelUnits {
-    /// Metres per second squared (REP 103's, and what every hop after the ingest carries).
-    MPerS2,
-    /// Standard gravities (9.80665 m/s², ISO 80000-3), as many data sheets give them.
-    G,
-}
-
-impl AccelUnits {
-    /// Factor converting these units to m/s².
-    pub fn to_m_per_s2(self) -> f64 {
-        match self {
-            AccelUnits::MPerS2 => 1.0,
-            AccelUnits::G => crate::allan::STANDARD_GRAVITY,
-        }
-    }
-
-    /// The name used in pipeline files.
-    pub fn name(self) -> &'static str {
-        match self {
-            AccelUnits::MPerS2 => "m/s^2",
-            AccelUnits::G => "g",
-        }
-    }
-}
+use crate::units::{AccelUnit, RateUnit};
 
 /// The pipeline-wide values a stage is validated and built against.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,9 +27,9 @@ pub struct Context {
     /// Number of axes (1..=3).
     pub axes: usize,
     /// Units of the raw input.
-    pub units: Units,
+    pub units: RateUnit,
     /// Units of the raw accelerometer readings.
-    pub accel_units: AccelUnits,
+    pub accel_units: AccelUnit,
     /// The gyro's white rate noise N (deg/sqrt(s)) that a stage of the chain assumes
     /// (`predict.bias`'s terms), for the stages that build after it; None while the pipeline
     /// is read, and in a chain without one.
@@ -911,8 +858,8 @@ mod tests {
         let cx = Context {
             rate_hz: 100.0,
             axes: 1,
-            units: Units::DegPerSec,
-            accel_units: AccelUnits::MPerS2,
+            units: RateUnit::DegPerS,
+            accel_units: AccelUnit::MPerS2,
             white_noise: None,
         };
         f(&mut Table::new(&src, cx, 0, 0, None, ("p", "s"), entries))

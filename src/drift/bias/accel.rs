@@ -8,7 +8,7 @@
 //! number as a white acceleration noise density in m/s^2/sqrt(Hz), two-sided), B in m/s^2.
 
 use super::BiasError;
-use crate::allan::units::STANDARD_GRAVITY;
+use crate::units::STANDARD_GRAVITY;
 
 /// An accelerometer's noise terms, one set for every axis, base units.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -461,7 +461,7 @@ pub(super) fn build_segment(
         heading: (span.lo == 1 || span.is_final)
             .then(|| p.stages[0].params.truth(&p.context()))
             .flatten()
-            .map(|t| HeadingTracker::new(t, p.input_units.to_rad_per_sec(), p.rate_hz, p.axes)),
+            .map(|t| HeadingTracker::new(t, p.input_units.to_rad_per_s(), p.rate_hz, p.axes)),
     };
     Ok((chain, lost, lag))
 }
