@@ -150,23 +150,18 @@ pub struct Outcome {
 }
 
 impl Bench {
-    /// The built-in methods, in column order (the floor only where the true noise model is
-    /// known: the simulator).
+    /// The built-in methods, in column order: [`Method::ALL`] but heading hold and the filter on
+    /// the denoised rate, which nav-eval does not run, and the floor only where the true noise
+    /// model is known (the simulator).
     pub fn methods(&self) -> Vec<Method> {
-        let mut methods = vec![
-            Method::Raw,
-            Method::PowerOn,
-            Method::ZaruOracle,
-            Method::ZaruDetected,
-            Method::ZaruDenoised,
-            Method::KfDetected,
-            Method::KfOracle,
-            Method::KfOracleFixed,
-        ];
-        if self.source.floor.is_some() {
-            methods.push(Method::Floor);
-        }
-        methods
+        Method::ALL
+            .into_iter()
+            .filter(|m| match m {
+                Method::KfHold | Method::KfDenoised => false,
+                Method::Floor => self.source.floor.is_some(),
+                _ => true,
+            })
+            .collect()
     }
 
     /// Window length, s (whole samples).
