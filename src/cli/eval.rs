@@ -3,10 +3,9 @@
 //! print the paper's Table 3: the Allan terms of the raw, denoised and compensated rates
 //! ([`crate::drift::evaluation`]).
 
-use super::train::{check_rate, read_column, Column};
+use super::train::{check_rate, read_column, Column, GyroLogArgs};
 use super::CliError;
 use crate::allan::TermUnits;
-use crate::cli::log_input::BagArgs;
 use crate::cli::num::sig;
 use crate::drift::baselines::Score;
 use crate::drift::evaluation::{evaluate, Evaluation, Terms, MIN_SAMPLES, PAPER_RATIOS, TERMS};
@@ -24,25 +23,12 @@ const PLOT_POINTS: usize = 4000;
 /// Arguments of `driftless eval`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Gyro log: CSV (optionally .gz), or a ROS 2 bag (an MCAP file or a rosbag2 directory,
-    /// see --topic).
-    input: PathBuf,
-    /// The bag's topic.
+    /// The gyro log.
     #[command(flatten)]
-    bag: BagArgs,
+    log: GyroLogArgs,
     /// Model file from `driftless train`.
     #[arg(long)]
     model: PathBuf,
-    /// Column (default: the model's axis).
-    #[arg(long)]
-    column: Option<String>,
-    /// Sample rate of the log, Hz (must be the model's; default: the model's; a bag's stamps
-    /// must agree with it).
-    #[arg(long)]
-    rate: Option<f64>,
-    /// Units of the log (must be the model's; default: the model's; a bag's are rad/s).
-    #[arg(long)]
-    units: Option<String>,
     /// First sample scored (default: after the model's training range when the file is the
     /// model's training file, else 0). The stages run from sample 0 either way.
     #[arg(long)]
@@ -101,7 +87,7 @@ fn thin(x0: f64, dt: f64, y: &[f64]) -> Vec<(f64, f64)> {
 pub fn run(args: Args) -> Result<(), CliError> {
     let model = read_model(&args.model).map_err(CliError::input)?;
     let rate = model.rate_hz;
-    if let Some(r) = args.rate {
+    if let Some(r) = args.log.rate {
         check_rate(r)?;
         if (r - rate).abs() > 1e-9 * rate {
             return Err(CliError::input(format!(
@@ -110,7 +96,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )));
         }
     }
-    if let Some(u) = &args.units {
+    if let Some(u) = &args.log.units {
         if *u != model.units {
             return Err(CliError::input(format!(
                 "the log is in {u} but model {} is in {}",
@@ -121,7 +107,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     let (col, column) = read_log(&args, &model)?;
     let n = col.values.len();
-    let hash = sha256_file(&args.input).map_err(CliError::input)?;
+    let hash = sha256_file(&args.log.input).map_err(CliError::input)?;
     let training_file = hash == model.provenance.sha256 && column == model.provenance.column;
     let held_out = model.provenance.train_start + model.provenance.train_len;
     let from = args
@@ -132,7 +118,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         return Err(CliError::input(format!(
             "samples {from}..{to} of {} ({n} samples) are too few to evaluate (need at least \
              {MIN_SAMPLES}; the model's training range ends at {held_out})",
-            args.input.display()
+            args.log.input.display()
         )));
     }
     if training_file && from < held_out {
@@ -146,7 +132,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         write_plot(path, &model, &col.values, &e, from..to)?;
     }
     let report = Report {
-        file: args.input.display().to_string(),
+        file: args.log.input.display().to_string(),
         column: col.name.clone(),
         rate_hz: rate,
         units: model.units.clone(),
@@ -171,14 +157,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
 /// bag's rate and units must be the model's.
 fn read_log(args: &Args, model: &DriftModel) -> Result<(Column, String), CliError> {
     let rate = model.rate_hz;
-    let is_bag = crate::io::rate_log::is_bag(&args.input);
-    let column = match &args.column {
+    let is_bag = crate::io::rate_log::is_bag(&args.log.input);
+    let column = match &args.log.column {
         Some(c) => c.clone(),
         // A bag's columns are x, y, z whatever the model's training log called its axis.
         None if is_bag => "x".to_string(),
         None => model.axis.clone(),
     };
-    let col = read_column(&args.input, Some(&column), &args.bag)?;
+    let col = read_column(&args.log.input, Some(&column), &args.log.bag)?;
     if col.origin.bag.is_some() {
         col.origin.rate(Some(rate)).map_err(|e| {
             CliError::input(format!(
@@ -190,7 +176,7 @@ fn read_log(args: &Args, model: &DriftModel) -> Result<(Column, String), CliErro
         if units != model.units {
             return Err(CliError::input(format!(
                 "{}: a bag's rates are in {units} but model {} is in {}",
-                args.input.display(),
+                args.log.input.display(),
                 args.model.display(),
                 model.units
             )));

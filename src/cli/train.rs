@@ -15,24 +15,35 @@ use crate::io::model_file::{sha256_file, write_model};
 use crate::io::rate_log::{LogOrigin, RateLog};
 use std::path::{Path, PathBuf};
 
+/// The gyro log `train` fits a model to and `eval` scores one on, as both take it.
+#[derive(Debug, clap::Args)]
+pub struct GyroLogArgs {
+    /// Gyro log: CSV (optionally .gz), or a ROS 2 bag (an MCAP file or a rosbag2 directory, see
+    /// --topic); `train` wants a static one.
+    pub input: PathBuf,
+    /// The bag's topic.
+    #[command(flatten)]
+    pub bag: BagArgs,
+    /// Sample rate of the log, Hz: a CSV log's (`train` needs it, `eval` takes the model's
+    /// without it); a bag's comes from its stamps. With `eval` it must be the model's.
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Column (default: with `train` the first numeric column that is not time: t, t_s, time,
+    /// ...; with `eval` the model's axis).
+    #[arg(long)]
+    pub column: Option<String>,
+    /// Units of the rates: deg/s or rad/s (default: with `train` deg/s, with `eval` the
+    /// model's; a bag's are rad/s). With `eval` they must be the model's.
+    #[arg(long)]
+    pub units: Option<String>,
+}
+
 /// Arguments of `driftless train`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Static gyro log: CSV (optionally .gz), or a ROS 2 bag (an MCAP file or a rosbag2
-    /// directory, see --topic).
-    input: PathBuf,
-    /// The bag's topic.
+    /// The static gyro log.
     #[command(flatten)]
-    bag: BagArgs,
-    /// Sample rate of the log, Hz (required for CSV; a bag's comes from its stamps).
-    #[arg(long)]
-    rate: Option<f64>,
-    /// Column to train on (default: the first numeric column that is not time: t, t_s, time, ...).
-    #[arg(long)]
-    column: Option<String>,
-    /// Units of the rate: deg/s or rad/s (default deg/s; a bag's are rad/s).
-    #[arg(long)]
-    units: Option<String>,
+    log: GyroLogArgs,
     /// Lagged drift values fed to the network (p).
     #[arg(long, default_value_t = 4)]
     lags: usize,
@@ -174,20 +185,20 @@ pub fn check_rate(rate: f64) -> Result<(), CliError> {
 
 /// Run `driftless train`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    if let Some(r) = args.rate {
+    if let Some(r) = args.log.rate {
         check_rate(r)?;
     }
-    if let Some(u) = args.units.as_deref().filter(|u| !UNITS.contains(u)) {
+    if let Some(u) = args.log.units.as_deref().filter(|u| !UNITS.contains(u)) {
         return Err(CliError::input(format!(
             "--units '{u}' (valid: {})",
             UNITS.join(", ")
         )));
     }
-    let col = read_column(&args.input, args.column.as_deref(), &args.bag)?;
-    let rate = col.origin.rate(args.rate).map_err(CliError::input)?;
+    let col = read_column(&args.log.input, args.log.column.as_deref(), &args.log.bag)?;
+    let rate = col.origin.rate(args.log.rate).map_err(CliError::input)?;
     let units = col
         .origin
-        .units(args.units.as_deref())
+        .units(args.log.units.as_deref())
         .map_err(CliError::input)?
         .to_string();
     let spec = fit_spec(&args, rate)?;
@@ -196,7 +207,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if end > n {
         return Err(CliError::input(format!(
             "{} has {n} samples; --start {} --train {} --test {} needs {end}",
-            args.input.display(),
+            args.log.input.display(),
             args.start,
             args.train,
             args.test
@@ -226,8 +237,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
     })?;
     let (warm, t_end) = (fitted.warm_up, fitted.train_end);
     let provenance = Provenance {
-        file: args.input.display().to_string(),
-        sha256: sha256_file(&args.input).map_err(CliError::input)?,
+        file: args.log.input.display().to_string(),
+        sha256: sha256_file(&args.log.input).map_err(CliError::input)?,
         column: col.name.clone(),
         train_start: args.start,
         train_len: args.train,
@@ -242,7 +253,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     println!(
         "{}: column {}, {} Hz; trained on samples {}..{} (drift {}..{} after warm-up and lag), \
          held out {}..{}",
-        args.input.display(),
+        args.log.input.display(),
         col.name,
         rate,
         args.start,
