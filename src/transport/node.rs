@@ -189,16 +189,7 @@ impl Transport {
         &self,
         name: &str,
     ) -> Result<Input<T>, TransportError> {
-        let service = self.pubsub::<T>(name)?;
-        let subscriber = service
-            .subscriber_builder()
-            .buffer_size(self.qos.buffer_size)
-            .create()
-            .map_err(|e| setup("subscriber", name, e))?;
-        Ok(Input {
-            subscriber,
-            service,
-        })
+        subscribe(self.pubsub::<T>(name)?, name, self.qos.buffer_size)
     }
 
     /// A subscriber to a service another process publishes (a sensor driver, an external
@@ -230,15 +221,7 @@ impl Transport {
                 need: self.qos.buffer_size,
             });
         }
-        let subscriber = service
-            .subscriber_builder()
-            .buffer_size(self.qos.buffer_size)
-            .create()
-            .map_err(|e| setup("subscriber", name, e))?;
-        Ok(Input {
-            subscriber,
-            service,
-        })
+        subscribe(service, name, self.qos.buffer_size)
     }
 
     /// A subscriber to an existing service `name` whatever its creator's QoS (for `tap`,
@@ -254,15 +237,7 @@ impl Transport {
             .open()
             .map_err(|e| self.open_error(name, e))?;
         let max = service.static_config().subscriber_max_buffer_size();
-        let subscriber = service
-            .subscriber_builder()
-            .buffer_size(max)
-            .create()
-            .map_err(|e| setup("subscriber", name, e))?;
-        Ok(Input {
-            subscriber,
-            service,
-        })
+        subscribe(service, name, max)
     }
 
     /// A listener on the event service `name` (opened or created), to sleep until a publisher
@@ -371,4 +346,23 @@ impl Transport {
         ipc::Service::does_exist(&sn, self.node.config(), MessagingPattern::PublishSubscribe)
             .map_err(|e| setup("service lookup", name, e))
     }
+}
+
+/// A subscriber to `service` (`name` in errors) holding `buffer` samples, as an [`Input`]: the
+/// one subscriber builder of [`Transport::input`], [`Transport::external_input`] and
+/// [`Transport::open_input`].
+fn subscribe<T: Debug + ZeroCopySend + Copy + 'static>(
+    service: PubSubFactory<T>,
+    name: &str,
+    buffer: usize,
+) -> Result<Input<T>, TransportError> {
+    let subscriber = service
+        .subscriber_builder()
+        .buffer_size(buffer)
+        .create()
+        .map_err(|e| setup("subscriber", name, e))?;
+    Ok(Input {
+        subscriber,
+        service,
+    })
 }
