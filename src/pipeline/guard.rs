@@ -8,13 +8,13 @@
 //! epoch, and that sample is flagged and counted as a gap: subscribers count on the rise.
 
 use crate::clock::{StampCheck, StampFault};
+use crate::units::{AccelUnit, RateUnit};
 use crate::wire::{
     GyroSample, RawSample, DRIFT_STD_NOT_PROVIDED, FLAG_GAP_BEFORE, FLAG_INPUT_INVALID,
     FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED, RAW_INVALID,
     RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED, SENSOR_ACCEL, SENSOR_ACCEL_INVALID,
     SENSOR_MAG, SENSOR_MAG_INVALID,
 };
-use crate::units::{AccelUnit, RateUnit};
 
 /// Counts of what the guard flagged.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -55,10 +55,10 @@ use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
+use crate::units::{AccelUnit, RateUnit};
 use crate::wire::{
     RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
 };
-use crate::units::{AccelUnit, RateUnit};
 
 const FILE: Key = Key {
     name: "file",
