@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::driftless;
+use common::{driftless, simulated_log};
 use driftless::io::read_table;
 use serde_json::Value;
 use std::fmt::Write as _;
@@ -225,22 +225,7 @@ fn five_shifted_pieces_pool_to_the_uncut_terms_and_joined_do_not() {
 /// A simulated 300 s log at 100 Hz, `seed` its noise.
 fn simulate(dir: &Path, name: &str, seed: &str) -> PathBuf {
     let out = dir.join(name);
-    let o = driftless(&[
-        "simulate",
-        "--N",
-        "1.5",
-        "--B",
-        "20",
-        "--rate",
-        "100",
-        "--duration",
-        "300s",
-        "--seed",
-        seed,
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    stdout(&o);
+    simulated_log(&out, seed, &[]);
     out
 }
 

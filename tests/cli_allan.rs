@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::driftless;
+use common::{driftless, simulated_log};
 
 use serde_json::Value;
 use std::path::Path;
@@ -26,28 +26,9 @@ fn simulate(dir: &Path, extra: &[&str]) -> String {
     simulate_to(&dir.join("sim.csv"), extra)
 }
 
-/// The 300 s simulated log of [`simulate`], written to `out`.
+/// The 300 s simulated log of [`simulate`] (seed 7), written to `out`.
 fn simulate_to(out: &Path, extra: &[&str]) -> String {
-    let out_s = out.to_str().unwrap().to_string();
-    let mut args = vec![
-        "simulate",
-        "--N",
-        "1.5",
-        "--B",
-        "20",
-        "--rate",
-        "100",
-        "--duration",
-        "300s",
-        "--seed",
-        "7",
-        "-o",
-        &out_s,
-    ];
-    args.extend_from_slice(extra);
-    let o = driftless(&args);
-    assert!(o.status.success(), "{}", stderr(&o));
-    out_s
+    simulated_log(out, "7", extra)
 }
 
 #[test]

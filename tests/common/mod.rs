@@ -71,6 +71,32 @@ pub fn driftless(args: &[&str]) -> std::process::Output {
         .expect("the binary runs")
 }
 
+/// A simulated still log of 300 s at 100 Hz (`driftless simulate`: N 1.5 deg/sqrt(h), B 20
+/// deg/h, noise seed `seed`, and `extra` arguments) written to `out`; panics if it fails.
+#[allow(dead_code)] // Not every test binary simulates.
+pub fn simulated_log(out: &Path, seed: &str, extra: &[&str]) -> String {
+    let out_s = out.to_str().unwrap().to_string();
+    let mut args = vec![
+        "simulate",
+        "--N",
+        "1.5",
+        "--B",
+        "20",
+        "--rate",
+        "100",
+        "--duration",
+        "300s",
+        "--seed",
+        seed,
+        "-o",
+        &out_s,
+    ];
+    args.extend_from_slice(extra);
+    let o = driftless(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out_s
+}
+
 /// `driftless ARGS` to its end, or a failure after `limit` (a hang).
 pub fn run_within(args: &[&str], limit: Duration) -> (Option<i32>, String) {
     let child = Command::new(bin())
