@@ -11,13 +11,12 @@ use driftless::sim::{Motion, SimConfig, Simulator};
 
 const N: u64 = 4000;
 
-#[test]
-fn the_report_gives_the_heading_error_against_the_simulators_truth() {
-    let prefix = Prefix::new("heading");
-    let dir = Dir::new();
-    let text = format!(
+/// A pipeline `name`: the ADIS16405 simulated at 1 kHz in stop-and-go (seed 5, and `sensor`'s
+/// further keys), no denoiser, published.
+fn sim_pipeline(name: &str, sensor: &str) -> String {
+    format!(
         r#"
-name = "h"
+name = "{name}"
 rate_hz = 1000.0
 axes = 3
 report_interval_s = 60.0
@@ -25,25 +24,32 @@ report_interval_s = 60.0
 [[stage]]
 name = "sensor"
 kind = "ingest.sim"
-output = "h/raw"
+output = "{name}/raw"
 profile = "adis16405"
 motion = "stop-and-go"
 seed = 5
-samples = {N}
+{sensor}
 
 [[stage]]
 name = "denoise"
 kind = "denoise.none"
-input = "h/raw"
-output = "h/denoised"
+input = "{name}/raw"
+output = "{name}/denoised"
 
 [[stage]]
 name = "publish"
 kind = "publish"
-input = "h/denoised"
-output = "h/corrected"
+input = "{name}/denoised"
+output = "{name}/corrected"
 "#
-    );
+    )
+}
+
+#[test]
+fn the_report_gives_the_heading_error_against_the_simulators_truth() {
+    let prefix = Prefix::new("heading");
+    let dir = Dir::new();
+    let text = sim_pipeline("h", &format!("samples = {N}"));
     let file = dir.write("p.toml", &text);
     let child = start(
         &file,
@@ -188,33 +194,8 @@ output = "l/corrected"
 fn a_late_daemon_runs_its_duration_to_the_same_samples() {
     let prefix = Prefix::new("late");
     let dir = Dir::new();
-    let text = r#"
-name = "late"
-rate_hz = 1000.0
-axes = 3
-report_interval_s = 60.0
-
-[[stage]]
-name = "sensor"
-kind = "ingest.sim"
-output = "late/raw"
-profile = "adis16405"
-motion = "stop-and-go"
-seed = 5
-
-[[stage]]
-name = "denoise"
-kind = "denoise.none"
-input = "late/raw"
-output = "late/denoised"
-
-[[stage]]
-name = "publish"
-kind = "publish"
-input = "late/denoised"
-output = "late/corrected"
-"#;
-    let file = dir.write("p.toml", text);
+    let text = sim_pipeline("late", "");
+    let file = dir.write("p.toml", &text);
     let child = start(
         &file,
         &prefix,
