@@ -858,11 +858,9 @@ fn no_source_file_holds_over_1000_lines_of_code() {
 const FN_MAX_LINES: usize = 120;
 
 /// Functions allowed over [`FN_MAX_LINES`] for now, as (file, function): "ROS 2 in one room"
-/// (issue 60 part 2) restructures them. Nothing else goes here: split the function instead.
-const LONG_FNS_ALLOWED: &[(&str, &str)] = &[
-    ("src/transport/ros2/bridge.rs", "run_bridge"),
-    ("src/sides/ros2.rs", "read"),
-];
+/// (issue 60 part 2) restructures it with a settings struct. Nothing else goes here: split the
+/// function instead.
+const LONG_FNS_ALLOWED: &[(&str, &str)] = &[("src/transport/ros2/bridge.rs", "run_bridge")];
 
 /// Each function with a body before the unit tests: its name, its first line (1-based) and its
 /// length in lines, from the `fn` line to the closing brace at the `fn` line's indentation (as

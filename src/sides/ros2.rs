@@ -10,7 +10,7 @@ use toml::Spanned;
 use super::contract::{Chain, Kind, Ready, Side, Start};
 use crate::io::InputError;
 use crate::stages::contract::SideInput;
-use crate::stages::schema::{DefaultValue, Key, Table, Type};
+use crate::stages::schema::{DefaultValue, Key, Src, Table, Type};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::{
     Direction, MotionKind, Ros2Settings, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, IMU_TYPE,
@@ -177,55 +177,6 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         ));
     }
     let src = t.src;
-    let topic = |t: &Spanned<String>| -> Result<String, InputError> {
-        let name = t.get_ref();
-        let ok = name.starts_with('/')
-            && name.len() > 1
-            && !name.ends_with('/')
-            && !name.contains("//")
-            && !name.contains("__")
-            && name[1..].split('/').all(|part| {
-                part.chars()
-                    .next()
-                    .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-                    && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-            });
-        if !ok {
-            return Err(src.span(
-                t,
-                format!(
-                    "topic {name:?}: an absolute ROS 2 name (/a/b: letters, digits, '_', each part \
-                     not starting with a digit, no '__')"
-                ),
-            ));
-        }
-        Ok(name.clone())
-    };
-    let of_type = |ty: &Option<Spanned<String>>, key: &str, want: &str| match ty {
-        Some(ty) if ty.get_ref() != want => Err(src.span(ty, format!("{key}.type is {want}"))),
-        _ => Ok(()),
-    };
-    let imu_type = |ty: &Option<Spanned<String>>, key: &str| of_type(ty, key, IMU_TYPE);
-    // The bias and its diagnostics come from a predict.bias stage's outputs or later ones.
-    let bias_service = |raw: &Spanned<String>, key: &str| -> Result<String, InputError> {
-        let service = src.service(raw)?;
-        if chain.writer(&service).is_none() {
-            return Err(src.span(
-                raw,
-                format!("{key}.service {service:?} is no stage's output"),
-            ));
-        }
-        if !chain.upstream_of(&service, "predict.bias") {
-            return Err(src.span(
-                raw,
-                format!(
-                    "{key}.service {service:?}: no predict.bias stage at or before the stage \
-                     that publishes it, so its samples carry no bias to report"
-                ),
-            ));
-        }
-        Ok(service)
-    };
     let node = t.get::<String>(&NODE)?;
     let namespace = t.str_or_default(&NAMESPACE, |_| Ok(()))?;
     let depth = t.int_or_default(&DEPTH)?;
@@ -234,117 +185,28 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
     let accel_noise = t.float(&ACCEL_NOISE)?;
     let diagnostics_period_s = t.float_or_default(&DIAGNOSTICS_PERIOD_S)?;
     let bias_threshold = t.float_or_default(&BIAS_THRESHOLD)?;
-    let imu_in = match t.get::<RawTopic>(&IMU_IN)? {
-        Some(raw) => {
-            let raw = raw.into_inner();
-            let service = src.service(&raw.service)?;
-            if chain
-                .reader(&service)
-                .is_none_or(|s| s.kind.name != "ingest.iceoryx2")
-            {
-                return Err(src.span(
-                    &raw.service,
-                    format!("imu_in.service {service:?} is no ingest.iceoryx2 stage's input"),
-                ));
-            }
-            if chain.cx.units != RateUnit::RadPerS {
-                return Err(src.span(
-                    &raw.service,
-                    "imu_in: ROS 2 rates are rad/s (REP 103): set input_units = \"rad/s\"",
-                ));
-            }
-            if chain.cx.accel_units != AccelUnit::MPerS2 {
-                return Err(src.span(
-                    &raw.service,
-                    "imu_in: ROS 2 accelerations are m/s^2 (REP 103): set accel_units = \
-                     \"m/s^2\"",
-                ));
-            }
-            imu_type(&raw.ty, "imu_in")?;
-            Some((topic(&raw.topic)?, service))
-        }
-        None => None,
-    };
-    let mut imu_out = Vec::new();
-    for raw in t
+    let imu_in = t
+        .get::<RawTopic>(&IMU_IN)?
+        .map(|raw| imu_in(src, chain, raw.into_inner()))
+        .transpose()?;
+    let imu_out = t
         .get::<Vec<Spanned<RawTopic>>>(&IMU_OUT)?
         .map_or_else(Vec::new, Spanned::into_inner)
-    {
-        let raw = raw.into_inner();
-        let service = src.service(&raw.service)?;
-        if chain.writer(&service).is_none() {
-            return Err(src.span(
-                &raw.service,
-                format!("imu_out.service {service:?} is no stage's output"),
-            ));
-        }
-        imu_type(&raw.ty, "imu_out")?;
-        imu_out.push((service, topic(&raw.topic)?));
-    }
-    let bias_out = match t.get::<RawTopic>(&BIAS_OUT)? {
-        Some(raw) => {
-            let raw = raw.into_inner();
-            let service = bias_service(&raw.service, "bias_out")?;
-            of_type(&raw.ty, "bias_out", VECTOR3_STAMPED_TYPE)?;
-            Some((service, topic(&raw.topic)?))
-        }
-        None => None,
-    };
-    let diagnostics = match t.get::<RawDiagnostics>(&DIAGNOSTICS)? {
-        Some(raw) => {
-            let raw = raw.into_inner();
-            let service = bias_service(&raw.service, "diagnostics")?;
-            of_type(&raw.ty, "diagnostics", DIAGNOSTIC_ARRAY_TYPE)?;
-            let topic = match &raw.topic {
-                Some(t) => topic(t)?,
-                None => DIAGNOSTICS_TOPIC.to_string(),
-            };
-            Some((service, topic))
-        }
-        None => None,
-    };
-    let motion_in = match t.get::<RawTopic>(&MOTION_IN)? {
-        Some(raw) => {
-            let raw = raw.into_inner();
-            let service = src.service(&raw.service)?;
-            let readers = chain.side_readers(&service);
-            if readers.is_empty() {
-                return Err(src.span(
-                    &raw.service,
-                    format!("motion_in.service {service:?} is no stage's stop_input"),
-                ));
-            }
-            // A motion message says a speed, never whether the vehicle stands: judged by the
-            // stands flag alone, every signal would be unknown.
-            let by_stands = readers
-                .iter()
-                .find(|(_, kind)| *kind == SideInput::Stop { by_speed: false });
-            if let Some((stage, _)) = by_stands {
-                let stage = &stage.name;
-                return Err(src.span(
-                    &raw.service,
-                    format!(
-                        "motion_in feeds {service:?} with the vehicle's speed only (a ROS 2 \
-                         motion message says no \"stands\"), but stage {stage:?} reads it \
-                         without stop_speed, so it would never learn a stop: add stop_speed = \
-                         {DEFAULT_STOP_SPEED_M_S} (m/s, stands at or below) to stage {stage:?}"
-                    ),
-                ));
-            }
-            let ty = match &raw.ty {
-                Some(ty) if MotionKind::of_type(ty.get_ref()).is_some() => ty.get_ref().clone(),
-                Some(ty) => {
-                    let names: Vec<&str> = MotionKind::ALL.iter().map(|(n, _)| *n).collect();
-                    return Err(
-                        src.span(ty, format!("motion_in.type: one of {}", names.join(", ")))
-                    );
-                }
-                None => MotionKind::Odometry.type_name().to_string(),
-            };
-            Some((topic(&raw.topic)?, ty, service))
-        }
-        None => None,
-    };
+        .into_iter()
+        .map(|raw| imu_out(src, chain, raw.into_inner()))
+        .collect::<Result<_, _>>()?;
+    let bias_out = t
+        .get::<RawTopic>(&BIAS_OUT)?
+        .map(|raw| bias_out(src, chain, raw.into_inner()))
+        .transpose()?;
+    let diagnostics = t
+        .get::<RawDiagnostics>(&DIAGNOSTICS)?
+        .map(|raw| diagnostics(src, chain, raw.into_inner()))
+        .transpose()?;
+    let motion_in = t
+        .get::<RawTopic>(&MOTION_IN)?
+        .map(|raw| motion_in(src, chain, raw.into_inner()))
+        .transpose()?;
     Ok(Box::new(Ros2Side(Ros2Settings {
         node: node.map_or_else(
             || format!("driftless_{}", chain.pipeline.replace('-', "_")),
@@ -365,6 +227,185 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         bias_threshold,
         stats_service: chain.stats_service.to_string(),
     })))
+}
+
+/// A topic name as ROS 2 takes it: absolute, its parts letters, digits and '_'.
+fn topic(src: &Src<'_>, t: &Spanned<String>) -> Result<String, InputError> {
+    let name = t.get_ref();
+    let ok = name.starts_with('/')
+        && name.len() > 1
+        && !name.ends_with('/')
+        && !name.contains("//")
+        && !name.contains("__")
+        && name[1..].split('/').all(|part| {
+            part.chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        });
+    if !ok {
+        return Err(src.span(
+            t,
+            format!(
+                "topic {name:?}: an absolute ROS 2 name (/a/b: letters, digits, '_', each part \
+                 not starting with a digit, no '__')"
+            ),
+        ));
+    }
+    Ok(name.clone())
+}
+
+/// A `type` given for `key` is `want`.
+fn of_type(
+    src: &Src<'_>,
+    ty: &Option<Spanned<String>>,
+    key: &str,
+    want: &str,
+) -> Result<(), InputError> {
+    match ty {
+        Some(ty) if ty.get_ref() != want => Err(src.span(ty, format!("{key}.type is {want}"))),
+        _ => Ok(()),
+    }
+}
+
+/// The service `key` reports the bias of: a predict.bias stage's output or a later one's.
+fn bias_service(
+    src: &Src<'_>,
+    chain: &Chain<'_>,
+    raw: &Spanned<String>,
+    key: &str,
+) -> Result<String, InputError> {
+    let service = src.service(raw)?;
+    if chain.writer(&service).is_none() {
+        return Err(src.span(
+            raw,
+            format!("{key}.service {service:?} is no stage's output"),
+        ));
+    }
+    if !chain.upstream_of(&service, "predict.bias") {
+        return Err(src.span(
+            raw,
+            format!(
+                "{key}.service {service:?}: no predict.bias stage at or before the stage \
+                 that publishes it, so its samples carry no bias to report"
+            ),
+        ));
+    }
+    Ok(service)
+}
+
+/// `imu_in`: (topic, service) into an ingest.iceoryx2 stage of a chain in ROS 2's units.
+fn imu_in(src: &Src<'_>, chain: &Chain<'_>, raw: RawTopic) -> Result<(String, String), InputError> {
+    let service = src.service(&raw.service)?;
+    if chain
+        .reader(&service)
+        .is_none_or(|s| s.kind.name != "ingest.iceoryx2")
+    {
+        return Err(src.span(
+            &raw.service,
+            format!("imu_in.service {service:?} is no ingest.iceoryx2 stage's input"),
+        ));
+    }
+    if chain.cx.units != RateUnit::RadPerS {
+        return Err(src.span(
+            &raw.service,
+            "imu_in: ROS 2 rates are rad/s (REP 103): set input_units = \"rad/s\"",
+        ));
+    }
+    if chain.cx.accel_units != AccelUnit::MPerS2 {
+        return Err(src.span(
+            &raw.service,
+            "imu_in: ROS 2 accelerations are m/s^2 (REP 103): set accel_units = \
+             \"m/s^2\"",
+        ));
+    }
+    of_type(src, &raw.ty, "imu_in", IMU_TYPE)?;
+    Ok((topic(src, &raw.topic)?, service))
+}
+
+/// One of `imu_out`: (service, topic) of a stage's output.
+fn imu_out(
+    src: &Src<'_>,
+    chain: &Chain<'_>,
+    raw: RawTopic,
+) -> Result<(String, String), InputError> {
+    let service = src.service(&raw.service)?;
+    if chain.writer(&service).is_none() {
+        return Err(src.span(
+            &raw.service,
+            format!("imu_out.service {service:?} is no stage's output"),
+        ));
+    }
+    of_type(src, &raw.ty, "imu_out", IMU_TYPE)?;
+    Ok((service, topic(src, &raw.topic)?))
+}
+
+/// `bias_out`: (service, topic).
+fn bias_out(
+    src: &Src<'_>,
+    chain: &Chain<'_>,
+    raw: RawTopic,
+) -> Result<(String, String), InputError> {
+    let service = bias_service(src, chain, &raw.service, "bias_out")?;
+    of_type(src, &raw.ty, "bias_out", VECTOR3_STAMPED_TYPE)?;
+    Ok((service, topic(src, &raw.topic)?))
+}
+
+/// `diagnostics`: (service, topic; ROS 2's own by default).
+fn diagnostics(
+    src: &Src<'_>,
+    chain: &Chain<'_>,
+    raw: RawDiagnostics,
+) -> Result<(String, String), InputError> {
+    let service = bias_service(src, chain, &raw.service, "diagnostics")?;
+    of_type(src, &raw.ty, "diagnostics", DIAGNOSTIC_ARRAY_TYPE)?;
+    let topic = match &raw.topic {
+        Some(t) => topic(src, t)?,
+        None => DIAGNOSTICS_TOPIC.to_string(),
+    };
+    Ok((service, topic))
+}
+
+/// `motion_in`: (topic, message type, service) into stages that judge a stop by the speed.
+fn motion_in(
+    src: &Src<'_>,
+    chain: &Chain<'_>,
+    raw: RawTopic,
+) -> Result<(String, String, String), InputError> {
+    let service = src.service(&raw.service)?;
+    let readers = chain.side_readers(&service);
+    if readers.is_empty() {
+        return Err(src.span(
+            &raw.service,
+            format!("motion_in.service {service:?} is no stage's stop_input"),
+        ));
+    }
+    // A motion message says a speed, never whether the vehicle stands: judged by the
+    // stands flag alone, every signal would be unknown.
+    let by_stands = readers
+        .iter()
+        .find(|(_, kind)| *kind == SideInput::Stop { by_speed: false });
+    if let Some((stage, _)) = by_stands {
+        let stage = &stage.name;
+        return Err(src.span(
+            &raw.service,
+            format!(
+                "motion_in feeds {service:?} with the vehicle's speed only (a ROS 2 \
+                 motion message says no \"stands\"), but stage {stage:?} reads it \
+                 without stop_speed, so it would never learn a stop: add stop_speed = \
+                 {DEFAULT_STOP_SPEED_M_S} (m/s, stands at or below) to stage {stage:?}"
+            ),
+        ));
+    }
+    let ty = match &raw.ty {
+        Some(ty) if MotionKind::of_type(ty.get_ref()).is_some() => ty.get_ref().clone(),
+        Some(ty) => {
+            let names: Vec<&str> = MotionKind::ALL.iter().map(|(n, _)| *n).collect();
+            return Err(src.span(ty, format!("motion_in.type: one of {}", names.join(", "))));
+        }
+        None => MotionKind::Odometry.type_name().to_string(),
+    };
+    Ok((topic(src, &raw.topic)?, ty, service))
 }
 
 impl Side for Ros2Side {
