@@ -11,9 +11,10 @@
 //! bag input on this 2-core machine; gzip input is bound by decompression.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use driftless::io::rate_log::read_log;
-use driftless::io::ros2::{Imu, ImuBagWriter, Time, IMU_DEFINITION, IMU_TYPE};
 use driftless::io::{read_table, read_table_reference, write_table};
+use driftless::rate_log::read_log;
+use driftless::transport::ros2::bag::ImuBagWriter;
+use driftless::transport::ros2::{Imu, Time, IMU_DEFINITION, IMU_TYPE};
 use std::hint::black_box;
 use std::path::Path;
 

@@ -20,8 +20,8 @@
 //! The datasheet's terms (`profile = "adis16405"`), the gyro-only path (its own detector).
 
 use driftless::drift::bias::{BiasTerms, BiasTracker, TrackerConfig};
-use driftless::io::rate_log::read_log;
 use driftless::nav::{generate, heading_metrics, Profile};
+use driftless::rate_log::read_log;
 
 const RATE: f64 = 100.0;
 const WINDOW_S: f64 = 600.0;

@@ -29,6 +29,7 @@ pub mod nav;
 pub mod nav_eval;
 pub mod pipeline;
 pub mod quality;
+pub mod rate_log;
 pub mod sides;
 pub mod sim;
 pub mod stages;

@@ -357,7 +357,8 @@ fn bad_accelerometer_options_are_one_line_exit_2() {
 /// refused in one line.
 #[test]
 fn a_bags_linear_acceleration_is_read_as_ax_ay_az() {
-    use driftless::io::ros2::{Imu, ImuBagWriter, Time};
+    use driftless::transport::ros2::bag::ImuBagWriter;
+    use driftless::transport::ros2::{Imu, Time};
     let dir = tempfile::tempdir().unwrap();
     let log = six_axis(dir.path());
     let text = std::fs::read_to_string(&log).unwrap();

@@ -23,8 +23,9 @@ const LAYERS: &[(&str, u32)] = &[
     ("drift", 2),
     ("attitude", 2),
     ("nav", 3),
-    ("transport", 4),
-    ("io", 5),
+    ("io", 4),
+    ("transport", 5),
+    ("rate_log", 6),
     ("metrics", 6),
     ("stages", 7),
     ("sides", 8),
@@ -230,8 +231,8 @@ type ModPath = Vec<String>;
 /// does, and the path it names).
 type Imports = BTreeMap<ModPath, BTreeMap<ModPath, String>>;
 
-/// A file's module path: `src/transport/node.rs` -> `transport::node`, `src/io/ros2/mod.rs` ->
-/// `io::ros2`, `src/lib.rs` -> nothing.
+/// A file's module path: `src/transport/node.rs` -> `transport::node`, `src/transport/ros2/mod.rs` ->
+/// `transport::ros2`, `src/lib.rs` -> nothing.
 fn module_path(file: &Path) -> ModPath {
     let rel = file.strip_prefix(src()).unwrap().with_extension("");
     let mut path: ModPath = rel
@@ -984,7 +985,10 @@ fn the_checks_see_what_they_check() {
         }]
     );
     assert_eq!(inline.len(), 2);
-    assert_eq!(module_path(&src().join("io/ros2/mod.rs")), ["io", "ros2"]);
+    assert_eq!(
+        module_path(&src().join("transport/ros2/mod.rs")),
+        ["transport", "ros2"]
+    );
     // Through a module's re-exports to the file that defines the item.
     let units = units();
     let path = |s: &str| s.split("::").map(String::from).collect::<Vec<_>>();

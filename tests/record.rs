@@ -701,8 +701,9 @@ output = "rt/corrected"
 
 #[test]
 fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
-    use driftless::io::ros2::{Bag, Imu};
     use driftless::pipeline::{config, offline::Offline};
+    use driftless::transport::ros2::bag::Bag;
+    use driftless::transport::ros2::Imu;
     // Its accelerometer varies per message; messages 300-309 mark it not provided.
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros2/accel.mcap");
     let dir = Dir::new();
@@ -871,8 +872,8 @@ fn a_rosbags_bag_round_trips_through_the_daemon_into_a_ros2_recording() {
 /// `got`'s linear acceleration is `sent`'s bit for bit with the covariance a white noise of
 /// `std` m/s^2 gives, or "not provided" where `sent` did not provide it.
 fn same_accel(
-    got: &driftless::io::ros2::Imu,
-    sent: &driftless::io::ros2::Imu,
+    got: &driftless::transport::ros2::Imu,
+    sent: &driftless::transport::ros2::Imu,
     std: f64,
     what: &str,
 ) {

@@ -1,4 +1,4 @@
-//! ROS 2 bags (`driftless::io::ros2`) against the independent peer `rosbags` (pinned in
+//! ROS 2 bags (`driftless::transport::ros2::bag`) against the independent peer `rosbags` (pinned in
 //! scripts/gen_ros2_fixture.py): our reader decodes the bag rosbags wrote (tests/fixtures/ros2/
 //! imu.mcap) to exactly the values rosbags put in (imu.csv and the script's formulas), every
 //! message once and in order; every bad input is one line naming the file, the topic and the
@@ -14,11 +14,12 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use driftless::io::ros2::{
-    Bag, BagErrorKind, Imu, ImuBagWriter, ImuRecord, Time, IMU_DEFINITION, IMU_TYPE, IMU_TYPE_HASH,
-    OFFERED_QOS_PROFILES,
-};
+use driftless::io::BagErrorKind;
 use driftless::synthetic::SplitMix64;
+use driftless::transport::ros2::bag::{
+    Bag, ImuBagWriter, ImuRecord, IMU_TYPE_HASH, OFFERED_QOS_PROFILES,
+};
+use driftless::transport::ros2::{Imu, Time, IMU_DEFINITION, IMU_TYPE};
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -13,8 +13,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use common::{collect, driftless, finish, qos, start, text, Dir, Prefix};
-use driftless::io::ros2::{Imu, ImuBagWriter, Time, IMU_TYPE};
 use driftless::sim::{SimConfig, Simulator};
+use driftless::transport::ros2::bag::ImuBagWriter;
+use driftless::transport::ros2::{Imu, Time, IMU_TYPE};
 use driftless::transport::Transport;
 use driftless::wire::{GyroSample, FLAG_INPUT_INVALID, FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS};
 use serde_json::Value;

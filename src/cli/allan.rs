@@ -21,8 +21,8 @@ use crate::drift::bias::{
     TermChoices,
 };
 use crate::io::plot::{self, ErrorPoint, LogLogChart, Series};
-use crate::io::rate_log::{self, RateLog};
 use crate::io::{progress, write_table};
+use crate::rate_log::{self, RateLog};
 use crate::stages::accel_terms::{ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
 use pooled::{Pooling, Reference};
 use serde_json::{json, Map, Value};

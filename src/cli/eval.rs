@@ -157,7 +157,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
 /// bag's rate and units must be the model's.
 fn read_log(args: &Args, model: &DriftModel) -> Result<(Column, String), CliError> {
     let rate = model.rate_hz;
-    let is_bag = crate::io::rate_log::is_bag(&args.log.input);
+    let is_bag = crate::rate_log::is_bag(&args.log.input);
     let column = match &args.log.column {
         Some(c) => c.clone(),
         // A bag's columns are x, y, z whatever the model's training log called its axis.

@@ -1,10 +1,10 @@
-//! The input log of the offline commands: a CSV file or a ROS 2 bag ([`crate::io::rate_log`]).
+//! The input log of the offline commands: a CSV file or a ROS 2 bag ([`crate::rate_log`]).
 
 use std::path::Path;
 
 use super::CliError;
 use crate::allan::RateUnit;
-use crate::io::rate_log::{read_log, LogOrigin, RateLog};
+use crate::rate_log::{read_log, LogOrigin, RateLog};
 
 /// The options a command that reads a log takes for a ROS 2 bag.
 #[derive(Debug, Clone, Default, clap::Args)]

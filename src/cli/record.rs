@@ -1,7 +1,7 @@
 //! `driftless record SERVICE... -o run.mcap [--duration D]`: record any of our services into an
 //! MCAP file that Foxglove opens and plots without plugins; with `--format ros2`, a ROS 2 bag
 //! of `sensor_msgs/msg/Imu` messages, one topic per service. The recorder is
-//! [`crate::io::recorder`]; this file checks the arguments and prints.
+//! [`crate::transport::recorder`]; this file checks the arguments and prints.
 //!
 //! The recording stops on SIGINT, SIGTERM or `--duration`; a write error (a full disk) stops it
 //! with exit code 1 and leaves only `OUT.part`.
@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::cli::CliError;
-use crate::io::recorder::{Progress, RecordError, Recorder, Ros2Bag, Settings, Summary};
+use crate::transport::recorder::{Progress, RecordError, Recorder, Ros2Bag, Settings, Summary};
 use crate::transport::{self, WireType};
 use crate::units::{AccelUnit, RateUnit};
 

@@ -12,7 +12,7 @@ use crate::drift::model::{DenoiseSettings, LowbandSettings, Provenance, Separati
 use crate::drift::rbf::{InputForm, Target};
 use crate::drift::training::{AdamConfig, CentreMethod, TrainConfig};
 use crate::io::model_file::{sha256_file, write_model};
-use crate::io::rate_log::{LogOrigin, RateLog};
+use crate::rate_log::{LogOrigin, RateLog};
 use std::path::{Path, PathBuf};
 
 /// The gyro log `train` fits a model to and `eval` scores one on, as both take it.

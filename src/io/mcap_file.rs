@@ -1,5 +1,5 @@
 //! MCAP files as every reader of them here starts (recordings, `io::recording`; ROS 2 bags,
-//! `io::ros2`): the file mapped and its summary read, and a record reader with a length limit.
+//! `transport::ros2`): the file mapped and its summary read, and a record reader with a length limit.
 
 use std::path::Path;
 

@@ -1,14 +1,14 @@
 //! Files and terminals: what an input file holds (by its content, [`content`]), CSV tables with
 //! positioned errors, atomic output, progress bars, plots, truth files for the heading
-//! benchmark, ROS 2 bags, rate logs read from either, and recordings (MCAP: [`recording`],
-//! and the [`recorder`] of `driftless record`).
+//! benchmark, and recordings (MCAP: [`recording`]). ROS 2 bags are ROS 2's room
+//! (`transport::ros2::bag`), built on [`mcap_file`] and [`atomic`].
 //!
 //! Nothing in the maths modules (`wavelet`, `allan`, ...) touches this; the commands do.
 //!
 //! The files stand in layers, none importing another that imports it back: the errors of a bad
 //! input file ([`InputError`], and a bag's `BagError`, in `error.rs`) and `atomic` at the
 //! ground; the sniffer ([`content`]); MCAP opening ([`mcap_file`]) and the CSV reader above
-//! it; the readers of recordings and bags on [`mcap_file`]; rate logs and truth files on top.
+//! it; the reader of recordings on [`mcap_file`]; truth files on top.
 
 pub mod atomic;
 pub mod content;
@@ -19,14 +19,11 @@ pub mod mcap_file;
 pub mod model_file;
 pub mod plot;
 pub mod progress;
-pub mod rate_log;
-pub mod recorder;
 pub mod recording;
-pub mod ros2;
 pub mod truth;
 
 pub use csv_table::{
     read_table, read_table_keeping_time, read_table_reference, write_table, write_table_with_time,
     RowRead, RowReader, Table, TimeColumn, TIME_COLUMNS,
 };
-pub use error::InputError;
+pub use error::{BagError, BagErrorKind, InputError};

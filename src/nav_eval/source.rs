@@ -8,7 +8,7 @@ use crate::allan::{allan, chi2::ONE_SIGMA, fit_terms, AllanPoint, Kind, NoiseFit
 use crate::drift::bias::{
     own_accel_terms, own_terms, AccelTerms as FilterAccelTerms, BiasTerms, ColumnFit,
 };
-use crate::io::rate_log::RateLog;
+use crate::rate_log::RateLog;
 use crate::sim::force::{specific_force, AccelTerms, Accelerometer, Attitude};
 use crate::sim::{SimConfig, SimError, Simulator};
 

@@ -28,8 +28,8 @@ use std::path::PathBuf;
 use toml::Spanned;
 
 use crate::io::content::text_file;
-use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::{InputError, RowRead, RowReader};
+use crate::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};

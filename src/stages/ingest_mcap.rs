@@ -1,6 +1,6 @@
 //! `ingest.mcap`: replay the raw samples of a recording made by `driftless record` (an MCAP file,
 //! [`crate::io::recording`]), or the `sensor_msgs/msg/Imu` topic of a ROS 2 bag (an MCAP file
-//! or a rosbag2 directory, [`crate::io::ros2`]), in real time or as fast as possible,
+//! or a rosbag2 directory, [`crate::transport::ros2`]), in real time or as fast as possible,
 //! optionally looping.
 //!
 //! A recording's samples enter the pipeline as they were recorded (`seq`, `t_ns`, `epoch`,
@@ -47,14 +47,16 @@ use std::path::PathBuf;
 use toml::Spanned;
 
 use crate::io::content::{sniff, Content};
-use crate::io::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
-use crate::io::ros2::{Bag, BagErrorKind, IMU_TYPE};
 use crate::io::InputError;
+use crate::io::{BagError, BagErrorKind};
+use crate::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
+use crate::transport::ros2::bag::Bag;
+use crate::transport::ros2::IMU_TYPE;
 use crate::units::{AccelUnit, RateUnit};
 use crate::wire::{
     RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
@@ -628,7 +630,7 @@ struct Stops {
 
 impl Stops {
     /// Read `s.topic` of `bag`; a message that does not decode is left out (counted on stderr).
-    fn read(bag: &Bag, s: &StopTopic) -> Result<Stops, crate::io::ros2::BagError> {
+    fn read(bag: &Bag, s: &StopTopic) -> Result<Stops, BagError> {
         let mut at = Vec::new();
         let mut bad = 0u64;
         for m in bag.motion_messages(&s.topic)? {

@@ -48,6 +48,7 @@ mod names;
 mod node;
 mod permissions;
 mod ports;
+pub mod recorder;
 pub mod ros2;
 mod shm_space;
 mod trust;

@@ -7,8 +7,8 @@
 use crate::allan::analysis::{pool_analyses, Analysis, PooledAnalysis};
 use crate::allan::{Kind, SampleUnit};
 use crate::cli::CliError;
-use crate::io::rate_log::{RateLog, RATE_TOLERANCE};
 use crate::io::InputError;
+use crate::rate_log::{RateLog, RATE_TOLERANCE};
 use serde_json::{json, Value};
 use std::path::Path;
 

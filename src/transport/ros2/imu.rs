@@ -1,5 +1,5 @@
 //! The `sensor_msgs/msg/Imu` message: its fields, its CDR encoding and decoding (by hand: see
-//! [`crate::io::ros2`] for why), its `ros2msg` definition as rosbag2 records it, and how our
+//! [`crate::transport::ros2`] for why), its `ros2msg` definition as rosbag2 records it, and how our
 //! samples become one ([`ImuMapping`], for bags and live topics alike).
 
 use crate::wire::{GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID};

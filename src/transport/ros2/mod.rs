@@ -3,11 +3,13 @@
 //! | file | concern |
 //! |---|---|
 //! | `imu.rs` | `sensor_msgs/msg/Imu`: fields, CDR by hand, and [`ImuMapping`] from our samples |
+//! | `bag.rs` | rosbag2 bags (MCAP): Imu and motion topics read, Imu topics written |
 //! | `motion.rs` | a vehicle's motion (Odometry, twists): its types and its speed, CDR by hand |
 //! | `diagnostics.rs` | the bias as `Vector3Stamped` and the filter's `DiagnosticArray`, CDR by hand |
 //! | `bridge.rs` | the daemon's ROS 2 side: topics to services and back, on its own thread (feature `ros2`) |
 //! | `dds.rs` | live topics: a node in the ROS 2 graph, Imu in and out, motion as a stop signal (feature `ros2`) |
 
+pub mod bag;
 #[cfg(feature = "ros2")]
 mod bridge;
 #[cfg(feature = "ros2")]

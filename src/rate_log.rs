@@ -1,5 +1,5 @@
 //! A rate log, whatever holds it: a CSV table ([`crate::io::csv_table`]) or the
-//! `sensor_msgs/msg/Imu` topic of a ROS 2 bag ([`crate::io::ros2`]). The offline commands
+//! `sensor_msgs/msg/Imu` topic of a ROS 2 bag ([`crate::transport::ros2`]). The offline commands
 //! (`allan`, `denoise`, `nav-eval`, `train`, `eval`) read their input through [`read_log`].
 //!
 //! A bag gives three columns, `x`, `y`, `z`: the messages' `angular_velocity` in rad/s as the
@@ -14,10 +14,11 @@
 
 use std::path::{Path, PathBuf};
 
-use super::content::{sniff, Content};
-use super::csv_table::{read_table, read_table_keeping_time, Table, TimeColumn};
-use super::error::InputError;
-use super::ros2::{seconds_text, Bag, BagError, BagErrorKind};
+use crate::io::content::{sniff, Content, Sniffed};
+use crate::io::csv_table::{read_table, read_table_keeping_time, Table, TimeColumn};
+use crate::io::{BagError, BagErrorKind, InputError};
+use crate::transport::ros2::bag::Bag;
+use crate::transport::ros2::seconds_text;
 
 /// The column names a bag's angular velocity is read into.
 pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
@@ -242,7 +243,7 @@ fn read_csv_log(
     wanted: &[String],
     topic: Option<&str>,
     keep_time: bool,
-    sniffed: &super::content::Sniffed,
+    sniffed: &Sniffed,
 ) -> Result<RateLog, InputError> {
     if let Some(t) = topic {
         return Err(InputError::file(

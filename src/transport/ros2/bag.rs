@@ -43,11 +43,10 @@ use std::path::{Path, PathBuf};
 use crate::io::atomic::AtomicFile;
 use crate::io::mcap_file::{limited_reader, map_mcap, McapOpenError};
 
-pub use crate::io::error::{BagError, BagErrorKind};
+use super::imu::{CdrError, Imu, IMU_DEFINITION, IMU_TYPE};
+use super::motion::{Motion, MotionKind};
+use crate::io::{BagError, BagErrorKind};
 
-pub use crate::transport::ros2::{
-    seconds_text, CdrError, Imu, ImuMapping, Motion, MotionKind, Time, IMU_DEFINITION, IMU_TYPE,
-};
 /// Schema encoding of ROS 2 `.msg` definitions.
 pub const SCHEMA_ENCODING: &str = "ros2msg";
 /// Message encoding of ROS 2 messages.

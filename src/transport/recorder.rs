@@ -1,7 +1,7 @@
 //! The recorder of `driftless record`: any of our services into an MCAP file that Foxglove
 //! opens and plots without plugins (layout: [`crate::io::recording`]), or a ROS 2 bag of
 //! `sensor_msgs/msg/Imu` messages, one topic per service, that `ros2 bag play`, rosbags and
-//! Foxglove read ([`crate::io::ros2`]).
+//! Foxglove read ([`crate::transport::ros2::bag`]).
 //!
 //! The recorder is one more subscriber: the daemon's publishers never wait for it (a full
 //! buffer loses the new sample, which the daemon counts and the recorder sees as a `seq` gap).
@@ -14,7 +14,7 @@
 //! readable by `mcap recover`); a SIGKILL leaves the same, missing at most the last second.
 //!
 //! A sibling of [`crate::io::recording`], not a part of it: it writes bags through
-//! [`crate::io::ros2`], which reads MCAP files with the recording's helpers.
+//! [`crate::transport::ros2::bag`], which reads MCAP files with the recording's helpers.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -23,12 +23,13 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime};
 
+use super::ros2::bag;
+use super::ros2::{Imu, ImuMapping, IMU_DEFINITION, IMU_TYPE};
+use super::{AnyInput, Carried, Transport, TransportError, WireType};
 use crate::io::recording::{
     self, GyroMessage, RawMessage, ServiceCounts, StatsMessage, MESSAGE_ENCODING, METADATA_NAME,
     SCHEMA_ENCODING,
 };
-use crate::io::ros2::{self, ImuMapping, IMU_TYPE};
-use crate::transport::{AnyInput, Carried, Transport, TransportError, WireType};
 use crate::units::{AccelUnit, RateUnit};
 use crate::wire::{GYRO_TYPE_NAME, RAW_TYPE_NAME, STATS_TYPE_NAME};
 
@@ -315,16 +316,12 @@ fn add_channel(
 
 /// The channel of an Imu topic, as rosbag2 writes it.
 fn add_ros2_channel(writer: &mut McapWriter, topic: &str) -> mcap::McapResult<u16> {
-    let schema = writer.add_schema(
-        IMU_TYPE,
-        ros2::SCHEMA_ENCODING,
-        ros2::IMU_DEFINITION.as_bytes(),
-    )?;
+    let schema = writer.add_schema(IMU_TYPE, bag::SCHEMA_ENCODING, IMU_DEFINITION.as_bytes())?;
     writer.add_channel(
         schema,
         topic,
-        ros2::MESSAGE_ENCODING,
-        &ros2::imu_channel_metadata(),
+        bag::MESSAGE_ENCODING,
+        &bag::imu_channel_metadata(),
     )
 }
 
@@ -360,7 +357,7 @@ impl Recorder {
         let options = if settings.ros2.is_some() {
             // As rosbag2_storage_mcap: profile ros2; zstd as its compressed presets.
             mcap::WriteOptions::new()
-                .profile(ros2::PROFILE)
+                .profile(bag::PROFILE)
                 .compression(Some(mcap::Compression::Zstd))
         } else {
             mcap::WriteOptions::new().compression(Some(mcap::Compression::Lz4))
@@ -373,7 +370,7 @@ impl Recorder {
         for (service, input) in settings.services.iter().zip(inputs) {
             let (channel, mapping) = match &settings.ros2 {
                 Some(bag) => {
-                    let topic = ros2::topic_for_service(service);
+                    let topic = bag::topic_for_service(service);
                     let channel = add_ros2_channel(&mut writer, &topic).map_err(write_error)?;
                     let to_rad = match input.wire_type() {
                         WireType::Raw => settings.raw_units.map_or(1.0, RateUnit::to_rad_per_s),
@@ -419,7 +416,7 @@ impl Recorder {
                 Some(_) => format!(
                     "{} as {} ({IMU_TYPE})",
                     r.service,
-                    ros2::topic_for_service(&r.service)
+                    bag::topic_for_service(&r.service)
                 ),
                 None => format!("{} ({})", r.service, r.input.wire_type().type_name()),
             })
@@ -649,7 +646,7 @@ fn drain(
 }
 
 /// A message in CDR into `out`.
-fn cdr(imu: &crate::io::ros2::Imu, out: &mut Vec<u8>) -> Result<(), String> {
+fn cdr(imu: &Imu, out: &mut Vec<u8>) -> Result<(), String> {
     imu.write_cdr(out).map_err(|e| e.to_string())
 }
 
