@@ -21,7 +21,7 @@
 //! Each file must end with its summary (a truncated file or one still being written is refused
 //! at open). An Imu topic is one whose schema is named [`IMU_TYPE`] and whose messages are
 //! `cdr`. Messages come in file order (not sorted by time), each with its log time; the stamp
-//! is the message's own `header.stamp` ([`Time::ns`]), which the caller checks for order.
+//! is the message's own `header.stamp` ([`super::Time::ns`]), which the caller checks for order.
 //! Every error is one line naming the file and, past the opening, the topic, the message's
 //! number on it (from 1, as [`crate::io::recording`] counts) and its log time. A damaged chunk
 //! is decompressed as a stream: the messages before the damage come, then the error.
