@@ -22,12 +22,12 @@
 
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
 use ros2_client::dds::rustdds::{
-    DomainParticipantStatusListener, QosPolicies, StatusEvented as _, GUID,
+    DomainParticipantStatusListener, QosPolicies, StatusEvented as _, Topic, GUID,
 };
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
-    QosProfile, Subscription,
+    Context, ContextOptions, CreateError, MessageTypeName, Name, Node, NodeName, NodeOptions,
+    Publisher, QosProfile, Subscription,
 };
 use serde::{Deserialize, Serialize};
 
@@ -165,7 +165,7 @@ impl Ros2Node {
         topic: &str,
         ty: (&str, &str),
         qos: &QosProfile,
-    ) -> Result<ros2_client::dds::rustdds::Topic, TransportError> {
+    ) -> Result<Topic, TransportError> {
         let name = Name::parse(topic).map_err(|e| TransportError::Name {
             name: topic.into(),
             reason: format!("not a ROS 2 topic name: {e:?}"),
@@ -217,15 +217,8 @@ impl Ros2Node {
         ty: (&str, &str),
         depth: usize,
     ) -> Result<Publisher<M>, TransportError> {
-        let qos = publish_qos(depth);
-        let t = self.topic(topic, ty, &qos)?;
-        let publisher = self
-            .node
-            .create_publisher(&t, Some(qos))
-            .map_err(|e| setup("ROS 2 publisher", topic, e))?;
-        self.endpoints
-            .push((publisher.guid(), topic.to_string(), true));
-        Ok(publisher)
+        let make = |node: &mut Node, t: &Topic, qos| node.create_publisher(t, Some(qos));
+        self.endpoint(topic, ty, depth, true, make, Publisher::guid)
     }
 
     /// A subscription of `sensor_msgs/msg/Imu` on `topic`: best effort, keep last `depth`.
@@ -234,14 +227,9 @@ impl Ros2Node {
         topic: &str,
         depth: usize,
     ) -> Result<ImuSubscription, TransportError> {
-        let qos = subscribe_qos(depth);
-        let t = self.topic(topic, ("sensor_msgs", "Imu"), &qos)?;
-        let subscription = self
-            .node
-            .create_subscription(&t, Some(qos))
-            .map_err(|e| setup("ROS 2 subscription", topic, e))?;
-        self.endpoints
-            .push((subscription.guid(), topic.to_string(), false));
+        let make = |node: &mut Node, t: &Topic, qos| node.create_subscription(t, Some(qos));
+        let imu = ("sensor_msgs", "Imu");
+        let subscription = self.endpoint(topic, imu, depth, false, make, Subscription::guid)?;
         Ok(ImuSubscription { subscription })
     }
 
@@ -253,29 +241,44 @@ impl Ros2Node {
         kind: MotionKind,
         depth: usize,
     ) -> Result<MotionSubscription, TransportError> {
-        let qos = subscribe_qos(depth);
-        let t = self.topic(topic, motion_type(kind), &qos)?;
-        let sub = |node: &mut Node| -> Result<MotionPort, ros2_client::CreateError> {
+        let make = |node: &mut Node, t: &Topic, qos| -> Result<MotionPort, CreateError> {
+            let qos = Some(qos);
             Ok(match kind {
-                MotionKind::Odometry => {
-                    MotionPort::Odometry(node.create_subscription(&t, Some(qos.clone()))?)
-                }
-                MotionKind::TwistStamped => {
-                    MotionPort::Twist(node.create_subscription(&t, Some(qos.clone()))?)
-                }
+                MotionKind::Odometry => MotionPort::Odometry(node.create_subscription(t, qos)?),
+                MotionKind::TwistStamped => MotionPort::Twist(node.create_subscription(t, qos)?),
                 MotionKind::TwistWithCovarianceStamped => {
-                    MotionPort::TwistCov(node.create_subscription(&t, Some(qos.clone()))?)
+                    MotionPort::TwistCov(node.create_subscription(t, qos)?)
                 }
             })
         };
-        let port = sub(&mut self.node).map_err(|e| setup("ROS 2 subscription", topic, e))?;
-        let guid = match &port {
-            MotionPort::Odometry(s) => s.guid(),
-            MotionPort::Twist(s) => s.guid(),
-            MotionPort::TwistCov(s) => s.guid(),
-        };
-        self.endpoints.push((guid, topic.to_string(), false));
+        let ty = motion_type(kind);
+        let port = self.endpoint(topic, ty, depth, false, make, MotionPort::guid)?;
         Ok(MotionSubscription { port })
+    }
+
+    /// One of our endpoints on `topic` of `ty` (package, name), made by `make` with the QoS of
+    /// its side, keep last `depth`: a publisher (`publishes`) reliable and never blocking, a
+    /// subscription best effort. Recorded among our endpoints: a peer whose QoS cannot match
+    /// is said by the endpoint's topic ([`Ros2Node::qos_mismatches`]).
+    fn endpoint<E>(
+        &mut self,
+        topic: &str,
+        ty: (&str, &str),
+        depth: usize,
+        publishes: bool,
+        make: impl FnOnce(&mut Node, &Topic, QosProfile) -> Result<E, CreateError>,
+        guid: impl FnOnce(&E) -> GUID,
+    ) -> Result<E, TransportError> {
+        let (qos, what) = if publishes {
+            (publish_qos(depth), "ROS 2 publisher")
+        } else {
+            (subscribe_qos(depth), "ROS 2 subscription")
+        };
+        let t = self.topic(topic, ty, &qos)?;
+        let made = make(&mut self.node, &t, qos).map_err(|e| setup(what, topic, e))?;
+        self.endpoints
+            .push((guid(&made), topic.to_string(), publishes));
+        Ok(made)
     }
 
     /// One line for each peer found since the last call whose QoS cannot match one of our
@@ -690,6 +693,17 @@ enum MotionPort {
     Odometry(Subscription<OdometryMsg>),
     Twist(Subscription<TwistStampedMsg>),
     TwistCov(Subscription<TwistCovStampedMsg>),
+}
+
+impl MotionPort {
+    /// Its GUID, whichever message it takes.
+    fn guid(&self) -> GUID {
+        match self {
+            MotionPort::Odometry(s) => s.guid(),
+            MotionPort::Twist(s) => s.guid(),
+            MotionPort::TwistCov(s) => s.guid(),
+        }
+    }
 }
 
 /// Receives a vehicle's motion as [`StopSignal`]s.
