@@ -858,11 +858,6 @@ fn no_source_file_holds_over_1000_lines_of_code() {
 /// its own; anywhere, it is doing several steps that want names of their own.
 const FN_MAX_LINES: usize = 120;
 
-/// Functions allowed over [`FN_MAX_LINES`] for now, as (file, function): "ROS 2 in one room"
-/// (issue 60 part 2) restructures it with a settings struct. Nothing else goes here: split the
-/// function instead.
-const LONG_FNS_ALLOWED: &[(&str, &str)] = &[("src/transport/ros2/bridge.rs", "run_bridge")];
-
 /// Each function with a body before the unit tests: its name, its first line (1-based) and its
 /// length in lines, from the `fn` line to the closing brace at the `fn` line's indentation (as
 /// rustfmt writes it).
@@ -918,28 +913,15 @@ fn functions(text: &str) -> Vec<(String, usize, usize)> {
 #[test]
 fn no_function_is_over_120_lines() {
     let mut wrong = Vec::new();
-    let mut allowed_seen = BTreeSet::new();
     for (path, text) in files() {
         let r = rel(&path);
         for (name, line, len) in functions(&text) {
             if len <= FN_MAX_LINES {
                 continue;
             }
-            let key = (r.as_str(), name.as_str());
-            if let Some(&allowed) = LONG_FNS_ALLOWED.iter().find(|&&a| a == key) {
-                allowed_seen.insert(allowed);
-                continue;
-            }
             wrong.push(format!(
                 "{r}:{line}: fn {name} is {len} lines (at most {FN_MAX_LINES}): split it into named steps{}",
                 if r.starts_with("src/cli/") { ", or move its computation below cli" } else { "" }
-            ));
-        }
-    }
-    for &(file, name) in LONG_FNS_ALLOWED {
-        if !allowed_seen.contains(&(file, name)) {
-            wrong.push(format!(
-                "{file}: fn {name} is allowed over {FN_MAX_LINES} lines but is not (or is gone): take it off LONG_FNS_ALLOWED"
             ));
         }
     }

@@ -9,12 +9,10 @@
 //! service it reads must be one the chain writes.
 
 use std::fmt::Debug;
-use std::sync::atomic::AtomicBool;
 
 use crate::io::InputError;
 use crate::stages::contract::{SideInput, StageSpec};
 use crate::stages::schema::{Context, Key, Table};
-use crate::transport::Qos;
 
 /// A side kind: its table in the pipeline file, its keys, and how its table is read.
 pub struct Kind {
@@ -90,27 +88,9 @@ impl Chain<'_> {
     }
 }
 
-/// What the runtime hands a side when its pipeline starts.
-pub struct Start<'a> {
-    /// The pipeline's name.
-    pub pipeline: &'a str,
-    /// The iceoryx2 prefix the pipeline runs under.
-    pub prefix: &'a str,
-    /// The side's own iceoryx2 node name.
-    pub node: &'a str,
-    /// The event service on which it says what it does, for `driftless list`.
-    pub announce_as: &'a str,
-    /// The pipeline's service settings (every service is built from one `Qos`).
-    pub qos: Qos,
-    /// The pipeline's rate, Hz.
-    pub rate_hz: f64,
-    /// The hot thread's CPU, when its pipelines pin it (`cpu`): a side that hands samples to
-    /// the hot thread and back may run beside it, so that each hand-over wakes a thread on the
-    /// same CPU rather than an idle one.
-    pub cpu: Option<usize>,
-    /// Set when the pipeline stops: the side returns soon after.
-    pub stop: &'a AtomicBool,
-}
+/// What the runtime hands a side when its pipeline starts. Defined in `transport`, below the
+/// sides, so that a side whose work is done there (the ROS 2 bridge) takes it whole.
+pub use crate::transport::SideStart as Start;
 
 /// Said once by a side when it is set up (`Ok`) or cannot be (`Err`, why).
 pub type Ready<'a> = Box<dyn FnOnce(Result<(), String>) + Send + 'a>;

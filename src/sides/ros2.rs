@@ -458,19 +458,9 @@ impl Side for Ros2Side {
 
     #[cfg(feature = "ros2")]
     fn run(&self, start: &Start<'_>, ready: Ready<'_>) -> Result<String, String> {
-        crate::transport::ros2::run_bridge(
-            &self.0,
-            start.prefix,
-            start.node,
-            start.announce_as,
-            start.qos,
-            start.rate_hz,
-            start.cpu,
-            start.stop,
-            ready,
-        )
-        .map(|counts| counts.to_string())
-        .map_err(|e| e.to_string())
+        crate::transport::ros2::run_bridge(&self.0, start, ready)
+            .map(|counts| counts.to_string())
+            .map_err(|e| e.to_string())
     }
 
     #[cfg(not(feature = "ros2"))]

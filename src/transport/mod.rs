@@ -14,7 +14,7 @@
 //! | `zero_copy.rs` | our wire types ([`crate::wire`], not re-exported here) marked for iceoryx2 under their type names |
 //! | `wire_type.rs` | [`WireType`]: which of them a service carries, and [`AnyInput`] of it |
 //! | `config.rs` | prefix, root directory, name checks, the explicit iceoryx2 `Config`, [`Qos`], the service flavour |
-//! | `node.rs` | [`Transport`]: one node and the services and ports it sets up |
+//! | `node.rs` | [`Transport`]: one node and the services and ports it sets up; [`SideStart`], what a side's thread starts its node with |
 //! | `ports.rs` | [`Output`] and [`Input`] |
 //! | `wake.rs` | [`Waker`] and [`WakeSet`]: sleeping until another process notifies |
 //! | `discovery.rs` | what runs under a prefix (`driftless list`), who holds a pipeline, what is removed once no node is left |
@@ -73,7 +73,7 @@ pub use discovery::{
 pub use discovery::{remove_prefix_leftovers, remove_prefix_leftovers_settled};
 pub use error::TransportError;
 pub use names::check_prefix;
-pub use node::{Announcement, Transport, MAX_ATTRIBUTES};
+pub use node::{Announcement, SideStart, Transport, MAX_ATTRIBUTES};
 pub use permissions::user_name;
 pub use ports::{Input, Losses, Output};
 pub use shm_space::{install_sigbus_guard, shared_memory_trouble, ShmTrouble};

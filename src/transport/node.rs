@@ -2,6 +2,7 @@
 
 use std::cell::Cell;
 use std::fmt::Debug;
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use iceoryx2::prelude::*;
@@ -23,6 +24,29 @@ pub const MAX_ATTRIBUTES: usize = 8;
 /// A service that says what its node does ([`Transport::announce`]); it lasts while this does.
 pub struct Announcement {
     _notifier: iceoryx2::port::notifier::Notifier<Svc>,
+}
+
+/// What a thread beside a pipeline's chain (a side: `sides::Start`) is started with: where its
+/// own iceoryx2 node goes, and how the pipeline runs.
+pub struct SideStart<'a> {
+    /// The pipeline's name.
+    pub pipeline: &'a str,
+    /// The iceoryx2 prefix the pipeline runs under.
+    pub prefix: &'a str,
+    /// The side's own iceoryx2 node name.
+    pub node: &'a str,
+    /// The event service on which it says what it does, for `driftless list`.
+    pub announce_as: &'a str,
+    /// The pipeline's service settings (every service is built from one `Qos`).
+    pub qos: Qos,
+    /// The pipeline's rate, Hz.
+    pub rate_hz: f64,
+    /// The hot thread's CPU, when its pipelines pin it (`cpu`): a side that hands samples to
+    /// the hot thread and back may run beside it, so that each hand-over wakes a thread on the
+    /// same CPU rather than an idle one.
+    pub cpu: Option<usize>,
+    /// Set when the pipeline stops: the side returns soon after.
+    pub stop: &'a AtomicBool,
 }
 
 /// One iceoryx2 node and the ports it creates. Not `Send`: create it in the thread that uses it.

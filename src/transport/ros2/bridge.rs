@@ -22,6 +22,7 @@
 //!   of the linear velocity).
 //! - A topic nobody matches after [`MATCH_GRACE`] is said on stderr, and again when it matches.
 
+use std::collections::HashSet;
 use std::io::Write as _;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -38,7 +39,9 @@ use super::imu::{ImuMapping, Time, IMU_TYPE};
 use super::motion::MotionKind;
 use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
-use crate::transport::{Input, Output, Qos, Transport, TransportError, WakeSet, Waker};
+use crate::transport::{
+    Announcement, Input, Output, SideStart, Transport, TransportError, WakeSet, Waker,
+};
 use crate::wire::{
     GyroSample, RawSample, StatsSnapshot, StopSignal, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT,
 };
@@ -215,6 +218,34 @@ struct ImuIn {
 }
 
 impl ImuIn {
+    /// The Imu input: its subscription, and the service it feeds, notified after each send (its
+    /// reader sleeps until a sample comes). `period_ns`, the pipeline's, measures its gaps.
+    fn open(
+        topic: &str,
+        service: &str,
+        period_ns: f64,
+        depth: usize,
+        transport: &Transport,
+        node: &mut Ros2Node,
+    ) -> Result<ImuIn, TransportError> {
+        Ok(ImuIn {
+            topic: topic.to_string(),
+            sub: node.imu_subscription(topic, depth)?,
+            out: transport.external_output::<RawSample>(service, true)?,
+            period_ns,
+            epoch: rand::random::<u32>().max(1),
+            publisher: None,
+            named: Vec::new(),
+            // Naming a node is a courtesy: without it the GID is said alone.
+            names: node.node_names().ok(),
+            next_seq: 0,
+            stamps: StampCheck::new(true),
+            faults_since: 0,
+            frame_id: String::new(),
+            accel_covariance: None,
+        })
+    }
+
     /// Whether a message of `from`, heard `now`, is taken: the first publisher's are; another's
     /// only once the first went away (then it is a restart: a new epoch).
     fn admit(&mut self, from: PublisherId, now: Instant, counts: &mut BridgeCounts) -> bool {
@@ -383,6 +414,39 @@ impl ServiceOut {
         })
     }
 
+    /// Publish its samples on `topic` too, as a message of `ty`: an Imu topic, the bias, or
+    /// (the diagnostics, published by [`Diagnostics`]) a window of the samples. Every topic is
+    /// written in the configured frame until an input's frame is heard.
+    fn publish_on(
+        &mut self,
+        settings: &Ros2Settings,
+        node: &mut Ros2Node,
+        topic: &str,
+        ty: &'static str,
+    ) -> Result<(), TransportError> {
+        let frame_id = settings.frame_id.as_deref().unwrap_or(DEFAULT_FRAME_ID);
+        match ty {
+            IMU_TYPE => self.imu.push((
+                node.imu_publisher(topic, settings.depth)?,
+                ImuMapping::new(frame_id, 1.0, settings.rate_noise)
+                    .with_accel_noise(settings.accel_noise),
+            )),
+            VECTOR3_STAMPED_TYPE => {
+                let msg = Vector3Stamped {
+                    frame_id: frame_id.to_string(),
+                    ..Vector3Stamped::default()
+                };
+                self.bias = Some((
+                    node.cdr_publisher(topic, ty, settings.depth)?,
+                    msg,
+                    Vec::new(),
+                ));
+            }
+            _ => self.window = Some(BiasWindow::default()),
+        }
+        Ok(())
+    }
+
     /// Publish what came, each sample on each topic; `t_ns` from the ingest time on the system
     /// clock (`realtime` offset) when no ROS stamps come in.
     fn serve(
@@ -476,6 +540,34 @@ struct Diagnostics {
 }
 
 impl Diagnostics {
+    /// The diagnostics on `topic`, of the window of output `out`: the status named after the
+    /// node (as `gyro_bias_estimator` names its own), and the first one due at once.
+    fn new(
+        settings: &Ros2Settings,
+        node: &mut Ros2Node,
+        topic: &str,
+        out: usize,
+    ) -> Result<Diagnostics, TransportError> {
+        let ns = settings.namespace.trim_end_matches('/');
+        let full = format!("{ns}/{}", settings.node);
+        let name = full.trim_start_matches('/');
+        Ok(Diagnostics {
+            publisher: node.cdr_publisher(topic, DIAGNOSTIC_ARRAY_TYPE, settings.depth)?,
+            out,
+            settings: BiasDiagnosticSettings {
+                name: format!("{name}: gyro_bias"),
+                hardware_id: name.to_string(),
+                threshold: settings.bias_threshold,
+            },
+            period: Duration::from_secs_f64(settings.diagnostics_period_s),
+            next: Instant::now(),
+            stats_service: settings.stats_service.clone(),
+            stats: None,
+            last_stats: None,
+            buf: Vec::new(),
+        })
+    }
+
     /// Publish a period's status when it is due.
     fn tick(
         &mut self,
@@ -523,6 +615,43 @@ impl Diagnostics {
 struct MotionIn {
     sub: MotionSubscription,
     out: Output<StopSignal>,
+}
+
+impl MotionIn {
+    /// The motion input: its subscription as a message of `kind`, and the service it feeds,
+    /// not notified (the bias filter keeps the newest signal and reads it at its next sample).
+    fn open(
+        topic: &str,
+        kind: MotionKind,
+        service: &str,
+        depth: usize,
+        transport: &Transport,
+        node: &mut Ros2Node,
+    ) -> Result<MotionIn, TransportError> {
+        Ok(MotionIn {
+            sub: node.motion_subscription(topic, kind, depth)?,
+            out: transport.external_output::<StopSignal>(service, false)?,
+        })
+    }
+
+    /// Take what arrived, each message a stop signal stamped at its receipt.
+    fn pump(&mut self, counts: &mut BridgeCounts) {
+        loop {
+            match self.sub.take(monotonic_ns()) {
+                Ok(Some(signal)) => {
+                    counts.motion_in += 1;
+                    let _ = self.out.send(&signal);
+                }
+                Ok(None) => break,
+                Err(e) => {
+                    counts.unreadable += 1;
+                    if counts.unreadable == 1 {
+                        say(format_args!("an unreadable motion message: {e}"));
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The system clock's ns since the epoch minus the monotonic clock's: maps an `ingest_ns` to
@@ -576,117 +705,83 @@ fn beside_the_hot_thread(cpu: usize) {
     }
 }
 
-/// Run the ROS 2 side of a pipeline until `stop`: `settings` under iceoryx2 `prefix` with the
-/// pipeline's `qos` and rate, on the iceoryx2 node `node_name`, announced on the event service
-/// `announce_as` (what `driftless list` shows); beside the hot thread on its `cpu` when the
-/// pipeline pins it. `started` hears once whether it set up (so the daemon can refuse to run
-/// without it); then it runs, and returns what it carried.
-#[allow(clippy::too_many_arguments)]
+/// Run the ROS 2 side of a pipeline, `settings`, as `start` says (its iceoryx2 node, where it
+/// announces itself, the pipeline's rate, beside the hot thread on its CPU when the pipeline
+/// pins it) until `start.stop`. `started` hears once whether it set up (so the daemon can
+/// refuse to run without it); then it runs, and returns what it carried.
 pub fn run_bridge(
     settings: &Ros2Settings,
-    prefix: &str,
-    node_name: &str,
-    announce_as: &str,
-    qos: Qos,
-    rate_hz: f64,
-    cpu: Option<usize>,
-    stop: &AtomicBool,
+    start: &SideStart<'_>,
     started: impl FnOnce(Result<(), String>),
 ) -> Result<BridgeCounts, TransportError> {
-    let setup = || -> Result<_, TransportError> {
-        let transport = Transport::new(prefix, node_name, qos)?;
-        if let Some(cpu) = cpu {
+    let bridge = match Bridge::set_up(settings, start) {
+        Ok(bridge) => {
+            started(Ok(()));
+            bridge
+        }
+        Err(e) => {
+            started(Err(e.to_string()));
+            return Err(e);
+        }
+    };
+    Ok(bridge.serve(start.stop))
+}
+
+/// The side, set up. Its fields drop in the order they are declared, the order the side has
+/// always closed in: the announcement and the iceoryx2 node first; then the wake set before the
+/// readiness whose descriptor it watches, the readiness before the subscriptions registered on
+/// it; the ROS 2 node after every port it made.
+struct Bridge<'a> {
+    /// Held, never read: the side is listed while it lives.
+    _announced: Announcement,
+    transport: Transport,
+    wake: WakeSet,
+    readiness: DdsReadiness,
+    motion: Option<MotionIn>,
+    diagnostics: Option<Diagnostics>,
+    outs: Vec<ServiceOut>,
+    imu_in: Option<ImuIn>,
+    watched: Vec<Watched>,
+    node: Ros2Node,
+    /// Read on each round: a configured `frame_id` overrides the driver's.
+    settings: &'a Ros2Settings,
+    counts: BridgeCounts,
+    /// QoS mismatches already said: each is said once.
+    said_qos: HashSet<String>,
+}
+
+impl<'a> Bridge<'a> {
+    /// Make everything, each step after what it needs: the iceoryx2 node; the CPU, before the
+    /// ROS 2 node starts the DDS threads (they inherit it); the announcement, which names the
+    /// ROS 2 node; each direction's topics and services (Imu in, the outputs, motion); the
+    /// wake-ups, which watch their ports. A setup that fails says the first error in this order.
+    fn set_up(
+        settings: &'a Ros2Settings,
+        start: &SideStart<'_>,
+    ) -> Result<Bridge<'a>, TransportError> {
+        let transport = Transport::new(start.prefix, start.node, start.qos)?;
+        if let Some(cpu) = start.cpu {
             beside_the_hot_thread(cpu);
         }
         let mut node = Ros2Node::new(&settings.namespace, &settings.node)?;
-        let announced = transport.announce(announce_as, &announcement(settings, &node))?;
+        let announced = transport.announce(start.announce_as, &announcement(settings, &node))?;
         let mut watched = Vec::new();
         let mut imu_in = match &settings.imu_in {
             Some((topic, service)) => {
                 watched.push(Watched::new(topic, IMU_TYPE, false));
-                Some(ImuIn {
-                    topic: topic.clone(),
-                    sub: node.imu_subscription(topic, settings.depth)?,
-                    out: transport.external_output::<RawSample>(service, true)?,
-                    period_ns: 1e9 / rate_hz,
-                    epoch: rand::random::<u32>().max(1),
-                    publisher: None,
-                    named: Vec::new(),
-                    // Naming a node is a courtesy: without it the GID is said alone.
-                    names: node.node_names().ok(),
-                    next_seq: 0,
-                    stamps: StampCheck::new(true),
-                    faults_since: 0,
-                    frame_id: String::new(),
-                    accel_covariance: None,
-                })
+                let period_ns = 1e9 / start.rate_hz;
+                Some(ImuIn::open(
+                    topic,
+                    service,
+                    period_ns,
+                    settings.depth,
+                    &transport,
+                    &mut node,
+                )?)
             }
             None => None,
         };
-        let mut outs: Vec<ServiceOut> = Vec::new();
-        let mut out_of = |service: &str| -> Result<usize, TransportError> {
-            match outs.iter().position(|o| o.service == service) {
-                Some(k) => Ok(k),
-                None => {
-                    outs.push(ServiceOut::new(&transport, service)?);
-                    Ok(outs.len() - 1)
-                }
-            }
-        };
-        let mut wants = Vec::new();
-        for (service, topic) in &settings.imu_out {
-            wants.push((out_of(service)?, topic, IMU_TYPE));
-        }
-        if let Some((service, topic)) = &settings.bias_out {
-            wants.push((out_of(service)?, topic, VECTOR3_STAMPED_TYPE));
-        }
-        let mut diagnostics = None;
-        if let Some((service, topic)) = &settings.diagnostics {
-            let out = out_of(service)?;
-            wants.push((out, topic, DIAGNOSTIC_ARRAY_TYPE));
-            let ns = settings.namespace.trim_end_matches('/');
-            let full = format!("{ns}/{}", settings.node);
-            let name = full.trim_start_matches('/');
-            diagnostics = Some(Diagnostics {
-                publisher: node.cdr_publisher(topic, DIAGNOSTIC_ARRAY_TYPE, settings.depth)?,
-                out,
-                settings: BiasDiagnosticSettings {
-                    name: format!("{name}: gyro_bias"),
-                    hardware_id: name.to_string(),
-                    threshold: settings.bias_threshold,
-                },
-                period: Duration::from_secs_f64(settings.diagnostics_period_s),
-                next: Instant::now(),
-                stats_service: settings.stats_service.clone(),
-                stats: None,
-                last_stats: None,
-                buf: Vec::new(),
-            });
-        }
-        let frame_id = settings.frame_id.as_deref().unwrap_or(DEFAULT_FRAME_ID);
-        for (out, topic, ty) in wants {
-            watched.push(Watched::new(topic, ty, true));
-            let o = &mut outs[out];
-            match ty {
-                IMU_TYPE => o.imu.push((
-                    node.imu_publisher(topic, settings.depth)?,
-                    ImuMapping::new(frame_id, 1.0, settings.rate_noise)
-                        .with_accel_noise(settings.accel_noise),
-                )),
-                VECTOR3_STAMPED_TYPE => {
-                    let msg = Vector3Stamped {
-                        frame_id: frame_id.to_string(),
-                        ..Vector3Stamped::default()
-                    };
-                    o.bias = Some((
-                        node.cdr_publisher(topic, ty, settings.depth)?,
-                        msg,
-                        Vec::new(),
-                    ));
-                }
-                _ => o.window = Some(BiasWindow::default()),
-            }
-        }
+        let (outs, diagnostics) = open_outs(settings, &transport, &mut node, &mut watched)?;
         let mut motion = match &settings.motion_in {
             Some((topic, ty, service)) => {
                 let (name, kind) = MotionKind::ALL
@@ -695,140 +790,184 @@ pub fn run_bridge(
                     .copied()
                     .unwrap_or(MotionKind::ALL[0]);
                 watched.push(Watched::new(topic, name, false));
-                Some(MotionIn {
-                    sub: node.motion_subscription(topic, kind, settings.depth)?,
-                    out: transport.external_output::<StopSignal>(service, false)?,
-                })
+                Some(MotionIn::open(
+                    topic,
+                    kind,
+                    service,
+                    settings.depth,
+                    &transport,
+                    &mut node,
+                )?)
             }
             None => None,
         };
-        // Sleep until a subscription has messages or the daemon notifies an output.
-        let io = |e: std::io::Error| TransportError::Io {
-            what: "ROS 2 readiness",
-            reason: e.to_string(),
-        };
-        let readiness = DdsReadiness::new().map_err(io)?;
-        if let Some(i) = &mut imu_in {
-            readiness.watch_imu(&mut i.sub, 0).map_err(io)?;
-        }
-        if let Some(m) = &mut motion {
-            readiness.watch_motion(&mut m.sub, 1).map_err(io)?;
-        }
-        let mut wake = WakeSet::new()?;
-        wake.add_fd(readiness.fd(), DDS_TAG)?;
-        for (k, o) in outs.iter().enumerate() {
-            if let Some(w) = &o.waker {
-                wake.add(w, k)?;
-            }
-        }
+        let (readiness, wake) = wake_ups(&mut imu_in, &mut motion, &outs)?;
         transport.reserve_shared_memory()?;
-        Ok((
+        Ok(Bridge {
+            _announced: announced,
             transport,
-            announced,
-            node,
-            watched,
-            imu_in,
-            outs,
-            diagnostics,
-            motion,
-            readiness,
             wake,
-        ))
-    };
-    let (
-        transport,
-        announced,
-        node,
-        mut watched,
-        mut imu_in,
-        mut outs,
-        mut diagnostics,
-        mut motion,
-        mut readiness,
-        mut wake,
-    ) = match setup() {
-        Ok(parts) => {
-            started(Ok(()));
-            parts
+            readiness,
+            motion,
+            diagnostics,
+            outs,
+            imu_in,
+            watched,
+            node,
+            settings,
+            counts: BridgeCounts::default(),
+            said_qos: HashSet::new(),
+        })
+    }
+
+    /// Forward both ways until `stop`; between rounds, sleep until something arrives or the
+    /// diagnostics fall due. Discovery changes slowly: it is read every half second, not every
+    /// round. Returns what it carried.
+    fn serve(mut self, stop: &AtomicBool) -> BridgeCounts {
+        // Without ROS stamps coming in, a sample's stamp is its ingest on the system clock.
+        let realtime = self.imu_in.is_none().then(realtime_offset_ns);
+        let t0 = Instant::now();
+        let mut next_check = t0;
+        // Every output notified: sleep until woken; else read the others every millisecond.
+        let sleep = if self.outs.iter().all(|o| o.waker.is_some()) {
+            IDLE
+        } else {
+            POLL
+        };
+        while !stop.load(Ordering::Relaxed) {
+            self.take_wake_ups();
+            if let Some(i) = &mut self.imu_in {
+                i.pump(&mut self.counts);
+            }
+            self.forward_out(realtime);
+            if let Some(m) = &mut self.motion {
+                m.pump(&mut self.counts);
+            }
+            let now = Instant::now();
+            if let Some(d) = &mut self.diagnostics {
+                d.tick(now, &self.transport, &mut self.outs, &mut self.counts);
+            }
+            if now >= next_check {
+                self.check_graph(now - t0);
+                next_check = now + Duration::from_millis(500);
+            }
+            // A signal or a failed wait only shortens the sleep.
+            let sleep = self.diagnostics.as_ref().map_or(sleep, |d| {
+                sleep.min(d.next.saturating_duration_since(Instant::now()))
+            });
+            let _ = self.wake.wait(None, sleep, |_| {});
         }
-        Err(e) => {
-            started(Err(e.to_string()));
-            return Err(e);
-        }
-    };
-    // Without ROS stamps coming in, a sample's stamp is its ingest on the system clock.
-    let realtime = imu_in.is_none().then(realtime_offset_ns);
-    let mut counts = BridgeCounts::default();
-    let t0 = Instant::now();
-    let mut next_check = t0;
-    let mut said_qos = std::collections::HashSet::new();
-    // Every output notified: sleep until woken; else read the others every millisecond.
-    let sleep = if outs.iter().all(|o| o.waker.is_some()) {
-        IDLE
-    } else {
-        POLL
-    };
-    while !stop.load(Ordering::Relaxed) {
-        // Edge-triggered: take the wake-ups first, then everything there is, then sleep.
-        readiness.clear();
-        for o in &outs {
+        self.counts
+    }
+
+    /// Edge-triggered: the wake-ups are taken before everything there is, so that what comes
+    /// while it is taken wakes the next sleep rather than being slept through.
+    fn take_wake_ups(&mut self) {
+        self.readiness.clear();
+        for o in &self.outs {
             if let Some(w) = &o.waker {
                 let _ = w.drain();
             }
         }
-        if let Some(i) = &mut imu_in {
-            i.pump(&mut counts);
-        }
-        // The driver's frame and accelerometer covariance, unless a frame is configured.
-        let frame = match (&settings.frame_id, &imu_in) {
+    }
+
+    /// The pipeline's samples out to their topics: in the driver's frame unless a frame is
+    /// configured (a navigator's TF lookup wants the driver's), with the driver's accelerometer
+    /// covariance at hand where neither a sample nor `accel_noise` gives one.
+    fn forward_out(&mut self, realtime: Option<i128>) {
+        let frame = match (&self.settings.frame_id, &self.imu_in) {
             (None, Some(i)) if !i.frame_id.is_empty() => Some(i.frame_id.as_str()),
             _ => None,
         };
-        let accel_covariance = imu_in.as_ref().and_then(|i| i.accel_covariance.as_ref());
-        for o in &mut outs {
-            o.serve(frame, accel_covariance, realtime, &mut counts);
+        let accel_covariance = self
+            .imu_in
+            .as_ref()
+            .and_then(|i| i.accel_covariance.as_ref());
+        for o in &mut self.outs {
+            o.serve(frame, accel_covariance, realtime, &mut self.counts);
         }
-        if let Some(m) = &mut motion {
-            loop {
-                match m.sub.take(monotonic_ns()) {
-                    Ok(Some(signal)) => {
-                        counts.motion_in += 1;
-                        let _ = m.out.send(&signal);
-                    }
-                    Ok(None) => break,
-                    Err(e) => {
-                        counts.unreadable += 1;
-                        if counts.unreadable == 1 {
-                            say(format_args!("an unreadable motion message: {e}"));
-                        }
-                    }
-                }
-            }
-        }
-        let now = Instant::now();
-        if let Some(d) = &mut diagnostics {
-            d.tick(now, &transport, &mut outs, &mut counts);
-        }
-        if now >= next_check {
-            for w in &mut watched {
-                w.check(&node, now - t0);
-            }
-            if let Some(i) = &mut imu_in {
-                i.check_publisher(&node);
-            }
-            for line in node.qos_mismatches() {
-                if said_qos.insert(line.clone()) {
-                    say(format_args!("{line}"));
-                }
-            }
-            next_check = now + Duration::from_millis(500);
-        }
-        // A signal or a failed wait only shortens the sleep.
-        let sleep = diagnostics.as_ref().map_or(sleep, |d| {
-            sleep.min(d.next.saturating_duration_since(Instant::now()))
-        });
-        let _ = wake.wait(None, sleep, |_| {});
     }
-    drop((announced, transport));
-    Ok(counts)
+
+    /// What discovery shows: topics unmatched or of another type, whether the taken Imu
+    /// publisher is still listed, and peers whose QoS can never match (each said once).
+    fn check_graph(&mut self, since_start: Duration) {
+        for w in &mut self.watched {
+            w.check(&self.node, since_start);
+        }
+        if let Some(i) = &mut self.imu_in {
+            i.check_publisher(&self.node);
+        }
+        for line in self.node.qos_mismatches() {
+            if self.said_qos.insert(line.clone()) {
+                say(format_args!("{line}"));
+            }
+        }
+    }
+}
+
+/// The services the outputs read, each opened once however many topics it feeds (one input
+/// port per service), and the diagnostics; then each topic's publisher, in the table's order
+/// (Imu, bias, diagnostics).
+fn open_outs(
+    settings: &Ros2Settings,
+    transport: &Transport,
+    node: &mut Ros2Node,
+    watched: &mut Vec<Watched>,
+) -> Result<(Vec<ServiceOut>, Option<Diagnostics>), TransportError> {
+    let mut outs: Vec<ServiceOut> = Vec::new();
+    let mut out_of = |service: &str| -> Result<usize, TransportError> {
+        match outs.iter().position(|o| o.service == service) {
+            Some(k) => Ok(k),
+            None => {
+                outs.push(ServiceOut::new(transport, service)?);
+                Ok(outs.len() - 1)
+            }
+        }
+    };
+    let mut wants = Vec::new();
+    for (service, topic) in &settings.imu_out {
+        wants.push((out_of(service)?, topic, IMU_TYPE));
+    }
+    if let Some((service, topic)) = &settings.bias_out {
+        wants.push((out_of(service)?, topic, VECTOR3_STAMPED_TYPE));
+    }
+    let mut diagnostics = None;
+    if let Some((service, topic)) = &settings.diagnostics {
+        let out = out_of(service)?;
+        wants.push((out, topic, DIAGNOSTIC_ARRAY_TYPE));
+        diagnostics = Some(Diagnostics::new(settings, node, topic, out)?);
+    }
+    for (out, topic, ty) in wants {
+        watched.push(Watched::new(topic, ty, true));
+        outs[out].publish_on(settings, node, topic, ty)?;
+    }
+    Ok((outs, diagnostics))
+}
+
+/// One descriptor for everything that can wake the side: the DDS subscriptions' readiness
+/// and the notifying outputs' event services, so that it sleeps until either has something.
+fn wake_ups(
+    imu_in: &mut Option<ImuIn>,
+    motion: &mut Option<MotionIn>,
+    outs: &[ServiceOut],
+) -> Result<(DdsReadiness, WakeSet), TransportError> {
+    let io = |e: std::io::Error| TransportError::Io {
+        what: "ROS 2 readiness",
+        reason: e.to_string(),
+    };
+    let readiness = DdsReadiness::new().map_err(io)?;
+    if let Some(i) = imu_in {
+        readiness.watch_imu(&mut i.sub, 0).map_err(io)?;
+    }
+    if let Some(m) = motion {
+        readiness.watch_motion(&mut m.sub, 1).map_err(io)?;
+    }
+    let mut wake = WakeSet::new()?;
+    wake.add_fd(readiness.fd(), DDS_TAG)?;
+    for (k, o) in outs.iter().enumerate() {
+        if let Some(w) = &o.waker {
+            wake.add(w, k)?;
+        }
+    }
+    Ok((readiness, wake))
 }
