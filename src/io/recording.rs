@@ -29,7 +29,7 @@ use crate::wire::{
     SENSOR_ACCEL, SENSOR_MAG, SENSOR_ORIENTATION,
 };
 
-use super::mcap_file::{limited_reader, map_mcap, McapOpenError};
+use super::mcap_file::{map_mcap, ChannelMessages, McapOpenError};
 
 /// Message encoding of every channel.
 pub const MESSAGE_ENCODING: &str = "json";
@@ -614,21 +614,11 @@ impl Recording {
         &'a self,
         topic: &'a str,
     ) -> impl Iterator<Item = Result<T, String>> + 'a {
-        let reader = limited_reader();
-        let channels: BTreeMap<u16, bool> = self
-            .summary
-            .channels
-            .iter()
-            .map(|(id, c)| (*id, c.topic == topic))
-            .collect();
         TopicMessages {
             shown: self.path.display().to_string(),
             topic,
-            reader,
-            rest: &self.map[..],
-            channels,
+            messages: ChannelMessages::of_topic(&self.map, &self.summary, topic),
             index: 0,
-            failed: false,
             _t: std::marker::PhantomData,
         }
     }
@@ -638,12 +628,8 @@ impl Recording {
 struct TopicMessages<'a, T> {
     shown: String,
     topic: &'a str,
-    reader: mcap::sans_io::linear_reader::LinearReader,
-    rest: &'a [u8],
-    /// Every channel of the summary: whether it is the topic's.
-    channels: BTreeMap<u16, bool>,
+    messages: ChannelMessages<'a>,
     index: u64,
-    failed: bool,
     _t: std::marker::PhantomData<T>,
 }
 
@@ -651,52 +637,18 @@ impl<T: serde::de::DeserializeOwned> Iterator for TopicMessages<'_, T> {
     type Item = Result<T, String>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        use mcap::sans_io::linear_reader::LinearReadEvent;
-        if self.failed {
-            return None;
-        }
-        let shown = &self.shown;
-        let mut fail = |e: String| {
-            self.failed = true;
-            Some(Err(e))
-        };
-        while let Some(event) = self.reader.next_event() {
-            match event {
-                Ok(LinearReadEvent::ReadRequest(need)) => {
-                    let len = need.min(self.rest.len());
-                    self.reader.insert(len).copy_from_slice(&self.rest[..len]);
-                    self.reader.notify_read(len);
-                    self.rest = &self.rest[len..];
-                }
-                Ok(LinearReadEvent::Record { opcode, data }) => {
-                    let record = match mcap::parse_record(opcode, data) {
-                        Ok(r) => r,
-                        Err(e) => return fail(format!("{shown}: {e}")),
-                    };
-                    let mcap::records::Record::Message { header, data } = record else {
-                        continue;
-                    };
-                    match self.channels.get(&header.channel_id) {
-                        Some(true) => {}
-                        Some(false) => continue,
-                        None => {
-                            return fail(format!(
-                                "{shown}: a message of channel {} that the summary does not list",
-                                header.channel_id
-                            ))
-                        }
-                    }
-                    self.index += 1;
-                    let (topic, index) = (self.topic, self.index);
-                    return Some(
-                        serde_json::from_slice::<T>(&data)
-                            .map_err(|e| format!("{shown}: message {index} of topic {topic}: {e}")),
-                    );
-                }
-                Err(e) => return fail(format!("{shown}: {e}")),
+        let decoded = self
+            .messages
+            .next_with(|_, data| serde_json::from_slice::<T>(data));
+        let (shown, topic) = (&self.shown, self.topic);
+        Some(match decoded? {
+            Ok(decoded) => {
+                self.index += 1;
+                let index = self.index;
+                decoded.map_err(|e| format!("{shown}: message {index} of topic {topic}: {e}"))
             }
-        }
-        None
+            Err(e) => Err(format!("{shown}: {e}")),
+        })
     }
 }
 

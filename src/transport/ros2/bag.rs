@@ -41,7 +41,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::io::atomic::AtomicFile;
-use crate::io::mcap_file::{limited_reader, map_mcap, McapOpenError};
+use crate::io::mcap_file::{map_mcap, ChannelMessages, McapOpenError, McapReadError};
 
 use super::imu::{CdrError, Imu, IMU_DEFINITION, IMU_TYPE};
 use super::motion::{Motion, MotionKind};
@@ -509,10 +509,8 @@ pub struct Messages<'a, T: TopicType> {
     ty: T,
     /// The file being read (its index in the bag).
     file: usize,
-    reader: Option<mcap::sans_io::linear_reader::LinearReader>,
-    rest: &'a [u8],
-    /// The current file's channels: whether each is the topic's.
-    channels: BTreeMap<u16, bool>,
+    /// The current file's messages of the topic (None between files).
+    reader: Option<ChannelMessages<'a>>,
     number: u64,
     last_log_time: Option<u64>,
     failed: bool,
@@ -526,8 +524,6 @@ impl<'a, T: TopicType> Messages<'a, T> {
             ty,
             file: 0,
             reader: None,
-            rest: &[],
-            channels: BTreeMap::new(),
             number: 0,
             last_log_time: None,
             failed: false,
@@ -554,7 +550,7 @@ impl<'a, T: TopicType> Messages<'a, T> {
     /// Start reading file `self.file`: its channels of the topic, which must be Imu.
     fn start_file(&mut self) -> Result<(), BagError> {
         let f = &self.bag.files[self.file];
-        self.channels.clear();
+        let mut channels = BTreeMap::new();
         for (id, c) in &f.summary.channels {
             let mine = c.topic == self.topic;
             if mine {
@@ -575,83 +571,55 @@ impl<'a, T: TopicType> Messages<'a, T> {
                     ));
                 }
             }
-            self.channels.insert(*id, mine);
+            channels.insert(*id, mine);
         }
-        self.reader = Some(limited_reader());
-        self.rest = &f.map[..];
+        self.reader = Some(ChannelMessages::new(&f.map[..], channels));
         Ok(())
     }
 
     /// The next message of the current file, None at its end.
     fn next_in_file(&mut self) -> Option<Result<Record<T::Msg>, BagError>> {
-        use mcap::sans_io::linear_reader::LinearReadEvent;
-        let reader = self.reader.as_mut()?;
-        while let Some(event) = reader.next_event() {
-            match event {
-                Ok(LinearReadEvent::ReadRequest(need)) => {
-                    let len = need.min(self.rest.len());
-                    reader.insert(len).copy_from_slice(&self.rest[..len]);
-                    reader.notify_read(len);
-                    self.rest = &self.rest[len..];
-                }
-                Ok(LinearReadEvent::Record { opcode, data }) => {
-                    let record = match mcap::parse_record(opcode, data) {
-                        Ok(r) => r,
-                        Err(e) => {
-                            return Some(Err(err(
-                                BagErrorKind::Corrupt,
-                                format!("{}: a corrupt record: {e}", self.after()),
-                            )))
-                        }
-                    };
-                    let mcap::records::Record::Message { header, data } = record else {
-                        continue;
-                    };
-                    match self.channels.get(&header.channel_id) {
-                        Some(true) => {}
-                        Some(false) => continue,
-                        None => {
-                            return Some(Err(err(
-                                BagErrorKind::Corrupt,
-                                format!(
-                                    "{}: a message of channel {} that the summary does not list",
-                                    self.after(),
-                                    header.channel_id
-                                ),
-                            )))
-                        }
+        let ty = &self.ty;
+        let read = self
+            .reader
+            .as_mut()?
+            .next_with(|header, data| (header.log_time, ty.decode(data)));
+        let (log_time, decoded) = match read {
+            Some(Ok(read)) => read,
+            Some(Err(e)) => {
+                let message = match e {
+                    McapReadError::Record(e) => format!("{}: a corrupt record: {e}", self.after()),
+                    McapReadError::Chunk(e) => {
+                        format!("{}: a corrupt or truncated chunk: {e}", self.after())
                     }
-                    self.number += 1;
-                    self.last_log_time = Some(header.log_time);
-                    return Some(match self.ty.decode(&data) {
-                        Ok(msg) => Ok(Record {
-                            msg,
-                            log_time_ns: header.log_time,
-                            number: self.number,
-                        }),
-                        Err(e) => Err(err(
-                            BagErrorKind::Cdr,
-                            format!(
-                                "{}: topic {}, message {} (log time {} ns): not a CDR {}: {e}",
-                                self.bag.files[self.file].path.display(),
-                                self.topic,
-                                self.number,
-                                header.log_time,
-                                self.ty.name()
-                            ),
-                        )),
-                    });
-                }
-                Err(e) => {
-                    return Some(Err(err(
-                        BagErrorKind::Corrupt,
-                        format!("{}: a corrupt or truncated chunk: {e}", self.after()),
-                    )))
-                }
+                    McapReadError::UnknownChannel(_) => format!("{}: {e}", self.after()),
+                };
+                return Some(Err(err(BagErrorKind::Corrupt, message)));
             }
-        }
-        self.reader = None;
-        None
+            None => {
+                self.reader = None;
+                return None;
+            }
+        };
+        self.number += 1;
+        self.last_log_time = Some(log_time);
+        Some(match decoded {
+            Ok(msg) => Ok(Record {
+                msg,
+                log_time_ns: log_time,
+                number: self.number,
+            }),
+            Err(e) => Err(err(
+                BagErrorKind::Cdr,
+                format!(
+                    "{}: topic {}, message {} (log time {log_time} ns): not a CDR {}: {e}",
+                    self.bag.files[self.file].path.display(),
+                    self.topic,
+                    self.number,
+                    self.ty.name()
+                ),
+            )),
+        })
     }
 }
 
