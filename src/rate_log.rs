@@ -19,6 +19,7 @@ use crate::io::csv_table::{read_table, read_table_keeping_time, Table, TimeColum
 use crate::io::{BagError, BagErrorKind, InputError};
 use crate::transport::ros2::bag::Bag;
 use crate::transport::ros2::seconds_text;
+use crate::units::{AccelUnit, RateUnit};
 
 /// The column names a bag's angular velocity is read into.
 pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
@@ -195,10 +196,10 @@ impl LogOrigin {
 
     /// The units of the log's rates: a bag's are rad/s; `given` (a command's `--units`) must
     /// agree; a CSV log's are `given`, deg/s without it.
-    pub fn units<'a>(&self, given: Option<&'a str>) -> Result<&'a str, String> {
+    pub fn units(&self, given: Option<RateUnit>) -> Result<RateUnit, String> {
         match (&self.bag, given) {
-            (None, given) => Ok(given.unwrap_or("deg/s")),
-            (Some(_), None | Some("rad/s")) => Ok("rad/s"),
+            (None, given) => Ok(given.unwrap_or(RateUnit::DegPerS)),
+            (Some(_), None | Some(RateUnit::RadPerS)) => Ok(RateUnit::RadPerS),
             (Some(bag), Some(other)) => Err(format!(
                 "{}: topic {}: a sensor_msgs/msg/Imu angular velocity is in rad/s (REP 103), \
                  not {other}: leave --units out",
@@ -210,10 +211,10 @@ impl LogOrigin {
 
     /// The units of the log's accelerometer columns: a bag's are m/s^2 (`given`, a command's
     /// `--accel-units`, must agree); a CSV log's are `given`, m/s^2 without it.
-    pub fn accel_units<'a>(&self, given: Option<&'a str>) -> Result<&'a str, String> {
+    pub fn accel_units(&self, given: Option<AccelUnit>) -> Result<AccelUnit, String> {
         match (&self.bag, given) {
-            (None, given) => Ok(given.unwrap_or("m/s^2")),
-            (Some(_), None | Some("m/s^2")) => Ok("m/s^2"),
+            (None, given) => Ok(given.unwrap_or(AccelUnit::MPerS2)),
+            (Some(_), None | Some(AccelUnit::MPerS2)) => Ok(AccelUnit::MPerS2),
             (Some(bag), Some(other)) => Err(format!(
                 "{}: topic {}: a sensor_msgs/msg/Imu linear acceleration is in m/s^2 (REP 103), \
                  not {other}: leave --accel-units out",

@@ -3,7 +3,8 @@
 //! field). Each has one parser (`FromStr`, from the names users type in pipeline files and on
 //! the command line), one printer (`Display`, the same names) and its factors to the SI unit,
 //! so that the pipeline file, `allan`, `tap`, `record` and `nav-eval` read and write the same
-//! words. Pure: no I/O, no other module of the crate.
+//! words; a rate unit is stored (serde: a drift model file's `units`) by the same name. Pure: no
+//! I/O, no other module of the crate.
 
 use std::fmt;
 use std::str::FromStr;
@@ -87,6 +88,19 @@ impl FromStr for RateUnit {
 impl fmt::Display for RateUnit {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+impl serde::Serialize for RateUnit {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for RateUnit {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = <std::borrow::Cow<'de, str>>::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
     }
 }
 

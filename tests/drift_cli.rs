@@ -88,7 +88,7 @@ fn training_is_deterministic_for_a_seed_and_the_file_round_trips() {
         (12_000, 2_000, 7)
     );
     assert_eq!(
-        (ma.rate_hz, ma.units.as_str(), ma.axis.as_str()),
+        (ma.rate_hz, ma.units.name(), ma.axis.as_str()),
         (50.0, "deg/s", "rate_degps")
     );
 }

@@ -11,8 +11,8 @@ use crate::allan::analysis::{self, Analysis, Curve, Progress};
 use crate::allan::deviation::{AllanPoint, NoiseId};
 use crate::allan::fit::b_read_off_unidentified;
 use crate::allan::{
-    chi2, edf, AccelUnit, Estimate, FitError, Kind, NoiseFit, SampleUnit, Sensor, TauGrid, Term,
-    TermFit, TermUnits,
+    chi2, edf, AccelUnit, Estimate, FitError, Kind, NoiseFit, RateUnit, SampleUnit, Sensor,
+    TauGrid, Term, TermFit, TermUnits,
 };
 use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
@@ -558,8 +558,12 @@ fn analyse_logs(
     let several = args.inputs.len() > 1;
     let mut per_log = Vec::with_capacity(args.inputs.len());
     let mut reference: Option<Reference> = None;
+    let given = (
+        log_input::unit_option("--units", args.units.as_deref())?,
+        log_input::unit_option("--accel-units", args.accel_units.as_deref())?,
+    );
     for path in &args.inputs {
-        let (log, units) = read_columns(args, path)?;
+        let (log, units) = read_columns(args, path, given)?;
         let own_rate = log.origin.rate(given_rate).map_err(CliError::input)?;
         let rate = match &reference {
             Some(r) => {
@@ -617,8 +621,12 @@ fn analyse_logs(
 
 /// The columns to analyse of the log at `path` and the unit of each: the gyro's (`--column`, or
 /// every other numeric column) in `--units`, the accelerometer's (`--accel-column`) in
-/// `--accel-units`.
-fn read_columns(args: &Args, path: &Path) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
+/// `--accel-units` (`given`, parsed).
+fn read_columns(
+    args: &Args,
+    path: &Path,
+    given: (Option<RateUnit>, Option<AccelUnit>),
+) -> Result<(RateLog, Vec<SampleUnit>), CliError> {
     let accel = &args.accel_columns;
     if let Some(both) = args.columns.iter().find(|c| accel.contains(c)) {
         return Err(CliError::input(format!(
@@ -638,13 +646,8 @@ fn read_columns(args: &Args, path: &Path) -> Result<(RateLog, Vec<SampleUnit>), 
         (false, _, _) => args.columns.iter().chain(accel).cloned().collect(),
     };
     let log = log_input::open(path, &wanted, &args.bag, false)?;
-    let gyro = SampleUnit::Rate(log_input::rate_unit(&log.origin, args.units.as_deref())?);
-    let accel_unit = log
-        .origin
-        .accel_units(args.accel_units.as_deref())
-        .map_err(CliError::input)?
-        .parse::<AccelUnit>()
-        .map_err(|e| CliError::input(format!("--accel-units: {e}")))?;
+    let gyro = SampleUnit::Rate(log.origin.units(given.0).map_err(CliError::input)?);
+    let accel_unit = log.origin.accel_units(given.1).map_err(CliError::input)?;
     for name in accel {
         if !log.table.names.contains(name) {
             return Err(CliError::input(format!(

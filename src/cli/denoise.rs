@@ -201,7 +201,8 @@ fn load(args: &Args) -> Result<Data, CliError> {
     // its time axis from it.
     let keep_time = args.output.is_some() || args.plot.is_some();
     let log = log_input::open(input, &args.columns, &args.bag, keep_time)?;
-    let units = log_input::rate_unit(&log.origin, args.units.as_deref())?;
+    let units = log_input::unit_option("--units", args.units.as_deref())?;
+    let units = log.origin.units(units).map_err(CliError::input)?;
     let table = log.table;
     let mut truths = vec![None; table.names.len()];
     let mut truth_source = None;

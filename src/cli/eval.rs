@@ -59,7 +59,7 @@ pub struct Report {
     /// Rate, Hz.
     pub rate_hz: f64,
     /// Units.
-    pub units: String,
+    pub units: RateUnit,
     /// Scored range.
     pub from: usize,
     /// Scored range end (exclusive).
@@ -97,7 +97,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     }
     if let Some(u) = &args.log.units {
-        if *u != model.units {
+        if u.parse() != Ok(model.units) {
             return Err(CliError::input(format!(
                 "the log is in {u} but model {} is in {}",
                 args.model.display(),
@@ -135,7 +135,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         file: args.log.input.display().to_string(),
         column: col.name.clone(),
         rate_hz: rate,
-        units: model.units.clone(),
+        units: model.units,
         from,
         to,
         training_file,
@@ -220,7 +220,7 @@ fn write_plot(
                 f9.len()
             ),
             x_label: "time (s)".into(),
-            y_label: model.units.clone(),
+            y_label: model.units.to_string(),
             series: vec![
                 Series {
                     name: "measured drift (causal low band)".into(),
@@ -236,7 +236,7 @@ fn write_plot(
         Panel {
             title: "Figure 10: raw and compensated rate".into(),
             x_label: "time (s)".into(),
-            y_label: model.units.clone(),
+            y_label: model.units.to_string(),
             series: vec![
                 Series {
                     name: "raw".into(),
@@ -301,10 +301,7 @@ fn print_report(r: &Report, term_units: TermUnits) {
     let mut table = super::table::new(&header, 2);
     // The fit works in the log's angle unit per second; terms are shown in degrees, in the
     // chosen convention (the same as `driftless allan`).
-    let to_deg = r
-        .units
-        .parse::<RateUnit>()
-        .map_or(1.0, RateUnit::to_deg_per_s);
+    let to_deg = r.units.to_deg_per_s();
     let cell = |v: f64, raw: f64, first: bool, mark: &str| {
         if first {
             format!("{}{mark}", sig(v, 4))
@@ -339,7 +336,7 @@ fn print_report(r: &Report, term_units: TermUnits) {
         else {
             continue;
         };
-        let mut row = vec![format!("OADEV {} s", sig(tau, 4)), r.units.clone()];
+        let mut row = vec![format!("OADEV {} s", sig(tau, 4)), r.units.to_string()];
         for (j, t) in r.table.iter().enumerate() {
             let v = nearest(&t.oadev, target).map_or(f64::NAN, |p| p.1);
             row.push(cell(v, raw, j == 0, ""));
@@ -356,5 +353,5 @@ fn print_report(r: &Report, term_units: TermUnits) {
     table.add_row(row);
     println!("{table}");
     println!("drift prediction on the same samples (measured drift as inputs):");
-    super::train::print_scores(&r.prediction, &r.units, 1.0);
+    super::train::print_scores(&r.prediction, r.units, 1.0);
 }

@@ -1,10 +1,10 @@
 //! The input log of the offline commands: a CSV file or a ROS 2 bag ([`crate::rate_log`]).
 
 use std::path::Path;
+use std::str::FromStr;
 
 use super::CliError;
-use crate::allan::RateUnit;
-use crate::rate_log::{read_log, LogOrigin, RateLog};
+use crate::rate_log::{read_log, RateLog};
 
 /// The options a command that reads a log takes for a ROS 2 bag.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -46,12 +46,16 @@ pub fn check_text_input(path: &Path, takes: &str) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The unit of a log's rates: a bag's rad/s (`given` must agree), else `given`, deg/s
-/// without it.
-pub fn rate_unit(origin: &LogOrigin, given: Option<&str>) -> Result<RateUnit, CliError> {
-    origin
-        .units(given)
-        .map_err(CliError::input)?
-        .parse()
-        .map_err(|e| CliError::input(format!("--units: {e}")))
+/// A unit option's text (`--units`, `--accel-units`) as its unit ([`crate::units`]); the error
+/// names the option.
+pub fn unit_option<U: FromStr<Err = String>>(
+    option: &str,
+    given: Option<&str>,
+) -> Result<Option<U>, CliError> {
+    given
+        .map(|u| {
+            u.parse()
+                .map_err(|e| CliError::input(format!("{option}: {e}")))
+        })
+        .transpose()
 }

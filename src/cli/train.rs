@@ -8,11 +8,12 @@ use crate::cli::log_input::{self, BagArgs};
 use crate::cli::num::sig;
 use crate::drift::baselines::Score;
 use crate::drift::fit::{fit_model, FitError, FitSpec};
-use crate::drift::model::{DenoiseSettings, LowbandSettings, Provenance, Separation, UNITS};
+use crate::drift::model::{DenoiseSettings, LowbandSettings, Provenance, Separation};
 use crate::drift::rbf::{InputForm, Target};
 use crate::drift::training::{AdamConfig, CentreMethod, TrainConfig};
 use crate::io::model_file::{sha256_file, write_model};
 use crate::rate_log::{LogOrigin, RateLog};
+use crate::units::RateUnit;
 use std::path::{Path, PathBuf};
 
 /// The gyro log `train` fits a model to and `eval` scores one on, as both take it.
@@ -188,19 +189,22 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if let Some(r) = args.log.rate {
         check_rate(r)?;
     }
-    if let Some(u) = args.log.units.as_deref().filter(|u| !UNITS.contains(u)) {
-        return Err(CliError::input(format!(
-            "--units '{u}' (valid: {})",
-            UNITS.join(", ")
-        )));
-    }
+    let units = args
+        .log
+        .units
+        .as_deref()
+        .map(|u| {
+            u.parse::<RateUnit>().map_err(|_| {
+                CliError::input(format!(
+                    "--units '{u}' (valid: {})",
+                    RateUnit::NAMES.join(", ")
+                ))
+            })
+        })
+        .transpose()?;
     let col = read_column(&args.log.input, args.log.column.as_deref(), &args.log.bag)?;
     let rate = col.origin.rate(args.log.rate).map_err(CliError::input)?;
-    let units = col
-        .origin
-        .units(args.log.units.as_deref())
-        .map_err(CliError::input)?
-        .to_string();
+    let units = col.origin.units(units).map_err(CliError::input)?;
     let spec = fit_spec(&args, rate)?;
     let n = col.values.len();
     let end = args.start + args.train + args.test;
@@ -246,7 +250,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         seed: args.seed,
         driftless: env!("CARGO_PKG_VERSION").into(),
     };
-    let model = fitted.into_model(&spec, rate, col.name.clone(), units.clone(), provenance);
+    let model = fitted.into_model(&spec, rate, col.name.clone(), units, provenance);
     model.check().map_err(CliError::internal)?;
     write_model(&args.output, &model).map_err(CliError::input)?;
     let (t0, t1) = (args.train, args.train + args.test);
@@ -264,7 +268,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         args.start + t1
     );
     let scores = &model.scores;
-    print_scores(scores, &units, args.horizon);
+    print_scores(scores, units, args.horizon);
     let rbf = &scores[3];
     let ar_s = &scores[2];
     println!(
@@ -347,7 +351,7 @@ fn fit_spec(args: &Args, rate: f64) -> Result<FitSpec, CliError> {
 }
 
 /// The baselines table.
-pub fn print_scores(scores: &[Score], units: &str, horizon_s: f64) {
+pub fn print_scores(scores: &[Score], units: RateUnit, horizon_s: f64) {
     let rmse = format!("rmse ({units})");
     let free = format!("free-run rmse ({horizon_s} s, {units})");
     let mut t = super::table::new(&["predictor", &rmse, "skill", &free], 1);

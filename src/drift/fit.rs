@@ -10,6 +10,7 @@ use super::rbf::Rbf;
 use super::separation::{separate_causal, train_end};
 use super::stillness::StillnessConfig;
 use super::training::{self, TrainConfig, TrainError};
+use crate::units::RateUnit;
 
 /// How a model is fitted to a record.
 #[derive(Debug, Clone, PartialEq)]
@@ -172,7 +173,7 @@ impl Fitted {
         spec: &FitSpec,
         rate_hz: f64,
         axis: String,
-        units: String,
+        units: RateUnit,
         provenance: Provenance,
     ) -> DriftModel {
         DriftModel {

@@ -18,15 +18,13 @@ use super::lowband::LowBand;
 use super::rbf::Rbf;
 use super::stillness::StillnessConfig;
 use super::training::TrainConfig;
+use crate::units::RateUnit;
 use serde::{Deserialize, Serialize};
 
 /// The format tag of a model file.
 pub const FORMAT: &str = "driftless-drift-model";
 /// The model file version this build writes and reads.
 pub const VERSION: u32 = 1;
-
-/// Units a model may be in.
-pub const UNITS: [&str; 2] = crate::units::RateUnit::NAMES;
 
 /// The streaming denoiser settings used before the drift was measured.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -102,8 +100,8 @@ pub struct DriftModel {
     pub rate_hz: f64,
     /// Axis (column) name.
     pub axis: String,
-    /// Units of the rate and the drift (one of [`UNITS`]).
-    pub units: String,
+    /// Units of the rate and the drift (stored by name: `deg/s`, `rad/s`).
+    pub units: RateUnit,
     /// How the drift was separated.
     pub separation: Separation,
     /// Default stillness thresholds (calibrated on the training record).
@@ -212,6 +210,15 @@ impl DriftModel {
             Some(v) => return Err(ModelError::Version(v.min(u32::MAX as u64) as u32)),
             None => return Err(ModelError::Parse("missing field `version`".into())),
         }
+        // The units by name first: the typed parse would refuse an unknown one as unreadable.
+        if let Some(units) = head.get("units").and_then(|v| v.as_str()) {
+            if units.parse::<RateUnit>().is_err() {
+                return Err(ModelError::Invalid(format!(
+                    "units '{units}' (expected one of {})",
+                    RateUnit::NAMES.join(", ")
+                )));
+            }
+        }
         // Typed parse from the text again: its errors carry line and column.
         let mut m: DriftModel =
             serde_json::from_str(text).map_err(|e| ModelError::Parse(e.to_string()))?;
@@ -231,13 +238,6 @@ impl DriftModel {
     pub fn check(&self) -> Result<(), String> {
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
             return Err(format!("rate_hz must be > 0, not {}", self.rate_hz));
-        }
-        if !UNITS.contains(&self.units.as_str()) {
-            return Err(format!(
-                "units '{}' (expected one of {})",
-                self.units,
-                UNITS.join(", ")
-            ));
         }
         self.network.check().map_err(|e| format!("network: {e}"))?;
         self.stillness.check()?;

@@ -209,9 +209,10 @@ fn raw_sample(p: &Pipeline, k: usize, rate: [f64; 3], accel: Option<&[f64; 3]>) 
 mod tests {
     use super::*;
     use crate::pipeline::config;
+    use crate::units::AccelUnit;
     use std::path::Path;
 
-    fn pipeline(accel_units: &str) -> Pipeline {
+    fn pipeline(accel_units: AccelUnit) -> Pipeline {
         let text = format!(
             r#"name = "t"
 rate_hz = 100.0
@@ -245,10 +246,10 @@ output = "t/corrected"
     #[test]
     fn an_offline_sample_carries_the_accelerometer_in_the_pipelines_units() {
         let force = [0.5, -1.25, -9.80665];
-        for units in ["m/s^2", "g"] {
+        for units in AccelUnit::ALL {
             let p = pipeline(units);
             let raw = raw_sample(&p, 3, [1.0; 3], Some(&force));
-            let scale = if units == "g" { 9.80665 } else { 1.0 };
+            let scale = units.to_m_per_s2();
             assert_eq!(
                 raw.accel_reading().map(|a| a.map(|v| v * scale)),
                 Some(force)

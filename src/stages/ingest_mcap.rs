@@ -304,6 +304,16 @@ fn raw_channel<'c>(
     })
 }
 
+/// The unit a channel's metadata `key` names, when it is a unit of `U` other than `ours`.
+fn other_unit<U: std::str::FromStr + PartialEq + std::fmt::Display>(
+    metadata: &std::collections::BTreeMap<String, String>,
+    key: &str,
+    ours: U,
+) -> Option<String> {
+    let recorded = metadata.get(key)?.parse::<U>().ok()?;
+    (recorded != ours).then(|| recorded.to_string())
+}
+
 /// A recording's raw channel checked before the replay: its encoding, the units it was
 /// recorded in against the pipeline's, and that it has messages.
 fn check_channel(
@@ -325,33 +335,31 @@ fn check_channel(
             ),
         ));
     }
-    // Units the recorder was told (a recording without them is taken as the pipeline's).
-    for (key, known, ours, pipeline_key) in [
+    // Units the recorder was told (a recording without them, or with a name no unit has, is
+    // taken as the pipeline's).
+    let md = &channel.metadata;
+    for (recorded, ours, pipeline_key) in [
         (
-            recording::RATE_UNITS_KEY,
-            RateUnit::NAMES,
+            other_unit(md, recording::RATE_UNITS_KEY, t.cx.units),
             t.cx.units.name(),
             "input_units",
         ),
         (
-            recording::ACCEL_UNITS_KEY,
-            AccelUnit::NAMES,
+            other_unit(md, recording::ACCEL_UNITS_KEY, t.cx.accel_units),
             t.cx.accel_units.name(),
             "accel_units",
         ),
     ] {
-        if let Some(units) = channel.metadata.get(key) {
-            if known.contains(&units.as_str()) && units != ours {
-                return Err(src.at(
-                    at_topic,
-                    format!(
-                        "topic {} of {} was recorded in {units}, but the pipeline's \
-                         {pipeline_key} is {ours}",
-                        channel.topic,
-                        file.display()
-                    ),
-                ));
-            }
+        if let Some(units) = recorded {
+            return Err(src.at(
+                at_topic,
+                format!(
+                    "topic {} of {} was recorded in {units}, but the pipeline's \
+                     {pipeline_key} is {ours}",
+                    channel.topic,
+                    file.display()
+                ),
+            ));
         }
     }
     if channel.messages == 0 {

@@ -210,7 +210,6 @@ fn parse_rbf(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             ))
         }
     };
-    let unit_name = cx.units.name();
     let mut paths = Vec::with_capacity(axes);
     let mut loaded = Vec::with_capacity(axes);
     let mut stillness = Vec::with_capacity(axes);
@@ -228,13 +227,14 @@ fn parse_rbf(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
                 ),
             ));
         }
-        if m.units != unit_name {
+        if m.units != cx.units {
             return Err(src.span(
                 f,
                 format!(
-                    "model {} is in {} but the pipeline's input_units are {unit_name}",
+                    "model {} is in {} but the pipeline's input_units are {}",
                     path.display(),
-                    m.units
+                    m.units,
+                    cx.units
                 ),
             ));
         }
