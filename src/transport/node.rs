@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use iceoryx2::prelude::*;
 use iceoryx2::service::attribute::{AttributeKey, AttributeValue};
+use iceoryx2::service::builder::publish_subscribe::Builder as PubSubBuilder;
 
 use super::cleanup::{remove_unsized_segments, restrict_global_segment};
 use super::config::{service_name, PubSubFactory, Qos, Svc};
@@ -111,16 +112,23 @@ impl Transport {
         self.node.try_cleanup_dead_nodes().cleanups
     }
 
+    /// The builder of the publish-subscribe service `name` with payload `T`.
+    fn pubsub_builder<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<PubSubBuilder<T, (), Svc>, TransportError> {
+        Ok(self
+            .node
+            .service_builder(&service_name(name)?)
+            .publish_subscribe::<T>())
+    }
+
+    /// The publish-subscribe service `name`, opened or created with our QoS (one publisher).
     fn pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
         name: &str,
-    ) -> Result<
-        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>,
-        TransportError,
-    > {
-        self.node
-            .service_builder(&service_name(name)?)
-            .publish_subscribe::<T>()
+    ) -> Result<PubSubFactory<T>, TransportError> {
+        self.pubsub_builder::<T>(name)?
             .history_size(0)
             .enable_safe_overflow(false)
             .subscriber_max_buffer_size(self.qos.buffer_size)
@@ -128,6 +136,28 @@ impl Transport {
             .max_publishers(1)
             .open_or_create()
             .map_err(|e| self.open_error(name, e))
+    }
+
+    /// The publish-subscribe service `name` as another process created it (no requirements).
+    fn existing_pubsub<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        name: &str,
+    ) -> Result<PubSubFactory<T>, TransportError> {
+        self.pubsub_builder::<T>(name)?
+            .open()
+            .map_err(|e| self.open_error(name, e))
+    }
+
+    /// The event service `name`, opened or created: its notifier wakes its listeners.
+    fn event_service(
+        &self,
+        name: &str,
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, TransportError> {
+        self.node
+            .service_builder(&service_name(name)?)
+            .event()
+            .open_or_create()
+            .map_err(|e| setup("event service", name, e))
     }
 
     /// The publishing side of service `name`, with an event service of the same name that is
@@ -153,12 +183,7 @@ impl Transport {
         if !self.service_exists::<T>(name)? {
             return self.output(name, notify);
         }
-        let service = self
-            .node
-            .service_builder(&service_name(name)?)
-            .publish_subscribe::<T>()
-            .open()
-            .map_err(|e| self.open_error(name, e))?;
+        let service = self.existing_pubsub::<T>(name)?;
         self.output_on(service, name, notify)
     }
 
@@ -181,14 +206,8 @@ impl Transport {
                 )
             })?;
         let notifier = if notify {
-            let event = self
-                .node
-                .service_builder(&service_name(name)?)
-                .event()
-                .open_or_create()
-                .map_err(|e| setup("event service", name, e))?;
             Some(
-                event
+                self.event_service(name)?
                     .notifier_builder()
                     .create()
                     .map_err(|e| setup("notifier", name, e))?,
@@ -229,12 +248,7 @@ impl Transport {
         if !self.service_exists::<T>(name)? {
             return self.input(name);
         }
-        let service = self
-            .node
-            .service_builder(&service_name(name)?)
-            .publish_subscribe::<T>()
-            .open()
-            .map_err(|e| self.open_error(name, e))?;
+        let service = self.existing_pubsub::<T>(name)?;
         let cfg = service.static_config();
         let (buffer, safe_overflow) = (cfg.subscriber_max_buffer_size(), cfg.has_safe_overflow());
         if buffer < self.qos.buffer_size || safe_overflow {
@@ -254,12 +268,7 @@ impl Transport {
         &self,
         name: &str,
     ) -> Result<Input<T>, TransportError> {
-        let service = self
-            .node
-            .service_builder(&service_name(name)?)
-            .publish_subscribe::<T>()
-            .open()
-            .map_err(|e| self.open_error(name, e))?;
+        let service = self.existing_pubsub::<T>(name)?;
         let max = service.static_config().subscriber_max_buffer_size();
         subscribe(service, name, max)
     }
@@ -267,13 +276,8 @@ impl Transport {
     /// A listener on the event service `name` (opened or created), to sleep until a publisher
     /// announces new data.
     pub fn waker(&self, name: &str) -> Result<Waker, TransportError> {
-        let event = self
-            .node
-            .service_builder(&service_name(name)?)
-            .event()
-            .open_or_create()
-            .map_err(|e| setup("event service", name, e))?;
-        let listener = event
+        let listener = self
+            .event_service(name)?
             .listener_builder()
             .create()
             .map_err(|e| setup("listener", name, e))?;
