@@ -289,22 +289,22 @@ pub fn train(
     };
     progress(0.4);
     let widths = widths_from_centres(&centres, f, cfg.width_scale);
-    let mut model = Rbf {
-        lags: cfg.lags,
-        inputs: cfg.inputs,
-        target: cfg.target,
+    // Output and linear weights start at zero: solve_output fits them.
+    let mut model = Rbf::new(
+        cfg.lags,
+        cfg.inputs,
+        cfg.target,
         feature_mean,
         feature_scale,
         target_mean,
         target_scale,
         centres,
         widths,
-        weights: vec![0.0; q],
-        linear: if cfg.linear { vec![0.0; f] } else { Vec::new() },
-        bias: 0.0,
-        neg_half_inv_var: Vec::new(),
-    };
-    model.prepare();
+        vec![0.0; q],
+        if cfg.linear { vec![0.0; f] } else { Vec::new() },
+        0.0,
+    )
+    .map_err(TrainError::Config)?;
     solve_output(&mut model, &z, &y, fit_rows, cfg.ridge)?;
     progress(0.7);
     if let Some(a) = cfg.adam {
