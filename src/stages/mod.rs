@@ -80,8 +80,7 @@ mod tests {
 
     use super::*;
     use crate::io::InputError;
-    use crate::stages::schema::{Context, DefaultValue, Src, Table, Type};
-    use crate::units::{AccelUnit, RateUnit};
+    use crate::stages::schema::{test_table, DefaultValue, Src, Type};
 
     /// Every kind's keys: a typed default is a value of the key's own type and range, and an
     /// `Either` names another key of the same kind.
@@ -112,23 +111,10 @@ mod tests {
             path: Path::new("/nonexistent/driftless-keys-test/pipeline.toml"),
             text,
         };
-        let entries = toml::de::DeTable::parse(text)
-            .unwrap()
-            .into_inner()
-            .into_iter()
-            .map(|(k, v)| {
-                let key = kind.keys.iter().find(|key| key.name == k.get_ref());
-                (key.expect("a key of the kind").name, v)
-            })
-            .collect();
-        let cx = Context {
-            rate_hz: 100.0,
-            axes: 3,
-            units: RateUnit::DegPerS,
-            accel_units: AccelUnit::MPerS2,
-            white_noise: None,
-        };
-        let mut t = Table::new(&src, cx, 0, 0, Some("in/raw"), ("keys", "s"), entries);
+        let mut t = test_table(&src, 3, Some("in/raw"), ("keys", "s"), |k| {
+            let key = kind.keys.iter().find(|key| key.name == k);
+            key.expect("a key of the kind").name
+        });
         (kind.parse)(&mut t)
     }
 

@@ -772,6 +772,32 @@ pub const POLL_TIMEOUT_US: Key = Key {
     doc: "the longest sleep before looking again when the other process does not notify",
 };
 
+/// For tests: the stage table `src.text` (its keys only), each key named by `key_name` (the
+/// kind's declaration of it), under a pipeline at 100 Hz, in deg/s and m/s^2, with `axes` axes.
+#[cfg(test)]
+pub(crate) fn test_table<'a>(
+    src: &'a Src<'a>,
+    axes: usize,
+    input: Option<&'a str>,
+    owner: (&'a str, &'a str),
+    key_name: impl Fn(&str) -> &'static str,
+) -> Table<'a, 'a> {
+    let entries = DeTable::parse(src.text)
+        .unwrap()
+        .into_inner()
+        .into_iter()
+        .map(|(k, v)| (key_name(k.get_ref()), v))
+        .collect();
+    let cx = Context {
+        rate_hz: 100.0,
+        axes,
+        units: RateUnit::DegPerS,
+        accel_units: AccelUnit::MPerS2,
+        white_noise: None,
+    };
+    Table::new(src, cx, 0, 0, input, owner, entries)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -846,23 +872,10 @@ mod tests {
             path: Path::new("p.toml"),
             text,
         };
-        let entries = toml::de::DeTable::parse(text)
-            .unwrap()
-            .into_inner()
-            .into_iter()
-            .map(|(k, v)| {
-                assert_eq!(k.get_ref(), "k");
-                ("k", v)
-            })
-            .collect();
-        let cx = Context {
-            rate_hz: 100.0,
-            axes: 1,
-            units: RateUnit::DegPerS,
-            accel_units: AccelUnit::MPerS2,
-            white_noise: None,
-        };
-        f(&mut Table::new(&src, cx, 0, 0, None, ("p", "s"), entries))
+        f(&mut test_table(&src, 1, None, ("p", "s"), |k| {
+            assert_eq!(k, "k");
+            "k"
+        }))
     }
 
     #[test]
