@@ -145,12 +145,20 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     }
 
     /// Build the source (kinds with [`Role::Ingest`]); `input` is the stage's input service.
+    /// Default: [`Params::local_source`], for a kind that reads no other process.
     fn source(
         &self,
-        _cx: &Context,
+        cx: &Context,
         _transport: &crate::transport::Transport,
         _input: Option<&str>,
     ) -> Result<Box<dyn Source>, String> {
+        self.local_source(cx)
+    }
+
+    /// Build the source of an ingest kind that reads no other process's service
+    /// (`Role::Ingest { has_input: false }`: a file, the simulator): all it needs is the
+    /// pipeline's context.
+    fn local_source(&self, _cx: &Context) -> Result<Box<dyn Source>, String> {
         Err("this kind cannot start a chain".into())
     }
 

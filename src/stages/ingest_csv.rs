@@ -146,12 +146,7 @@ impl Params for CsvParams {
         self.note.iter().cloned().collect()
     }
 
-    fn source(
-        &self,
-        cx: &Context,
-        _transport: &crate::transport::Transport,
-        _input: Option<&str>,
-    ) -> Result<Box<dyn Source>, String> {
+    fn local_source(&self, cx: &Context) -> Result<Box<dyn Source>, String> {
         let (params, rate_hz) = (self.clone(), cx.rate_hz);
         let replay = BlockReplay::spawn("driftless-csv", self.replay, move |sink| {
             read_rows(&params, rate_hz, sink)

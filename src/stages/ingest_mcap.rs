@@ -380,12 +380,7 @@ impl Params for McapParams {
         Some(self.replay.pace)
     }
 
-    fn source(
-        &self,
-        cx: &Context,
-        _transport: &crate::transport::Transport,
-        _input: Option<&str>,
-    ) -> Result<Box<dyn Source>, String> {
+    fn local_source(&self, cx: &Context) -> Result<Box<dyn Source>, String> {
         let (params, period_ns) = (self.clone(), (1e9 / cx.rate_hz).round() as u64);
         let replay = BlockReplay::spawn("driftless-mcap", self.replay, move |sink| {
             match params.format {

@@ -119,12 +119,7 @@ impl Params for SimParams {
         Some(self.pace)
     }
 
-    fn source(
-        &self,
-        cx: &Context,
-        _transport: &crate::transport::Transport,
-        _input: Option<&str>,
-    ) -> Result<Box<dyn Source>, String> {
+    fn local_source(&self, cx: &Context) -> Result<Box<dyn Source>, String> {
         Ok(Box::new(SimSource::new(self, cx)?))
     }
 
