@@ -102,9 +102,11 @@ fn log() -> String {
 /// its stderr once it ended with exit 0.
 fn run(file: &std::path::Path, tag: &str, n: usize) -> (Vec<GyroSample>, String) {
     let prefix = Prefix::new(tag);
+    // The probe's node before the daemon: the replay starts `start_delay_s` after the
+    // daemon is ready, and the subscriber must be open by then.
+    let node = Transport::new(&prefix.0, "att-probe", Default::default()).unwrap();
     let mut daemon = start(file, &prefix, &[]);
     wait_ready(&prefix, "att/stats", &mut daemon);
-    let node = Transport::new(&prefix.0, "att-probe", Default::default()).unwrap();
     let input = node.open_input::<GyroSample>("att/corrected").unwrap();
     let got = common::collect(&input, n, Duration::from_secs(30));
     let (code, err) = finish(daemon, Duration::from_secs(20));

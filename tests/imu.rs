@@ -97,9 +97,11 @@ fn run(with_accel: bool, name: &str) -> (Vec<GyroSample>, String) {
     dir.write("log.csv", &csv);
     let file = dir.write("p.toml", &pipeline(with_accel));
     let prefix = Prefix::new(name);
+    // The probe's node before the daemon: the replay starts `start_delay_s` after the
+    // daemon is ready, and the subscriber must be open by then.
+    let node = Transport::new(&prefix.0, "imu-probe", Default::default()).unwrap();
     let mut daemon = start(&file, &prefix, &[]);
     wait_ready(&prefix, "imu/stats", &mut daemon);
-    let node = Transport::new(&prefix.0, "imu-probe", Default::default()).unwrap();
     let input = node.open_input::<GyroSample>("imu/corrected").unwrap();
     let got = common::collect(&input, N, Duration::from_secs(30));
     let (code, err) = finish(daemon, Duration::from_secs(20));
