@@ -43,7 +43,7 @@ fn put_f64s(out: &mut Vec<u8>, v: &[f64]) {
 }
 
 impl WireBytes for RawSample {
-    const SIZE: usize = 96;
+    const SIZE: usize = std::mem::size_of::<RawSample>();
     const TYPE_NAME: &'static str = RAW_TYPE_NAME;
 
     fn encode(&self, out: &mut Vec<u8>) {
@@ -75,7 +75,7 @@ impl WireBytes for RawSample {
 }
 
 impl WireBytes for GyroSample {
-    const SIZE: usize = 264;
+    const SIZE: usize = std::mem::size_of::<GyroSample>();
     const TYPE_NAME: &'static str = GYRO_TYPE_NAME;
 
     fn encode(&self, out: &mut Vec<u8>) {

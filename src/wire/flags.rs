@@ -109,20 +109,22 @@ pub const SENSOR_NAMES: [(u32, &str); 7] = [
 /// Names of the output flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as
 /// its hex value, so nothing is hidden.
 pub fn flag_names(flags: u32) -> Vec<String> {
-    names_of(flags, &FLAG_NAMES)
+    bit_names(flags, &FLAG_NAMES)
 }
 
 /// Names of the raw-sample flags set in `flags` ([`RAW_FLAG_NAMES`]), as [`flag_names`].
 pub fn raw_flag_names(flags: u32) -> Vec<String> {
-    names_of(flags, &RAW_FLAG_NAMES)
+    bit_names(flags, &RAW_FLAG_NAMES)
 }
 
 /// Names of the sensors word's bits set in `sensors` ([`SENSOR_NAMES`]), as [`flag_names`].
 pub fn sensor_names(sensors: u32) -> Vec<String> {
-    names_of(sensors, &SENSOR_NAMES)
+    bit_names(sensors, &SENSOR_NAMES)
 }
 
-fn names_of(flags: u32, table: &[(u32, &str)]) -> Vec<String> {
+/// Names of the bits set in `flags`, by `table` (one of the tables above); a bit without a
+/// name reads as its hex value.
+pub fn bit_names(flags: u32, table: &[(u32, &str)]) -> Vec<String> {
     let mut names = Vec::new();
     let mut rest = flags;
     for &(bit, name) in table {

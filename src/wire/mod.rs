@@ -13,16 +13,19 @@
 //! | `samples.rs` | [`RawSample`], [`GyroSample`], [`StopSignal`] and their type names |
 //! | `flags.rs` | the flags of a raw sample, of an output, and the sensors word |
 //! | `stats.rs` | [`StatsSnapshot`] |
+//! | `fields.rs` | one table of fields per type ([`GYRO_FIELDS`], ...): the one list of them |
 //! | `versions.rs` | the layout versions, and the refusal of another one ([`wire_version_mismatch`]) |
 //! | `bytes.rs` | [`WireBytes`]: the little-endian bytes of a sample |
 
 mod bytes;
+mod fields;
 mod flags;
 mod samples;
 mod stats;
 mod versions;
 
 pub use bytes::WireBytes;
+pub use fields::*;
 pub use flags::*;
 pub use samples::*;
 pub use stats::*;
