@@ -8,7 +8,10 @@ use std::time::{Duration, Instant};
 use crate::cli::CliError;
 use crate::transport::{self, AnyInput, Carried, Transport, WireType};
 use crate::units::RateUnit;
-use crate::wire::{self, GyroSample, RawSample, StatsSnapshot};
+use crate::wire::{
+    self, Field, FieldTable, FieldUnit, FieldValue, GyroSample, InTap, RawSample, StatsSnapshot,
+    WireBytes,
+};
 
 /// How samples are printed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -90,6 +93,24 @@ fn receive(input: &AnyInput) -> Option<Item> {
 }
 
 impl Item {
+    /// A sample's table and its wire bytes; `None` for a stats snapshot (printed in its JSON
+    /// form).
+    fn fields(&self) -> Option<(&'static FieldTable, Vec<u8>)> {
+        let mut bytes = Vec::new();
+        let table = match self {
+            Item::Gyro(s) => {
+                s.encode(&mut bytes);
+                &wire::GYRO_FIELDS
+            }
+            Item::Raw(s) => {
+                s.encode(&mut bytes);
+                &wire::RAW_FIELDS
+            }
+            Item::Stats(_) => return None,
+        };
+        Some((table, bytes))
+    }
+
     /// (epoch, seq, timestamp ns) of a sample; a stats snapshot has only its uptime.
     fn stamp(&self) -> (Option<(u32, u64)>, u64) {
         match self {
@@ -128,11 +149,6 @@ fn attitude_text(s: &GyroSample) -> String {
     })
 }
 
-/// CSV cells of `v`: the values, or as many empty cells where the sample has none (never 0).
-fn optional_cells<const N: usize>(v: Option<[f64; N]>) -> String {
-    v.map_or(",".repeat(N - 1), |v| v.map(|x| x.to_string()).join(","))
-}
-
 fn no_csv_for_stats(service: &str) -> CliError {
     CliError::input(format!(
         "{service} carries statistics snapshots, which have no CSV form: use --format text or json"
@@ -147,6 +163,62 @@ fn joined(names: &[String], sep: &str) -> String {
     }
 }
 
+/// The axes of a field's columns.
+const AXES: [&str; 4] = ["x", "y", "z", "w"];
+
+/// The fields that lead every CSV row and JSON line, in this order (the time as `t_s` in a
+/// CSV row).
+const STAMP: [&str; 3] = ["epoch", "seq", "t_ns"];
+
+/// The fields of `table` that `format` shows after the stamp, in layout order.
+fn shown(table: &FieldTable, format: Format) -> impl Iterator<Item = &'static Field> {
+    table.fields.iter().filter(move |f| {
+        !STAMP.contains(&f.name)
+            && match f.tap {
+                InTap::Hidden => false,
+                InTap::Json => format == Format::Json,
+                _ => true,
+            }
+    })
+}
+
+/// The integer field `name` of a sample (0 if the table has none).
+fn int(table: &FieldTable, name: &str, bytes: &[u8]) -> u64 {
+    match table.field(name).and_then(|f| f.read(bytes)) {
+        Some(FieldValue::Ints(v)) => v.first().copied().unwrap_or(0),
+        _ => 0,
+    }
+}
+
+/// A sample's stamp: epoch, seq and time (ns), which lead every row and line.
+fn stamp(table: &FieldTable, bytes: &[u8]) -> [u64; 3] {
+    STAMP.map(|name| int(table, name, bytes))
+}
+
+/// The value of the word `f`.
+fn word(table: &FieldTable, f: &Field, bytes: &[u8]) -> u64 {
+    int(table, f.name, bytes)
+}
+
+/// The names of the bits set in the word `f`.
+fn word_names(table: &FieldTable, f: &Field, bytes: &[u8]) -> Vec<String> {
+    let bits = u32::try_from(word(table, f, bytes)).unwrap_or(u32::MAX);
+    wire::bit_names(bits, f.names.unwrap_or_default())
+}
+
+/// Values as CSV cells: Rust's shortest text for each (`NaN` and `inf` as such).
+fn texts<T: ToString>(v: &[T]) -> String {
+    v.iter().map(T::to_string).collect::<Vec<_>>().join(",")
+}
+
+/// Values as JSON: a number for one, an array for several (a non-finite float is `null`).
+fn json_of<T: Into<serde_json::Value>>(mut v: Vec<T>) -> serde_json::Value {
+    match v.len() {
+        1 => v.pop().map_or(serde_json::Value::Null, Into::into),
+        _ => v.into_iter().map(Into::into).collect(),
+    }
+}
+
 /// The printing side: format, units, and the CSV header once.
 struct Printer {
     format: Format,
@@ -156,60 +228,139 @@ struct Printer {
 }
 
 impl Printer {
-    /// `drift_std` in the display units; "not provided" (negative) stays -1 whatever the
-    /// units, so that it reads as the wire's sentinel and not as a rate.
-    fn std_values(&self, sd: [f64; 3]) -> [f64; 3] {
-        sd.map(|v| {
-            if v < 0.0 {
-                wire::DRIFT_STD_NOT_PROVIDED
-            } else {
-                v * self.units.from_rad_per_s()
-            }
-        })
-    }
-
-    /// `drift_std` for the text line: the value, or `-` where not provided.
+    /// `drift_std` for the text line: the value in the display units, or `-` where not
+    /// provided.
     fn std_text(&self, sd: [f64; 3]) -> [String; 3] {
-        self.std_values(sd).map(|v| {
-            if v < 0.0 {
-                "-".to_string()
-            } else {
-                format!("{v:.6}")
-            }
+        let f = wire::GYRO_FIELDS.field("drift_std");
+        sd.map(|v| match f.map_or(v, |f| self.scaled(f, v)) {
+            v if v < 0.0 => "-".to_string(),
+            v => format!("{v:.6}"),
         })
     }
 
+    /// The CSV header of `item`'s type: the stamp, then each field the table shows
+    /// ([`wire::InTap`]), its axes' columns named with the units they are printed in.
     fn header(&self, item: &Item) -> Option<String> {
         if self.format != Format::Csv {
             return None;
         }
-        let axes = |name: &str, suffix: &str| {
-            ["x", "y", "z"]
-                .map(|a| format!("{name}_{a}_{suffix}"))
-                .join(",")
-        };
-        Some(match item {
-            Item::Gyro(_) => {
-                let u = self.units.column_suffix();
-                format!(
-                    "epoch,seq,t_s,{},{},{},flags,flag_names,{},{},{},sensors,\
-                     orientation_x,orientation_y,orientation_z,orientation_w,{}",
-                    axes("rate", u),
-                    axes("drift", u),
-                    axes("denoised", u),
-                    axes("drift_std", u),
-                    axes("accel", "ms2"),
-                    axes("accel_std", "ms2"),
-                    axes("orientation_std", "rad"),
-                )
+        let (table, _) = item.fields()?;
+        let mut columns = vec!["epoch".to_string(), "seq".into(), "t_s".into()];
+        for f in shown(table, Format::Csv) {
+            match f.tap {
+                InTap::ValueAndNames(names) => columns.extend([f.name.into(), names.into()]),
+                InTap::Names => columns.push(f.name.into()),
+                _ if f.len == 1 => columns.push(f.name.into()),
+                _ => {
+                    let suffix = self.suffix(f.unit);
+                    columns.extend(AXES[..f.len].iter().map(|a| match suffix {
+                        "" => format!("{}_{a}", f.name),
+                        _ => format!("{}_{a}_{suffix}", f.name),
+                    }));
+                }
             }
-            Item::Raw(_) => format!(
-                "epoch,seq,t_s,{},flags,flag_names,{}",
-                axes("rate", "input"),
-                axes("accel", "input")
-            ),
-            Item::Stats(_) => return None,
-        })
+        }
+        Some(columns.join(","))
+    }
+
+    /// What a column of values in `unit` is suffixed with: the units `tap` prints them in.
+    fn suffix(&self, unit: FieldUnit) -> &'static str {
+        match unit {
+            FieldUnit::RadPerS => self.units.column_suffix(),
+            FieldUnit::InputUnits | FieldUnit::AccelUnits => "input",
+            FieldUnit::MPerS2 => "ms2",
+            FieldUnit::Rad => "rad",
+            FieldUnit::Ns => "ns",
+            FieldUnit::Tesla => "t",
+            FieldUnit::MPerS => "ms",
+            FieldUnit::Hz => "hz",
+            FieldUnit::Unitless => "",
+        }
+    }
+
+    /// A value of `f` as printed: a rate in the display units, where "not provided" stays the
+    /// wire's sentinel whatever the units (it is not a rate); any other value as it came.
+    fn scaled(&self, f: &Field, v: f64) -> f64 {
+        match (f.unit, f.not_provided) {
+            (FieldUnit::RadPerS, Some(sentinel)) if v < 0.0 => sentinel,
+            (FieldUnit::RadPerS, _) => v * self.units.from_rad_per_s(),
+            _ => v,
+        }
+    }
+
+    /// The values of `f` in `bytes` as printed (rates scaled); `None` when the sample does not
+    /// carry it.
+    fn values(&self, table: &FieldTable, f: &Field, bytes: &[u8]) -> Option<FieldValue> {
+        if !table.present(f, bytes) {
+            return None;
+        }
+        match f.read(bytes)? {
+            FieldValue::Floats(v) => Some(FieldValue::Floats(
+                v.into_iter().map(|x| self.scaled(f, x)).collect(),
+            )),
+            other => Some(other),
+        }
+    }
+
+    /// A sample as one CSV row: its stamp, then the cells of [`Printer::header`]'s columns
+    /// (a value the sample does not carry: empty cells, never 0).
+    fn csv_row(&self, table: &FieldTable, bytes: &[u8]) -> String {
+        let [epoch, seq, t_ns] = stamp(table, bytes);
+        let mut cells = vec![
+            epoch.to_string(),
+            seq.to_string(),
+            (t_ns as f64 * 1e-9).to_string(),
+        ];
+        for f in shown(table, Format::Csv) {
+            let names = || joined(&word_names(table, f, bytes), "|");
+            match f.tap {
+                InTap::ValueAndNames(_) => {
+                    cells.extend([word(table, f, bytes).to_string(), names()])
+                }
+                InTap::Names => cells.push(names()),
+                _ => cells.push(match self.values(table, f, bytes) {
+                    Some(FieldValue::Ints(v)) => texts(&v),
+                    Some(FieldValue::Floats(v)) => texts(&v),
+                    _ => ",".repeat(f.len - 1),
+                }),
+            }
+        }
+        cells.join(",")
+    }
+
+    /// A sample as one JSON object: its stamp, the units of its rates, then each field the
+    /// table shows (a value the sample does not carry: null).
+    fn json_line(&self, table: &FieldTable, bytes: &[u8]) -> String {
+        let [epoch, seq, t_ns] = stamp(table, bytes);
+        let mut out = serde_json::Map::new();
+        out.insert("epoch".into(), epoch.into());
+        out.insert("seq".into(), seq.into());
+        out.insert("t_ns".into(), t_ns.into());
+        let units = match table.field("rate").map(|f| f.unit) {
+            Some(FieldUnit::RadPerS) => self.units.name(),
+            _ => "input",
+        };
+        out.insert("units".into(), units.into());
+        for f in shown(table, Format::Json) {
+            match f.tap {
+                InTap::ValueAndNames(names) => {
+                    out.insert(f.name.into(), word(table, f, bytes).into());
+                    out.insert(names.into(), word_names(table, f, bytes).into());
+                }
+                InTap::Names => {
+                    out.insert(f.name.into(), word_names(table, f, bytes).into());
+                }
+                _ => {
+                    let v = match self.values(table, f, bytes) {
+                        Some(FieldValue::Ints(v)) => json_of(v),
+                        Some(FieldValue::Floats(v)) => json_of(v),
+                        _ => serde_json::Value::Null,
+                    };
+                    out.insert(f.name.into(), v);
+                }
+            }
+        }
+        serde_json::Value::Object(out).to_string()
     }
 
     /// Print `item` (after the header, the first time); false when the reader went away.
@@ -258,77 +409,16 @@ impl Printer {
                 joined(&wire::raw_flag_names(s.flags), ",")
             ),
             (Format::Text, Item::Stats(s)) => crate::metrics::format_snapshot(&self.service, s),
-            (Format::Csv, Item::Gyro(s)) => {
-                let cells: Vec<String> = [s.rate, s.drift, s.denoised]
-                    .map(scaled)
-                    .iter()
-                    .flatten()
-                    .map(|v| v.to_string())
-                    .collect();
-                // Not provided stays -1 in every unit (a sentinel, not a rate).
-                let sd = self.std_values(s.drift_std).map(|v| v.to_string());
-                let accel = s.sensors & wire::SENSOR_ACCEL != 0;
-                format!(
-                    "{},{},{},{},{},{},{},{},{},{},{},{}",
-                    s.epoch,
-                    s.seq,
-                    s.t_ns as f64 * 1e-9,
-                    cells.join(","),
-                    s.flags,
-                    joined(&wire::flag_names(s.flags), "|"),
-                    sd.join(","),
-                    optional_cells(accel.then_some(s.accel)),
-                    optional_cells(accel.then_some(s.accel_std)),
-                    joined(&wire::sensor_names(s.sensors), "|"),
-                    optional_cells(s.orientation_estimate()),
-                    optional_cells(s.orientation_estimate().map(|_| s.orientation_std)),
-                )
-            }
-            (Format::Csv, Item::Raw(s)) => format!(
-                "{},{},{},{},{},{},{},{},{}",
-                s.epoch,
-                s.seq,
-                s.t_ns as f64 * 1e-9,
-                s.rate[0],
-                s.rate[1],
-                s.rate[2],
-                s.flags,
-                joined(&wire::raw_flag_names(s.flags), "|"),
-                optional_cells(s.accel_reading())
-            ),
             (Format::Csv, Item::Stats(_)) => return Err(no_csv_for_stats(&self.service)),
-            (Format::Json, Item::Gyro(s)) => serde_json::json!({
-                "epoch": s.epoch,
-                "seq": s.seq,
-                "t_ns": s.t_ns,
-                "ingest_ns": s.ingest_ns,
-                "units": self.units.name(),
-                "rate": scaled(s.rate),
-                "drift": scaled(s.drift),
-                "denoised": scaled(s.denoised),
-                "drift_std": self.std_values(s.drift_std),
-                "flags": s.flags,
-                "flag_names": wire::flag_names(s.flags),
-                "accel": (s.sensors & wire::SENSOR_ACCEL != 0).then_some(s.accel),
-                "accel_std": (s.sensors & wire::SENSOR_ACCEL != 0).then_some(s.accel_std),
-                "sensors": wire::sensor_names(s.sensors),
-                "orientation": s.orientation_estimate(),
-                "orientation_std": s.orientation_estimate().map(|_| s.orientation_std),
-            })
-            .to_string(),
-            (Format::Json, Item::Raw(s)) => serde_json::json!({
-                "epoch": s.epoch,
-                "seq": s.seq,
-                "t_ns": s.t_ns,
-                "units": "input",
-                "rate": s.rate,
-                "flags": s.flags,
-                "flag_names": wire::raw_flag_names(s.flags),
-                "accel": s.accel_reading(),
-            })
-            .to_string(),
             (Format::Json, Item::Stats(s)) => {
                 crate::io::recording::StatsMessage::json(s).to_string()
+            }
+            (format, Item::Gyro(_) | Item::Raw(_)) => {
+                let (table, bytes) = item.fields().expect("a sample has a table");
+                match format {
+                    Format::Csv => self.csv_row(table, &bytes),
+                    _ => self.json_line(table, &bytes),
+                }
             }
         })
     }

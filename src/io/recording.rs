@@ -25,8 +25,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::wire::{
-    GyroSample, Percentiles, RawSample, StatsSnapshot, DRIFT_STD_NOT_PROVIDED, RAW_ACCEL, RAW_MAG,
-    SENSOR_ACCEL, SENSOR_MAG, SENSOR_ORIENTATION,
+    Field, FieldKind, FieldTable, GyroSample, Percentiles, RawSample, StatsSnapshot,
+    DRIFT_STD_NOT_PROVIDED, GYRO_FIELDS, RAW_ACCEL, RAW_FIELDS, RAW_MAG, SENSOR_ACCEL, SENSOR_MAG,
+    SENSOR_ORIENTATION,
 };
 
 use super::mcap_file::{map_mcap, ChannelMessages, McapOpenError};
@@ -443,17 +444,94 @@ impl StatsMessage {
 
 const XYZ_DEF: &str = r#"{"type":"object","properties":{"x":{"type":["number","null"]},"y":{"type":["number","null"]},"z":{"type":["number","null"]}},"required":["x","y","z"]}"#;
 
-/// The JSON Schema of raw-sample channels.
-pub fn raw_schema() -> String {
+/// The stamp that leads every recorded sample, in this order (`t_s` follows `t_ns`).
+const STAMP: [&str; 3] = ["seq", "epoch", "t_ns"];
+
+/// The JSON Schema of a sample's recorded form, generated from its table: a property per
+/// field with a JSON key (the stamp first, then layout order), `t_s` beside `t_ns`. Required:
+/// the fields of the type's first layout (a recording of an older one lacks later fields, and
+/// a field present by a bit may be absent).
+fn sample_schema(table: &FieldTable, title: &str, description: &str) -> String {
+    let stamp = STAMP.iter().filter_map(|name| table.field(name));
+    let rest = table.fields.iter().filter(|f| !STAMP.contains(&f.name));
+    let (mut properties, mut required) = (Vec::new(), Vec::new());
+    for f in stamp.chain(rest) {
+        let Some(key) = f.json else {
+            continue;
+        };
+        properties.push(format!("{}:{}", text(key), property(f)));
+        if f.since == 1 && f.presence.is_none() {
+            required.push(text(key));
+        }
+        if f.name == "t_ns" {
+            properties.push(r#""t_s":{"type":"number","description":"sensor time, s"}"#.into());
+            required.push(text("t_s"));
+        }
+    }
     format!(
-        r#"{{"title":"{RAW_SCHEMA}","description":"A raw IMU sample as the ingest published it; rate in the pipeline's input_units (channel metadata rate_units); null = not finite","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, +1 per sample within an epoch"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"rate":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 invalid, 0x2 vehicle stopped, 0x4 vehicle moving, 0x8 stamp fault, 0x10 accel present, 0x20 mag present"}},"accel":{{"description":"the accelerometer in the pipeline's accel_units; absent: no accelerometer","allOf":[{XYZ_DEF}]}},"mag_t":{{"description":"the magnetometer, tesla; absent: none","allOf":[{XYZ_DEF}]}}}},"required":["seq","epoch","t_ns","t_s","rate","flags"]}}"#
+        r#"{{"title":{},"description":{},"type":"object","properties":{{{}}},"required":[{}]}}"#,
+        text(title),
+        text(description),
+        properties.join(","),
+        required.join(",")
     )
 }
 
-/// The JSON Schema of processed-sample channels.
+/// `s` as a JSON string.
+fn text(s: &str) -> String {
+    serde_json::Value::from(s).to_string()
+}
+
+/// The JSON Schema of one field's recorded value: an integer, a number, or an object of axes
+/// (x, y, z; a quaternion's w), each a number or `null` (not finite).
+fn property(f: &Field) -> String {
+    let described = |rest: &str| match f.about {
+        "" => format!("{{{rest}}}"),
+        about => format!(r#"{{{rest},"description":{}}}"#, text(about)),
+    };
+    match (f.kind, f.len) {
+        (FieldKind::U64 | FieldKind::U32, 1) => described(r#""type":"integer""#),
+        (FieldKind::F64, 1) => described(r#""type":["number","null"]"#),
+        (FieldKind::F64, 3) if f.about.is_empty() => XYZ_DEF.to_string(),
+        (FieldKind::F64, 3) => {
+            format!(r#"{{"description":{},"allOf":[{XYZ_DEF}]}}"#, text(f.about))
+        }
+        (FieldKind::F64, len) => {
+            let axes = &["x", "y", "z", "w"][..len.min(4)];
+            let each: Vec<String> = axes
+                .iter()
+                .map(|a| format!(r#""{a}":{{"type":["number","null"]}}"#))
+                .collect();
+            let names: Vec<String> = axes.iter().map(|a| format!(r#""{a}""#)).collect();
+            format!(
+                r#"{{"description":{},"type":"object","properties":{{{}}},"required":[{}]}}"#,
+                text(f.about),
+                each.join(","),
+                names.join(",")
+            )
+        }
+        // No sample has such a field: any value.
+        _ => "{}".to_string(),
+    }
+}
+
+/// The JSON Schema of raw-sample channels (from [`RAW_FIELDS`]).
+pub fn raw_schema() -> String {
+    sample_schema(
+        &RAW_FIELDS,
+        RAW_SCHEMA,
+        "A raw IMU sample as the ingest published it; rate in the pipeline's input_units \
+         (channel metadata rate_units); null = not finite",
+    )
+}
+
+/// The JSON Schema of processed-sample channels (from [`GYRO_FIELDS`]).
 pub fn gyro_schema() -> String {
-    format!(
-        r#"{{"title":"{GYRO_SCHEMA}","description":"A processed IMU sample (denoised, drift, corrected rates in rad/s; the accelerometer beside them in m/s²)","type":"object","properties":{{"seq":{{"type":"integer","description":"sequence number, unchanged through every stage"}},"epoch":{{"type":"integer","description":"the stream's run id"}},"t_ns":{{"type":"integer","description":"sensor time, ns"}},"t_s":{{"type":"number","description":"sensor time, s"}},"ingest_ns":{{"type":"integer","description":"CLOCK_MONOTONIC ns at the ingest"}},"rate_rad_s":{XYZ_DEF},"drift_rad_s":{XYZ_DEF},"denoised_rad_s":{XYZ_DEF},"flags":{{"type":"integer","description":"0x1 warming up, 0x2 input invalid, 0x4 gap before, 0x8 time backwards, 0x10 drained at shutdown, 0x20 output repaired, 0x40 still, 0x80 moving, 0x100 stop signal contradicted, 0x200 vehicle stopped, 0x400 vehicle moving, 0x800 stamp fault"}},"drift_std_rad_s":{{"description":"1-sigma of the drift estimate per axis, rad/s; -1: not provided (absent in recordings of GyroSample v1)","allOf":[{XYZ_DEF}]}},"accel_m_s2":{{"description":"the accelerometer, m/s²; absent: no accelerometer","allOf":[{XYZ_DEF}]}},"accel_std_m_s2":{{"description":"1-sigma white noise of one accelerometer sample, m/s²; -1: not provided","allOf":[{XYZ_DEF}]}},"mag_t":{{"description":"the magnetometer, tesla; absent: none","allOf":[{XYZ_DEF}]}},"sensors":{{"type":"integer","description":"0x1 accel present, 0x2 mag present, 0x4 accel held (input not finite), 0x8 mag held, 0x10 orientation present, 0x20 orientation coasting (no accelerometer used), 0x40 free fall or shock; absent: 0"}},"orientation":{{"description":"the orientation, body to an earth frame with z up (heading relative), a unit quaternion; absent: no attitude stage","type":"object","properties":{{"x":{{"type":["number","null"]}},"y":{{"type":["number","null"]}},"z":{{"type":["number","null"]}},"w":{{"type":["number","null"]}}}},"required":["x","y","z","w"]}},"orientation_std_rad":{{"description":"1-sigma of the orientation about the earth's x, y, z, rad; -1: not provided","allOf":[{XYZ_DEF}]}}}},"required":["seq","epoch","t_ns","t_s","ingest_ns","rate_rad_s","drift_rad_s","denoised_rad_s","flags"]}}"#
+    sample_schema(
+        &GYRO_FIELDS,
+        GYRO_SCHEMA,
+        "A processed IMU sample (denoised, drift, corrected rates in rad/s; the accelerometer \
+         beside them in m/s²)",
     )
 }
 

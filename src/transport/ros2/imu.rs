@@ -671,6 +671,7 @@ impl ImuMapping {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::WireBytes;
     use proptest::prelude::*;
 
     #[test]
@@ -975,6 +976,94 @@ mod tests {
         let imu = m.gyro(&GyroSample::default()).unwrap();
         assert_eq!(imu.orientation_covariance, NOT_PROVIDED);
         assert_eq!(imu.orientation, [0.0, 0.0, 0.0, 1.0]);
+    }
+
+    /// The Imu message's fields that a sample fills, by name, as bits.
+    fn imu_fields(imu: &Imu) -> [(&'static str, Vec<u64>); 7] {
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect();
+        [
+            ("header.stamp", vec![imu.stamp.ns() as u64]),
+            ("orientation", bits(&imu.orientation)),
+            ("orientation_covariance", bits(&imu.orientation_covariance)),
+            ("angular_velocity", bits(&imu.angular_velocity)),
+            (
+                "angular_velocity_covariance",
+                bits(&imu.angular_velocity_covariance),
+            ),
+            ("linear_acceleration", bits(&imu.linear_acceleration)),
+            (
+                "linear_acceleration_covariance",
+                bits(&imu.linear_acceleration_covariance),
+            ),
+        ]
+    }
+
+    /// The names of the Imu fields that differ between `a` and `b`.
+    fn moved(a: &Imu, b: &Imu) -> Vec<&'static str> {
+        let (a, b) = (imu_fields(a), imu_fields(b));
+        a.iter()
+            .zip(&b)
+            .filter(|(x, y)| x.1 != y.1)
+            .map(|(x, _)| x.0)
+            .collect()
+    }
+
+    /// Each field of a sample goes to the Imu field its table names (`ros2`), and to no other:
+    /// changing it changes that Imu field alone; a field the table maps to none changes none.
+    /// A field present by a bit goes out only with its bit.
+    fn the_mapping_is_the_table<T: WireBytes>(
+        table: &crate::wire::FieldTable,
+        sample: &T,
+        map: impl Fn(&mut ImuMapping, &T) -> Imu,
+    ) {
+        let mapping =
+            || ImuMapping::new("imu_link", 1.0, Some(0.1)).with_raw_accel_units(Some(1.0));
+        let mut bytes = Vec::new();
+        sample.encode(&mut bytes);
+        let base = map(&mut mapping(), sample);
+        let imu_of = |b: &[u8]| map(&mut mapping(), &T::decode(b).unwrap());
+        for f in table.fields {
+            let want: Vec<&str> = f.ros2.into_iter().collect();
+            let got = moved(&base, &imu_of(&f.changed_in(&bytes)));
+            assert_eq!(got, want, "{}.{}", table.name, f.name);
+            if let (Some(_), Some(imu_field)) = (f.presence, f.ros2) {
+                let absent = table.without(f, &bytes);
+                let got = moved(&base, &imu_of(&absent));
+                assert!(
+                    got.contains(&imu_field),
+                    "{}.{}: {got:?}",
+                    table.name,
+                    f.name
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn each_field_goes_to_the_imu_field_the_table_names() {
+        use crate::wire::{
+            GYRO_FIELDS, RAW_ACCEL, RAW_FIELDS, RAW_MAG, SENSOR_ACCEL, SENSOR_MAG,
+            SENSOR_ORIENTATION,
+        };
+        // Every reading present (not 0), every standard deviation known; the rest as it may be.
+        let gyro = GyroSample {
+            t_ns: 1_000_000_000,
+            accel: [0.1, 0.2, 9.8],
+            drift_std: [0.001, 0.002, 0.003],
+            accel_std: [0.01, 0.02, 0.03],
+            sensors: SENSOR_ACCEL | SENSOR_MAG | SENSOR_ORIENTATION,
+            orientation: [0.0, 0.0, 0.6, 0.8],
+            orientation_std: [0.01, 0.02, 0.03],
+            ..GyroSample::default()
+        };
+        the_mapping_is_the_table(&GYRO_FIELDS, &gyro, |m, s| m.gyro(s).unwrap().clone());
+        let raw = RawSample {
+            t_ns: 2_000_000_000,
+            flags: RAW_ACCEL | RAW_MAG,
+            accel: [0.3, 0.2, 9.7],
+            ..RawSample::default()
+        };
+        the_mapping_is_the_table(&RAW_FIELDS, &raw, |m, s| m.raw(s).unwrap().clone());
     }
 
     fn bits(imu: &Imu) -> Vec<u64> {
