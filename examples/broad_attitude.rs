@@ -5,9 +5,11 @@
 //! - `PIPELINE.toml`: the chain to judge, with an `attitude.6d` stage: the stages run as the
 //!   daemon runs them ([`Offline::run_imu_samples`]), from the first sample.
 //! - `IN.csv`: a header, then `gx,gy,gz,ax,ay,az,still` per sample: rates in the pipeline's
-//!   `input_units`, specific force in m/s², `still` 1 in a true rest, else 0.
+//!   `input_units`, specific force in m/s², `still` 1 in a true rest, else 0; optionally
+//!   `mx,my,mz`, the magnetometer in tesla, carried in every sample (an attitude stage with
+//!   `use_mag` makes the heading absolute from it).
 //! - `OUT.csv`: one orientation per method, `{method}_qw,_qx,_qy,_qz` (body to an earth frame
-//!   with z up, heading relative), the standard deviations it publishes for its inclination
+//!   with z up, heading relative or absolute), the standard deviations it publishes for its inclination
 //!   `{method}_incl_sd` and its heading `{method}_head_sd` (rad), aligned with the input:
 //!   - `imu`: the pipeline on samples that carry the accelerometer (stillness from both
 //!     sensors, the orientation from the attitude stage);
@@ -38,10 +40,10 @@ fn orientation(s: &Option<GyroSample>) -> Result<[f64; 6], String> {
 }
 
 fn main() -> Result<(), Box<dyn Error>> {
-    let (p, (gyro, accel, still), output) = inputs("broad_attitude")?;
+    let (p, (gyro, accel, still, mag), output) = inputs("broad_attitude")?;
     let axes: Vec<&[f64]> = gyro.iter().map(Vec::as_slice).collect();
     let run = |stops: Option<&[bool]>| -> Result<Vec<[f64; 6]>, String> {
-        Offline::run_imu_samples(&p, &axes, Some(&accel), stops)?
+        Offline::run_imu_mag_samples(&p, &axes, Some(&accel), mag.as_deref(), stops)?
             .iter()
             .map(orientation)
             .collect()

@@ -26,7 +26,7 @@ mod broad_csv;
 use broad_csv::inputs;
 
 fn main() -> Result<(), Box<dyn Error>> {
-    let (p, (gyro, accel, still), output) = inputs("broad_rates")?;
+    let (p, (gyro, accel, still, _), output) = inputs("broad_rates")?;
     let axes: Vec<&[f64]> = gyro.iter().map(Vec::as_slice).collect();
 
     let min = (p.rate_hz.round() as usize).max(1);

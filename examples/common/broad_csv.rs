@@ -1,5 +1,6 @@
 //! The command line and the input both BROAD examples read (`broad_rates`, `broad_attitude`):
-//! the input CSV has a header, then `gx,gy,gz,ax,ay,az,still` per sample.
+//! the input CSV has a header, then `gx,gy,gz,ax,ay,az,still` per sample, optionally followed
+//! by the magnetometer `mx,my,mz` (tesla).
 
 use driftless::pipeline::config::{self, Pipeline};
 use std::error::Error;
@@ -20,15 +21,23 @@ pub fn inputs(name: &str) -> Result<(Pipeline, Columns, PathBuf), Box<dyn Error>
     ))
 }
 
-/// Rates per axis, the specific force per sample, and the true rests.
-pub type Columns = (Vec<Vec<f64>>, Vec<[f64; 3]>, Vec<bool>);
+/// Rates per axis, the specific force per sample, the true rests, and the magnetometer per
+/// sample if the file has its columns.
+pub type Columns = (
+    Vec<Vec<f64>>,
+    Vec<[f64; 3]>,
+    Vec<bool>,
+    Option<Vec<[f64; 3]>>,
+);
 
-/// The rates per axis, the specific force per sample and the true rests of `path`.
+/// The rates per axis, the specific force per sample, the true rests and the magnetometer of
+/// `path`.
 fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
     let file = BufReader::new(std::fs::File::open(path)?);
     let mut gyro = vec![Vec::new(); 3];
     let mut accel = Vec::new();
     let mut still = Vec::new();
+    let mut mag = Vec::new();
     for (i, line) in file.lines().enumerate().skip(1) {
         let line = line?;
         let v: Vec<f64> = line
@@ -36,8 +45,11 @@ fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
             .map(|x| x.trim().parse::<f64>())
             .collect::<Result<_, _>>()
             .map_err(|e| format!("{}:{}: {e}", path.display(), i + 1))?;
-        if v.len() != 7 {
-            return Err(format!("{}:{}: 7 columns expected", path.display(), i + 1).into());
+        if v.len() != 7 && v.len() != 10 {
+            return Err(format!("{}:{}: 7 or 10 columns expected", path.display(), i + 1).into());
+        }
+        if v.len() == 10 {
+            mag.push([v[7], v[8], v[9]]);
         }
         for (a, g) in gyro.iter_mut().enumerate() {
             g.push(v[a]);
@@ -45,5 +57,13 @@ fn read(path: &Path) -> Result<Columns, Box<dyn Error>> {
         accel.push([v[3], v[4], v[5]]);
         still.push(v[6] != 0.0);
     }
-    Ok((gyro, accel, still))
+    let mag = (!mag.is_empty()).then_some(mag);
+    if mag.as_ref().is_some_and(|m| m.len() != still.len()) {
+        return Err(format!(
+            "{}: the magnetometer columns in some rows only",
+            path.display()
+        )
+        .into());
+    }
+    Ok((gyro, accel, still, mag))
 }

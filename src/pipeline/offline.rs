@@ -8,7 +8,7 @@
 use crate::pipeline::config::Pipeline;
 use crate::pipeline::guard::Guard;
 use crate::stages::contract::{Role, SideInput, SideValue, Stage};
-use crate::wire::{GyroSample, RawSample, StopSignal, RAW_ACCEL};
+use crate::wire::{GyroSample, RawSample, StopSignal, RAW_ACCEL, RAW_MAG};
 
 /// The epoch of an offline run's samples (a daemon picks a random one per start).
 pub const OFFLINE_EPOCH: u32 = 1;
@@ -140,6 +140,19 @@ impl Offline {
         accel: Option<&[[f64; 3]]>,
         stops: Option<&[bool]>,
     ) -> Result<Vec<Option<GyroSample>>, String> {
+        Offline::run_imu_mag_samples(p, inputs, accel, None, stops)
+    }
+
+    /// [`Offline::run_imu_samples`] with the magnetometer: `mag`, when given, is the field
+    /// (tesla) at each sample, carried in every raw sample beside its rates; without it the
+    /// samples carry none.
+    pub fn run_imu_mag_samples(
+        p: &Pipeline,
+        inputs: &[&[f64]],
+        accel: Option<&[[f64; 3]]>,
+        mag: Option<&[[f64; 3]]>,
+        stops: Option<&[bool]>,
+    ) -> Result<Vec<Option<GyroSample>>, String> {
         if inputs.is_empty() || inputs.len() > p.axes {
             return Err(format!(
                 "{} series for a pipeline of {} axes",
@@ -162,7 +175,11 @@ impl Offline {
                 // Unused lanes repeat the first axis (their output is not read).
                 *r = inputs.get(lane).unwrap_or(&inputs[0])[k] * to_units;
             }
-            let raw = raw_sample(p, k, rate, accel.and_then(|a| a.get(k)));
+            let mut raw = raw_sample(p, k, rate, accel.and_then(|a| a.get(k)));
+            if let Some(m) = mag.and_then(|m| m.get(k)) {
+                raw.mag = *m;
+                raw.flags |= RAW_MAG;
+            }
             if let Some(stopped) = stops.and_then(|s| s.get(k)) {
                 off.side(&SideValue::Stop(StopSignal {
                     t_ns: raw.t_ns.max(1),

@@ -20,7 +20,7 @@
 //! says so (`SENSOR_ORIENTATION_COASTING`); free fall and shocks are flagged
 //! (`SENSOR_ORIENTATION_NO_GRAVITY`). docs/attitude.md gives the method and its figures.
 
-use crate::attitude::{Attitude, AttitudeConfig, Upstream, VqfBias};
+use crate::attitude::{Attitude, AttitudeConfig, MagConfig, MagUse, Upstream, VqfBias};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
@@ -77,6 +77,48 @@ const ARW: Key = Key {
           grows by besides the bias's",
 };
 
+const USE_MAG: Key = Key {
+    name: "use_mag",
+    ty: Type::Bool,
+    default: DefaultValue::Bool(false),
+    doc: "the magnetometer as the heading's reference (9D), when the samples carry one: the \
+          heading becomes absolute, its standard deviation the magnetometer filter's; a disturbed \
+          field is rejected and the heading rests on the gyro (docs/attitude.md)",
+};
+const DECLINATION_DEG: Key = Key {
+    name: "declination_deg",
+    ty: Type::FloatIn(-180.0, 180.0),
+    default: DefaultValue::Float(0.0),
+    doc: "magnetic declination, deg east of north, added to the heading: 0 gives magnetic north, \
+          the site's declination true north (with `use_mag`)",
+};
+const MAG_NORM_TOLERANCE: Key = Key {
+    name: "mag_norm_tolerance",
+    ty: Type::Positive(1.0),
+    default: DefaultValue::Float(0.1),
+    doc: "a field whose norm leaves the learnt reference by more than this fraction is a \
+          disturbance (with `use_mag`; VQF's magNormTh)",
+};
+const MAG_DIP_TOLERANCE_DEG: Key = Key {
+    name: "mag_dip_tolerance_deg",
+    ty: Type::Positive(90.0),
+    default: DefaultValue::Float(10.0),
+    doc: "... or whose dip leaves it by more than this, deg (with `use_mag`; VQF's magDipTh)",
+};
+const MAG_HARD_IRON: Key = Key {
+    name: "mag_hard_iron",
+    ty: Type::Bool,
+    default: DefaultValue::Bool(true),
+    doc: "learn the magnetometer's hard-iron offset (a magnet or steel moving with the sensor) \
+          online from the rotation (with `use_mag`)",
+};
+const MAG_DELAY_S: Key = Key {
+    name: "mag_delay_s",
+    ty: Type::NonNegative,
+    default: DefaultValue::Absent("estimated online from the rotation"),
+    doc: "the magnetometer's delay behind the gyro, s (with `use_mag`)",
+};
+
 /// `attitude.6d`.
 pub const KIND: Kind = Kind {
     name: "attitude.6d",
@@ -91,6 +133,12 @@ pub const KIND: Kind = Kind {
         INCLINATION_FLOOR_DEG,
         INCLINATION_MOTION_GAIN,
         ARW,
+        USE_MAG,
+        DECLINATION_DEG,
+        MAG_NORM_TOLERANCE,
+        MAG_DIP_TOLERANCE_DEG,
+        MAG_HARD_IRON,
+        MAG_DELAY_S,
     ],
     parse,
 };
@@ -123,9 +171,24 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         inclination_motion_gain: t.float_or_default(&INCLINATION_MOTION_GAIN)?,
         // deg/sqrt(h) as predict.bias reads it, to rad/sqrt(s).
         arw: t.float(&ARW)?.map(|n| (n / 60.0).to_radians()),
+        mag: mag_config(t)?,
     };
     filter.check().map_err(|e| t.error(e))?;
     Ok(Box::new(AttitudeParams { filter }))
+}
+
+/// The magnetometer's settings, with `use_mag` (every key read either way, so none is unknown).
+fn mag_config(t: &mut Table<'_, '_>) -> Result<Option<MagConfig>, InputError> {
+    let on = t.bool_or_default(&USE_MAG)?;
+    let cfg = MagConfig {
+        declination: t.float_or_default(&DECLINATION_DEG)?.to_radians(),
+        norm_tolerance: t.float_or_default(&MAG_NORM_TOLERANCE)?,
+        dip_tolerance: t.float_or_default(&MAG_DIP_TOLERANCE_DEG)?.to_radians(),
+        hard_iron: t.bool_or_default(&MAG_HARD_IRON)?,
+        delay: t.float(&MAG_DELAY_S)?,
+        ..MagConfig::default()
+    };
+    Ok(on.then_some(cfg))
 }
 
 impl AttitudeParams {
@@ -149,12 +212,14 @@ impl Params for AttitudeParams {
             coasting: 0,
             no_gravity: 0,
             samples: 0,
+            mag_used: 0,
+            mag_rejected: 0,
         }))
     }
 
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
         let f = &self.filter;
-        vec![format!(
+        let mut lines = vec![format!(
             "tau_acc {} s, VQF's bias estimation {}, flagged outside {}..{} g; arw {}",
             f.tau_acc_s,
             format!("{:?}", f.vqf_bias).to_lowercase(),
@@ -164,7 +229,19 @@ impl Params for AttitudeParams {
                 "{:.3} deg/sqrt(h)",
                 n.to_degrees() * 60.0
             ))
-        )]
+        )];
+        if let Some(m) = &f.mag {
+            lines.push(format!(
+                "magnetometer: heading absolute, declination {} deg; disturbed beyond {} of the \
+                 norm or {} deg of dip; hard iron {}; delay {}",
+                m.declination.to_degrees(),
+                m.norm_tolerance,
+                m.dip_tolerance.to_degrees(),
+                if m.hard_iron { "learnt" } else { "not learnt" },
+                m.delay.map_or("estimated".into(), |d| format!("{d} s"))
+            ));
+        }
+        lines
     }
 }
 
@@ -178,10 +255,19 @@ pub struct AttitudeStage {
     coasting: u64,
     no_gravity: u64,
     samples: u64,
+    /// Samples whose magnetometer block corrected the heading, and those it was rejected at
+    /// (disturbed, settling or inconsistent).
+    mag_used: u64,
+    mag_rejected: u64,
 }
 
 /// What [`Attitude::push`] takes: the rate, the accelerometer's reading, the bias removed.
-type Inputs = ([f64; 3], Option<[f64; 3]>, Option<Upstream>);
+type Inputs = (
+    [f64; 3],
+    Option<[f64; 3]>,
+    Option<[f64; 3]>,
+    Option<Upstream>,
+);
 
 impl Stage for AttitudeStage {
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
@@ -194,9 +280,21 @@ impl Stage for AttitudeStage {
                 bias: input.drift,
                 sd: input.drift_std,
             });
-        let inputs = (input.rate, input.accel_reading(), upstream);
+        let inputs = (
+            input.rate,
+            input.accel_reading(),
+            input.mag_reading(),
+            upstream,
+        );
         self.last = Some(inputs);
-        let step = self.filter.push(inputs.0, inputs.1, inputs.2);
+        let step = self.filter.push_mag(inputs.0, inputs.1, inputs.2, inputs.3);
+        match step.mag {
+            Some(MagUse::Used) => self.mag_used += 1,
+            Some(MagUse::Disturbed | MagUse::Settling | MagUse::Inconsistent) => {
+                self.mag_rejected += 1
+            }
+            _ => {}
+        }
         let [w, x, y, z] = step.quat;
         out.orientation = [x, y, z, w];
         // The inclination's error is a tilt in any horizontal direction: half its variance
@@ -223,18 +321,26 @@ impl Stage for AttitudeStage {
     /// After a sleep VQF's code has left the cache more than its state (`benches/attitude.rs`):
     /// run it once on a copy, with the last sample.
     fn prewarm(&mut self) {
-        if let Some((rate, accel, upstream)) = self.last {
+        if let Some((rate, accel, mag, upstream)) = self.last {
             self.spare.clone_from(&self.filter);
-            std::hint::black_box(self.spare.push(rate, accel, upstream));
+            std::hint::black_box(self.spare.push_mag(rate, accel, mag, upstream));
         }
     }
 
     fn learnt(&self) -> Vec<String> {
-        vec![format!(
+        let mut lines = vec![format!(
             "attitude: {} samples, {} coasting on the gyro (no valid accelerometer), {} in free \
              fall or a shock",
             self.samples, self.coasting, self.no_gravity
-        )]
+        )];
+        if self.filter.config().mag.is_some() {
+            lines.push(format!(
+                "attitude: the magnetometer corrected the heading at {} samples and was rejected \
+                 at {} (a disturbed field: the heading rested on the gyro)",
+                self.mag_used, self.mag_rejected
+            ));
+        }
+        lines
     }
 }
 

@@ -82,6 +82,7 @@ assert "attitude.6d" in ATTITUDE_PIPELINE and 'input = "broad/attitude"' in ATTI
 METRICS = ("total", "heading", "inclination")
 PEERS = [
     ("vqf", "VQF 6D, defaults"),
+    ("vqf9", "VQF 9D, defaults (absolute)"),
     ("madgwick", "Madgwick, gain 0.1 (imu_tools)"),
     ("mahony", "Mahony, Kp 1.0 Ki 0.3 (ahrs)"),
     ("fusion", "Fusion AHRS, defaults"),
@@ -89,8 +90,23 @@ PEERS = [
     ("gyro_zaru", "gyro only, ZARU true rests"),
     ("gyro_raw", "gyro only, raw"),
 ]
+ABSOLUTE = {"vqf9"}  # judged without alignment (with ours9_*)
 DEV = range(1, 19)  # the undisturbed trials, the development set (the authors' split)
 GRAVITY = 9.81  # Fusion's accelerometer is in g
+
+
+def load_mag(broad, number):
+    """The trial's magnetometer (uT, N x 3) from its HDF5 or MAT file."""
+    for path in sorted(glob.glob(os.path.join(broad, "data_hdf5", f"{number:02d}_*.hdf5"))):
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            return np.asarray(f["imu_mag"][()], float)
+    for path in sorted(glob.glob(os.path.join(broad, "data_mat", f"{number:02d}_*.mat"))):
+        import scipy.io as spio
+
+        return np.asarray(spio.loadmat(path, squeeze_me=True)["imu_mag"], float)
+    return None
 
 
 def source(broad, number):
@@ -105,7 +121,8 @@ def cut_rest(d, seconds):
     k = int(np.argmax(moving))
     keep = moving.copy()
     keep[max(0, k - int(round(seconds * d["rate"]))):k] = True
-    return {**{key: np.asarray(d[key])[keep] for key in ("imu_gyr", "imu_acc", "opt_quat", "movement")},
+    return {**{key: np.asarray(d[key])[keep] for key in ("imu_gyr", "imu_acc", "opt_quat", "movement", "imu_mag")
+               if d.get(key) is not None},
             "rate": d["rate"]}
 
 
@@ -115,6 +132,15 @@ def run_vqf(gyr, acc, rate):
     # updateBatch wants C-contiguous float64.
     out = vqf.VQF(1.0 / rate).updateBatch(np.ascontiguousarray(gyr, float), np.ascontiguousarray(acc, float))
     return out["quat6D"]
+
+
+def run_vqf9(gyr, acc, mag, rate):
+    """VQF 9D at its defaults (magnetic disturbance rejection on), the magnetometer as BROAD
+    gives it (uT: VQF learns its own norm reference, so the unit does not matter)."""
+    import vqf
+
+    c = lambda a: np.ascontiguousarray(a, float)
+    return vqf.VQF(1.0 / rate).updateBatch(c(gyr), c(acc), c(mag))["quat9D"]
 
 
 def run_madgwick(gyr, acc, rate):
@@ -172,7 +198,7 @@ def zaru_bias(gyr, still, min_samples):
     return bias
 
 
-def ours(name, d, pipeline, examples, work):
+def ours(name, d, pipeline, examples, work, mag=None, prefix="ours"):
     """Our orientations for one trial: {method name: quaternions (N x 4)}.
 
     Each `--example PATH` (`target/release/examples/broad_attitude`) runs as `PATH PIPELINE
@@ -193,7 +219,12 @@ def ours(name, d, pipeline, examples, work):
     moving = np.asarray(d["movement"], bool)
     src, dst = os.path.join(work, "in.csv"), os.path.join(work, "out.csv")
     table = np.column_stack([np.degrees(d["imu_gyr"]), d["imu_acc"], (~moving).astype(float)])
-    np.savetxt(src, table, delimiter=",", header="gx,gy,gz,ax,ay,az,still", comments="", fmt="%.17g")
+    header = "gx,gy,gz,ax,ay,az,still"
+    if mag is not None:
+        # The magnetometer, uT in BROAD, in tesla as the wire carries it.
+        table = np.column_stack([table, np.asarray(mag, float) * 1e-6])
+        header += ",mx,my,mz"
+    np.savetxt(src, table, delimiter=",", header=header, comments="", fmt="%.17g")
     out, sds = {}, {}
     for path in examples:
         if os.path.exists(dst):
@@ -206,14 +237,14 @@ def ours(name, d, pipeline, examples, work):
             q = np.column_stack([cols[f"{m}_{c}"] for c in ("qw", "qx", "qy", "qz")])
             if q.shape != (len(moving), 4):
                 sys.exit(f"{path} on {name}: {q.shape[0]} rows out for {len(moving)} samples in")
-            out[f"ours_{m}"] = q
+            out[f"{prefix}_{m}"] = q
             if f"{m}_incl_sd" in cols.dtype.names:
                 head = f"{m}_head_sd"
-                sds[f"ours_{m}"] = (np.asarray(cols[f"{m}_incl_sd"], float),
+                sds[f"{prefix}_{m}"] = (np.asarray(cols[f"{m}_incl_sd"], float),
                                     np.asarray(cols[head], float) if head in cols.dtype.names else None)
         for m in [c[:-3] for c in cols.dtype.names if c.endswith("_wx")]:
             w = np.column_stack([cols[f"{m}_{c}"] for c in ("wx", "wy", "wz")])
-            out[f"ours_{m}_integrated"] = integrate(w, np.asarray(d["opt_quat"], float), 1.0 / d["rate"])
+            out[f"{prefix}_{m}_integrated"] = integrate(w, np.asarray(d["opt_quat"], float), 1.0 / d["rate"])
     return out, sds
 
 
@@ -256,6 +287,54 @@ def medians(results, methods, key, numbers):
     } if rows else {}
 
 
+def nine_d_table(results):
+    """Per trial: our 9D (absolute) against our 6D (aligned at the start) and VQF 9D: heading
+    and inclination RMS, the 9D heading's 2-sd coverage; then the medians and the goals of
+    issue 61. Returns the same numbers."""
+    ours9, ours6 = "ours9_imu", "ours_imu"
+    has_vqf9 = all("vqf9" in r["first"] for r in results)
+    print("\n9D: heading / inclination RMS (deg), our 9D absolute, our 6D aligned at the start"
+          + (", VQF 9D absolute" if has_vqf9 else "") + "; 9D - 6D heading; our 9D heading within 2 sd")
+    print("| trial | ours 9D | ours 6D | 9D - 6D | " + ("VQF 9D | " if has_vqf9 else "") + "2-sd coverage |")
+    print("|---|---|---|---|" + ("---|" if has_vqf9 else "") + "---|")
+    rows = []
+    for r in results:
+        a, b = r["first"][ours9], r["first"][ours6]
+        inside, total = r["coverage"].get(ours9 + " heading", [0, 0])
+        v = r["first"].get("vqf9")
+        row = {"number": r["number"], "ours9": a, "ours6": b, "vqf9": v,
+               "diff": a["heading"] - b["heading"], "coverage": inside / max(total, 1), "nan": r["nan"][ours9]}
+        rows.append(row)
+        cells = [f"{a['heading']:.2f} / {a['inclination']:.2f}", f"{b['heading']:.2f} / {b['inclination']:.2f}",
+                 f"{row['diff']:+.2f}"]
+        if has_vqf9:
+            cells.append(f"{v['heading']:.2f} / {v['inclination']:.2f}")
+        cells.append(f"{row['coverage']:.3f}")
+        print(f"| {r['number']:02d}{' (dev)' if r['dev'] else ''} | " + " | ".join(cells) + " |")
+    med = lambda key, metric: float(np.median([x[key][metric] for x in rows]))
+    cells = [f"{med('ours9', 'heading'):.2f} / {med('ours9', 'inclination'):.2f}",
+             f"{med('ours6', 'heading'):.2f} / {med('ours6', 'inclination'):.2f}",
+             f"{np.median([x['diff'] for x in rows]):+.2f}"]
+    if has_vqf9:
+        cells.append(f"{med('vqf9', 'heading'):.2f} / {med('vqf9', 'inclination'):.2f}")
+    inside = sum(r["coverage"].get(ours9 + " heading", [0, 0])[0] for r in results)
+    total = sum(r["coverage"].get(ours9 + " heading", [0, 0])[1] for r in results)
+    cells.append(f"{inside / max(total, 1):.3f} (pooled)")
+    print(f"| median ({len(rows)}) | " + " | ".join(cells) + " |")
+    worst = max(rows, key=lambda x: x["diff"])
+    goals = {
+        "heading median <= VQF 9D's": has_vqf9 and med("ours9", "heading") <= med("vqf9", "heading"),
+        "no trial's 9D heading > 6D's + 0.5 deg": worst["diff"] <= 0.5,
+        "inclination median <= 6D's": med("ours9", "inclination") <= med("ours6", "inclination") + 1e-9,
+        "heading 2-sd coverage 0.90-0.99 (pooled)": 0.90 <= inside / max(total, 1) <= 0.99,
+        "no NaN": all(x["nan"] == 0 for x in rows),
+    }
+    print(f"worst 9D - 6D: trial {worst['number']:02d}, {worst['diff']:+.2f} deg")
+    for goal, met in goals.items():
+        print(f"  {'met   ' if met else 'MISSED'} {goal}")
+    return {"trials": rows, "goals": goals}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("broad", nargs="?", default=os.environ.get("DRIFTLESS_BROAD"),
@@ -282,6 +361,10 @@ def main():
                     help="the peers to run, comma-separated (default: all; vqf,gyro_raw is quick)")
     ap.add_argument("--attitude-key", action="append", default=[], metavar="KEY=VALUE",
                     help="a key of the attitude.6d stage (TOML), e.g. vqf_bias='\"rest\"'; repeatable")
+    ap.add_argument("--mag", action="store_true",
+                    help="also run our chain with the magnetometer (use_mag = true, the trial's field in "
+                         "every sample: ours9_imu, ours9_stop), judged absolute, and print the 9D table: "
+                         "ours 9D, ours 6D aligned at the start, VQF 9D (add vqf9 to --peers)")
     args = ap.parse_args()
     if not args.broad:
         sys.exit("give the BROAD clone's path, or set DRIFTLESS_BROAD")
@@ -297,6 +380,7 @@ def main():
         "mahony": run_mahony,
         "fusion": lambda g, a, r: run_fusion(g, a, r, bu.quatmult),
         "fusion_bias": lambda g, a, r: run_fusion(g, a, r, bu.quatmult, with_bias=True),
+        "vqf9": None,  # needs the magnetometer: run in the loop
     }
     labels = dict(PEERS)
     methods = [m for m, _ in PEERS if m in args.peers.split(",")]
@@ -314,6 +398,7 @@ def main():
             if name is None:
                 print(f"trial {n:02d}: not in this copy, skipped", file=sys.stderr)
                 continue
+            d = {**d, "imu_mag": load_mag(args.broad, n)}
             trials.append((n, name, cut_rest(d, args.cut_rest) if args.cut_rest is not None else d))
         pipeline = None
         if args.example and trials and args.shipped:
@@ -334,6 +419,16 @@ def main():
                 text = ATTITUDE_PIPELINE.format(rate=trials[0][2]["rate"], keys=keys + '\nstop_input = "broad/stop"')
                 own = 'kind = "attitude.6d"\n'
                 f.write(text.replace(own, own + "".join(k + "\n" for k in args.attitude_key)))
+        pipeline9 = None
+        if args.mag and pipeline:
+            # The same chain, the attitude stage with the magnetometer.
+            pipeline9 = os.path.join(work, "broad9.toml")
+            with open(pipeline) as f:
+                text = f.read()
+            own = 'kind = "attitude.6d"\n'
+            assert own in text
+            with open(pipeline9, "w") as f:
+                f.write(text.replace(own, own + "use_mag = true\n"))
         for n, name, d in trials:
             rate = d["rate"]
             gyr = np.asarray(d["imu_gyr"], float)
@@ -345,7 +440,12 @@ def main():
             est = {}
             for m, run in runners.items():
                 t = time.time()
-                est[m] = run(gyr, acc, rate)
+                if m == "vqf9":
+                    if d.get("imu_mag") is None:
+                        sys.exit(f"{name}: no magnetometer for vqf9")
+                    est[m] = run_vqf9(gyr, acc, d["imu_mag"], rate)
+                else:
+                    est[m] = run(gyr, acc, rate)
                 seconds[m] += time.time() - t
             t = time.time()
             if "gyro_raw" in methods:
@@ -356,6 +456,10 @@ def main():
                 seconds["gyro_raw"] += time.time() - t  # both integrations
             if args.example:
                 found, sds = ours(name, d, pipeline, args.example, work)
+                if pipeline9:
+                    found9, sds9 = ours(name, d, pipeline9, args.example, work, mag=d["imu_mag"], prefix="ours9")
+                    found.update({m: q for m, q in found9.items() if not m.endswith("_integrated")})
+                    sds.update(sds9)
                 for m, q in found.items():
                     est[m] = q
                     if m not in methods:
@@ -368,7 +472,9 @@ def main():
                 q = est[m]
                 nan = int(np.sum(~np.all(np.isfinite(q[k0:]), axis=1)))
                 row["nan"][m] = nan
-                row["first"][m] = errors(align_first(q, q_ref, k0, bu), q_ref, moving, bu)
+                # A 9D heading is judged absolute, as BROAD's authors judge it; a 6D one aligned.
+                absolute = m in ABSOLUTE or m.startswith("ours9_")
+                row["first"][m] = errors(q if absolute else align_first(q, q_ref, k0, bu), q_ref, moving, bu)
                 row["mean_heading"][m] = errors(align_mean(q, q_ref, moving, bu), q_ref, moving, bu)
             for m, (sd, head_sd) in (sds.items() if args.example else ()):
                 # The published sd's honesty: how many motion samples' inclination error (and
@@ -379,7 +485,8 @@ def main():
                 ok = moving & np.isfinite(incl)
                 row["coverage"][m] = [int(np.sum(incl[ok] <= 2 * sd[ok])), int(np.sum(ok))]
                 if head_sd is not None:
-                    e = bu.calculateErrorQuatEarth(align_first(est[m], q_ref, k0, bu), q_ref)
+                    q = est[m] if m.startswith("ours9_") else align_first(est[m], q_ref, k0, bu)
+                    e = bu.calculateErrorQuatEarth(q, q_ref)
                     e *= np.where(e[:, :1] < 0, -1.0, 1.0)
                     head = np.abs(2 * np.arctan2(e[:, 3], e[:, 0]))
                     ok = moving & np.isfinite(head) & (head_sd >= 0)
@@ -420,6 +527,8 @@ def main():
             summary.setdefault("coverage", {}).setdefault(m, {})[label] = inside / max(total, 1)
         what, who = ("heading", m[:-len(" heading")]) if m.endswith(" heading") else ("inclination", m)
         print(f"\n{labels[who]}: {what} error within the published 2 sd in " + ", ".join(cells) + " of the motion samples")
+    if args.mag and args.example:
+        summary["9d"] = nine_d_table(results)
     print(f"\n{len(results)} trial(s) in {elapsed:.0f} s (" + ", ".join(f"{m} {s:.0f} s" for m, s in seconds.items() if s) + "; gyro_raw: both integrations)")
     if args.json:
         with open(args.json, "w") as f:

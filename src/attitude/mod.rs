@@ -56,6 +56,11 @@ use crate::allan::STANDARD_GRAVITY as GRAVITY;
 use crate::sim::force::rotate;
 use vqf_rs::{Params, VQF};
 
+pub mod hard_iron;
+pub mod mag;
+
+pub use mag::{MagConfig, MagHeading, MagUse};
+
 /// The largest norm of a reading the filter uses (rad/s, m/s², and rad/s for a bias's sd):
 /// beyond any gyro's or accelerometer's range (10^5 g), so a corrupted value. Squares of
 /// anything below it stay far from overflow, and VQF from NaN.
@@ -111,6 +116,9 @@ pub struct AttitudeConfig {
     /// The gyro's angle random walk N, rad/sqrt(s) (its white rate noise): what the heading's
     /// uncertainty grows by besides the bias's. None: not known (counted as 0).
     pub arw: Option<f64>,
+    /// The magnetometer as the heading's reference (9D), with these settings; None: 6D, the
+    /// heading relative (see [`mag`]).
+    pub mag: Option<MagConfig>,
 }
 
 impl Default for AttitudeConfig {
@@ -124,6 +132,7 @@ impl Default for AttitudeConfig {
             inclination_floor_deg: 0.3,
             inclination_motion_gain: 0.1,
             arw: None,
+            mag: None,
         }
     }
 }
@@ -155,7 +164,7 @@ impl AttitudeConfig {
                 return Err(format!("attitude: {name} must be a number >= 0, not {v}"));
             }
         }
-        Ok(())
+        self.mag.as_ref().map_or(Ok(()), MagConfig::check)
     }
 }
 
@@ -175,9 +184,15 @@ pub struct AttitudeStep {
     pub held: bool,
     /// Standard deviation of the inclination (the tilt of the estimated vertical), rad.
     pub inclination_sd: f64,
-    /// Standard deviation of the heading relative to the start, rad; None while the rate's
-    /// bias uncertainty is not known (see the module documentation).
+    /// Standard deviation of the heading, rad: relative to the start, None while the rate's
+    /// bias uncertainty is not known (see the module documentation); or, with
+    /// `heading_absolute`, the magnetometer's filter's.
     pub heading_sd: Option<f64>,
+    /// The heading is absolute (from magnetic north, or true north with the declination): the
+    /// magnetometer fixed it. False: relative to the start, as in 6D.
+    pub heading_absolute: bool,
+    /// What became of the magnetometer at this sample; None without [`AttitudeConfig::mag`].
+    pub mag: Option<MagUse>,
 }
 
 /// The attitude filter of one IMU (see the module documentation).
@@ -200,6 +215,8 @@ pub struct Attitude {
     coast_noise: f64,
     /// The upstream bias last handed to VQF's bias state, rad/s per axis.
     adopted: Option<[f64; 3]>,
+    /// The magnetometer's heading filter (9D), with [`AttitudeConfig::mag`].
+    mag: Option<MagHeading>,
 }
 
 impl std::fmt::Debug for Attitude {
@@ -265,6 +282,9 @@ impl Attitude {
             coast_bias: 0.0,
             coast_noise: 0.0,
             adopted: None,
+            mag: cfg
+                .mag
+                .map(|m| MagHeading::new(dt, m, cfg.arw.unwrap_or(0.0))),
         }
     }
 
@@ -277,6 +297,7 @@ impl Attitude {
         self.coast_bias = source.coast_bias;
         self.coast_noise = source.coast_noise;
         self.adopted = source.adopted;
+        self.mag.clone_from(&source.mag);
     }
 
     /// The settings.
@@ -288,10 +309,24 @@ impl Attitude {
     /// one, and the bias the filter before removed from it with its standard deviation, if
     /// known (see the module documentation: VQF then integrates the rate with that bias put
     /// back, and takes the filter's estimate into its own bias state whenever it changes).
+    /// No magnetometer reading: [`Attitude::push_mag`] with None.
     pub fn push(
         &mut self,
         gyro: [f64; 3],
         accel: Option<[f64; 3]>,
+        upstream: Option<Upstream>,
+    ) -> AttitudeStep {
+        self.push_mag(gyro, accel, None, upstream)
+    }
+
+    /// [`Attitude::push`] with the magnetometer's reading (any unit, the same throughout), if
+    /// the sample carries one: with [`AttitudeConfig::mag`] it makes the heading absolute
+    /// ([`mag`]); without, it is not read.
+    pub fn push_mag(
+        &mut self,
+        gyro: [f64; 3],
+        accel: Option<[f64; 3]>,
+        mag: Option<[f64; 3]>,
         upstream: Option<Upstream>,
     ) -> AttitudeStep {
         let upstream =
@@ -319,13 +354,13 @@ impl Attitude {
             self.motion = self.keep * self.motion + (1.0 - self.keep) * off * off;
         }
         let q = self.vqf.quat_6d();
-        let quat = [q.0, q.1, q.2, q.3];
-        self.integrate_errors(quat, upstream.map(|u| u.sd), accel.is_some());
+        let q6 = [q.0, q.1, q.2, q.3];
+        self.integrate_errors(q6, upstream.map(|u| u.sd), accel.is_some());
         let floor = self.cfg.inclination_floor_deg.to_radians();
         let moving = self.cfg.inclination_motion_gain * self.motion.sqrt() / GRAVITY;
         let coast = self.coast_bias * self.coast_bias + self.coast_noise;
-        AttitudeStep {
-            quat,
+        let mut step = AttitudeStep {
+            quat: q6,
             coasting: accel.is_none(),
             no_gravity,
             held,
@@ -333,7 +368,22 @@ impl Attitude {
             heading_sd: self
                 .heading_bias
                 .map(|b| (b * b + self.heading_noise).sqrt()),
+            heading_absolute: false,
+            mag: None,
+        };
+        if let Some(filter) = &mut self.mag {
+            let m = filter.push(q6, (!held).then_some(gyro), mag);
+            step.mag = Some(m.state);
+            if let (Some(offset), Some(sd)) = (m.offset, m.sd) {
+                // Turned about the earth's vertical: Rz(offset) (x) q6.
+                let (s, c) = (offset / 2.0).sin_cos();
+                let [w, x, y, z] = q6;
+                step.quat = [c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w];
+                step.heading_sd = Some(sd);
+                step.heading_absolute = true;
+            }
         }
+        step
     }
 
     /// The upstream filter's estimate of each axis whose estimate changed since the last
@@ -402,6 +452,9 @@ impl Attitude {
         self.coast_bias = 0.0;
         self.coast_noise = 0.0;
         self.adopted = None;
+        if let (Some(m), Some(cfg)) = (&mut self.mag, self.cfg.mag) {
+            *m = MagHeading::new(self.dt, cfg, self.cfg.arw.unwrap_or(0.0));
+        }
     }
 }
 
