@@ -43,7 +43,8 @@ use super::MAX_READING;
 /// Settings of the magnetometer's heading filter (angles in rad, times in s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MagConfig {
-    /// Magnetic declination, added to the heading: east of north positive (true north).
+    /// Magnetic declination, east of north positive: the heading is then from true north
+    /// (the ENU yaw turns by minus it).
     pub declination: f64,
     /// A block is disturbed if its field's norm is off the reference by more than this
     /// fraction (VQF's `magNormTh`).
@@ -263,8 +264,9 @@ pub struct MagHeading {
     since: f64,
     /// The reference field: norm (readings' units) and dip (rad).
     reference: Option<(f64, f64)>,
-    /// How long blocks have passed the field's tests, s.
+    /// How long blocks have passed the field's tests, s; whether the last one's spread did.
     ok_for: f64,
+    spread_was_ok: bool,
     /// The delay, s, and its information (1/s²).
     delay: f64,
     delay_info: f64,
@@ -303,6 +305,7 @@ impl MagHeading {
             since: 0.0,
             reference: None,
             ok_for: 0.0,
+            spread_was_ok: true,
             delay: cfg.delay.unwrap_or(0.0),
             delay_info: 0.0,
             verdict: MagUse::Absent,
@@ -351,7 +354,7 @@ impl MagHeading {
         MagStep {
             offset: self
                 .absolute
-                .then(|| wrap(self.delta + self.drift * s + self.cfg.declination)),
+                .then(|| wrap(self.delta + self.drift * s - self.cfg.declination)),
             sd: self
                 .absolute
                 .then(|| (var.max(0.0) + self.cfg.heading_floor * self.cfg.heading_floor).sqrt()),
@@ -418,9 +421,16 @@ impl MagHeading {
             ok = spread_ok && self.matches(norm, dip);
             if !spread_ok && c.hard_iron {
                 // The field turns with the body under this offset: a magnet came or went. The
-                // offset's window starts again from the last second's.
-                self.long = self.short;
+                // offset's window starts again from the last second's, once when it begins, and
+                // again whenever no one offset explains the window (it changed once more).
+                let mixed = self.long.fit().map_or(false, |f| {
+                    f.residual.sqrt() / ref_norm >= c.spread_tolerance
+                });
+                if self.spread_was_ok || mixed {
+                    self.long = self.short;
+                }
             }
+            self.spread_was_ok = spread_ok;
         }
         self.learn_offset();
         self.ok_for = if ok { self.ok_for + t } else { 0.0 };
@@ -553,6 +563,283 @@ impl MagHeading {
         let step = (left / s2) / self.delay_info;
         if step.is_finite() {
             self.delay = (self.delay + step).clamp(0.0, c.max_delay_s);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const RATE: f64 = 100.0;
+    /// The earth's field, tesla: 20 uT north, 40 uT down (a dip of 63 deg).
+    const FIELD: [f64; 3] = [0.0, 20e-6, -40e-6];
+
+    fn mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        [
+            a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+            a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+            a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+            a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+        ]
+    }
+
+    /// `C^T v`: an earth vector in the body at the attitude `q`.
+    fn to_body(q: [f64; 4], v: &[f64; 3]) -> [f64; 3] {
+        let c = rotation(q);
+        [0, 1, 2].map(|i| (0..3).map(|j| c[j][i] * v[j]).sum())
+    }
+
+    /// A body turning about every axis (rad/s at time t): what a hand or a vehicle on rough
+    /// ground shows the magnetometer.
+    fn rate_at(t: f64) -> [f64; 3] {
+        [
+            0.8 * (0.5 * t).sin(),
+            0.6 * (0.3 * t + 1.0).cos(),
+            1.5 * (0.2 * t).sin(),
+        ]
+    }
+
+    /// A small deterministic noise in -1..1 (no RNG needed).
+    fn jitter(k: usize, axis: usize) -> f64 {
+        ((k * 7919 + axis * 104_729) as f64 * 0.618_034).fract() * 2.0 - 1.0
+    }
+
+    /// Runs `secs` s of the turning body through a filter: the 6D attitude is the truth turned
+    /// by `-delta0` about the vertical (what the 6D filter's relative heading is), the reading
+    /// is the field in the body plus `extra(t, truth)` (tesla), with 0.3 uT of noise and
+    /// `delay` s behind the gyro. Calls `each(t, step, truth)` at every sample.
+    fn run(
+        f: &mut MagHeading,
+        secs: f64,
+        delta0: f64,
+        delay: f64,
+        extra: impl Fn(f64, [f64; 4]) -> [f64; 3],
+        mut each: impl FnMut(f64, MagStep),
+    ) {
+        let dt = 1.0 / RATE;
+        let turn = [(-delta0 / 2.0).cos(), 0.0, 0.0, (-delta0 / 2.0).sin()];
+        let mut truth = [1.0, 0.0, 0.0, 0.0];
+        let mut past = std::collections::VecDeque::new();
+        let lag = (delay / dt).round() as usize;
+        for k in 0..(secs * RATE) as usize {
+            let t = k as f64 * dt;
+            let w = rate_at(t);
+            past.push_back(truth);
+            if past.len() > lag + 1 {
+                past.pop_front();
+            }
+            let seen = past[0];
+            let mut m = to_body(seen, &FIELD);
+            let add = extra(t, seen);
+            for (i, v) in m.iter_mut().enumerate() {
+                *v += add[i] + 0.3e-6 * jitter(k, i);
+            }
+            each(t, f.push(mul(turn, truth), Some(w), Some(m)));
+            let a = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt() * dt;
+            if a > 0.0 {
+                let s = (a / 2.0).sin() / (a / dt);
+                truth = mul(truth, [(a / 2.0).cos(), w[0] * s, w[1] * s, w[2] * s]);
+                let n = truth.iter().map(|v| v * v).sum::<f64>().sqrt();
+                truth = truth.map(|v| v / n);
+            }
+        }
+    }
+
+    fn filter(cfg: MagConfig) -> MagHeading {
+        MagHeading::new(1.0 / RATE, cfg, 0.005f64.to_radians())
+    }
+
+    fn off_deg(step: &MagStep, delta0: f64) -> f64 {
+        wrap(step.offset.unwrap() - delta0).to_degrees()
+    }
+
+    /// A clean field: the heading offset of the 6D frame is found, the standard deviation
+    /// covers the error, and the delay is learnt from the rotation.
+    #[test]
+    fn a_clean_field_fixes_the_heading_and_learns_the_delay() {
+        let delta0 = 0.7;
+        let mut f = filter(MagConfig::default());
+        let mut last = None;
+        run(
+            &mut f,
+            60.0,
+            delta0,
+            0.02,
+            |_, _| [0.0; 3],
+            |_, s| last = Some(s),
+        );
+        let s = last.unwrap();
+        assert_eq!(s.state, MagUse::Used);
+        let err = off_deg(&s, delta0);
+        assert!(err.abs() < 1.0, "{err} deg");
+        assert!(s.sd.unwrap().to_degrees() > err.abs() / 2.0, "{s:?}");
+        assert!((f.delay() - 0.02).abs() < 0.004, "delay {}", f.delay());
+        assert_eq!(f.hard_iron(), [0.0; 3]);
+    }
+
+    /// A magnet fixed to the sensor from 20 s on (a hard-iron offset of 12 uT): rejected at
+    /// once, the heading rests on the gyro meanwhile, and the rotation teaches the offset, so
+    /// the magnetometer is used again with it.
+    #[test]
+    fn a_magnet_attached_mid_run_is_learnt_as_hard_iron() {
+        let delta0 = -2.0;
+        let b = [9e-6, -6e-6, 5e-6];
+        let mut f = filter(MagConfig::default());
+        let (mut worst, mut rejected, mut used_late) = (0.0f64, 0, 0);
+        run(
+            &mut f,
+            90.0,
+            delta0,
+            0.0,
+            |t, _| if t >= 20.0 { b } else { [0.0; 3] },
+            |t, s| {
+                if t > 10.0 {
+                    worst = worst.max(off_deg(&s, delta0).abs());
+                }
+                if (20.0..25.0).contains(&t) && s.state != MagUse::Used {
+                    rejected += 1;
+                }
+                if t > 70.0 && s.state == MagUse::Used {
+                    used_late += 1;
+                }
+            },
+        );
+        assert!(worst < 2.0, "heading off by {worst} deg");
+        assert!(
+            rejected > 400,
+            "{rejected} of 500 samples rejected after it came"
+        );
+        assert!(
+            used_late > 1500,
+            "used at {used_late} of 2000 samples at the end"
+        );
+        let learnt = f.hard_iron();
+        for i in 0..3 {
+            assert!((learnt[i] - b[i]).abs() < 1e-6, "{learnt:?} vs {b:?}");
+        }
+    }
+
+    /// A magnet the sensor moves past from 20 to 50 s (a field that changes in the earth frame,
+    /// up to half the earth's): rejected, the heading stays within 1 deg of the gyro's, its
+    /// standard deviation grows meanwhile, and the field is used again once it is gone.
+    #[test]
+    fn a_magnet_nearby_is_rejected_and_the_heading_stays_the_gyros() {
+        let delta0 = 0.3;
+        let mut f = filter(MagConfig::default());
+        let (mut worst, mut sd_before, mut sd_during, mut used_after) = (0.0f64, 0.0, 0.0, 0);
+        run(
+            &mut f,
+            80.0,
+            delta0,
+            0.0,
+            |t, seen| {
+                if !(20.0..50.0).contains(&t) {
+                    return [0.0; 3];
+                }
+                let s = (0.5 * (t - 20.0)).sin();
+                to_body(seen, &[12e-6 * s, -8e-6 * s.abs(), 6e-6])
+            },
+            |t, s| {
+                if t > 10.0 {
+                    worst = worst.max(off_deg(&s, delta0).abs());
+                }
+                if (19.0..19.01).contains(&t) {
+                    sd_before = s.sd.unwrap();
+                }
+                if (49.0..49.01).contains(&t) {
+                    sd_during = s.sd.unwrap();
+                }
+                if t > 60.0 && s.state == MagUse::Used {
+                    used_after += 1;
+                }
+            },
+        );
+        assert!(worst < 1.0, "heading off by {worst} deg");
+        assert!(sd_during > 1.1 * sd_before, "{sd_before} -> {sd_during}");
+        assert!(
+            used_after > 1500,
+            "used at {used_after} of 2000 samples after"
+        );
+    }
+
+    /// Absent, not finite, zero, huge or saturated readings: never a NaN, and each says so;
+    /// the heading stays where it was, its standard deviation grows.
+    #[test]
+    fn no_reading_makes_a_nan() {
+        let mut f = filter(MagConfig::default());
+        let delta0 = 1.0;
+        let mut last = None;
+        run(
+            &mut f,
+            20.0,
+            delta0,
+            0.0,
+            |_, _| [0.0; 3],
+            |_, s| last = Some(s),
+        );
+        let before = last.unwrap();
+        let q6 = [1.0, 0.0, 0.0, 0.0];
+        let w = Some([0.0, 0.0, 0.1]);
+        let bad: [(Option<[f64; 3]>, MagUse); 6] = [
+            (None, MagUse::Absent),
+            (Some([f64::NAN, 1e-5, 0.0]), MagUse::Invalid),
+            (Some([f64::INFINITY; 3]), MagUse::Invalid),
+            (Some([0.0; 3]), MagUse::Invalid),
+            (Some([1e300, 0.0, 0.0]), MagUse::Invalid),
+            (Some([f64::MIN_POSITIVE / 4.0, 0.0, 0.0]), MagUse::Invalid),
+        ];
+        for (m, want) in bad {
+            for _ in 0..300 {
+                let s = f.push(q6, w, m);
+                assert_eq!(s.state, want, "{m:?}");
+                assert!(
+                    s.offset.unwrap().is_finite() && s.sd.unwrap().is_finite(),
+                    "{s:?}"
+                );
+            }
+        }
+        // A reading with no usable rate cannot be placed in the earth frame.
+        assert_eq!(f.push(q6, None, Some([1e-5; 3])).state, MagUse::Invalid);
+        // Saturated: every axis at the sensor's limit, 4.9 gauss (a magnet on the sensor).
+        let mut s = f.push(q6, w, Some([4.9e-4; 3]));
+        for _ in 0..300 {
+            s = f.push(q6, w, Some([4.9e-4; 3]));
+        }
+        assert_eq!(s.state, MagUse::Disturbed);
+        let drift = wrap(s.offset.unwrap() - before.offset.unwrap())
+            .abs()
+            .to_degrees();
+        assert!(drift < 1.0, "{drift} deg: {s:?}");
+        assert!(s.sd.unwrap() > before.sd.unwrap(), "{before:?} -> {s:?}");
+        // Never a reading: the heading stays relative.
+        let mut never = filter(MagConfig::default());
+        let s = never.push(q6, w, None);
+        assert_eq!((s.offset, s.sd, s.state), (None, None, MagUse::Absent));
+    }
+
+    #[test]
+    fn bad_settings_are_refused() {
+        assert!(MagConfig::default().check().is_ok());
+        for bad in [
+            MagConfig {
+                norm_tolerance: 0.0,
+                ..MagConfig::default()
+            },
+            MagConfig {
+                delay: Some(f64::NAN),
+                ..MagConfig::default()
+            },
+            MagConfig {
+                declination: f64::INFINITY,
+                ..MagConfig::default()
+            },
+            MagConfig {
+                drift_walk: -1.0,
+                ..MagConfig::default()
+            },
+        ] {
+            assert!(bad.check().is_err(), "{bad:?}");
         }
     }
 }

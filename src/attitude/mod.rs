@@ -640,12 +640,14 @@ mod tests {
 
     proptest::proptest! {
         /// Whatever comes in (NaN, infinities, 1e300, subnormals, no accelerometer, no bias
-        /// sd), every step is a unit quaternion with finite standard deviations: no NaN ever.
+        /// sd, no magnetometer or a corrupted one), every step is a unit quaternion with finite
+        /// standard deviations, in 6D and 9D: no NaN ever.
         #[test]
         fn no_input_makes_a_nan(
             steps in proptest::collection::vec(
                 (
                     proptest::array::uniform3(any_value()),
+                    proptest::option::of(proptest::array::uniform3(any_value())),
                     proptest::option::of(proptest::array::uniform3(any_value())),
                     proptest::option::of((
                         proptest::array::uniform3(any_value()),
@@ -655,10 +657,17 @@ mod tests {
                 1..200,
             )
         ) {
-            let mut f = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
-            for (k, (w, a, up)) in steps.into_iter().enumerate() {
+            let mut six = Attitude::new(100.0, AttitudeConfig::default()).unwrap();
+            let mut nine = Attitude::new(100.0, AttitudeConfig {
+                mag: Some(MagConfig { block_s: 0.02, ..MagConfig::default() }),
+                ..AttitudeConfig::default()
+            }).unwrap();
+            for (k, (w, a, m, up)) in steps.into_iter().enumerate() {
                 let up = up.map(|(bias, sd)| Upstream { bias, sd });
-                let s = f.push(w, a, up);
+                let s6 = six.push(w, a, up);
+                let s9 = nine.push_mag(w, a, m, up);
+                proptest::prop_assert!(s9.heading_sd.is_some() || !s9.heading_absolute, "{:?}", s9);
+                for s in [s6, s9] {
                 let norm: f64 = s.quat.iter().map(|v| v * v).sum::<f64>().sqrt();
                 proptest::prop_assert!(
                     s.quat.iter().all(|v| v.is_finite()) && (norm - 1.0).abs() < 1e-6,
@@ -672,7 +681,55 @@ mod tests {
                     s.heading_sd.is_none_or(|h| h.is_finite() && h >= 0.0),
                     "step {}: {:?}", k, s
                 );
+                }
             }
+        }
+    }
+
+    /// A 9D filter at the attitude stage's level: a level body turning about the vertical at
+    /// 20 deg/s in a clean field (tesla) whose 6D heading starts at 0 while the body faces 40
+    /// deg east of north: the heading becomes absolute, within 2 deg of the truth, and the
+    /// declination turns it on.
+    #[test]
+    fn the_magnetometer_makes_the_heading_absolute() {
+        let run = |declination_deg: f64| {
+            let cfg = AttitudeConfig {
+                mag: Some(MagConfig {
+                    declination: declination_deg.to_radians(),
+                    ..MagConfig::default()
+                }),
+                ..AttitudeConfig::default()
+            };
+            let mut f = Attitude::new(100.0, cfg).unwrap();
+            let start = 40f64.to_radians();
+            let rate = 20f64.to_radians();
+            let mut last = None;
+            for k in 0..3000 {
+                let t = k as f64 / 100.0;
+                // ENU yaw (from east, anticlockwise) of a body facing `start` east of north.
+                let yaw = std::f64::consts::FRAC_PI_2 - start + rate * t;
+                // The field 20 uT north, 40 uT down, in the body turned by yaw about z.
+                let (s, c) = yaw.sin_cos();
+                let m = [20e-6 * s, 20e-6 * c, -40e-6];
+                last = Some((
+                    yaw,
+                    f.push_mag([0.0, 0.0, rate], Some([0.0, 0.0, GRAVITY]), Some(m), None),
+                ));
+            }
+            last.unwrap()
+        };
+        for declination in [0.0, 5.0] {
+            let (yaw, s) = run(declination);
+            assert!(s.heading_absolute && s.mag == Some(MagUse::Used), "{s:?}");
+            let [_, _, got] = roll_pitch_yaw([s.quat[1], s.quat[2], s.quat[3], s.quat[0]]);
+            // Magnetic north lies the declination east of true north: the true heading is the
+            // magnetic one plus it, so the ENU yaw (anticlockwise from east) is less by it.
+            let err = (got - (yaw - declination.to_radians()))
+                .sin()
+                .asin()
+                .to_degrees();
+            assert!(err.abs() < 2.0, "declination {declination}: {err} deg");
+            assert!(s.heading_sd.unwrap().to_degrees() < 3.0, "{s:?}");
         }
     }
 
