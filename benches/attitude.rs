@@ -7,12 +7,13 @@
 //!    stage's output, the same for every stage. The baseline is `predict.bias` in the same run.
 //!    Issue 50's goal: `attitude.6d`'s p99.9 <= 5 us at 1 kHz.
 //! 2. **Hot loop** (criterion): one sample through [`Attitude::push`] (VQF 6D, its bias
-//!    estimation on), beside one sample of one axis through `BiasTracker::push`.
+//!    estimation on), and through [`Attitude::push_mag`] with the magnetometer (9D, issue 61's
+//!    goal: p50 <= 1.5x 6D's), beside one sample of one axis through `BiasTracker::push`.
 
 mod support;
 
 use criterion::{criterion_group, Criterion, Throughput};
-use driftless::attitude::{Attitude, AttitudeConfig, Upstream};
+use driftless::attitude::{Attitude, AttitudeConfig, MagConfig, Upstream};
 use driftless::drift::bias::BiasTracker;
 use driftless::wire::{GyroSample, SENSOR_ACCEL};
 use hdrhistogram::Histogram;
@@ -47,6 +48,31 @@ fn per_sample(c: &mut Criterion) {
             let mut acc = 0.0;
             for (w, a) in &x {
                 acc += f.push(*w, Some(*a), Some(upstream)).quat[0];
+            }
+            black_box(acc)
+        })
+    });
+    group.bench_function("attitude_9d", |b| {
+        let cfg = AttitudeConfig {
+            mag: Some(MagConfig::default()),
+            ..AttitudeConfig::default()
+        };
+        let mut f = Attitude::new(1000.0, cfg).expect("valid settings");
+        let upstream = Upstream {
+            bias: [2e-3, -1e-3, 5e-4],
+            sd: [1e-5; 3],
+        };
+        // A field of 45 uT whose direction in the body wanders with the sway.
+        let mag: Vec<[f64; 3]> = (0..x.len())
+            .map(|k| {
+                let t = k as f64 / 1000.0;
+                [20e-6 * (0.3 * t).sin(), 20e-6 * (0.3 * t).cos(), -40e-6]
+            })
+            .collect();
+        b.iter(|| {
+            let mut acc = 0.0;
+            for ((w, a), m) in x.iter().zip(&mag) {
+                acc += f.push_mag(*w, Some(*a), Some(*m), Some(upstream)).quat[0];
             }
             black_box(acc)
         })

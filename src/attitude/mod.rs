@@ -1,9 +1,13 @@
-//! Orientation from the corrected gyro and the accelerometer (6D): pure maths, no I/O.
+//! Orientation from the corrected gyro and the accelerometer (6D), and the magnetometer (9D):
+//! pure maths, no I/O.
 //!
 //! The filter is VQF (Laidig and Seel 2023), through the `vqf-rs` crate, a direct port of the
 //! authors' C++: the gyro is integrated, and the inclination is pulled towards the
-//! accelerometer's low-passed direction with time constant `tau_acc_s`. Heading is relative
-//! (no magnetometer): it is the integrated gyro's.
+//! accelerometer's low-passed direction with time constant `tau_acc_s`. Without a magnetometer
+//! the heading is relative: it is the integrated gyro's. With one ([`AttitudeConfig::mag`],
+//! [`Attitude::push_mag`]) our own filter ([`mag`]) turns the 6D attitude about the vertical
+//! to magnetic (or true) north, rejects a disturbed field, learns the hard-iron offset online
+//! ([`hard_iron`]), and says how far to trust the heading; VQF's own 9D update is not used.
 //!
 //! What we add to VQF is the bias: `predict.bias` estimates it from the unit's own Allan terms
 //! and the stops both sensors confirm ([`Upstream`]). **One bias state, never two.** VQF
@@ -49,8 +53,12 @@
 //! Without the bias's uncertainty the heading's is unknown (None). The inclination's error
 //! while coasting grows the same way, from the rate's error about the horizontal axes.
 //!
+//! With the magnetometer the heading, once it fixed it, is absolute and its standard deviation
+//! the magnetometer filter's ([`mag`]): it shrinks while the field is trusted and grows while it
+//! is rejected ([`AttitudeStep::heading_absolute`], [`AttitudeStep::mag`]).
+//!
 //! Frames: the quaternion (w, x, y, z) turns body coordinates into an earth frame whose z is
-//! up (VQF's; ENU up to the heading, which is relative).
+//! up (VQF's; ENU up to the heading, which is relative without the magnetometer).
 
 use crate::allan::STANDARD_GRAVITY as GRAVITY;
 use crate::sim::force::rotate;

@@ -19,6 +19,14 @@
 //! (about the earth's x, y, z). A sample without a valid accelerometer coasts on the gyro and
 //! says so (`SENSOR_ORIENTATION_COASTING`); free fall and shocks are flagged
 //! (`SENSOR_ORIENTATION_NO_GRAVITY`). docs/attitude.md gives the method and its figures.
+//!
+//! With `use_mag = true` the stage reads the magnetometer the samples carry (`mag`, tesla,
+//! with `SENSOR_MAG`) and the heading becomes absolute: magnetic north, or true north with
+//! `declination_deg` ([`crate::attitude::mag`]: a heading Kalman filter on top of the 6D
+//! attitude, a disturbed field rejected, the hard-iron offset and the magnetometer's delay
+//! learnt online). `orientation_std`'s z is then the absolute heading's. A sample without a
+//! valid reading keeps the heading on the gyro. The end-of-run summary counts the samples at
+//! which the magnetometer corrected the heading and those at which it was rejected.
 
 use crate::attitude::{Attitude, AttitudeConfig, MagConfig, MagUse, Upstream, VqfBias};
 use crate::io::InputError;
@@ -124,7 +132,8 @@ pub const KIND: Kind = Kind {
     name: "attitude.6d",
     role: Role::Process,
     summary: "the orientation (roll, pitch, relative heading) from the corrected gyro and the \
-              accelerometer, with its standard deviation",
+              accelerometer, with its standard deviation; with `use_mag`, the heading absolute \
+              from the magnetometer",
     keys: &[
         TAU_ACC_S,
         VQF_BIAS,
@@ -349,7 +358,7 @@ mod tests {
     use super::*;
     use crate::allan::STANDARD_GRAVITY;
     use crate::units::{AccelUnit, RateUnit};
-    use crate::wire::{SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
+    use crate::wire::{SENSOR_ACCEL, SENSOR_ACCEL_INVALID, SENSOR_MAG, SENSOR_MAG_INVALID};
 
     fn cx(white_noise: Option<f64>) -> Context {
         Context {
@@ -429,5 +438,56 @@ mod tests {
             assert_eq!(out.orientation_std[2], DRIFT_STD_NOT_PROVIDED);
             assert!(out.orientation.iter().all(|v| v.is_finite()));
         }
+    }
+
+    /// With `use_mag`, a level body turned 30 deg anticlockwise from ENU (yaw 30 deg), still,
+    /// in a field of 20 uT north and 40 uT down (tesla, as the wire carries it): the heading becomes
+    /// absolute, its standard deviation the magnetometer's; a sample whose reading is invalid
+    /// or absent keeps it, and never a NaN.
+    #[test]
+    fn with_use_mag_the_heading_is_absolute() {
+        let mut s = AttitudeParams {
+            filter: AttitudeConfig {
+                mag: Some(MagConfig::default()),
+                ..AttitudeConfig::default()
+            },
+        }
+        .stage(&cx(Some(0.002)))
+        .unwrap();
+        let yaw_true = 30f64.to_radians();
+        let input = GyroSample {
+            drift_std: [1e-5; 3],
+            accel: [0.0, 0.0, STANDARD_GRAVITY],
+            // The field in the body: Rz(-yaw) (0, 20, -40) uT.
+            mag: [20e-6 * yaw_true.sin(), 20e-6 * yaw_true.cos(), -40e-6],
+            sensors: SENSOR_ACCEL | SENSOR_MAG,
+            ..GyroSample::default()
+        };
+        let mut out = None;
+        for _ in 0..1000 {
+            out = s.process(&input);
+        }
+        let out = out.unwrap();
+        let [_, _, yaw] = crate::attitude::roll_pitch_yaw(out.orientation);
+        assert!((yaw - yaw_true).to_degrees().abs() < 1.0, "{out:?}");
+        let sd = out.orientation_std[2];
+        assert!(sd > 0.5f64.to_radians() && sd < 5f64.to_radians(), "{sd}");
+        for sensors in [SENSOR_ACCEL, SENSOR_ACCEL | SENSOR_MAG | SENSOR_MAG_INVALID] {
+            let o = s
+                .process(&GyroSample {
+                    mag: [f64::NAN; 3],
+                    sensors,
+                    ..input
+                })
+                .unwrap();
+            assert!(o.orientation.iter().all(|v| v.is_finite()), "{o:?}");
+            let [_, _, y] = crate::attitude::roll_pitch_yaw(o.orientation);
+            assert!((y - yaw).abs() < 1e-3, "{o:?}");
+        }
+        let learnt = s.learnt();
+        assert!(
+            learnt[1].starts_with("attitude: the magnetometer corrected"),
+            "{learnt:?}"
+        );
     }
 }

@@ -15,6 +15,8 @@ same data; all of 01-39 by default, `--trials 1-18` for the undisturbed developm
    from the first sample, with its package defaults:
    - `vqf`: VQF 6D, `VQF(Ts).updateBatch(gyr, acc)["quat6D"]` (rest detection and motion bias
      estimation on, as they are by default).
+   - `vqf9`: VQF 9D, `VQF(Ts).updateBatch(gyr, acc, mag)["quat9D"]` at its defaults (magnetic
+     disturbance rejection on), the trial's magnetometer; judged absolute (no alignment).
    - `madgwick`: `ahrs.filters.Madgwick` with gain 0.1, imu_tools' imu_filter_madgwick default
      (`gain: 0.1`; ahrs' own default is 0.033). Starts from the first accelerometer sample, as
      imu_filter_madgwick does.
@@ -30,7 +32,11 @@ same data; all of 01-39 by default, `--trials 1-18` for the undisturbed developm
      bias of ZARU with the true rests (each rest's running mean, 1 s minimum, held while moving;
      `driftless::nav::Zaru::oracle`). Both start from the optical truth at its first valid sample
      (q <- q (x) exp(w dt / 2)).
-   - With `--example PATH` (repeatable), ours: see `ours()`.
+   - With `--example PATH` (repeatable), ours: see `ours()`. With `--mag` too, our chain again
+     with `use_mag = true` and the trial's magnetometer (tesla) in every sample (`ours9_imu`,
+     `ours9_stop`), judged absolute, and a 9D table at the end: per trial our 9D heading /
+     inclination against our 6D's (aligned at the start) and VQF 9D's, the 9D heading's 2-sd
+     coverage, the medians and issue 61's goals (docs/attitude.md, "The magnetometer (9D)").
    Every quaternion is scalar first, IMU body to an earth frame with z up.
 2. A 6D estimate's heading is relative, so it is aligned to the truth at the first sample with a
    valid truth, as a navigator would initialise it: the estimate is turned about the earth's
