@@ -192,7 +192,8 @@ impl Sums {
         }
         let least = least_eigenvalue(&m);
         let diversity = least / n;
-        if !(diversity > 1e-6) {
+        // NaN-safe: a NaN diversity is no rotation either.
+        if diversity.is_nan() || diversity <= 1e-6 {
             return None;
         }
         let b = solve(&m, &r)?;
@@ -269,8 +270,8 @@ mod tests {
             still.add_reading(&c0, &m0, &mat_vec(&c0, &m0));
         }
         let fit = sums.fit().unwrap();
-        for i in 0..3 {
-            assert!((fit.b[i] - b[i]).abs() < 1e-6, "{fit:?}");
+        for (got, want) in fit.b.iter().zip(b) {
+            assert!((got - want).abs() < 1e-6, "{fit:?}");
         }
         assert!(fit.diversity > 0.1 && fit.residual < 1e-9, "{fit:?}");
         let field = sums.field(&fit.b);

@@ -372,8 +372,8 @@ impl MagHeading {
         let u = mat_vec(&c, &wxm);
         let b = &mut self.block;
         b.sums.add_reading(&c, &mc, &cm);
-        for i in 0..3 {
-            b.u[i] += u[i];
+        for (sum, add) in b.u.iter_mut().zip(u) {
+            *sum += add;
         }
         b.uu += dot(&wxm, &wxm);
         b.uv += dot(&u, &cm);
@@ -423,9 +423,10 @@ impl MagHeading {
                 // The field turns with the body under this offset: a magnet came or went. The
                 // offset's window starts again from the last second's, once when it begins, and
                 // again whenever no one offset explains the window (it changed once more).
-                let mixed = self.long.fit().map_or(false, |f| {
-                    f.residual.sqrt() / ref_norm >= c.spread_tolerance
-                });
+                let mixed = self
+                    .long
+                    .fit()
+                    .is_some_and(|f| f.residual.sqrt() / ref_norm >= c.spread_tolerance);
                 if self.spread_was_ok || mixed {
                     self.long = self.short;
                 }
