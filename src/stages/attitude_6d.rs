@@ -123,7 +123,7 @@ const MAG_HARD_IRON: Key = Key {
 const MAG_DELAY_S: Key = Key {
     name: "mag_delay_s",
     ty: Type::NonNegative,
-    default: DefaultValue::Absent("estimated online from the rotation"),
+    default: DefaultValue::Absent("none: estimated online from the rotation"),
     doc: "the magnetometer's delay behind the gyro, s (with `use_mag`)",
 };
 
