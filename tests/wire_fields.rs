@@ -5,6 +5,8 @@
 //!   tables (offsets, sizes, padding);
 //! - the layout tables of docs/wire-types.md and of the types' doc comments, and the ctypes
 //!   structures of examples/python/, hold the tables' fields at their offsets, with their types;
+//! - every bit of the sensors word is named in the Python examples, docs/wire-types.md and
+//!   the recording's schema;
 //! - a recording's JSON forms hold each field under the table's key, and nothing else (the
 //!   Raw and Gyro forms' keys, which field fills each, when it may be absent; the statistics'
 //!   keys and schema).
@@ -20,7 +22,8 @@ use driftless::io::recording::{
 };
 use driftless::wire::{
     Field, FieldKind, FieldTable, GyroSample, RawSample, StageStats, StatsSnapshot, WireBytes,
-    GYRO_FIELDS, GYRO_TYPE_NAME, RAW_FIELDS, RAW_TYPE_NAME, STATS_FIELDS, STOP_FIELDS,
+    GYRO_FIELDS, GYRO_TYPE_NAME, RAW_FIELDS, RAW_TYPE_NAME, SENSOR_NAMES, STATS_FIELDS,
+    STOP_FIELDS,
 };
 use serde_json::Value;
 
@@ -312,6 +315,37 @@ fn the_python_examples_ctypes_are_the_tables() {
             let f = table.field(name).unwrap_or_else(|| panic!("{name}"));
             assert_eq!(offset.trim().parse::<usize>().unwrap(), f.offset, "{name}");
         }
+    }
+}
+
+/// The value of a Python constant `NAME = 1 << n` (or `= n`) in `text`.
+fn python_bit(text: &str, name: &str) -> Option<u32> {
+    let line = text
+        .lines()
+        .find_map(|l| l.strip_prefix(&format!("{name} = ")))?;
+    match line.trim().split_once("<<") {
+        Some((one, n)) => Some(one.trim().parse::<u32>().ok()? << n.trim().parse::<u32>().ok()?),
+        None => line.trim().parse().ok(),
+    }
+}
+
+/// Every bit of the sensors word (`SENSOR_NAMES`, which `tap` prints) is known by name to the
+/// Python examples (`SENSOR_<NAME> = 1 << n`) and in docs/wire-types.md's sensors table
+/// (`` | `0x80` | `heading_absolute` | ``), and the recording's schema says it.
+#[test]
+fn every_sensors_bit_is_named_in_python_and_the_docs() {
+    let python = read("examples/python/driftless_iox2.py");
+    let docs = read("docs/wire-types.md");
+    let about = GYRO_FIELDS.field("sensors").unwrap().about;
+    for (bit, name) in SENSOR_NAMES {
+        let constant = format!("SENSOR_{}", name.to_uppercase());
+        assert_eq!(python_bit(&python, &constant), Some(bit), "{constant}");
+        let row = format!("| `{bit:#x}` | `{name}` |");
+        assert!(docs.contains(&row), "docs/wire-types.md: no {row}");
+        assert!(
+            about.contains(&format!("{bit:#x} ")),
+            "{name} ({bit:#x}): {about}"
+        );
     }
 }
 

@@ -72,6 +72,11 @@ SENSOR_MAG_INVALID = 1 << 3
 SENSOR_ORIENTATION = 1 << 4
 SENSOR_ORIENTATION_COASTING = 1 << 5
 SENSOR_ORIENTATION_NO_GRAVITY = 1 << 6
+# ... and with the magnetometer (use_mag): the heading is absolute (from north, not from where
+# the stage started; orientation_std's z is then the magnetometer filter's); the field was
+# rejected as disturbed at this sample (the heading rests on the gyro).
+SENSOR_HEADING_ABSOLUTE = 1 << 7
+SENSOR_MAG_REJECTED = 1 << 8
 
 # GyroSample.drift_std where no stage estimates the drift's uncertainty (predict.none,
 # predict.rbf, no predict stage): wire::DRIFT_STD_NOT_PROVIDED. Never NaN.
@@ -124,7 +129,8 @@ class GyroSample(ctypes.Structure):
         ("mag", ctypes.c_double * 3),  # 176: magnetic field, tesla (with SENSOR_MAG)
         ("sensors", ctypes.c_uint32),  # 200: SENSOR_*
         ("reserved", ctypes.c_uint32),  # 204: 0
-        # 208: x, y, z, w, body to earth (z up, heading relative) (with SENSOR_ORIENTATION)
+        # 208: x, y, z, w, body to earth (z up, heading relative unless SENSOR_HEADING_ABSOLUTE)
+        # (with SENSOR_ORIENTATION)
         ("orientation", ctypes.c_double * 4),
         ("orientation_std", ctypes.c_double * 3),  # 240: 1-sigma about earth x, y, z, rad; -1
     ]

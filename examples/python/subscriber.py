@@ -70,6 +70,9 @@ class Checker:
         # roll/pitch/yaw (deg) and sd (rad).
         self.orientation = self.orientation_bad = 0
         self.rpy_last = self.orientation_std_last = None
+        # Samples whose heading is absolute (the magnetometer fixed it), and those whose
+        # magnetometer reading the attitude stage rejected as disturbed.
+        self.heading_absolute = self.mag_rejected = 0
         self.epochs = 0
         self.first_seq = self.last_seq = None
         self.heading_deg = self.expected_heading_deg = 0.0
@@ -131,6 +134,8 @@ class Checker:
         q, sd = list(s.orientation), list(s.orientation_std)
         self.rpy_last = [math.degrees(a) for a in dl.roll_pitch_yaw(q)]
         self.orientation_std_last = sd
+        self.heading_absolute += bool(s.sensors & dl.SENSOR_HEADING_ABSOLUTE)
+        self.mag_rejected += bool(s.sensors & dl.SENSOR_MAG_REJECTED)
         norm = math.sqrt(sum(v * v for v in q))
         sd_ok = all(v == dl.DRIFT_STD_NOT_PROVIDED or (math.isfinite(v) and v >= 0) for v in sd)
         if not (abs(norm - 1.0) < 1e-9 and sd_ok):
@@ -200,6 +205,7 @@ class Checker:
             "drift_std_bad": self.drift_std_bad, "drift_std_last": self.drift_std_last,
             "orientation": self.orientation, "orientation_bad": self.orientation_bad,
             "rpy_last_deg": self.rpy_last, "orientation_std_last": self.orientation_std_last,
+            "heading_absolute": self.heading_absolute, "mag_rejected": self.mag_rejected,
             "heading_deg": self.heading_deg, "expected_heading_deg": self.expected_heading_deg,
             "latency_ns": {"count": len(lat), "p50": q(0.5), "p99": q(0.99), "max": lat[-1] if lat else 0},
         }
@@ -277,7 +283,9 @@ def main() -> int:
           f"{s['missing']} missing, {s['disorder']} out of order, {s['flagged']} flagged; "
           f"heading {s['heading_deg']:+.4f} deg; "
           + (f"{s['orientation']} with an orientation, the last roll/pitch/yaw "
-             + "/".join(f"{a:+.2f}" for a in s["rpy_last_deg"]) + " deg; "
+             + "/".join(f"{a:+.2f}" for a in s["rpy_last_deg"]) + " deg ("
+             + f"{s['heading_absolute']} with an absolute heading, {s['mag_rejected']} with the "
+             + "magnetometer rejected); "
              if s["rpy_last_deg"] else "")
           + f"latency (ingest to receipt) p50 {lat['p50']} ns, "
           f"p99 {lat['p99']} ns, max {lat['max']} ns; {elapsed:.2f} s")

@@ -24,17 +24,19 @@
 //! with `SENSOR_MAG`) and the heading becomes absolute: magnetic north, or true north with
 //! `declination_deg` ([`crate::attitude::mag`]: a heading Kalman filter on top of the 6D
 //! attitude, a disturbed field rejected, the hard-iron offset and the magnetometer's delay
-//! learnt online). `orientation_std`'s z is then the absolute heading's. A sample without a
-//! valid reading keeps the heading on the gyro. The end-of-run summary counts the samples at
-//! which the magnetometer corrected the heading and those at which it was rejected.
+//! learnt online). Once the field is trusted the sample says so (`SENSOR_HEADING_ABSOLUTE`)
+//! and `orientation_std`'s z is the absolute heading's. A reading rejected as disturbed is
+//! flagged (`SENSOR_MAG_REJECTED`); it, and a sample without a valid reading, keep the heading
+//! on the gyro. The end-of-run summary counts the samples at which the magnetometer corrected
+//! the heading and those at which it was rejected.
 
 use crate::attitude::{Attitude, AttitudeConfig, MagConfig, MagUse, Upstream, VqfBias};
 use crate::io::InputError;
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::wire::{
-    GyroSample, DRIFT_STD_NOT_PROVIDED, SENSOR_ORIENTATION, SENSOR_ORIENTATION_COASTING,
-    SENSOR_ORIENTATION_NO_GRAVITY,
+    GyroSample, DRIFT_STD_NOT_PROVIDED, SENSOR_HEADING_ABSOLUTE, SENSOR_MAG_REJECTED,
+    SENSOR_ORIENTATION, SENSOR_ORIENTATION_COASTING, SENSOR_ORIENTATION_NO_GRAVITY,
 };
 
 const TAU_ACC_S: Key = Key {
@@ -223,6 +225,7 @@ impl Params for AttitudeParams {
             samples: 0,
             mag_used: 0,
             mag_rejected: 0,
+            disturbed: false,
         }))
     }
 
@@ -265,9 +268,11 @@ pub struct AttitudeStage {
     no_gravity: u64,
     samples: u64,
     /// Samples whose magnetometer block corrected the heading, and those it was rejected at
-    /// (disturbed, settling or inconsistent).
+    /// (disturbed, inconsistent, or settling after either).
     mag_used: u64,
     mag_rejected: u64,
+    /// The field's last verdict other than settling was a rejection (not a use).
+    disturbed: bool,
 }
 
 /// What [`Attitude::push`] takes: the rate, the accelerometer's reading, the bias removed.
@@ -297,17 +302,33 @@ impl Stage for AttitudeStage {
         );
         self.last = Some(inputs);
         let step = self.filter.push_mag(inputs.0, inputs.1, inputs.2, inputs.3);
-        match step.mag {
-            Some(MagUse::Used) => self.mag_used += 1,
-            Some(MagUse::Disturbed | MagUse::Settling | MagUse::Inconsistent) => {
-                self.mag_rejected += 1
+        let rejected = match step.mag {
+            Some(MagUse::Used) => {
+                self.mag_used += 1;
+                self.disturbed = false;
+                false
             }
-            _ => {}
+            Some(MagUse::Disturbed | MagUse::Inconsistent) => {
+                self.disturbed = true;
+                true
+            }
+            // Settling after a disturbance is its end, not yet trusted: rejected. The 2 s of
+            // settling after the first fix are no disturbance.
+            Some(MagUse::Settling) => self.disturbed,
+            _ => false,
+        };
+        if rejected {
+            out.sensors |= SENSOR_MAG_REJECTED;
+            self.mag_rejected += 1;
+        }
+        if step.heading_absolute {
+            out.sensors |= SENSOR_HEADING_ABSOLUTE;
         }
         let [w, x, y, z] = step.quat;
         out.orientation = [x, y, z, w];
         // The inclination's error is a tilt in any horizontal direction: half its variance
-        // about each horizontal axis.
+        // about each horizontal axis. The heading's sd is the magnetometer filter's once the
+        // heading is absolute (`Attitude::push_mag`), the relative one's before.
         let tilt = step.inclination_sd * std::f64::consts::FRAC_1_SQRT_2;
         out.orientation_std = [
             tilt,
@@ -440,34 +461,47 @@ mod tests {
         }
     }
 
-    /// With `use_mag`, a level body turned 30 deg anticlockwise from ENU (yaw 30 deg), still,
-    /// in a field of 20 uT north and 40 uT down (tesla, as the wire carries it): the heading becomes
-    /// absolute, its standard deviation the magnetometer's; a sample whose reading is invalid
-    /// or absent keeps it, and never a NaN.
-    #[test]
-    fn with_use_mag_the_heading_is_absolute() {
-        let mut s = AttitudeParams {
+    /// A stage with `use_mag` at its defaults, at 100 Hz.
+    fn mag_stage() -> Box<dyn Stage> {
+        AttitudeParams {
             filter: AttitudeConfig {
                 mag: Some(MagConfig::default()),
                 ..AttitudeConfig::default()
             },
         }
         .stage(&cx(Some(0.002)))
-        .unwrap();
-        let yaw_true = 30f64.to_radians();
-        let input = GyroSample {
+        .unwrap()
+    }
+
+    /// A level body, still, turned `yaw` anticlockwise from ENU, in a field of 20 uT north and
+    /// 40 uT down (tesla, as the wire carries it).
+    fn still_in_field(yaw: f64) -> GyroSample {
+        GyroSample {
             drift_std: [1e-5; 3],
             accel: [0.0, 0.0, STANDARD_GRAVITY],
             // The field in the body: Rz(-yaw) (0, 20, -40) uT.
-            mag: [20e-6 * yaw_true.sin(), 20e-6 * yaw_true.cos(), -40e-6],
+            mag: [20e-6 * yaw.sin(), 20e-6 * yaw.cos(), -40e-6],
             sensors: SENSOR_ACCEL | SENSOR_MAG,
             ..GyroSample::default()
-        };
+        }
+    }
+
+    /// With `use_mag`, a level body turned 30 deg anticlockwise from ENU (yaw 30 deg), still,
+    /// in a field of 20 uT north and 40 uT down (tesla, as the wire carries it): the heading becomes
+    /// absolute, its standard deviation the magnetometer's; a sample whose reading is invalid
+    /// or absent keeps it, and never a NaN.
+    #[test]
+    fn with_use_mag_the_heading_is_absolute() {
+        let mut s = mag_stage();
+        let yaw_true = 30f64.to_radians();
+        let input = still_in_field(yaw_true);
         let mut out = None;
         for _ in 0..1000 {
             out = s.process(&input);
         }
         let out = out.unwrap();
+        let bits = SENSOR_HEADING_ABSOLUTE | SENSOR_MAG_REJECTED;
+        assert_eq!(out.sensors & bits, SENSOR_HEADING_ABSOLUTE, "{out:?}");
         let [_, _, yaw] = crate::attitude::roll_pitch_yaw(out.orientation);
         assert!((yaw - yaw_true).to_degrees().abs() < 1.0, "{out:?}");
         let sd = out.orientation_std[2];
@@ -488,6 +522,70 @@ mod tests {
         assert!(
             learnt[1].starts_with("attitude: the magnetometer corrected"),
             "{learnt:?}"
+        );
+    }
+
+    /// With `use_mag`, still in a clean field: no sample says the heading is absolute before
+    /// the field was trusted (no reading yet, then the first block still open), and every
+    /// sample from the first trusted block on does, with the magnetometer filter's sd; a magnet
+    /// brought close (30 uT more, fixed in the body) is flagged rejected while the heading
+    /// stays absolute on the gyro, and the flag clears once it is gone and the field settled.
+    #[test]
+    fn the_sensors_word_says_when_the_heading_is_absolute_and_the_field_rejected() {
+        let mut s = mag_stage();
+        let yaw_true = 30f64.to_radians();
+        let clean = still_in_field(yaw_true);
+        let bits = SENSOR_HEADING_ABSOLUTE | SENSOR_MAG_REJECTED;
+        let mut run = |input: &GyroSample, n: usize| -> Vec<GyroSample> {
+            (0..n).map(|_| s.process(input).unwrap()).collect()
+        };
+        let without = run(
+            &GyroSample {
+                sensors: SENSOR_ACCEL,
+                ..clean
+            },
+            100,
+        );
+        assert!(without.iter().all(|o| o.sensors & bits == 0));
+        let trusted = run(&clean, 500);
+        let first = trusted
+            .iter()
+            .position(|o| o.sensors & SENSOR_HEADING_ABSOLUTE != 0)
+            .expect("the heading became absolute");
+        // 100 samples before, the 25 ms block (3 samples) holds one: the first reading does
+        // not end it, the next two do.
+        assert!((1..=2).contains(&first), "{first}");
+        assert!(trusted[first..]
+            .iter()
+            .all(|o| o.sensors & bits == SENSOR_HEADING_ABSOLUTE));
+        // The relative heading's sd (0 at the start, 1e-5 rad/s since) becomes the
+        // magnetometer's, with its 1 deg floor.
+        assert!(trusted[first - 1].orientation_std[2] < 1e-3, "{trusted:?}");
+        assert!(trusted[first].orientation_std[2] >= 1f64.to_radians());
+        let settled_sd = trusted[499].orientation_std[2];
+
+        let mut magnet = clean;
+        magnet.mag[0] += 30e-6;
+        let near = run(&magnet, 300);
+        let r = near
+            .iter()
+            .position(|o| o.sensors & SENSOR_MAG_REJECTED != 0)
+            .expect("the magnet was rejected");
+        assert!(r <= 3, "{r}");
+        assert!(near[r..].iter().all(|o| o.sensors & bits == bits));
+        let [_, _, yaw] = crate::attitude::roll_pitch_yaw(near[299].orientation);
+        assert!((yaw - yaw_true).to_degrees().abs() < 1.0, "{:?}", near[299]);
+        assert!(near[299].orientation_std[2] > settled_sd, "{:?}", near[299]);
+
+        // Gone: rejected while the spread's 1 s window still holds it (about 4 s for 30 uT to
+        // fade under 8% of the field) and 2 s after (settling), then used again.
+        let back = run(&clean, 1000);
+        assert_ne!(back[50].sensors & SENSOR_MAG_REJECTED, 0, "{:?}", back[50]);
+        assert_eq!(
+            back[999].sensors & bits,
+            SENSOR_HEADING_ABSOLUTE,
+            "{:?}",
+            back[999]
         );
     }
 }

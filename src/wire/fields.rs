@@ -465,7 +465,8 @@ pub const GYRO_FIELDS: FieldTable = FieldTable::of::<GyroSample>(
                 "sensors",
                 "0x1 accel present, 0x2 mag present, 0x4 accel held (input not finite), 0x8 mag \
                  held, 0x10 orientation present, 0x20 orientation coasting (no accelerometer \
-                 used), 0x40 free fall or shock; absent: 0",
+                 used), 0x40 free fall or shock, 0x80 heading absolute (from north, by the \
+                 magnetometer), 0x100 magnetometer rejected (a disturbed field); absent: 0",
             )
             .names(&SENSOR_NAMES)
             .tap(InTap::Names),
@@ -474,8 +475,8 @@ pub const GYRO_FIELDS: FieldTable = FieldTable::of::<GyroSample>(
             .present_with("sensors", SENSOR_ORIENTATION)
             .json(
                 "orientation",
-                "the orientation, body to an earth frame with z up (heading relative), a unit \
-                 quaternion; absent: no attitude stage",
+                "the orientation, body to an earth frame with z up (heading relative, absolute \
+                 with sensors 0x80), a unit quaternion; absent: no attitude stage",
             )
             .tap(InTap::Value)
             .ros2("orientation"),

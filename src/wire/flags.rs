@@ -36,6 +36,15 @@ pub const SENSOR_ORIENTATION_COASTING: u32 = 1 << 5;
 /// Sensors word: the accelerometer's norm said free fall or a shock at this sample (outside
 /// the attitude stage's `min_g`..`max_g`); the reading was used all the same.
 pub const SENSOR_ORIENTATION_NO_GRAVITY: u32 = 1 << 6;
+/// Sensors word: the orientation's heading is absolute, from magnetic north (or true north
+/// with the attitude stage's `declination_deg`), not relative to where the stage started: the
+/// magnetometer fixed it (`use_mag`). Once set it stays so; `orientation_std`'s z is then the
+/// magnetometer heading filter's.
+pub const SENSOR_HEADING_ABSOLUTE: u32 = 1 << 7;
+/// Sensors word: the sample carried a magnetometer reading that the attitude stage rejected
+/// as disturbed (its norm, dip or constancy off the learnt field, still settling after that,
+/// or its heading at odds with the gyro's): the heading rests on the gyro here.
+pub const SENSOR_MAG_REJECTED: u32 = 1 << 8;
 
 /// Output flag: a stage is still filling (denoiser window, predictor warm-up).
 pub const FLAG_WARMING_UP: u32 = 1;
@@ -96,7 +105,7 @@ pub const RAW_FLAG_NAMES: [(u32, &str); 6] = [
 ];
 
 /// The sensors word's bits by name, in bit order.
-pub const SENSOR_NAMES: [(u32, &str); 7] = [
+pub const SENSOR_NAMES: [(u32, &str); 9] = [
     (SENSOR_ACCEL, "accel"),
     (SENSOR_MAG, "mag"),
     (SENSOR_ACCEL_INVALID, "accel_invalid"),
@@ -104,6 +113,8 @@ pub const SENSOR_NAMES: [(u32, &str); 7] = [
     (SENSOR_ORIENTATION, "orientation"),
     (SENSOR_ORIENTATION_COASTING, "orientation_coasting"),
     (SENSOR_ORIENTATION_NO_GRAVITY, "orientation_no_gravity"),
+    (SENSOR_HEADING_ABSOLUTE, "heading_absolute"),
+    (SENSOR_MAG_REJECTED, "mag_rejected"),
 ];
 
 /// Names of the output flags set in `flags` ([`FLAG_NAMES`]); a bit without a name reads as

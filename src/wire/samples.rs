@@ -179,19 +179,31 @@ pub struct GyroSample {
     pub mag: [f64; 3],
     /// Which readings beside the rate are present ([`SENSOR_ACCEL`], [`SENSOR_MAG`]) and which
     /// of those were not finite at the input, the last good value held
-    /// ([`SENSOR_ACCEL_INVALID`], [`SENSOR_MAG_INVALID`]).
+    /// ([`SENSOR_ACCEL_INVALID`], [`SENSOR_MAG_INVALID`]); and what the attitude stage said of
+    /// the orientation ([`SENSOR_ORIENTATION`], ..., [`SENSOR_HEADING_ABSOLUTE`][absolute],
+    /// [`SENSOR_MAG_REJECTED`][rejected]). New bits are appended; a reader ignores those it
+    /// does not know.
+    ///
+    /// [absolute]: crate::wire::SENSOR_HEADING_ABSOLUTE
+    /// [rejected]: crate::wire::SENSOR_MAG_REJECTED
     pub sensors: u32,
     /// Reserved, 0.
     pub reserved: u32,
     /// Orientation of the body, a unit quaternion (x, y, z, w: ROS's and scipy's order) that
     /// turns body coordinates into an earth frame whose z is up (ENU, REP 103); meaningful
-    /// only with [`SENSOR_ORIENTATION`] (an attitude stage ran). The heading is relative: 0
-    /// where the filter started, for a 6D estimate has no north.
+    /// only with [`SENSOR_ORIENTATION`] (an attitude stage ran). The heading is relative (0
+    /// where the filter started, for a 6D estimate has no north) unless
+    /// [`SENSOR_HEADING_ABSOLUTE`][absolute] says the magnetometer made it absolute.
+    ///
+    /// [absolute]: crate::wire::SENSOR_HEADING_ABSOLUTE
     pub orientation: [f64; 4],
     /// Standard deviation (1 sigma) of the orientation's error as small rotations about the
-    /// earth frame's x, y and z axes, rad: roll and pitch from gravity, and the heading's,
-    /// which grows from 0 at the start as the rate's uncertainty is integrated.
+    /// earth frame's x, y and z axes, rad: roll and pitch from gravity, and the heading's:
+    /// relative, it grows from 0 at the start as the rate's uncertainty is integrated; absolute
+    /// ([`SENSOR_HEADING_ABSOLUTE`][absolute]), the magnetometer heading filter's.
     /// [`DRIFT_STD_NOT_PROVIDED`] (-1) where not known.
+    ///
+    /// [absolute]: crate::wire::SENSOR_HEADING_ABSOLUTE
     pub orientation_std: [f64; 3],
 }
 

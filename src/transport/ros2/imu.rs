@@ -2,7 +2,10 @@
 //! [`crate::transport::ros2`] for why), its `ros2msg` definition as rosbag2 records it, and how our
 //! samples become one ([`ImuMapping`], for bags and live topics alike).
 
-use crate::wire::{GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID};
+use crate::wire::{
+    GyroSample, RawSample, FLAG_INPUT_INVALID, FLAG_OUTPUT_REPAIRED, RAW_INVALID,
+    SENSOR_HEADING_ABSOLUTE,
+};
 
 /// The ROS 2 type name of the IMU message (also the MCAP schema name).
 pub const IMU_TYPE: &str = "sensor_msgs/msg/Imu";
@@ -464,6 +467,30 @@ pub struct AccelReading {
     pub std: [f64; 3],
 }
 
+/// The variance of an angle known to be nothing better than any heading, rad^2: an error of up
+/// to pi (sd pi). A relative yaw goes out with it, so that a consumer fusing the yaw as
+/// absolute (robot_localization, a 9D pipeline) takes next to nothing from it.
+const ANY_HEADING_VARIANCE: f64 = std::f64::consts::PI * std::f64::consts::PI;
+
+/// The `orientation_covariance` of an orientation with 1-sigma `std` about the earth's x, y and
+/// z (rad, negative: not known) whose heading is `absolute` or relative: see [`ImuMapping`].
+fn orientation_covariance(std: [f64; 3], absolute: bool) -> [f64; 9] {
+    let var = |sd: f64| {
+        if sd >= 0.0 {
+            sd * sd
+        } else {
+            ANY_HEADING_VARIANCE
+        }
+    };
+    let [roll, pitch, yaw] = std;
+    let yaw = if absolute {
+        var(yaw)
+    } else {
+        ANY_HEADING_VARIANCE
+    };
+    diagonal([var(roll), var(pitch), yaw])
+}
+
 /// A row-major 3x3 covariance with `v` on its diagonal.
 fn diagonal(v: [f64; 3]) -> [f64; 9] {
     let mut cov = [0.0; 9];
@@ -489,11 +516,13 @@ fn diagonal(v: [f64; 3]) -> [f64; 9] {
 ///   `validate` and `record`: robot_localization raises a variance under 1e-9 to 1e-9 and
 ///   trusts such a reading far too much, where a -1 would make it drop the reading unsaid).
 /// - `orientation`: the sample's (an `attitude.6d` stage's; x, y, z, w, body to ENU, REP
-///   103), with `orientation_covariance` diagonal: the variances about the earth's x, y and z
-///   from `orientation_std`. Roll and pitch are from gravity. The yaw is relative (0 where the
-///   stage started: no magnetometer, REP 145), and its variance says how far it has drifted
-///   since: it grows from 0. Where the stage did not know it, the yaw's variance is pi^2 (any
-///   heading). "Not provided" (covariance element 0 = -1) for a sample without one.
+///   103), with `orientation_covariance` diagonal (REP 145; roll, pitch, yaw variances, rad^2):
+///   roll and pitch from `orientation_std` (from gravity); the yaw's from it where the heading
+///   is absolute (`SENSOR_HEADING_ABSOLUTE`: the magnetometer's filter). A relative yaw (0
+///   where the stage started; REP 145 lets it be arbitrary without a magnetometer) goes out
+///   with pi^2, any heading, as does one whose sd the stage did not know: its drift since the
+///   start is no absolute heading, and the yaw rate carries what it knows. "Not provided"
+///   (covariance element 0 = -1, as sensor_msgs/Imu says) for a sample without one.
 pub struct ImuMapping {
     /// The message, filled field by field per sample (its frame_id set once).
     pub imu: Imu,
@@ -593,17 +622,9 @@ impl ImuMapping {
             value,
             std: s.accel_std,
         });
+        let absolute = s.sensors & SENSOR_HEADING_ABSOLUTE != 0;
         (self.imu.orientation, self.imu.orientation_covariance) = match s.orientation_estimate() {
-            Some(q) => (
-                q,
-                diagonal(s.orientation_std.map(|sd| {
-                    if sd >= 0.0 {
-                        sd * sd
-                    } else {
-                        std::f64::consts::PI.powi(2)
-                    }
-                })),
-            ),
+            Some(q) => (q, orientation_covariance(s.orientation_std, absolute)),
             None => ([0.0, 0.0, 0.0, 1.0], NOT_PROVIDED),
         };
         self.fill(s.t_ns, s.rate, s.drift_std, accel, held)
@@ -946,15 +967,18 @@ mod tests {
         assert_eq!(diag(&m.accel_covariance([0.0, 0.5, 2.0])), [0.0, 0.25, 4.0]);
     }
 
+    /// REP 145's orientation_covariance: the diagonal of roll, pitch and yaw variances; the
+    /// yaw's only for an absolute heading, any heading (pi^2) for a relative or unknown one;
+    /// "not provided" (-1) without an orientation.
     #[test]
     fn the_orientation_goes_out_with_its_covariance_and_only_when_given() {
-        use crate::wire::{GyroSample, SENSOR_ORIENTATION};
+        use crate::wire::{GyroSample, SENSOR_MAG_REJECTED, SENSOR_ORIENTATION};
         let mut m = ImuMapping::new("imu_link", 1.0, Some(0.1));
         let q = [0.1, -0.2, 0.3, (1.0f64 - 0.14).sqrt()];
         let with = GyroSample {
             orientation: q,
             orientation_std: [1e-3, 2e-3, 0.05],
-            sensors: SENSOR_ORIENTATION,
+            sensors: SENSOR_ORIENTATION | SENSOR_HEADING_ABSOLUTE,
             ..GyroSample::default()
         };
         let imu = m.gyro(&with).unwrap();
@@ -965,13 +989,28 @@ mod tests {
             [1e-3f64 * 1e-3, 2e-3 * 2e-3, 0.05 * 0.05]
         );
         assert_eq!([c[1], c[2], c[3], c[5], c[6], c[7]], [0.0; 6]);
+        // A rejected field changes nothing here: the sd already grew with it.
+        let rejected = GyroSample {
+            sensors: with.sensors | SENSOR_MAG_REJECTED,
+            ..with
+        };
+        assert_eq!(m.gyro(&rejected).unwrap().orientation_covariance, c);
+        // A relative heading (6D, or 9D before the field was trusted): any heading, whatever
+        // its drift since the start; roll and pitch as they are.
+        let relative = GyroSample {
+            sensors: SENSOR_ORIENTATION,
+            ..with
+        };
+        let c = m.gyro(&relative).unwrap().orientation_covariance;
+        let pi2 = std::f64::consts::PI.powi(2);
+        assert_eq!([c[0], c[4], c[8]], [1e-3f64 * 1e-3, 2e-3 * 2e-3, pi2]);
         // The heading's sd not known: any heading.
         let unknown_yaw = GyroSample {
             orientation_std: [1e-3, 1e-3, -1.0],
             ..with
         };
         let c = m.gyro(&unknown_yaw).unwrap().orientation_covariance;
-        assert_eq!(c[8], std::f64::consts::PI.powi(2));
+        assert_eq!(c[8], pi2);
         // The next sample has none: not provided, not the last one's.
         let imu = m.gyro(&GyroSample::default()).unwrap();
         assert_eq!(imu.orientation_covariance, NOT_PROVIDED);
@@ -1045,18 +1084,29 @@ mod tests {
             GYRO_FIELDS, RAW_ACCEL, RAW_FIELDS, RAW_MAG, SENSOR_ACCEL, SENSOR_MAG,
             SENSOR_ORIENTATION,
         };
-        // Every reading present (not 0), every standard deviation known; the rest as it may be.
+        // Every reading present (not 0), every standard deviation known and used (the heading
+        // absolute, so its sd goes out too); the rest as it may be.
         let gyro = GyroSample {
             t_ns: 1_000_000_000,
             accel: [0.1, 0.2, 9.8],
             drift_std: [0.001, 0.002, 0.003],
             accel_std: [0.01, 0.02, 0.03],
-            sensors: SENSOR_ACCEL | SENSOR_MAG | SENSOR_ORIENTATION,
+            sensors: SENSOR_ACCEL | SENSOR_MAG | SENSOR_ORIENTATION | SENSOR_HEADING_ABSOLUTE,
             orientation: [0.0, 0.0, 0.6, 0.8],
             orientation_std: [0.01, 0.02, 0.03],
             ..GyroSample::default()
         };
         the_mapping_is_the_table(&GYRO_FIELDS, &gyro, |m, s| m.gyro(s).unwrap().clone());
+        // The sensors word reaches the message through one bit: whether the heading is
+        // absolute moves the orientation's covariance (its yaw), and nothing else.
+        let mut m = ImuMapping::new("imu_link", 1.0, Some(0.1));
+        let absolute = m.gyro(&gyro).unwrap().clone();
+        let relative = GyroSample {
+            sensors: gyro.sensors & !SENSOR_HEADING_ABSOLUTE,
+            ..gyro
+        };
+        let relative = m.gyro(&relative).unwrap().clone();
+        assert_eq!(moved(&absolute, &relative), ["orientation_covariance"]);
         let raw = RawSample {
             t_ns: 2_000_000_000,
             flags: RAW_ACCEL | RAW_MAG,
