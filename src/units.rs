@@ -166,7 +166,7 @@ impl fmt::Display for AccelUnit {
     }
 }
 
-/// The unit of a magnetometer's samples (magnetic flux density). Not read anywhere yet.
+/// The unit of a magnetometer's samples (magnetic flux density): `ingest.csv`'s `mag_units`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum MagUnit {
     /// Tesla (SI).
@@ -181,6 +181,12 @@ pub enum MagUnit {
 impl MagUnit {
     /// Every magnetometer unit, in the order help texts list them.
     pub const ALL: [MagUnit; 3] = [MagUnit::T, MagUnit::Gauss, MagUnit::MicroT];
+    /// Their names, in the same order.
+    pub const NAMES: [&'static str; 3] = [
+        MagUnit::T.name(),
+        MagUnit::Gauss.name(),
+        MagUnit::MicroT.name(),
+    ];
 
     /// The name users type and files store (`T`, `gauss`, `uT`).
     pub const fn name(self) -> &'static str {
@@ -234,6 +240,7 @@ mod tests {
         }
         assert_eq!(RateUnit::NAMES, ["deg/s", "rad/s"]);
         assert_eq!(AccelUnit::NAMES, ["m/s^2", "g"]);
+        assert_eq!(MagUnit::NAMES, ["T", "gauss", "uT"]);
         assert!("deg"
             .parse::<RateUnit>()
             .unwrap_err()

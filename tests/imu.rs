@@ -2,7 +2,8 @@
 //! the rates through a lagged denoiser and the bias filter, and every published sample carries
 //! its own row's reading in m/s², bit for bit; a bad accelerometer cell past the rows checked
 //! at validation keeps its row's rate, the accelerometer held and flagged, never dropped; a
-//! gyro-only log publishes no accelerometer at all (absent, never zero).
+//! gyro-only log publishes no accelerometer at all (absent, never zero). The magnetometer's
+//! columns (in uT) arrive likewise, in tesla with `SENSOR_MAG`, an empty cell held and flagged.
 
 mod common;
 
@@ -12,11 +13,16 @@ use common::{finish, start, wait_ready, Dir, Prefix};
 use driftless::allan::STANDARD_GRAVITY;
 use driftless::drift::bias::AccelTerms;
 use driftless::transport::Transport;
-use driftless::wire::{GyroSample, FLAG_INPUT_INVALID, SENSOR_ACCEL, SENSOR_ACCEL_INVALID};
+use driftless::wire::{
+    GyroSample, FLAG_INPUT_INVALID, SENSOR_ACCEL, SENSOR_ACCEL_INVALID, SENSOR_MAG,
+    SENSOR_MAG_INVALID,
+};
 
 const N: usize = 2000;
 /// The row whose accelerometer cell is not a number (past the 1000 rows validation checks).
 const BAD_ROW: usize = 1500;
+/// The row whose magnetometer cell is empty.
+const BAD_MAG_ROW: usize = 1700;
 
 /// The accelerometer of row `i`, g: gravity on z and a tilt that differs from row to row.
 fn accel_g(i: usize) -> [f64; 3] {
@@ -27,11 +33,31 @@ fn accel_g(i: usize) -> [f64; 3] {
     ]
 }
 
-fn pipeline(with_accel: bool) -> String {
-    let accel = if with_accel {
-        "accel_columns = [\"ax\", \"ay\", \"az\"]\n"
-    } else {
-        ""
+/// The magnetometer of row `i`, uT: a field of about 45 uT that turns a little.
+fn mag_ut(i: usize) -> [f64; 3] {
+    [
+        20.0 + 0.01 * (i % 97) as f64,
+        -3.5 + 0.02 * (i % 13) as f64,
+        -40.25,
+    ]
+}
+
+/// What a log carries beside the rates.
+#[derive(Clone, Copy, PartialEq)]
+enum Beside {
+    Nothing,
+    Accel,
+    AccelAndMag,
+}
+
+fn pipeline(beside: Beside) -> String {
+    let accel = match beside {
+        Beside::Nothing => "",
+        Beside::Accel => "accel_columns = [\"ax\", \"ay\", \"az\"]\n",
+        Beside::AccelAndMag => {
+            "accel_columns = [\"ax\", \"ay\", \"az\"]\n\
+             mag_columns = [\"mx\", \"my\", \"mz\"]\nmag_units = \"uT\"\n"
+        }
     };
     format!(
         r#"
@@ -76,8 +102,8 @@ buffer_size = 4096
 }
 
 /// Replays the log through a daemon; every published sample, in order.
-fn run(with_accel: bool, name: &str) -> (Vec<GyroSample>, String) {
-    let mut csv = String::from("t,x,y,z,ax,ay,az\n");
+fn run(beside: Beside, name: &str) -> (Vec<GyroSample>, String) {
+    let mut csv = String::from("t,x,y,z,ax,ay,az,mx,my,mz\n");
     for i in 0..N {
         let [ax, ay, az] = accel_g(i);
         let az = if i == BAD_ROW {
@@ -85,8 +111,14 @@ fn run(with_accel: bool, name: &str) -> (Vec<GyroSample>, String) {
         } else {
             az.to_string()
         };
+        let [mx, my, mz] = mag_ut(i);
+        let my = if i == BAD_MAG_ROW {
+            String::new()
+        } else {
+            my.to_string()
+        };
         csv.push_str(&format!(
-            "{},{},{},{},{ax},{ay},{az}\n",
+            "{},{},{},{},{ax},{ay},{az},{mx},{my},{mz}\n",
             i as f64 / 100.0,
             0.3,
             -0.1,
@@ -95,7 +127,7 @@ fn run(with_accel: bool, name: &str) -> (Vec<GyroSample>, String) {
     }
     let dir = Dir::new();
     dir.write("log.csv", &csv);
-    let file = dir.write("p.toml", &pipeline(with_accel));
+    let file = dir.write("p.toml", &pipeline(beside));
     let prefix = Prefix::new(name);
     // The probe's node before the daemon: the replay starts `start_delay_s` after the
     // daemon is ready, and the subscriber must be open by then.
@@ -111,12 +143,12 @@ fn run(with_accel: bool, name: &str) -> (Vec<GyroSample>, String) {
 
 #[test]
 fn the_accelerometer_rides_beside_the_corrected_rate_sample_for_sample() {
-    let (got, err) = run(true, "imuaccel");
+    let (got, err) = run(Beside::Accel, "imuaccel");
     // The cell's position and the count, on stderr (line: the header, then row BAD_ROW).
     for want in [
         format!(":{}:", BAD_ROW + 2),
         "column 'az': NaN is not a finite sample".to_string(),
-        "1 row(s) with an unreadable accelerometer or stop cell".to_string(),
+        "1 row(s) with an unreadable accelerometer, magnetometer or stop cell".to_string(),
     ] {
         assert!(err.contains(&want), "{want} in {err}");
     }
@@ -147,11 +179,56 @@ fn the_accelerometer_rides_beside_the_corrected_rate_sample_for_sample() {
 
 #[test]
 fn a_gyro_only_log_publishes_no_accelerometer() {
-    let (got, _) = run(false, "imugyro");
+    let (got, _) = run(Beside::Nothing, "imugyro");
     assert_eq!(got.len(), N);
-    assert!(got
-        .iter()
-        .all(|s| s.sensors == 0 && s.accel_reading().is_none() && s.accel == [0.0; 3]));
+    assert!(got.iter().all(|s| s.sensors == 0
+        && s.accel_reading().is_none()
+        && s.accel == [0.0; 3]
+        && s.mag_reading().is_none()
+        && s.mag == [0.0; 3]));
+}
+
+#[test]
+fn the_magnetometer_arrives_in_tesla_and_a_bad_cell_is_held_and_flagged() {
+    let (got, err) = run(Beside::AccelAndMag, "imumag");
+    for want in [
+        format!(":{}:", BAD_MAG_ROW + 2),
+        "column 'my': '' is not a number".to_string(),
+        "2 row(s) with an unreadable accelerometer, magnetometer or stop cell".to_string(),
+    ] {
+        assert!(err.contains(&want), "{want} in {err}");
+    }
+    assert_eq!(got.len(), N, "every sample published once");
+    let tesla = |i: usize| mag_ut(i).map(|ut| ut * 1e-6);
+    for (i, s) in got.iter().enumerate() {
+        assert_eq!(s.seq, i as u64, "in order");
+        assert_eq!(s.flags & FLAG_INPUT_INVALID, 0, "row {i}: the rate is good");
+        let accel = if i == BAD_ROW {
+            SENSOR_ACCEL | SENSOR_ACCEL_INVALID
+        } else {
+            SENSOR_ACCEL
+        };
+        if i == BAD_MAG_ROW {
+            // An empty magnetometer cell: the row replayed, not dropped, its rate and its
+            // accelerometer kept; the field held from the row before and flagged.
+            assert_eq!(
+                s.sensors,
+                accel | SENSOR_MAG | SENSOR_MAG_INVALID,
+                "row {i}"
+            );
+            assert_eq!(s.mag, tesla(i - 1), "row {i}");
+            assert_eq!(s.mag_reading(), None);
+            assert!(s.accel_reading().is_some());
+        } else {
+            assert_eq!(s.sensors, accel | SENSOR_MAG, "row {i}");
+            // Each sample's own row, in tesla, through a denoiser 16 samples late: exact.
+            assert_eq!(
+                s.mag.map(f64::to_bits),
+                tesla(i).map(f64::to_bits),
+                "row {i}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -228,7 +228,8 @@ buffer_size = 4096
         "{err}"
     );
     assert!(
-        warnings[1].contains("1 row(s) with an unreadable accelerometer or stop cell"),
+        warnings[1]
+            .contains("1 row(s) with an unreadable accelerometer, magnetometer or stop cell"),
         "{err}"
     );
     for (i, s) in got.iter().enumerate() {

@@ -319,6 +319,29 @@ mod tests {
     }
 
     #[test]
+    fn carries_the_magnetometer_in_tesla_and_holds_a_bad_one() {
+        let mut g = Guard::new(RateUnit::RadPerS, AccelUnit::MPerS2, 3, 7);
+        let with = |seq, mag: [f64; 3]| RawSample {
+            mag,
+            flags: crate::wire::RAW_MAG,
+            ..raw(seq, seq * 10, 1.0)
+        };
+        // A raw sample carries tesla already (its sources convert): passed as it is.
+        let field = [21e-6, -3.5e-6, -40.25e-6];
+        let s = g.admit(&with(0, field), 0);
+        assert_eq!((s.sensors, s.mag_reading()), (SENSOR_MAG, Some(field)));
+        // Not finite (an empty cell read as NaN): the last good field held and flagged, the
+        // sample and its rate kept.
+        let s = g.admit(&with(1, [f64::NAN; 3]), 0);
+        assert_eq!(s.sensors, SENSOR_MAG | SENSOR_MAG_INVALID);
+        assert_eq!(
+            (s.mag, s.mag_reading(), s.flags, s.rate[0]),
+            (field, None, 0, 1.0)
+        );
+        assert_eq!((g.counts.sensors_invalid, g.counts.invalid), (1, 0));
+    }
+
+    #[test]
     fn converts_degrees() {
         let mut g = Guard::new(RateUnit::DegPerS, AccelUnit::MPerS2, 1, 7);
         let s = g.admit(&raw(0, 0, 180.0), 0);

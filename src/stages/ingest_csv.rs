@@ -6,8 +6,9 @@
 //! file:line:col); the run streams the file from a reader thread in blocks of samples, so memory
 //! stays bounded however long the log. A bad row found while replaying is not dropped: it is
 //! replayed as a sample marked invalid (the guard holds the last good rate, flags and counts it)
-//! and its file:line:col is printed on stderr. A row whose only bad cells are the accelerometer's
-//! or the stop's keeps its rates: only the unreadable reading is flagged.
+//! and its file:line:col is printed on stderr. A row whose only bad cells are the
+//! accelerometer's, the magnetometer's or the stop's keeps its rates: only the unreadable reading
+//! is flagged.
 //!
 //! ```toml
 //! [[stage]]
@@ -17,6 +18,8 @@
 //! file = "data/replay.csv"       # relative to the pipeline file; gzip-compressed works
 //! columns = ["x", "y", "z"]      # one per axis (default x, y, z)
 //! accel_columns = ["ax", "ay", "az"]  # the accelerometer, in accel_units (default: none)
+//! mag_columns = ["mx", "my", "mz"]    # the magnetometer (default: none)
+//! mag_units = "uT"                    # of mag_columns: "T", "gauss" or "uT" (default)
 //! time_column = "t"              # seconds (default: i / rate_hz)
 //! stop_column = "stopped"        # 1 stands, 0 moves, nan unknown (default: none)
 //! pace = "asap"                  # or "realtime" (default), or 10.0: ten times real time
@@ -32,8 +35,11 @@ use crate::io::{InputError, RowRead, RowReader};
 use crate::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
-use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
-use crate::wire::{RawSample, RAW_ACCEL, RAW_INVALID, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED};
+use crate::stages::schema::{Context, DefaultValue, Key, Src, Table, Type};
+use crate::units::MagUnit;
+use crate::wire::{
+    RawSample, RAW_ACCEL, RAW_INVALID, RAW_MAG, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+};
 
 const FILE: Key = Key {
     name: "file",
@@ -58,6 +64,26 @@ const ACCEL_COLUMNS: Key = Key {
           pipeline, as a rate's; found later, it keeps the row's rates, and the guard holds the \
           last good accelerometer and flags it",
 };
+const MAG_COLUMNS: Key = Key {
+    name: "mag_columns",
+    ty: Type::StrList("three column names, x, y, z"),
+    default: DefaultValue::Absent("none: the samples carry no magnetometer"),
+    doc: "the magnetometer's columns, in `mag_units`; carried beside the rates in tesla, \
+          time-aligned. A bad or empty cell in the rows checked at validation refuses the \
+          pipeline, as a rate's; found later, it keeps the row's rates, and the guard holds the \
+          last good field and flags it",
+};
+/// Microtesla, as most magnetometers' fields are quoted (and [`MagUnit`]'s default).
+const MAG_UNITS_DEFAULT: DefaultValue = DefaultValue::Word(MagUnit::MicroT.name());
+const MAG_UNITS: Key = Key {
+    name: "mag_units",
+    ty: Type::Choice(&MagUnit::NAMES),
+    default: DefaultValue::Noted(&MAG_UNITS_DEFAULT, " (with `mag_columns`)"),
+    doc: "units of `mag_columns` (`gauss`: 1e-4 T). A key of this stage, not of the pipeline \
+          as `accel_units` is: a raw sample carries the field in tesla (`RawSample.v2`, as \
+          drivers publish it and recordings keep it), so the replay converts it, where the \
+          accelerometer travels in the pipeline's units for the guard to convert",
+};
 const TIME_COLUMN: Key = Key {
     name: "time_column",
     ty: Type::Str("a column name; seconds, not negative"),
@@ -80,6 +106,8 @@ pub const KIND: Kind = Kind {
         FILE,
         COLUMNS,
         ACCEL_COLUMNS,
+        MAG_COLUMNS,
+        MAG_UNITS,
         TIME_COLUMN,
         STOP_COLUMN,
         PACE,
@@ -99,6 +127,10 @@ pub struct CsvParams {
     pub columns: Vec<String>,
     /// The accelerometer's columns (x, y, z), if any.
     pub accel_columns: Option<Vec<String>>,
+    /// The magnetometer's columns (x, y, z), if any.
+    pub mag_columns: Option<Vec<String>>,
+    /// The unit of the magnetometer's columns (the samples carry tesla).
+    pub mag_units: MagUnit,
     /// The time column (seconds), if any; else `t = i / rate_hz`.
     pub time_column: Option<String>,
     /// The stop column (1 stands, 0 moves, NaN unknown), if any.
@@ -146,6 +178,24 @@ impl Params for CsvParams {
         self.note.iter().cloned().collect()
     }
 
+    fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
+        let mut lines = Vec::new();
+        if let Some(c) = &self.accel_columns {
+            lines.push(format!(
+                "accelerometer from {} in the pipeline's accel_units",
+                c.join(", ")
+            ));
+        }
+        if let Some(c) = &self.mag_columns {
+            lines.push(format!(
+                "magnetometer from {} in {}, carried in tesla",
+                c.join(", "),
+                self.mag_units
+            ));
+        }
+        lines
+    }
+
     fn local_source(&self, cx: &Context) -> Result<Box<dyn Source>, String> {
         let (params, rate_hz) = (self.clone(), cx.rate_hz);
         let replay = BlockReplay::spawn("driftless-csv", self.replay, move |sink| {
@@ -163,6 +213,8 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let file_key = t.required_str(&FILE)?;
     let columns_key = t.get::<Vec<String>>(&COLUMNS)?;
     let accel_key = t.get::<Vec<String>>(&ACCEL_COLUMNS)?;
+    let mag_key = t.get::<Vec<String>>(&MAG_COLUMNS)?;
+    let mag_units_key = t.get::<String>(&MAG_UNITS)?;
     let time_key = t.get::<String>(&TIME_COLUMN)?;
     let stop_key = t.get::<String>(&STOP_COLUMN)?;
     let replay = Replay::parse(t)?;
@@ -195,24 +247,88 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
             ));
         }
     }
-    if let Some(a) = &accel_key {
-        if a.get_ref().len() != 3 {
-            return Err(src.span(
-                a,
-                format!(
-                    "accel_columns must name 3 columns (x, y, z), got {}",
-                    a.get_ref().len()
-                ),
-            ));
-        }
-    }
-    let accel_columns = accel_key.map(Spanned::into_inner);
+    let accel_columns = three_columns(src, accel_key, ACCEL_COLUMNS.name)?;
+    let mag_columns = three_columns(src, mag_key, MAG_COLUMNS.name)?;
+    let mag_units = read_mag_units(src, mag_units_key, mag_columns.is_some())?;
     let time_column = time_key.as_ref().map(|t| t.get_ref().clone());
     let stop_column = stop_key.map(Spanned::into_inner);
-    let layout = Layout::of(&columns, &accel_columns, &time_column, &stop_column);
-    let at_time = columns.len() + accel_columns.as_ref().map_or(0, Vec::len);
-    // The header, and the first rows as the replay will read them: a wrong file fails here.
-    let mut rows = layout.open(&file)?;
+    let layout = Layout::of(
+        &columns,
+        &accel_columns,
+        &mag_columns,
+        &time_column,
+        &stop_column,
+    );
+    let (times_ns, rates) = check_rows(src, &layout, &file, &file_key, time_key.as_ref(), axes)?;
+    // The file's own times must give the pipeline's rate, as a bag's stamps must.
+    if let Some(t) = &time_key {
+        check_time_rate(src, t, &file, &times_ns, rate_hz)?;
+    }
+    Ok(Box::new(CsvParams {
+        file,
+        columns,
+        accel_columns,
+        mag_columns,
+        mag_units,
+        time_column,
+        stop_column,
+        step: rates.into_iter().filter_map(step_of).reduce(f64::min),
+        replay,
+        note: sniffed.csv_note(),
+    }))
+}
+
+/// A sensor's column names (`accel_columns`, `mag_columns`): three (x, y, z), or none given.
+fn three_columns(
+    src: &Src<'_>,
+    key: Option<Spanned<Vec<String>>>,
+    name: &str,
+) -> Result<Option<Vec<String>>, InputError> {
+    match key {
+        Some(k) if k.get_ref().len() != 3 => Err(src.span(
+            &k,
+            format!(
+                "{name} must name 3 columns (x, y, z), got {}",
+                k.get_ref().len()
+            ),
+        )),
+        k => Ok(k.map(Spanned::into_inner)),
+    }
+}
+
+/// `mag_units`, by [`MagUnit`]'s own names; its default without the key. Refused without
+/// `mag_columns`: a unit for columns never named is a table that lost its columns.
+fn read_mag_units(
+    src: &Src<'_>,
+    key: Option<Spanned<String>>,
+    has_columns: bool,
+) -> Result<MagUnit, InputError> {
+    let Some(k) = key else {
+        return Ok(MAG_UNITS.default.word().parse().unwrap_or_default());
+    };
+    if !has_columns {
+        return Err(src.span(
+            &k,
+            "mag_units is the unit of mag_columns, which are not given: name the \
+             magnetometer's three columns, or remove mag_units",
+        ));
+    }
+    k.get_ref()
+        .parse()
+        .map_err(|e: String| src.span(&k, format!("mag_units: {e}")))
+}
+
+/// The header, and the first [`CHECKED_ROWS`] rows as the replay will read them (a wrong file
+/// fails here): their times (ns, with a time column) and each axis' rates.
+fn check_rows(
+    src: &Src<'_>,
+    layout: &Layout,
+    file: &std::path::Path,
+    file_key: &Spanned<String>,
+    time_key: Option<&Spanned<String>>,
+    axes: usize,
+) -> Result<(Vec<i64>, Vec<Vec<f64>>), InputError> {
+    let mut rows = layout.open(file)?;
     let mut values = vec![0.0; layout.wanted.len()];
     let mut n = 0;
     let mut times_ns: Vec<i64> = Vec::new();
@@ -227,59 +343,57 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         for (r, v) in rates.iter_mut().zip(&values) {
             r.push(*v);
         }
-        if let Some(t) = &time_key {
-            if values[at_time] < 0.0 {
+        if let (Some(t), Some(k)) = (time_key, layout.time) {
+            if values[k] < 0.0 {
                 return Err(src.span(
                     t,
                     format!("time column {:?} is negative at data row {n}", t.get_ref()),
                 ));
             }
-            times_ns.push((values[at_time] * 1e9).round() as i64);
+            times_ns.push((values[k] * 1e9).round() as i64);
         }
     }
     if n == 0 {
-        return Err(src.span(&file_key, format!("{} has no data rows", file.display())));
+        return Err(src.span(file_key, format!("{} has no data rows", file.display())));
     }
-    // The file's own times must give the pipeline's rate, as a bag's stamps must.
-    if let Some(t) = &time_key {
-        let steps = Stamps::from_stamps(&times_ns);
-        let rate = rate_hz;
-        match steps.rate_hz() {
-            Some(hz) if (hz - rate).abs() <= RATE_TOLERANCE * rate => {}
-            found => {
-                let gives = found.map_or("no rate".to_string(), |hz| format!("{hz:.6} Hz"));
-                return Err(src.span(
-                    t,
-                    format!(
-                        "time column {:?} of {}: its first {} rows step {} s at the median \
-                         ({gives}), but the pipeline's rate_hz is {rate} Hz: set rate_hz to the \
-                         file's rate",
-                        t.get_ref(),
-                        file.display(),
-                        steps.count,
-                        steps.median_interval_ns as f64 * 1e-9,
-                    ),
-                ));
-            }
+    Ok((times_ns, rates))
+}
+
+/// The time column's rate over the checked rows against the pipeline's `rate_hz`.
+fn check_time_rate(
+    src: &Src<'_>,
+    t: &Spanned<String>,
+    file: &std::path::Path,
+    times_ns: &[i64],
+    rate: f64,
+) -> Result<(), InputError> {
+    let steps = Stamps::from_stamps(times_ns);
+    match steps.rate_hz() {
+        Some(hz) if (hz - rate).abs() <= RATE_TOLERANCE * rate => Ok(()),
+        found => {
+            let gives = found.map_or("no rate".to_string(), |hz| format!("{hz:.6} Hz"));
+            Err(src.span(
+                t,
+                format!(
+                    "time column {:?} of {}: its first {} rows step {} s at the median \
+                     ({gives}), but the pipeline's rate_hz is {rate} Hz: set rate_hz to the \
+                     file's rate",
+                    t.get_ref(),
+                    file.display(),
+                    steps.count,
+                    steps.median_interval_ns as f64 * 1e-9,
+                ),
+            ))
         }
     }
-    Ok(Box::new(CsvParams {
-        file,
-        columns,
-        accel_columns,
-        time_column,
-        stop_column,
-        step: rates.into_iter().filter_map(step_of).reduce(f64::min),
-        replay,
-        note: sniffed.csv_note(),
-    }))
 }
 
 /// Where each column a replay reads sits in a row of values: the rates, then the
-/// accelerometer, the time and the stop.
+/// accelerometer, the magnetometer, the time and the stop.
 struct Layout {
     wanted: Vec<String>,
     accel: Option<usize>,
+    mag: Option<usize>,
     time: Option<usize>,
     stop: Option<usize>,
 }
@@ -288,6 +402,7 @@ impl Layout {
     fn of(
         columns: &[String],
         accel: &Option<Vec<String>>,
+        mag: &Option<Vec<String>>,
         time: &Option<String>,
         stop: &Option<String>,
     ) -> Layout {
@@ -298,14 +413,23 @@ impl Layout {
             i
         };
         let accel = accel.as_deref().map(&mut at);
+        let mag = mag.as_deref().map(&mut at);
         let time = time.as_ref().map(|t| at(std::slice::from_ref(t)));
         let stop = stop.as_ref().map(|s| at(std::slice::from_ref(s)));
         Layout {
             wanted,
             accel,
+            mag,
             time,
             stop,
         }
+    }
+
+    /// Whether selected column `k` is read beside the rates (the accelerometer, the
+    /// magnetometer, the stop): a bad cell there leaves the row's rates good.
+    fn beside_rates(&self, k: usize) -> bool {
+        let within = |first: Option<usize>| first.is_some_and(|a| (a..a + 3).contains(&k));
+        within(self.accel) || within(self.mag) || self.stop == Some(k)
     }
 
     /// The rows of `file` in this layout: a NaN in the stop column is unknown, not a bad cell.
@@ -318,18 +442,36 @@ impl Layout {
     }
 }
 
-/// A readable row's sample: its rates, its accelerometer (when the layout has one) and its
-/// stop flag (when it has a stop column and the cell is known).
-fn fill_sample(sample: &mut RawSample, values: &[f64], layout: &Layout, axes: usize) {
+/// Three readings from `values[k..k + 3]` times `scale`, all NaN when one is not finite: the
+/// sensor is there, its reading unknown, and the guard holds the last good one and flags it.
+fn reading(values: &[f64], k: usize, scale: f64) -> [f64; 3] {
+    let v: [f64; 3] = std::array::from_fn(|i| values[k + i] * scale);
+    if v.iter().all(|x| x.is_finite()) {
+        v
+    } else {
+        [f64::NAN; 3]
+    }
+}
+
+/// A readable row's sample: its rates, its accelerometer and magnetometer (when the layout has
+/// them; the field times `mag_to_t`, in tesla as a raw sample carries it) and its stop flag
+/// (when it has a stop column and the cell is known).
+fn fill_sample(
+    sample: &mut RawSample,
+    values: &[f64],
+    layout: &Layout,
+    axes: usize,
+    mag_to_t: f64,
+) {
     sample.rate[..axes].copy_from_slice(&values[..axes]);
     if let Some(k) = layout.accel {
-        sample.accel.copy_from_slice(&values[k..k + 3]);
-        if sample.accel.iter().any(|v| !v.is_finite()) {
-            // The accelerometer is there, its reading unknown: the guard holds
-            // the last good one and flags it.
-            sample.accel = [f64::NAN; 3];
-        }
+        // In the pipeline's accel_units: the guard converts.
+        sample.accel = reading(values, k, 1.0);
         sample.flags |= RAW_ACCEL;
+    }
+    if let Some(k) = layout.mag {
+        sample.mag = reading(values, k, mag_to_t);
+        sample.flags |= RAW_MAG;
     }
     match layout.stop.map(|k| values[k]) {
         Some(v) if v.is_nan() => {}
@@ -339,14 +481,19 @@ fn fill_sample(sample: &mut RawSample, values: &[f64], layout: &Layout, axes: us
     }
 }
 
-/// An unreadable row's sample: marked invalid, its rates (and accelerometer) unknown.
+/// An unreadable row's sample: marked invalid, its rates (and the sensors beside them)
+/// unknown.
 fn mark_invalid(sample: &mut RawSample, layout: &Layout) {
     sample.rate = [f64::NAN; 3];
     sample.flags = RAW_INVALID;
+    // The sensors are still there, their readings unknown.
     if layout.accel.is_some() {
-        // The accelerometer is still there, its reading unknown.
         sample.accel = [f64::NAN; 3];
         sample.flags |= RAW_ACCEL;
+    }
+    if layout.mag.is_some() {
+        sample.mag = [f64::NAN; 3];
+        sample.flags |= RAW_MAG;
     }
 }
 
@@ -373,9 +520,11 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let shown = params.file.display();
     let period_ns = (1e9 / rate_hz).round() as u64;
     let axes = params.columns.len().min(3);
+    let mag_to_t = params.mag_units.to_tesla();
     let layout = Layout::of(
         &params.columns,
         &params.accel_columns,
+        &params.mag_columns,
         &params.time_column,
         &params.stop_column,
     );
@@ -410,20 +559,17 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 Some(k) => values[k],
                 None => i as f64 / rate_hz,
             };
-            // A row whose bad cells are only beside the rates (the accelerometer, the stop)
-            // keeps its rates: only what is unreadable is flagged.
-            let beside = |k: usize| {
-                layout.accel.is_some_and(|a| (a..a + 3).contains(&k)) || layout.stop == Some(k)
-            };
+            // A row whose bad cells are only beside the rates (the accelerometer, the
+            // magnetometer, the stop) keeps its rates: only what is unreadable is flagged.
             let usable = match &read {
                 RowRead::Row => true,
-                RowRead::BadCells { bad, .. } => bad.iter().all(|&k| beside(k)),
+                RowRead::BadCells { bad, .. } => bad.iter().all(|&k| layout.beside_rates(k)),
                 _ => false,
             };
             match read {
                 RowRead::End => break,
                 ref row if usable && time >= 0.0 => {
-                    fill_sample(&mut sample, &values, &layout, axes);
+                    fill_sample(&mut sample, &values, &layout, axes, mag_to_t);
                     if let RowRead::BadCells { error, .. } = row {
                         if pass == 0 {
                             beside_bad += 1;
@@ -472,8 +618,165 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     }
     if beside_bad > 0 {
         eprintln!(
-            "driftless: warning: {shown}: {beside_bad} row(s) with an unreadable accelerometer \
-             or stop cell: rates kept, the cell flagged"
+            "driftless: warning: {shown}: {beside_bad} row(s) with an unreadable accelerometer, \
+             magnetometer or stop cell: rates kept, the cell flagged"
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::AtomicBool;
+
+    use super::*;
+    use crate::stages::contract::Poll;
+    use crate::stages::schema::test_table;
+    use crate::units::{AccelUnit, RateUnit};
+
+    /// `ingest.csv`'s table `text`, its `file = "log.csv"` holding `csv` in a fresh folder
+    /// (kept while the result lives), under a pipeline at 100 Hz with 3 axes.
+    fn parse_csv(
+        csv: &str,
+        text: &str,
+    ) -> (tempfile::TempDir, Result<Box<dyn Params>, InputError>) {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("log.csv"), csv).unwrap();
+        let path = dir.path().join("p.toml");
+        let text = format!("file = \"log.csv\"\npace = \"asap\"\n{text}");
+        let src = Src {
+            path: &path,
+            text: &text,
+        };
+        let mut t = test_table(&src, 3, None, ("p", "sensor"), |k| {
+            KIND.keys
+                .iter()
+                .find(|key| key.name == k)
+                .expect("a key")
+                .name
+        });
+        let parsed = (KIND.parse)(&mut t);
+        (dir, parsed)
+    }
+
+    /// Every raw sample the replay of `params` gives, in order.
+    fn replay(params: &dyn Params) -> Vec<RawSample> {
+        let cx = Context {
+            rate_hz: 100.0,
+            axes: 3,
+            units: RateUnit::DegPerS,
+            accel_units: AccelUnit::MPerS2,
+            white_noise: None,
+        };
+        let mut source = params.local_source(&cx).unwrap();
+        let stop = AtomicBool::new(false);
+        let mut got = Vec::new();
+        loop {
+            match source.poll(&stop) {
+                Poll::Sample(s, _, _) => got.push(s),
+                Poll::Idle => {}
+                Poll::End => return got,
+            }
+        }
+    }
+
+    /// Rows past the ones validation checks, so that a bad cell near the end is met replaying.
+    const ROWS: usize = CHECKED_ROWS + 10;
+    /// The row whose `my` cell is empty.
+    const BAD: usize = CHECKED_ROWS + 5;
+
+    /// The field of row `i` as logged: microtesla, or gauss with `per` = 100.
+    fn field(i: usize, per: f64) -> [f64; 3] {
+        [(20.0 + (i % 7) as f64) / per, -3.5 / per, -40.25 / per]
+    }
+
+    fn log(per: f64) -> String {
+        let mut csv = String::from("x,y,z,mx,my,mz\n");
+        for i in 0..ROWS {
+            let [mx, my, mz] = field(i, per);
+            let my = if i == BAD {
+                String::new()
+            } else {
+                my.to_string()
+            };
+            csv.push_str(&format!("0.1,0.2,{},{mx},{my},{mz}\n", i as f64 * 1e-3));
+        }
+        csv
+    }
+
+    #[test]
+    fn the_magnetometer_is_read_in_its_units_and_carried_in_tesla() {
+        for (units, per, to_t) in [("uT", 1.0, 1e-6), ("gauss", 100.0, 1e-4)] {
+            let keys = format!("mag_columns = [\"mx\", \"my\", \"mz\"]\nmag_units = \"{units}\"");
+            let (_dir, params) = parse_csv(&log(per), &keys);
+            let params = params.unwrap();
+            assert_eq!(
+                params.describe(None, "c/raw"),
+                [format!(
+                    "magnetometer from mx, my, mz in {units}, carried in tesla"
+                )]
+            );
+            let got = replay(params.as_ref());
+            assert_eq!(got.len(), ROWS, "{units}: every row replayed");
+            for (i, s) in got.iter().enumerate() {
+                assert_eq!(
+                    s.flags, RAW_MAG,
+                    "{units}: row {i}: the rates good, the field there"
+                );
+                assert_eq!(s.rate[2], i as f64 * 1e-3, "{units}: row {i}");
+                if i == BAD {
+                    // An empty cell: the sample kept, its reading unknown (the guard holds the
+                    // last good one and flags it).
+                    assert!(s.mag.iter().all(|v| v.is_nan()), "{:?}", s.mag);
+                } else {
+                    let want = field(i, per).map(|v| v * to_t);
+                    assert_eq!(s.mag, want, "{units}: row {i}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_gyro_only_log_carries_no_magnetometer() {
+        let (_dir, params) = parse_csv(&log(1.0), "");
+        let params = params.unwrap();
+        assert!(params.describe(None, "c/raw").is_empty());
+        let got = replay(params.as_ref());
+        assert!(got
+            .iter()
+            .all(|s| s.mag_reading().is_none() && s.flags == 0));
+    }
+
+    #[test]
+    fn the_magnetometer_keys_are_checked() {
+        let refused = |csv: &str, keys: &str| {
+            let (_dir, params) = parse_csv(csv, keys);
+            params.err().expect("refused").to_string()
+        };
+        let csv = log(1.0);
+        for (keys, want) in [
+            (
+                "mag_columns = [\"mx\", \"my\"]",
+                "mag_columns must name 3 columns (x, y, z), got 2",
+            ),
+            (
+                "mag_units = \"gauss\"",
+                "mag_units is the unit of mag_columns, which are not given",
+            ),
+            (
+                "mag_columns = [\"mx\", \"my\", \"mz\"]\nmag_units = \"mT\"",
+                "mag_units: unknown magnetometer unit 'mT' (T, gauss or uT)",
+            ),
+            (
+                "mag_columns = [\"mx\", \"my\", \"mw\"]",
+                "no column named 'mw'",
+            ),
+        ] {
+            let e = refused(&csv, keys);
+            assert!(e.contains(want), "{keys}: {e}");
+        }
+        // A bad cell in the rows validation checks refuses the file, as a rate's does.
+        let early = csv.replacen(",-40.25\n", ",nan\n", 3);
+        let e = refused(&early, "mag_columns = [\"mx\", \"my\", \"mz\"]");
+        assert!(e.contains("column 'mz'"), "{e}");
     }
 }
