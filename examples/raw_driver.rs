@@ -2,7 +2,9 @@
 //! (`driftless::RawSample`: the gyro in deg/s, and beside it the accelerometer in m/s², flag
 //! `RAW_ACCEL`, the pipelines' default `accel_units`) on an iceoryx2 service at a fixed rate and
 //! notifies the event service of the same name after each one, as `ingest.iceoryx2` expects. A
-//! gyro-only driver leaves the accelerometer out (flag clear): absent, never zero.
+//! gyro-only driver leaves the accelerometer out (flag clear): absent, never zero. With `--mag`
+//! it sends the magnetometer too (flag `RAW_MAG`, tesla): the earth's field as the body reads
+//! it, for `use_mag` (pipelines/navigator-9d.toml).
 //!
 //! ```text
 //! cargo run --release --example raw_driver -- --service sensor/raw --rate 1000 &
@@ -11,7 +13,7 @@
 //!
 //! Options (`--help`): `--service NAME` (default sensor/raw), `--rate HZ` (default 1000),
 //! `--prefix P` (default driftless_ or DRIFTLESS_IOX2_PREFIX), `--duration D` (default: until
-//! Ctrl-C). Exit codes as `driftless`'s: 0 done, 1 a run-time failure, 2 bad usage.
+//! Ctrl-C), `--mag`. Exit codes as `driftless`'s: 0 done, 1 a run-time failure, 2 bad usage.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -22,7 +24,7 @@ use driftless::cli::duration::parse_duration;
 use driftless::sim::force::SimAccel;
 use driftless::sim::{Motion, SimConfig, Simulator};
 use driftless::transport::{self, Transport};
-use driftless::wire::{RawSample, RAW_ACCEL};
+use driftless::wire::{RawSample, RAW_ACCEL, RAW_MAG};
 
 /// A stand-in sensor driver: publishes simulated raw gyro samples (deg/s) at a fixed rate and
 /// notifies after each one, for `ingest.iceoryx2` (pipelines/external-sensor.toml).
@@ -41,6 +43,9 @@ struct Options {
     /// Stop after this long ("10s", "90min", or seconds; default: until Ctrl-C).
     #[arg(long, value_parser = parse_duration, allow_hyphen_values = true)]
     duration: Option<Duration>,
+    /// Send the magnetometer too (flag RAW_MAG, tesla): a field of 49 uT, dip 66 deg.
+    #[arg(long)]
+    mag: bool,
 }
 
 /// A sample rate in (0, 100000] Hz, or a usage error.
@@ -79,19 +84,17 @@ fn run(o: &Options) -> Result<(), String> {
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, Arc::clone(&stop)).map_err(|e| e.to_string())?;
     }
-    let result = publish(&prefix, &o.service, o.rate, o.duration, &stop);
+    let result = publish(&prefix, o, &stop);
     // The last process of a prefix removes its management file.
     transport::remove_prefix_leftovers(&prefix);
     result
 }
 
-fn publish(
-    prefix: &str,
-    service: &str,
-    rate: f64,
-    duration: Option<Duration>,
-    stop: &AtomicBool,
-) -> Result<(), String> {
+/// The earth's field in the simulator's north-east-down frame, tesla: 20 uT north, 45 uT down.
+const EARTH_FIELD: [f64; 3] = [20e-6, 0.0, 45e-6];
+
+fn publish(prefix: &str, o: &Options, stop: &AtomicBool) -> Result<(), String> {
+    let (service, rate, duration) = (o.service.as_str(), o.rate, o.duration);
     let node = Transport::new(
         prefix,
         &format!("raw-driver-{}", std::process::id()),
@@ -121,12 +124,19 @@ fn publish(
             std::thread::sleep(due - now);
         }
         let s = sim.next_sample();
+        // The field at this sample's attitude, read before the accelerometer moves it on.
+        let mag = accel.body_field(EARTH_FIELD);
         let raw = RawSample {
             t_ns: (k as f64 * 1e9 / rate).round() as u64,
             seq: k,
             rate: s.measured,
             accel: accel.next_reading(),
-            flags: RAW_ACCEL,
+            flags: if o.mag {
+                RAW_ACCEL | RAW_MAG
+            } else {
+                RAW_ACCEL
+            },
+            mag: if o.mag { mag } else { [0.0; 3] },
             epoch,
             ..RawSample::default()
         };

@@ -149,6 +149,15 @@ fn attitude_text(s: &GyroSample) -> String {
     })
 }
 
+/// The sensors word by name (`heading_absolute`, `mag_rejected`, ...); nothing when it is 0.
+fn sensors_text(sensors: u32) -> String {
+    if sensors == 0 {
+        String::new()
+    } else {
+        format!(" sensors {}", joined(&wire::sensor_names(sensors), ","))
+    }
+}
+
 fn no_csv_for_stats(service: &str) -> CliError {
     CliError::input(format!(
         "{service} carries statistics snapshots, which have no CSV form: use --format text or json"
@@ -386,7 +395,7 @@ impl Printer {
                 let sd = self.std_text(s.drift_std);
                 format!(
                     "epoch {} seq {} t {:.6} s rate [{:+.6} {:+.6} {:+.6}] drift [{:+.6} {:+.6} {:+.6}] \
-                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {}{}{} flags {}",
+                     +- [{} {} {}] denoised [{:+.6} {:+.6} {:+.6}] {}{}{}{} flags {}",
                     s.epoch,
                     s.seq,
                     s.t_ns as f64 * 1e-9,
@@ -394,6 +403,7 @@ impl Printer {
                     self.units.name(),
                     accel_text((s.sensors & wire::SENSOR_ACCEL != 0).then_some(s.accel), "m/s²"),
                     attitude_text(s),
+                    sensors_text(s.sensors),
                     joined(&wire::flag_names(s.flags), ",")
                 )
             }
@@ -712,15 +722,15 @@ mod tests {
             .line(&with)
             .unwrap();
         assert!(
-            text.contains("accel [+0.500000 -0.250000 +9.750000] m/s² flags still"),
+            text.contains("accel [+0.500000 -0.250000 +9.750000] m/s² sensors accel flags still"),
             "{text}"
         );
-        // An orientation: 90 deg of yaw, its heading's sd not provided.
+        // An orientation: 90 deg of yaw, its heading's sd not provided, absolute (9D).
         let h = std::f64::consts::FRAC_1_SQRT_2;
         let turned = Item::Gyro(GyroSample {
             orientation: [0.0, 0.0, h, h],
             orientation_std: [0.01, 0.01, -1.0],
-            sensors: crate::wire::SENSOR_ORIENTATION,
+            sensors: crate::wire::SENSOR_ORIENTATION | crate::wire::SENSOR_HEADING_ABSOLUTE,
             ..s
         });
         let text = printer(Format::Text, RateUnit::DegPerS)
@@ -728,14 +738,14 @@ mod tests {
             .unwrap();
         assert!(
             text.contains(
-                "attitude roll +0.000 pitch +0.000 yaw +90.000 deg +- [0.573 0.573 ?] flags still"
+                "attitude roll +0.000 pitch +0.000 yaw +90.000 deg +- [0.573 0.573 ?] \
+                 sensors orientation,heading_absolute flags still"
             ),
             "{text}"
         );
-        assert!(rad
-            .line(&turned)
-            .unwrap()
-            .ends_with(&format!(",,orientation,0,0,{h},{h},0.01,0.01,-1")));
+        assert!(rad.line(&turned).unwrap().ends_with(&format!(
+            ",,orientation|heading_absolute,0,0,{h},{h},0.01,0.01,-1"
+        )));
         let json: serde_json::Value = serde_json::from_str(
             &printer(Format::Json, RateUnit::DegPerS)
                 .line(&turned)

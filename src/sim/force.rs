@@ -411,6 +411,13 @@ impl SimAccel {
         }))
     }
 
+    /// The earth's field `earth` (navigation frame, any unit) as a perfect magnetometer in the
+    /// body reads it at the next sample: call it before [`SimAccel::next_reading`], which moves
+    /// the attitude on. No noise and no hard iron: a stand-in driver's field, for the heading.
+    pub fn body_field(&self, earth: [f64; 3]) -> [f64; 3] {
+        self.track.attitude().to_body(earth)
+    }
+
     /// The next sample's reading, m/s² (O(1), no allocation).
     pub fn next_reading(&mut self) -> [f64; 3] {
         let f = self.track.next_force();
@@ -424,6 +431,27 @@ mod tests {
 
     fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
         a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= tol)
+    }
+
+    #[test]
+    fn the_body_field_turns_with_the_attitude_and_keeps_its_norm() {
+        let cfg = SimConfig {
+            motion: Motion::Sines,
+            axes: 3,
+            ..SimConfig::profile("adis16405").unwrap()
+        };
+        let mut sim = SimAccel::new("adis16405", &cfg).unwrap().unwrap();
+        let earth = [20e-6, 0.0, 45e-6];
+        assert!(close(sim.body_field(earth), earth, 1e-15), "level at t = 0");
+        let mut turned = 0.0f64;
+        for _ in 0..5_000 {
+            sim.next_reading();
+            let m = sim.body_field(earth);
+            let norm = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+            assert!((norm - 49.24e-6).abs() < 1e-8, "norm {norm}");
+            turned = turned.max((m[0] - earth[0]).abs());
+        }
+        assert!(turned > 1e-6, "the field never turned: {turned}");
     }
 
     #[test]
