@@ -13,8 +13,8 @@ use crate::stages::contract::SideInput;
 use crate::stages::schema::{DefaultValue, Key, Src, Table, Type};
 use crate::stages::stop_rule::DEFAULT_STOP_SPEED_M_S;
 use crate::transport::ros2::{
-    Direction, MotionKind, Ros2Settings, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY_TYPE, IMU_TYPE,
-    VECTOR3_STAMPED_TYPE,
+    Direction, MotionKind, Ros2Settings, DEFAULT_MAG_MAX_AGE_S, DIAGNOSTICS_TOPIC,
+    DIAGNOSTIC_ARRAY_TYPE, IMU_TYPE, MAG_TYPE, VECTOR3_STAMPED_TYPE,
 };
 use crate::units::{AccelUnit, RateUnit};
 
@@ -60,6 +60,24 @@ const IMU_IN: Key = Key {
           angular velocity, and its linear acceleration unless the message marks it not \
           provided (covariance element 0 = -1). The pipeline's `input_units` must be \
           `\"rad/s\"` and its `accel_units` `\"m/s^2\"` (REP 103)",
+};
+const MAG_IN: Key = Key {
+    name: "mag_in",
+    ty: Type::Table("`topic`, `type` = \"sensor_msgs/msg/MagneticField\""),
+    default: DefaultValue::Absent("none"),
+    doc: "a driver node's magnetometer (imu_filter_madgwick's `imu/mag`: the field in tesla), \
+          joined by stamp to the samples of `imu_in` (it needs `imu_in`, whose service it \
+          feeds): each Imu sample carries the newest reading stamped at most half a sample \
+          period after it, if that reading is at most `mag_max_age_s` older; else none. For an \
+          `attitude.6d` stage with `use_mag`",
+};
+const MAG_MAX_AGE_S: Key = Key {
+    name: "mag_max_age_s",
+    ty: Type::FloatIn(0.001, 10.0),
+    default: DefaultValue::Float(DEFAULT_MAG_MAX_AGE_S),
+    doc: "a magnetometer reading older than this (s, by stamp) is joined to no Imu sample: the \
+          samples go on without one, and the heading rests on the gyro (with `mag_in`; the \
+          default serves a magnetometer at 10 Hz or faster)",
 };
 const IMU_OUT: Key = Key {
     name: "imu_out",
@@ -136,6 +154,8 @@ pub const KIND: Kind = Kind {
         RATE_NOISE,
         ACCEL_NOISE,
         IMU_IN,
+        MAG_IN,
+        MAG_MAX_AGE_S,
         IMU_OUT,
         BIAS_OUT,
         DIAGNOSTICS,
@@ -152,6 +172,15 @@ pub const KIND: Kind = Kind {
 struct RawTopic {
     topic: Spanned<String>,
     service: Spanned<String>,
+    #[serde(rename = "type")]
+    ty: Option<Spanned<String>>,
+}
+
+/// The `[ros2.mag_in]` table: no service of its own (it feeds `imu_in`'s).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMagTopic {
+    topic: Spanned<String>,
     #[serde(rename = "type")]
     ty: Option<Spanned<String>>,
 }
@@ -189,6 +218,18 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         .get::<RawTopic>(&IMU_IN)?
         .map(|raw| imu_in(src, chain, raw.into_inner()))
         .transpose()?;
+    let mag_max_age_given = t.has(&MAG_MAX_AGE_S);
+    let mag_max_age_s = t.float_or_default(&MAG_MAX_AGE_S)?;
+    let mag_in = t
+        .get::<RawMagTopic>(&MAG_IN)?
+        .map(|raw| mag_in(src, raw, imu_in.is_some()))
+        .transpose()?;
+    if mag_in.is_none() && mag_max_age_given {
+        return Err(t.error(
+            "mag_max_age_s is the age limit of mag_in's readings, and there is no mag_in: \
+             add mag_in or remove mag_max_age_s",
+        ));
+    }
     let imu_out = t
         .get::<Vec<Spanned<RawTopic>>>(&IMU_OUT)?
         .map_or_else(Vec::new, Spanned::into_inner)
@@ -218,6 +259,8 @@ fn read(t: &mut Table<'_, '_>, chain: &Chain<'_>) -> Result<Box<dyn Side>, Input
         // Not given: the white noise a stage assumes (predict.bias's N), per sample.
         rate_noise: rate_noise.or_else(|| chain.white_noise().map(|n| n * chain.cx.rate_hz.sqrt())),
         imu_in,
+        mag_in,
+        mag_max_age_s,
         imu_out,
         motion_in,
         accel_noise,
@@ -321,6 +364,24 @@ fn imu_in(src: &Src<'_>, chain: &Chain<'_>, raw: RawTopic) -> Result<(String, St
     }
     of_type(src, &raw.ty, "imu_in", IMU_TYPE)?;
     Ok((topic(src, &raw.topic)?, service))
+}
+
+/// `mag_in`: its topic, which needs `imu_in` (whose samples it joins, on whose service).
+fn mag_in(
+    src: &Src<'_>,
+    raw: Spanned<RawMagTopic>,
+    has_imu_in: bool,
+) -> Result<String, InputError> {
+    if !has_imu_in {
+        return Err(src.span(
+            &raw,
+            "mag_in: the magnetometer is joined by stamp to the samples of imu_in, and there \
+             is no imu_in: add imu_in (the driver's sensor_msgs/msg/Imu topic)",
+        ));
+    }
+    let raw = raw.into_inner();
+    of_type(src, &raw.ty, "mag_in", MAG_TYPE)?;
+    topic(src, &raw.topic)
 }
 
 /// One of `imu_out`: (service, topic) of a stage's output.
@@ -432,6 +493,13 @@ impl Side for Ros2Side {
                 Direction::Out => format!("  out    {service} -> {topic} ({ty})"),
                 Direction::Stop => format!("  motion {topic} ({ty}) -> {service}"),
             });
+        }
+        if let (Some(_), Some((imu, _))) = (&r.mag_in, &r.imu_in) {
+            lines.push(format!(
+                "  magnetometer joined to {imu} by stamp: each sample the newest reading up to \
+                 half a period after it, at most {} s older; else none (the heading on the gyro)",
+                r.mag_max_age_s
+            ));
         }
         if !r.imu_out.is_empty() {
             // Where linear_acceleration_covariance comes from when a sample has no accel_std.

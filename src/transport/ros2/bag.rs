@@ -1,4 +1,5 @@
-//! ROS 2 bags in and out (issue 30): `sensor_msgs/msg/Imu` messages in rosbag2's MCAP storage,
+//! ROS 2 bags in and out (issue 30): `sensor_msgs/msg/Imu` messages (and, read, a vehicle's
+//! motion and `sensor_msgs/msg/MagneticField`) in rosbag2's MCAP storage,
 //! read from a bag a ROS 2 recorder wrote and written so that ROS 2 tools read ours.
 //!
 //! **CDR by hand.** The Imu message is one fixed layout (two integers, one string, 37 doubles),
@@ -44,6 +45,7 @@ use crate::io::atomic::AtomicFile;
 use crate::io::mcap_file::{map_mcap, ChannelMessages, McapOpenError, McapReadError};
 
 use super::imu::{CdrError, Imu, IMU_DEFINITION, IMU_TYPE};
+use super::mag::{MagneticField, MAG_TYPE};
 use super::motion::{Motion, MotionKind};
 use crate::io::{BagError, BagErrorKind};
 
@@ -120,6 +122,11 @@ impl TopicInfo {
     /// or the `ros2idl` rosbag2 falls back to, does not change the CDR layout).
     pub fn is_imu(&self) -> bool {
         self.msg_type == IMU_TYPE && self.message_encoding == MESSAGE_ENCODING
+    }
+
+    /// Whether its messages are CDR `sensor_msgs/msg/MagneticField`.
+    pub fn is_mag(&self) -> bool {
+        self.msg_type == MAG_TYPE && self.message_encoding == MESSAGE_ENCODING
     }
 
     /// Its motion type, where it is one in CDR ([`MotionKind`]).
@@ -316,6 +323,24 @@ impl Bag {
         Ok(Messages::new(self, topic, ImuType))
     }
 
+    /// The messages of magnetometer topic `topic` (`sensor_msgs/msg/MagneticField` in CDR), in
+    /// file order, decoded as [`Bag::imu_messages`] decodes Imu.
+    pub fn mag_messages<'a>(&'a self, topic: &str) -> Result<MagMessages<'a>, BagError> {
+        let shown = self.path.display();
+        let topics = self.topics();
+        match topics.iter().find(|t| t.topic == topic) {
+            Some(t) if t.is_mag() => Ok(Messages::new(self, topic.to_string(), MagType)),
+            Some(t) => Err(err(
+                BagErrorKind::NotImu,
+                format!("{shown}: topic {}: not {MAG_TYPE} in cdr", t.shown()),
+            )),
+            None => Err(err(
+                BagErrorKind::NoSuchTopic,
+                format!("{shown}: no topic {topic}; its topics: {}", list(&topics)),
+            )),
+        }
+    }
+
     /// The messages of motion topic `topic` (`nav_msgs/msg/Odometry` or a twist, in CDR), in
     /// file order, decoded as [`Bag::imu_messages`] decodes Imu.
     pub fn motion_messages<'a>(&'a self, topic: &str) -> Result<MotionMessages<'a>, BagError> {
@@ -481,6 +506,22 @@ impl TopicType for ImuType {
     }
 }
 
+/// `sensor_msgs/msg/MagneticField`.
+pub struct MagType;
+
+impl TopicType for MagType {
+    type Msg = MagneticField;
+    fn name(&self) -> &'static str {
+        MAG_TYPE
+    }
+    fn accepts(&self, t: &TopicInfo) -> bool {
+        t.is_mag()
+    }
+    fn decode(&self, bytes: &[u8]) -> Result<MagneticField, CdrError> {
+        MagneticField::from_cdr(bytes)
+    }
+}
+
 /// A vehicle's motion of one [`MotionKind`].
 pub struct MotionType(pub MotionKind);
 
@@ -499,6 +540,8 @@ impl TopicType for MotionType {
 
 /// The messages of one Imu topic of a [`Bag`] ([`Bag::imu_messages`]).
 pub type ImuMessages<'a> = Messages<'a, ImuType>;
+/// The messages of one magnetometer topic of a [`Bag`] ([`Bag::mag_messages`]).
+pub type MagMessages<'a> = Messages<'a, MagType>;
 /// The messages of one motion topic of a [`Bag`] ([`Bag::motion_messages`]).
 pub type MotionMessages<'a> = Messages<'a, MotionType>;
 

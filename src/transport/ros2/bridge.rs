@@ -27,6 +27,7 @@ use std::io::Write as _;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use super::counts::BridgeCounts;
 use super::dds::{
     CdrPublisher, DdsReadiness, ImuPublisher, ImuSubscription, MotionSubscription, NodeNames,
     PublisherId, Ros2Node,
@@ -36,6 +37,8 @@ use super::diagnostics::{
     DIAGNOSTIC_ARRAY_TYPE, VECTOR3_STAMPED_TYPE,
 };
 use super::imu::{ImuMapping, Time, IMU_TYPE};
+use super::mag::{carry, MagJoinRule, MAG_TYPE};
+use super::mag_in::MagIn;
 use super::motion::MotionKind;
 use super::{Ros2Settings, DEFAULT_FRAME_ID, DOMAIN_KEY, NODE_KEY, TOPIC_KEY};
 use crate::clock::{monotonic_ns, StampCheck, MAX_STAMP_STEP_NS};
@@ -67,66 +70,6 @@ const POLL: Duration = Duration::from_millis(1);
 
 /// The wake-set tag of the DDS readiness descriptor (the outputs' wakers are tagged by index).
 const DDS_TAG: usize = usize::MAX;
-
-/// What the bridge carried.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct BridgeCounts {
-    /// Imu messages taken from the driver's topic.
-    pub imu_in: u64,
-    /// Of those, with a non-finite rate (flagged invalid).
-    pub imu_in_invalid: u64,
-    /// Samples missing from the driver's topic, by its stamps.
-    pub imu_in_missing: u64,
-    /// Of `imu_in`, with a stamp not believed (flagged; never a loss).
-    pub imu_in_stamp_faults: u64,
-    /// Imu messages refused: from a second publisher while the first one publishes.
-    pub imu_in_refused: u64,
-    /// Messages on an input topic that could not be read (malformed).
-    pub unreadable: u64,
-    /// Times the driver's topic changed publisher (a restart: each a new epoch).
-    pub imu_in_publishers: u64,
-    /// Imu messages published.
-    pub imu_out: u64,
-    /// Imu messages not published (a full send window, a stamp no ROS time holds).
-    pub imu_out_failed: u64,
-    /// Motion messages taken.
-    pub motion_in: u64,
-    /// Bias messages published.
-    pub bias_out: u64,
-    /// Diagnostics published.
-    pub diagnostics_out: u64,
-    /// Bias and diagnostics messages not published.
-    pub other_out_failed: u64,
-}
-
-impl std::fmt::Display for BridgeCounts {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{} Imu in ({} invalid, {} stamp faults, {} missing by their stamps, {} new \
-             publishers), {} refused (a second publisher), {} Imu out ({} not sent), {} motion \
-             in, {} unreadable{}",
-            self.imu_in,
-            self.imu_in_invalid,
-            self.imu_in_stamp_faults,
-            self.imu_in_missing,
-            self.imu_in_publishers,
-            self.imu_in_refused,
-            self.imu_out,
-            self.imu_out_failed,
-            self.motion_in,
-            self.unreadable,
-            if self.bias_out + self.diagnostics_out + self.other_out_failed > 0 {
-                format!(
-                    ", {} bias out, {} diagnostics out ({} not sent)",
-                    self.bias_out, self.diagnostics_out, self.other_out_failed
-                )
-            } else {
-                String::new()
-            }
-        )
-    }
-}
 
 /// A topic whose matching we watch.
 struct Watched {
@@ -215,6 +158,8 @@ struct ImuIn {
     frame_id: String,
     /// Its latest `linear_acceleration_covariance` (a driver's is usually constant).
     accel_covariance: Option<[f64; 9]>,
+    /// The magnetometer joined to its samples (`mag_in`).
+    mag: Option<MagIn>,
 }
 
 impl ImuIn {
@@ -243,6 +188,7 @@ impl ImuIn {
             faults_since: 0,
             frame_id: String::new(),
             accel_covariance: None,
+            mag: None,
         })
     }
 
@@ -301,8 +247,18 @@ impl ImuIn {
         }
     }
 
-    /// Take what arrived.
+    /// Take what arrived: the magnetometer's readings first, so that a reading and the Imu
+    /// message of its instant that came together join.
     fn pump(&mut self, counts: &mut BridgeCounts) {
+        if let Some(m) = &mut self.mag {
+            let (unreadable, first) = m.pump();
+            counts.unreadable += unreadable;
+            if let Some(e) = first.filter(|_| counts.unreadable == unreadable) {
+                say(format_args!(
+                    "an unreadable message on the magnetometer input: {e}"
+                ));
+            }
+        }
         loop {
             let (imu, from) = match self.sub.take() {
                 Ok(Some(m)) => m,
@@ -355,6 +311,15 @@ impl ImuIn {
                 ));
             }
             let finite = imu.angular_velocity.iter().all(|v| v.is_finite());
+            // The magnetometer's field of this stamp, if a fresh one came (never a reason to
+            // hold back or change the sample).
+            let mag = self.mag.as_mut().map(|m| {
+                let (field, line) = m.field_at(imu.stamp.ns());
+                if let Some(line) = line {
+                    say(format_args!("{line}"));
+                }
+                field
+            });
             let mut flags = if finite { 0 } else { RAW_INVALID };
             if fault.is_some() {
                 flags |= RAW_STAMP_FAULT;
@@ -362,7 +327,7 @@ impl ImuIn {
             // The accelerometer, unless the message marks it not provided (a non-finite
             // reading goes in as it came: the guard flags and holds it, as any driver's).
             let accel = imu.accel_reading();
-            let raw = RawSample {
+            let mut raw = RawSample {
                 t_ns,
                 seq: self.next_seq,
                 rate: imu.angular_velocity,
@@ -371,6 +336,7 @@ impl ImuIn {
                 accel: accel.unwrap_or_default(),
                 ..RawSample::default()
             };
+            carry(&mut raw, mag.flatten());
             self.next_seq += 1;
             counts.imu_in += 1;
             counts.imu_in_invalid += u64::from(!finite);
@@ -770,14 +736,20 @@ impl<'a> Bridge<'a> {
             Some((topic, service)) => {
                 watched.push(Watched::new(topic, IMU_TYPE, false));
                 let period_ns = 1e9 / start.rate_hz;
-                Some(ImuIn::open(
+                let mut imu = ImuIn::open(
                     topic,
                     service,
                     period_ns,
                     settings.depth,
                     &transport,
                     &mut node,
-                )?)
+                )?;
+                if let Some(mag) = &settings.mag_in {
+                    watched.push(Watched::new(mag, MAG_TYPE, false));
+                    let rule = MagJoinRule::new(start.rate_hz, settings.mag_max_age_s);
+                    imu.mag = Some(MagIn::open(mag, rule, settings.depth, &mut node)?);
+                }
+                Some(imu)
             }
             None => None,
         };
@@ -958,6 +930,9 @@ fn wake_ups(
     let readiness = DdsReadiness::new().map_err(io)?;
     if let Some(i) = imu_in {
         readiness.watch_imu(&mut i.sub, 0).map_err(io)?;
+        if let Some(m) = &mut i.mag {
+            readiness.watch_mag(&mut m.sub, 2).map_err(io)?;
+        }
     }
     if let Some(m) = motion {
         readiness.watch_motion(&mut m.sub, 1).map_err(io)?;

@@ -273,6 +273,22 @@ impl<'a> Cursor<'a> {
         Ok(())
     }
 
+    /// `header.frame_id` into `out` (cleared first): its length checked against the bytes left
+    /// before anything is taken; a length of 0 (no NUL, not valid CDR, but some writers send it
+    /// for "") reads as "".
+    pub(super) fn frame_id_into(&mut self, out: &mut String) -> Result<(), CdrError> {
+        let len = self.u32("header.frame_id's length")? as usize;
+        let text = self.take(len, || "header.frame_id".to_string())?;
+        out.clear();
+        if let Some((&last, text)) = text.split_last() {
+            if last != 0 {
+                return Err(CdrError::NoNul);
+            }
+            out.push_str(std::str::from_utf8(text).map_err(|_| CdrError::NotUtf8)?);
+        }
+        Ok(())
+    }
+
     /// Step over `n` doubles.
     pub(super) fn skip_f64s(&mut self, n: usize, field: &str) -> Result<(), CdrError> {
         let pad = (8 - self.pos % 8) % 8;

@@ -4,26 +4,36 @@
 //! |---|---|
 //! | `imu.rs` | `sensor_msgs/msg/Imu`: fields, CDR by hand, and [`ImuMapping`] from our samples |
 //! | `bag.rs` | rosbag2 bags (MCAP): Imu and motion topics read, Imu topics written |
+//! | `mag.rs` | `sensor_msgs/msg/MagneticField`, CDR by hand, and [`MagJoinRule`]: the field joined to the Imu samples by stamp |
 //! | `motion.rs` | a vehicle's motion (Odometry, twists): its types and its speed, CDR by hand |
 //! | `diagnostics.rs` | the bias as `Vector3Stamped` and the filter's `DiagnosticArray`, CDR by hand |
+//! | `counts.rs` | what the ROS 2 side carried, and its line at exit (feature `ros2`) |
 //! | `bridge.rs` | the daemon's ROS 2 side: topics to services and back, on its own thread (feature `ros2`) |
+//! | `mag_in.rs` | the live magnetometer input: a `MagneticField` topic joined to the Imu input's samples (feature `ros2`) |
 //! | `dds.rs` | live topics: a node in the ROS 2 graph, Imu in and out, motion as a stop signal (feature `ros2`) |
 
 pub mod bag;
 #[cfg(feature = "ros2")]
 mod bridge;
 #[cfg(feature = "ros2")]
+mod counts;
+#[cfg(feature = "ros2")]
 mod dds;
 mod diagnostics;
 mod imu;
+mod mag;
+#[cfg(feature = "ros2")]
+mod mag_in;
 mod motion;
 
 #[cfg(feature = "ros2")]
-pub use bridge::{run_bridge, BridgeCounts};
+pub use bridge::run_bridge;
+#[cfg(feature = "ros2")]
+pub use counts::{BridgeCounts, MagCounts};
 #[cfg(feature = "ros2")]
 pub use dds::{
     domain_id, ros_type_name, CdrPublisher, DdsReadiness, ImuPublisher, ImuSubscription,
-    MotionSubscription, NodeNames, PublisherId, Ros2Node, DOMAIN_ENV,
+    MagSubscription, MotionSubscription, NodeNames, PublisherId, Ros2Node, DOMAIN_ENV,
 };
 
 pub use diagnostics::{
@@ -33,6 +43,10 @@ pub use diagnostics::{
 pub use imu::{
     seconds_text, AccelReading, CdrError, Imu, ImuMapping, Time, IMU_DEFINITION, IMU_TYPE,
     NOT_PROVIDED,
+};
+pub use mag::{
+    carry as carry_mag, MagJoin, MagJoinRule, MagReading, MagneticField, DEFAULT_MAG_MAX_AGE_S,
+    HELD_READINGS, MAG_TYPE,
 };
 pub use motion::{Motion, MotionKind};
 
@@ -68,6 +82,11 @@ pub struct Ros2Settings {
     /// A driver node's `sensor_msgs/msg/Imu` topic and the service it feeds (an
     /// `ingest.iceoryx2` stage's input).
     pub imu_in: Option<(String, String)>,
+    /// A driver node's `sensor_msgs/msg/MagneticField` topic, joined by stamp to the samples of
+    /// `imu_in` (its service), [`MagJoinRule`].
+    pub mag_in: Option<String>,
+    /// A reading older than this, s, is no reading ([`MagJoinRule::max_age_ns`]).
+    pub mag_max_age_s: f64,
     /// Services published as `sensor_msgs/msg/Imu` topics: (service, topic).
     pub imu_out: Vec<(String, String)>,
     /// The vehicle's motion: its topic, its ROS 2 type and the StopSignal service it feeds (a
@@ -135,7 +154,7 @@ impl Ros2Settings {
         }
     }
 
-    /// Every topic: the Imu in, each Imu out, the bias out, the diagnostics, the motion in, in
+    /// Every topic: the Imu in, the magnetometer in, each Imu out, the bias out, the diagnostics, the motion in, in
     /// that order.
     pub fn topics(&self) -> Vec<Ros2Topic<'_>> {
         let imu_in = self.imu_in.iter().map(|(topic, service)| Ros2Topic {
@@ -144,6 +163,17 @@ impl Ros2Settings {
             ty: IMU_TYPE,
             service,
         });
+        // The magnetometer feeds the Imu input's service, joined to its samples.
+        let mag_in = self
+            .mag_in
+            .iter()
+            .zip(&self.imu_in)
+            .map(|(topic, (_, service))| Ros2Topic {
+                direction: Direction::In,
+                topic,
+                ty: MAG_TYPE,
+                service,
+            });
         let imu_out = self.imu_out.iter().map(|(service, topic)| Ros2Topic {
             direction: Direction::Out,
             topic,
@@ -169,6 +199,7 @@ impl Ros2Settings {
             service,
         });
         imu_in
+            .chain(mag_in)
             .chain(imu_out)
             .chain(bias)
             .chain(diagnostics)
