@@ -15,9 +15,12 @@ use std::time::Duration;
 use common::{collect, driftless, finish, qos, start, text, Dir, Prefix};
 use driftless::sim::{SimConfig, Simulator};
 use driftless::transport::ros2::bag::ImuBagWriter;
-use driftless::transport::ros2::{Imu, Time, IMU_TYPE};
+use driftless::transport::ros2::{Imu, MagneticField, Time, IMU_TYPE, MAG_TYPE};
 use driftless::transport::Transport;
-use driftless::wire::{GyroSample, FLAG_INPUT_INVALID, FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS};
+use driftless::wire::{
+    GyroSample, FLAG_INPUT_INVALID, FLAG_STAMP_FAULT, FLAG_TIME_BACKWARDS, SENSOR_MAG,
+    SENSOR_MAG_INVALID,
+};
 use serde_json::Value;
 
 fn fixture(name: &str) -> PathBuf {
@@ -514,4 +517,176 @@ fn a_looped_bag_whose_first_message_does_not_decode_keeps_its_time_base() {
         [(3, 1_020_000_000), (4, 1_030_000_000), (5, 1_040_000_000)],
         "{t:?}"
     );
+}
+
+/// The field of magnetometer reading `k`, tesla: 20 uT north-ish, 40 uT down, its own doubles.
+fn mag_field(k: i64) -> [f64; 3] {
+    [
+        20e-6 + k as f64 * 1e-9,
+        -5e-6 + (k * 7919 % 101) as f64 * 1e-10,
+        -40e-6,
+    ]
+}
+
+/// A bag of `/imu` (`imu`, log time = stamp) and `/imu/mag` (`mags`, in the order given) with
+/// their types, written directly.
+fn bag_with_mag(path: &Path, imu: &[Imu], mags: &[MagneticField]) {
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .create(BufWriter::new(File::create(path).unwrap()))
+        .unwrap();
+    let mut channel = |topic: &str, ty: &str| {
+        let schema = w.add_schema(ty, "ros2msg", b"").unwrap();
+        w.add_channel(schema, topic, "cdr", &BTreeMap::new())
+            .unwrap()
+    };
+    let (imu_channel, mag_channel) = (channel("/imu", IMU_TYPE), channel("/imu/mag", MAG_TYPE));
+    let mut all: Vec<(u16, u64, Vec<u8>)> = imu
+        .iter()
+        .map(|m| (imu_channel, m.stamp.ns() as u64, m.to_cdr().unwrap()))
+        .collect();
+    // The mags' receive times: 1 ms after the stamps in order, given in the mags' order (so a
+    // mag given out of stamp order was received out of order).
+    let mut received: Vec<u64> = mags
+        .iter()
+        .map(|m| m.stamp.ns() as u64 + 1_000_000)
+        .collect();
+    received.sort_unstable();
+    for (m, t) in mags.iter().zip(received) {
+        all.push((mag_channel, t, m.to_cdr().unwrap()));
+    }
+    // By log time, as a recorder writes.
+    all.sort_by_key(|&(c, t, _)| (t, c));
+    for (c, t, data) in all {
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: c,
+                sequence: 0,
+                log_time: t,
+                publish_time: t,
+            },
+            &data,
+        )
+        .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// A bag's magnetometer through `ingest.mcap`'s `mag_topic` and a real daemon: Imu at 100 Hz,
+/// MagneticField at 50 Hz stamped 2 ms after every second Imu message (in the file out of
+/// order here and there, one without a stamp, one NaN), stopping at 3.98 s. Each sample
+/// carries, in tesla bit for bit, the newest reading up to half a period after its stamp
+/// while it is at most 0.1 s old; after that none; the NaN reading flagged invalid by the
+/// guard; every Imu sample served with its own rates.
+#[test]
+fn ingest_mcap_joins_a_bags_magnetometer_to_the_samples_by_stamp() {
+    const N: usize = 600;
+    const MS: i64 = 1_000_000;
+    let dir = Dir::new();
+    let imu = simulated(N);
+    let t0 = imu[0].stamp.ns();
+    let mut mags: Vec<MagneticField> = (0..400i64)
+        .step_by(2)
+        .map(|k| MagneticField {
+            stamp: Time::from_ns(t0 + k * 10 * MS + 2 * MS).unwrap(),
+            frame_id: "imu_link".into(),
+            magnetic_field: if k == 100 {
+                [f64::NAN; 3]
+            } else {
+                mag_field(k)
+            },
+            magnetic_field_covariance: [1e-12, 0.0, 0.0, 0.0, 1e-12, 0.0, 0.0, 0.0, 1e-12],
+        })
+        .collect();
+    // Stamps out of order in the file (a recorder's receive order), and one not set.
+    mags.swap(60, 61);
+    mags.swap(150, 152);
+    mags.push(MagneticField {
+        stamp: Time::default(),
+        ..mags[0].clone()
+    });
+    let file = dir.path("mag.mcap");
+    bag_with_mag(&file, &imu, &mags);
+
+    let prefix = Prefix::new("bagmag");
+    let text_ = std::fs::read_to_string(bag_pipeline(&dir, "bagmag", &file))
+        .unwrap()
+        .replace(
+            "pace = \"asap\"",
+            "pace = \"asap\"\nmag_topic = \"/imu/mag\"",
+        );
+    let pipeline = dir.write("mag.toml", &text_);
+    let o = driftless(&["validate", pipeline.to_str().unwrap()]);
+    let (out, err) = text(&o);
+    assert!(
+        out.contains("magnetometer from /imu/mag, joined by stamp"),
+        "{out}{err}"
+    );
+    let me = Transport::new(&prefix.0, "reader", qos(4096)).expect("node");
+    let sub = me
+        .input::<GyroSample>("bagmag/corrected")
+        .expect("subscriber");
+    let daemon = start(&pipeline, &prefix, &[]);
+    let got = collect(&sub, N, Duration::from_secs(60));
+    let (code, err) = finish(daemon, Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(got.len(), N, "every Imu sample once: {err}");
+    assert!(err.contains("1 without a stamp left out"), "{err}");
+    let bits = |v: [f64; 3]| v.map(f64::to_bits);
+    for (k, (s, m)) in got.iter().zip(&imu).enumerate() {
+        let k = k as i64;
+        assert_eq!(s.seq, k as u64, "in order");
+        assert_eq!(s.t_ns, m.stamp.ns() as u64, "{k}");
+        assert_eq!(
+            bits(s.rate),
+            bits(m.angular_velocity),
+            "{k}: the rates untouched"
+        );
+        assert_eq!(s.flags & FLAG_INPUT_INVALID, 0, "{k}");
+        // The reading of this stamp: the even message at or just before it (2 ms after an
+        // even one is within half a period), held while at most 0.1 s old.
+        let j = (k - k % 2).min(398);
+        let fresh = k * 10 * MS <= j * 10 * MS + 2 * MS + 100 * MS;
+        let sensors = s.sensors & (SENSOR_MAG | SENSOR_MAG_INVALID);
+        match (fresh, j) {
+            (false, _) => assert_eq!(sensors, 0, "{k}: aged out"),
+            // The NaN reading: flagged, the last good field (reading 98) held.
+            (true, 100) => {
+                assert_eq!(sensors, SENSOR_MAG | SENSOR_MAG_INVALID, "{k}");
+                assert_eq!(bits(s.mag), bits(mag_field(98)), "{k}: held");
+            }
+            (true, _) => {
+                assert_eq!(sensors, SENSOR_MAG, "{k}");
+                assert_eq!(bits(s.mag), bits(mag_field(j)), "{k}: reading {j}, tesla");
+            }
+        }
+    }
+    // The last fresh sample is 408 (3.98 s + 0.1 s); every one after carries none.
+    assert!(got[408].sensors & SENSOR_MAG != 0);
+    assert!(got[409..].iter().all(|s| s.sensors & SENSOR_MAG == 0));
+
+    // Its keys checked: a topic of another type, an age without a topic.
+    for (from, to, want) in [
+        (
+            "mag_topic = \"/imu/mag\"",
+            "mag_topic = \"/imu\"",
+            "not sensor_msgs/msg/MagneticField",
+        ),
+        (
+            "mag_topic = \"/imu/mag\"",
+            "mag_max_age_s = 0.2",
+            "mag_max_age_s needs a mag_topic",
+        ),
+        (
+            "mag_topic = \"/imu/mag\"",
+            "mag_topic = \"/nope\"",
+            "no topic /nope",
+        ),
+    ] {
+        let bad = dir.write("bad.toml", &text_.replace(from, to));
+        let o = driftless(&["validate", bad.to_str().unwrap()]);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{to}: {err}");
+        assert!(err.contains(want), "{to}: {err}");
+    }
 }
