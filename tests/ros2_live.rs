@@ -1189,3 +1189,121 @@ fn the_attitude_pipeline_fills_the_orientation_and_its_covariance() {
     let dot: f64 = first.iter().zip(&last).map(|(a, b)| a * b).sum();
     assert!(dot.abs() < 0.999, "{first:?} {last:?}");
 }
+
+/// The yaw of an orientation quaternion (x, y, z, w), body to ENU: anticlockwise from east.
+fn yaw_of(q: &[f64]) -> f64 {
+    let [x, y, z, w] = [q[0], q[1], q[2], q[3]];
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+}
+
+/// 9D through the daemon (`mag_in`, `attitude.6d` with `use_mag`): an rclpy driver publishes a
+/// level gyro at rest at 1 kHz and a MagneticField at 100 Hz of a body turned 30 deg from
+/// east, for 4 s of the 5; the rclpy navigator's Imu has an absolute yaw within 3 deg of 30
+/// deg, with the heading filter's variance (not REP 145's relative pi^2) once the field was
+/// trusted, and keeps it when the magnetometer stops. Every Imu message goes through; the
+/// exit line counts the readings joined (4,000 samples and the 0.1 s after the last reading).
+#[test]
+fn the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute() {
+    if !in_netns("the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute") {
+        return;
+    }
+    const M: usize = 5000;
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/pipelines/ros2-attitude.toml"
+    ))
+    .unwrap();
+    let with = text
+        .replacen("[ros2]\n", "[ros2]\nmag_in = { topic = \"/imu/mag\" }\n", 1)
+        .replacen(
+            "output = \"ros2/attitude\"\n",
+            "output = \"ros2/attitude\"\nuse_mag = true\n",
+            1,
+        );
+    assert!(
+        with.contains("[ros2]\nmag_in") && with.contains("use_mag = true"),
+        "both edits made"
+    );
+    let dir = std::env::temp_dir().join(format!("dl_mag_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ros2-9d.toml");
+    std::fs::write(&file, with).unwrap();
+    let d = daemon_of(&file, "mag").spawn().expect("the daemon runs");
+    let mut nav = navigator(M);
+    let mut driver = peer_with("mag", "/imu/data_raw", M, &[("PEER_MAG_UNTIL", "4000")]);
+    assert!(driver.wait().unwrap().success());
+    let got = lines(&mut nav);
+    assert!(nav.wait().unwrap().success());
+    let err = stop(d);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let msgs: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(msgs.len(), M, "every message through: {err}");
+    let pi2 = std::f64::consts::PI.powi(2);
+    let yaw_var = |m: &serde_json::Value| floats(&m["orientation_covariance"])[8];
+    // Relative at first (no field trusted yet), then absolute for good.
+    assert_eq!(yaw_var(msgs[0]), pi2, "the first yaw is relative");
+    let first = msgs
+        .iter()
+        .position(|m| yaw_var(m) != pi2)
+        .unwrap_or_else(|| panic!("the yaw never became absolute: {err}"));
+    assert!(first < 1000, "absolute only at message {first}");
+    let yaw = |m: &serde_json::Value| yaw_of(&floats(&m["orientation"])).to_degrees();
+    for (i, m) in msgs.iter().enumerate() {
+        assert_eq!(
+            m["stamp"][1],
+            (i % 1000) as i64 * 1_000_000,
+            "{i}: in order"
+        );
+        // From the first fix on: never "any heading" again, and the heading the field implies.
+        if i >= first {
+            let var = yaw_var(m);
+            assert!(var.is_finite() && var > 0.0 && var < pi2, "{i}: {var}");
+            assert!((yaw(m) - 30.0).abs() < 3.0, "{i}: yaw {} deg", yaw(m));
+        }
+    }
+    // Wide at the first fix; once the field passed its tests for 2 s, used and sure (the
+    // heading filter's sd: under 5 deg by the last reading).
+    let sd = |i: usize| yaw_var(msgs[i]).sqrt().to_degrees();
+    assert!(
+        sd(first) > 10.0 && sd(3999) < 5.0,
+        "{} {}",
+        sd(first),
+        sd(3999)
+    );
+    eprintln!(
+        "9D: absolute from message {first} (sd {:.1} deg, yaw {:.2} deg); at 3999 sd {:.2} deg, \
+         yaw {:.2} deg; at {} sd {:.2} deg, yaw {:.2} deg",
+        yaw_var(msgs[first]).sqrt().to_degrees(),
+        yaw(msgs[first]),
+        yaw_var(msgs[3999]).sqrt().to_degrees(),
+        yaw(msgs[3999]),
+        M - 1,
+        yaw_var(msgs[M - 1]).sqrt().to_degrees(),
+        yaw(msgs[M - 1]),
+    );
+    // Once the magnetometer stopped, the heading rests on the gyro: its variance grows.
+    assert!(yaw_var(msgs[M - 1]) > yaw_var(msgs[4100]), "{err}");
+    // The exit line: 400 readings; samples 0..=4090 carry one (the last, at 3.990 s, serves
+    // 0.1 s), give or take the few whose reading arrived after them.
+    let line = err
+        .lines()
+        .find(|l| l.contains("MagneticField in"))
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(
+        line.contains("400 MagneticField in (0 refused: no stamp)"),
+        "{line}"
+    );
+    let count = |what: &str| -> usize {
+        let at = line.find(what).unwrap_or_else(|| panic!("{line}"));
+        line[..at]
+            .split_whitespace()
+            .last()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (with_mag, without) = (count(" Imu with a magnetometer reading"), count(" without"));
+    assert_eq!(with_mag + without, M, "{line}");
+    assert!(with_mag.abs_diff(4091) <= 10, "{line}");
+    assert!(err.contains("/imu/mag: no reading fresh enough"), "{err}");
+}

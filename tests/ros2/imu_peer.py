@@ -16,7 +16,11 @@ geometry_msgs/msg/Vector3Stamped it receives on TOPIC as a JSON line, `diagnosti
 diagnostic_msgs/msg/DiagnosticArray, until COUNT came. PEER_NODE names the node. For benches/ros2.rs: `pace`
 publishes COUNT messages at PEER_RATE Hz (default 1000) stamped with the system clock just
 before each publish; `latency` receives COUNT and prints, as one JSON line, how many came, in
-order, and the percentiles of receipt minus stamp (us).
+order, and the percentiles of receipt minus stamp (us). `mag` publishes COUNT Imu messages
+of a level gyro at rest (gravity on z, with a covariance) and, before every 10th, a
+sensor_msgs/msg/MagneticField on /imu/mag with the same stamp: the field (tesla) of 20 uT north
+and 40 uT down seen by a body turned MAG_YAW_DEG (default 30) anticlockwise from east (ENU),
+until message PEER_MAG_UNTIL (default COUNT), then no more (the magnetometer stops).
 
 Runs inside the test's private network namespace only (DDS never leaves it).
 Versions: requirements-ros2.txt beside this file.
@@ -34,7 +38,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, MagneticField
 
 
 ACCEL_COVARIANCE = [1e-4, 1e-6, 0.0, 1e-6, 2e-4, 0.0, 0.0, 0.0, 3e-4]
@@ -187,6 +191,34 @@ def main() -> int:
             ahead = start + (i + 1) / rate - time.monotonic()
             if ahead > 0:
                 time.sleep(ahead)
+        time.sleep(0.5)
+        print(json.dumps({"sent": count}), flush=True)
+    elif mode == "mag":
+        yaw = math.radians(float(os.environ.get("MAG_YAW_DEG", "30")))
+        until = int(os.environ.get("PEER_MAG_UNTIL", str(count)))
+        pub = node.create_publisher(Imu, topic, 10)
+        mag_pub = node.create_publisher(MagneticField, "/imu/mag", 10)
+        while time.monotonic() < end and (
+            pub.get_subscription_count() == 0 or mag_pub.get_subscription_count() == 0
+        ):
+            time.sleep(0.01)
+        time.sleep(0.5)
+        for i in range(count):
+            m = message(i, still=True)
+            m.linear_acceleration.x, m.linear_acceleration.y = 0.0, 0.0
+            m.linear_acceleration.z = 9.80665
+            m.linear_acceleration_covariance = ACCEL_COVARIANCE
+            if i % 10 == 0 and i < until:
+                f = MagneticField()
+                f.header = m.header
+                # The body's view of the earth's field: Rz(-yaw) (0, 20, -40) uT.
+                f.magnetic_field.x = 20e-6 * math.sin(yaw)
+                f.magnetic_field.y = 20e-6 * math.cos(yaw)
+                f.magnetic_field.z = -40e-6
+                f.magnetic_field_covariance = [1e-14, 0.0, 0.0, 0.0, 1e-14, 0.0, 0.0, 0.0, 1e-14]
+                mag_pub.publish(f)
+            pub.publish(m)
+            time.sleep(0.001)
         time.sleep(0.5)
         print(json.dumps({"sent": count}), flush=True)
     elif mode == "wrongtype":

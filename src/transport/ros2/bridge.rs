@@ -351,6 +351,9 @@ impl ImuIn {
             let _ = self.out.send(&raw);
             self.out.notify();
         }
+        if let Some(m) = &self.mag {
+            counts.mag = m.counts;
+        }
     }
 }
 
