@@ -1076,6 +1076,94 @@ fn validate_checks_the_bias_and_diagnostics_tables_against_the_chain() {
     );
 }
 
+#[test]
+fn validate_checks_the_magnetometer_table() {
+    // No DDS: validate only reads the file.
+    let validate = |tag: &str, extra: &str, without_imu_in: bool| {
+        let (dir, file) = ros2_pipeline_with(tag, extra);
+        if without_imu_in {
+            let text = std::fs::read_to_string(&file).unwrap();
+            let cut = text.replacen(
+                "[ros2.imu_in]\ntopic = \"/imu/data_raw\"\nservice = \"sensor/raw\"\n",
+                "",
+                1,
+            );
+            assert_ne!(cut, text);
+            std::fs::write(&file, cut).unwrap();
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_driftless"))
+            .arg("validate")
+            .arg(&file)
+            .output()
+            .unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, text, err) = validate(
+        "mok",
+        "mag_in = { topic = \"/imu/mag\" }\nmag_max_age_s = 0.05",
+        false,
+    );
+    assert_eq!(code, Some(0), "{err}");
+    for line in [
+        "    in     /imu/data_raw (sensor_msgs/msg/Imu) -> sensor/raw",
+        "    in     /imu/mag (sensor_msgs/msg/MagneticField) -> sensor/raw",
+        "    magnetometer joined to /imu/data_raw by stamp: each sample the newest reading up \
+         to half a period after it, at most 0.05 s older; else none (the heading on the gyro)",
+    ] {
+        assert!(text.lines().any(|l| l == line), "{line:?} in\n{text}");
+    }
+    // Refused with exit 2 and an error that says `want`.
+    for (tag, extra, without_imu_in, want) in [
+        (
+            "mnoimu",
+            "mag_in = { topic = \"/imu/mag\" }",
+            true,
+            "mag_in: the magnetometer is joined by stamp to the samples of imu_in, and there is \
+             no imu_in",
+        ),
+        (
+            "mage",
+            "mag_max_age_s = 0.2",
+            false,
+            "mag_max_age_s is the age limit of mag_in's readings, and there is no mag_in",
+        ),
+        (
+            "mtype",
+            "mag_in = { topic = \"/imu/mag\", type = \"sensor_msgs/msg/Imu\" }",
+            false,
+            "mag_in.type is sensor_msgs/msg/MagneticField",
+        ),
+        (
+            "mserv",
+            "mag_in = { topic = \"/imu/mag\", service = \"sensor/raw\" }",
+            false,
+            "unknown field `service`",
+        ),
+        (
+            "mrange",
+            "mag_in = { topic = \"/imu/mag\" }\nmag_max_age_s = 0.0",
+            false,
+            "mag_max_age_s",
+        ),
+        (
+            "mtopic",
+            "mag_in = { topic = \"imu/mag\" }",
+            false,
+            "an absolute ROS 2 name",
+        ),
+    ] {
+        let (code, _, err) = validate(tag, extra, without_imu_in);
+        assert_eq!(code, Some(2), "{tag}: {err}");
+        assert!(err.contains(want), "{tag}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{tag}: one line: {err}");
+    }
+}
+
 /// The driver's specific force of message `i` (tests/ros2/imu_peer.py `accel`, the same IEEE
 /// operations in the same order: the same bits).
 fn peer_accel(i: usize) -> [f64; 3] {
