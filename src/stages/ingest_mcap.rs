@@ -62,7 +62,7 @@ use crate::io::{BagError, BagErrorKind};
 use crate::rate_log::{Stamps, RATE_TOLERANCE};
 use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
-use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
+use crate::stages::schema::{Context, DefaultValue, Key, Src, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
 use crate::transport::ros2::bag::Bag;
 use crate::transport::ros2::{carry_mag, MagJoinRule, MagReading, DEFAULT_MAG_MAX_AGE_S, IMU_TYPE};
@@ -491,44 +491,10 @@ fn parse_bag(
     let src = t.src;
     let bag = Bag::open(&file).map_err(|e| src.span(file_key, e))?;
     if let Some((k, m)) = &mag {
-        let messages = bag.mag_messages(&m.topic).map_err(|e| src.span(k, e))?;
-        let mut decoded = 0;
-        for m in messages.take(CHECKED_MESSAGES) {
-            match m {
-                Ok(_) => decoded += 1,
-                Err(e) if e.kind == BagErrorKind::Cdr => {}
-                Err(e) => return Err(src.span(k, e)),
-            }
-        }
-        if decoded == 0 {
-            return Err(src.span(
-                k,
-                format!("mag_topic {}: none of its first messages decodes", m.topic),
-            ));
-        }
+        check_topic(src, k, "mag_topic", bag.mag_messages(&m.topic))?;
     }
     if let Some((k, stop)) = &stops {
-        let mut decoded = 0;
-        for m in bag
-            .motion_messages(&stop.topic)
-            .map_err(|e| src.span(k, e))?
-            .take(CHECKED_MESSAGES)
-        {
-            match m {
-                Ok(_) => decoded += 1,
-                Err(e) if e.kind == BagErrorKind::Cdr => {}
-                Err(e) => return Err(src.span(k, e)),
-            }
-        }
-        if decoded == 0 {
-            return Err(src.span(
-                k,
-                format!(
-                    "stop_topic {}: none of its first messages decodes",
-                    stop.topic
-                ),
-            ));
-        }
+        check_topic(src, k, "stop_topic", bag.motion_messages(&stop.topic))?;
     }
     let topic = match topic_key {
         Some(k) => bag
@@ -608,6 +574,32 @@ fn parse_bag(
         mag: mag.map(|(_, m)| m),
         note: None,
     })
+}
+
+/// A bag's topic beside the Imu (`key` at `k`: `stop_topic`, `mag_topic`), checked: it is of
+/// its type (`messages` opened), its first [`CHECKED_MESSAGES`] messages read without a corrupt
+/// chunk, and at least one of them decodes.
+fn check_topic<M>(
+    src: &Src<'_>,
+    k: &Spanned<String>,
+    key: &str,
+    messages: Result<impl Iterator<Item = Result<M, BagError>>, BagError>,
+) -> Result<(), InputError> {
+    let mut decoded = 0;
+    for m in messages.map_err(|e| src.span(k, e))?.take(CHECKED_MESSAGES) {
+        match m {
+            Ok(_) => decoded += 1,
+            Err(e) if e.kind == BagErrorKind::Cdr => {}
+            Err(e) => return Err(src.span(k, e)),
+        }
+    }
+    if decoded == 0 {
+        return Err(src.span(
+            k,
+            format!("{key} {}: none of its first messages decodes", k.get_ref()),
+        ));
+    }
+    Ok(())
 }
 
 /// The reader thread of a bag: message `n` of the topic as raw sample `n - 1`, its stamp as
