@@ -1289,7 +1289,8 @@ fn yaw_of(q: &[f64]) -> f64 {
 /// east, for 4 s of the 5; the rclpy navigator's Imu has an absolute yaw within 3 deg of 30
 /// deg, with the heading filter's variance (not REP 145's relative pi^2) once the field was
 /// trusted, and keeps it when the magnetometer stops. Every Imu message goes through; the
-/// exit line counts the readings joined (4,000 samples and the 0.1 s after the last reading).
+/// exit line counts the readings joined (4,000 samples and the 0.1 s after the last reading);
+/// a NaN reading is flagged and held by the guard at the samples it joins.
 #[test]
 fn the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute() {
     if !in_netns("the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute") {
@@ -1318,7 +1319,12 @@ fn the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute() {
     std::fs::write(&file, with).unwrap();
     let d = daemon_of(&file, "mag").spawn().expect("the daemon runs");
     let mut nav = navigator(M);
-    let mut driver = peer_with("mag", "/imu/data_raw", M, &[("PEER_MAG_UNTIL", "4000")]);
+    let mut driver = peer_with(
+        "mag",
+        "/imu/data_raw",
+        M,
+        &[("PEER_MAG_UNTIL", "4000"), ("PEER_MAG_NAN_AT", "3000")],
+    );
     assert!(driver.wait().unwrap().success());
     let got = lines(&mut nav);
     assert!(nav.wait().unwrap().success());
@@ -1394,4 +1400,16 @@ fn the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute() {
     assert_eq!(with_mag + without, M, "{line}");
     assert!(with_mag.abs_diff(4091) <= 10, "{line}");
     assert!(err.contains("/imu/mag: no reading fresh enough"), "{err}");
+    // The NaN reading at 3 s: carried to the ten samples after it (give or take one whose
+    // reading came late), each flagged and held by the guard, never a NaN out (the yaw above).
+    let held = err
+        .lines()
+        .find_map(|l| l.strip_prefix("flagged: "))
+        .and_then(|l| {
+            l.split(", ")
+                .find_map(|p| p.strip_suffix(" accelerometer or magnetometer readings held"))
+        })
+        .and_then(|n| n.parse::<usize>().ok())
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!((9..=11).contains(&held), "{held} held: {err}");
 }

@@ -20,7 +20,8 @@ order, and the percentiles of receipt minus stamp (us). `mag` publishes COUNT Im
 of a level gyro at rest (gravity on z, with a covariance) and, before every 10th, a
 sensor_msgs/msg/MagneticField on /imu/mag with the same stamp: the field (tesla) of 20 uT north
 and 40 uT down seen by a body turned MAG_YAW_DEG (default 30) anticlockwise from east (ENU),
-until message PEER_MAG_UNTIL (default COUNT), then no more (the magnetometer stops).
+until message PEER_MAG_UNTIL (default COUNT), then no more (the magnetometer stops); with
+PEER_MAG_NAN_AT=i,... the readings before those messages are NaN.
 
 Runs inside the test's private network namespace only (DDS never leaves it).
 Versions: requirements-ros2.txt beside this file.
@@ -196,6 +197,7 @@ def main() -> int:
     elif mode == "mag":
         yaw = math.radians(float(os.environ.get("MAG_YAW_DEG", "30")))
         until = int(os.environ.get("PEER_MAG_UNTIL", str(count)))
+        mag_nan_at = {int(k) for k in os.environ.get("PEER_MAG_NAN_AT", "").split(",") if k}
         pub = node.create_publisher(Imu, topic, 10)
         mag_pub = node.create_publisher(MagneticField, "/imu/mag", 10)
         while time.monotonic() < end and (
@@ -216,6 +218,8 @@ def main() -> int:
                 f.magnetic_field.y = 20e-6 * math.cos(yaw)
                 f.magnetic_field.z = -40e-6
                 f.magnetic_field_covariance = [1e-14, 0.0, 0.0, 0.0, 1e-14, 0.0, 0.0, 0.0, 1e-14]
+                if i in mag_nan_at:
+                    f.magnetic_field.x = float("nan")
                 mag_pub.publish(f)
             pub.publish(m)
             time.sleep(0.001)
