@@ -94,7 +94,7 @@ impl std::fmt::Display for MagCounts {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} MagneticField in ({} refused: no stamp), {} Imu with a magnetometer reading, {} \
+            "{} MagneticField in ({} refused: no stamp, or older than all held), {} Imu with a magnetometer reading, {} \
              without",
             self.taken, self.refused, self.joined, self.missing
         )

@@ -68,6 +68,12 @@ impl MagIn {
     /// The field an Imu sample stamped `t_ns` carries, and a line to say when the stream
     /// stops joining (the first [`SAID_STOPS`] times) or joins again after that.
     pub fn field_at(&mut self, t_ns: i64) -> (Option<[f64; 3]>, Option<String>) {
+        if t_ns <= 0 {
+            // A sample without a stamp (flagged a stamp fault) joins nothing, and says nothing
+            // of the magnetometer stream.
+            self.counts.missing += 1;
+            return (None, None);
+        }
         let field = self.join.at(t_ns);
         let mut line = None;
         match (field.is_some(), self.joined_last) {
