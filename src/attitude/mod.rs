@@ -66,6 +66,7 @@ use vqf_rs::{Params, VQF};
 
 pub mod hard_iron;
 pub mod mag;
+pub mod mag_cal;
 
 pub use mag::{MagConfig, MagHeading, MagUse};
 
