@@ -37,8 +37,21 @@
 //!   turned forward by it, `m - delay (w x m)`, and the delay is estimated online from what is
 //!   left, by least squares on the used blocks ([`MagConfig::delay`] fixes it instead).
 
-use super::hard_iron::{cross, dot, mat_vec, rotation, Sums};
+use super::hard_iron::{cross, dot, mat_vec, rotation, Mat3, Sums};
+use super::mag_cal::check_soft_iron;
 use super::MAX_READING;
+
+/// What the filter learnt of the magnetometer that outlives a run (`attitude.6d`'s
+/// `state_file`): the hard iron and the reference field.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MagLearnt {
+    /// The hard-iron offset in use, of readings after [`MagConfig::soft_iron`].
+    pub hard_iron: [f64; 3],
+    /// Its standard deviation when it was last taken from a fit (None: never learnt here).
+    pub hard_iron_sd: Option<f64>,
+    /// The reference field's norm (readings' units) and dip (rad), once learnt.
+    pub reference: Option<(f64, f64)>,
+}
 
 /// Settings of the magnetometer's heading filter (angles in rad, times in s).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,6 +117,12 @@ pub struct MagConfig {
     pub reading_noise: f64,
     /// The block over which readings are gathered.
     pub block_s: f64,
+    /// The soft iron `W` of a calibration (`driftless mag-cal`), applied to every reading
+    /// before anything else: the filter sees `W m`. None: the identity.
+    pub soft_iron: Option<Mat3>,
+    /// The hard-iron offset the filter starts from, of readings after `soft_iron` (`W b` for a
+    /// calibration's `b`); learnt on from there with [`MagConfig::hard_iron`], kept without.
+    pub hard_iron_start: [f64; 3],
 }
 
 impl Default for MagConfig {
@@ -139,6 +158,8 @@ impl Default for MagConfig {
             max_delay_s: 0.1,
             reading_noise: 0.03,
             block_s: 0.025,
+            soft_iron: None,
+            hard_iron_start: [0.0; 3],
         }
     }
 }
@@ -192,6 +213,12 @@ impl MagConfig {
         }
         if !self.declination.is_finite() {
             return Err("attitude: declination must be a number".into());
+        }
+        if let Some(w) = &self.soft_iron {
+            check_soft_iron(w).map_err(|e| format!("attitude: mag soft iron {e}"))?;
+        }
+        if !self.hard_iron_start.iter().all(|v| v.is_finite()) {
+            return Err("attitude: mag hard iron must hold finite numbers".into());
         }
         Ok(())
     }
@@ -252,8 +279,12 @@ pub struct MagHeading {
     block: Block,
     short: Sums,
     long: Sums,
-    /// The hard-iron offset in use, the readings' units.
+    /// The hard-iron offset in use, the readings' units, and its sd when it came from a fit.
     offset: [f64; 3],
+    offset_sd: Option<f64>,
+    /// The reference came from a saved state: the first block checks it (the sensor may have
+    /// moved to another place since).
+    reference_resumed: bool,
     /// The heading offset and its drift rate, rad and rad/s, their covariance (dd, dr, rr),
     /// and whether the heading was fixed once.
     delta: f64,
@@ -297,7 +328,9 @@ impl MagHeading {
             block: Block::default(),
             short: Sums::default(),
             long: Sums::default(),
-            offset: [0.0; 3],
+            offset: cfg.hard_iron_start,
+            offset_sd: None,
+            reference_resumed: false,
             delta: 0.0,
             drift: 0.0,
             p: [0.0, 0.0, cfg.drift_sd * cfg.drift_sd],
@@ -317,6 +350,24 @@ impl MagHeading {
         self.offset
     }
 
+    /// What outlives a run: the hard iron, its sd and the reference field.
+    pub fn learnt(&self) -> MagLearnt {
+        MagLearnt {
+            hard_iron: self.offset,
+            hard_iron_sd: self.offset_sd,
+            reference: self.reference,
+        }
+    }
+
+    /// Start from what a previous run learnt (a filter of the same settings): its offset, and
+    /// its reference field until the first block with readings disagrees with it.
+    pub fn resume(&mut self, saved: &MagLearnt) {
+        self.offset = saved.hard_iron;
+        self.offset_sd = saved.hard_iron_sd;
+        self.reference = saved.reference;
+        self.reference_resumed = saved.reference.is_some();
+    }
+
     /// The magnetometer's delay behind the gyro in use, s.
     pub fn delay(&self) -> f64 {
         self.delay
@@ -325,6 +376,10 @@ impl MagHeading {
     /// One sample: the 6D attitude `q6` (w, x, y, z), the body rate (rad/s; None if it was
     /// not usable) and the magnetometer's reading (any unit; None if the sample has none).
     pub fn push(&mut self, q6: [f64; 4], rate: Option<[f64; 3]>, mag: Option<[f64; 3]>) -> MagStep {
+        let mag = match &self.cfg.soft_iron {
+            Some(w) => mag.map(|m| mat_vec(w, &m)),
+            None => mag,
+        };
         // What this sample's reading is, if it cannot be used; else the last block's verdict.
         let unusable = match (mag, rate) {
             (None, _) => Some(MagUse::Absent),
@@ -415,6 +470,10 @@ impl MagHeading {
         let mut field = block.sums.field(&self.offset);
         self.drop_a_gone_offset(&block, &mut field);
         let (norm, dip) = norm_dip(&field);
+        if std::mem::take(&mut self.reference_resumed) && !self.matches(norm, dip) {
+            // A saved reference this place's field does not match: learnt afresh.
+            self.reference = None;
+        }
         let mut ok = norm > 0.0 && norm.is_finite();
         if let (true, Some((ref_norm, _))) = (ok, self.reference) {
             let spread_ok = self.short.spread(&self.offset).sqrt() / ref_norm < c.spread_tolerance;
@@ -472,6 +531,7 @@ impl MagHeading {
             && self.short.spread(&[0.0; 3]).sqrt() / rn < self.cfg.spread_tolerance
         {
             self.offset = [0.0; 3];
+            self.offset_sd = None;
             *field = bare;
             self.long = self.short;
         }
@@ -498,6 +558,7 @@ impl MagHeading {
                 for i in 0..3 {
                     self.offset[i] += gain * (fit.b[i] - self.offset[i]);
                 }
+                self.offset_sd = Some(fit.sd);
             }
         }
     }

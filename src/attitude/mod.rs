@@ -68,7 +68,7 @@ pub mod hard_iron;
 pub mod mag;
 pub mod mag_cal;
 
-pub use mag::{MagConfig, MagHeading, MagUse};
+pub use mag::{MagConfig, MagHeading, MagLearnt, MagUse};
 
 /// The largest norm of a reading the filter uses (rad/s, m/s², and rad/s for a bias's sd):
 /// beyond any gyro's or accelerometer's range (10^5 g), so a corrupted value. Squares of
@@ -307,6 +307,18 @@ impl Attitude {
         self.coast_noise = source.coast_noise;
         self.adopted = source.adopted;
         self.mag.clone_from(&source.mag);
+    }
+
+    /// What the magnetometer's filter learnt that outlives a run; None without it.
+    pub fn mag_learnt(&self) -> Option<MagLearnt> {
+        self.mag.as_ref().map(MagHeading::learnt)
+    }
+
+    /// The magnetometer's filter resumed from a previous run's [`Attitude::mag_learnt`].
+    pub fn resume_mag(&mut self, saved: &MagLearnt) {
+        if let Some(m) = &mut self.mag {
+            m.resume(saved);
+        }
     }
 
     /// The settings.

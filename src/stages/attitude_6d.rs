@@ -29,11 +29,24 @@
 //! flagged (`SENSOR_MAG_REJECTED`); it, and a sample without a valid reading, keep the heading
 //! on the gyro. The end-of-run summary counts the samples at which the magnetometer corrected
 //! the heading and those at which it was rejected.
+//!
+//! The magnetometer's own calibration, from `driftless mag-cal` (a recorded rotation): the
+//! stage turns each reading into `W (m - b)` before its heading filter (`mag_soft_iron` `W`,
+//! `mag_hard_iron_ut` `b`); with `mag_hard_iron = true` the filter learns the hard iron on
+//! from `b`. With `state_file` what it learnt (the hard iron and the reference field) is saved
+//! at shutdown and every `state_every_s`, and is the next start's start value
+//! ([`super::attitude_state`]).
 
+use std::path::PathBuf;
+
+use crate::attitude::hard_iron::{mat_vec, Mat3};
+use crate::attitude::mag_cal::{check_soft_iron, Calibration};
 use crate::attitude::{Attitude, AttitudeConfig, MagConfig, MagUse, Upstream, VqfBias};
 use crate::io::InputError;
+use crate::stages::attitude_state::{self, Loaded, Owner, StateWriter};
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
+use crate::stages::state_file::{self, WarmStart};
 use crate::wire::{
     GyroSample, DRIFT_STD_NOT_PROVIDED, SENSOR_HEADING_ABSOLUTE, SENSOR_MAG_REJECTED,
     SENSOR_ORIENTATION, SENSOR_ORIENTATION_COASTING, SENSOR_ORIENTATION_NO_GRAVITY,
@@ -129,6 +142,31 @@ const MAG_DELAY_S: Key = Key {
     doc: "the magnetometer's delay behind the gyro, s (with `use_mag`)",
 };
 
+const MAG_HARD_IRON_UT: Key = Key {
+    name: "mag_hard_iron_ut",
+    ty: Type::Floats("x, y, z, uT"),
+    default: DefaultValue::Absent("none: no offset (the online hard iron starts from 0)"),
+    doc: "the magnetometer's hard-iron offset `b` from `driftless mag-cal`, removed before the           heading filter; with `mag_hard_iron` the filter learns on from it (with `use_mag`)",
+};
+const MAG_SOFT_IRON: Key = Key {
+    name: "mag_soft_iron",
+    ty: Type::Floats("three rows of three: symmetric, positive definite, condition <= 3"),
+    default: DefaultValue::Absent("none: the identity"),
+    doc: "the magnetometer's soft-iron matrix `W` from `driftless mag-cal`: each reading becomes           `W (m - b)` before the heading filter (with `use_mag`)",
+};
+const STATE_FILE: Key = Key {
+    name: "state_file",
+    ty: Type::Str("a file path, relative to the pipeline file"),
+    default: DefaultValue::Absent("none: every start is cold"),
+    doc: "where the magnetometer's learnt hard iron (with its sd) and reference field are saved           (at shutdown and every state_every_s) and started from at the next start; an unusable           file costs the warm start, never the start: it is moved aside to           `<name>.unusable-<UTC time>` (with `use_mag`)",
+};
+const STATE_EVERY_S: Key = Key {
+    name: "state_every_s",
+    ty: Type::Positive(86_400.0),
+    default: DefaultValue::Float(120.0),
+    doc: "how often the state is saved while running (with `state_file`)",
+};
+
 /// `attitude.6d`.
 pub const KIND: Kind = Kind {
     name: "attitude.6d",
@@ -150,15 +188,35 @@ pub const KIND: Kind = Kind {
         MAG_DIP_TOLERANCE_DEG,
         MAG_HARD_IRON,
         MAG_DELAY_S,
+        MAG_HARD_IRON_UT,
+        MAG_SOFT_IRON,
+        STATE_FILE,
+        STATE_EVERY_S,
     ],
     parse,
 };
 
 /// `attitude.6d` parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AttitudeParams {
     /// The filter's settings; `arw` as given (None: the chain's).
     pub filter: AttitudeConfig,
+    /// Where the magnetometer's learnt state is saved and resumed from, if anywhere.
+    pub state: Option<StateConfig>,
+}
+
+/// `state_file` and what it held when the pipeline was read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateConfig {
+    /// The file.
+    pub path: PathBuf,
+    /// Who the state belongs to.
+    pub owner: Owner,
+    /// Saved every this many samples.
+    pub every: u64,
+    /// What the file held when the pipeline was read (what `validate` says); read again when
+    /// the stage is built.
+    pub loaded: Loaded,
 }
 
 fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
@@ -173,6 +231,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         "off" => VqfBias::Off,
         _ => VqfBias::Full,
     };
+    let (mag, cal) = mag_config(t)?;
     let filter = AttitudeConfig {
         tau_acc_s: t.float_or_default(&TAU_ACC_S)?,
         vqf_bias,
@@ -182,16 +241,98 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         inclination_motion_gain: t.float_or_default(&INCLINATION_MOTION_GAIN)?,
         // deg/sqrt(h) as predict.bias reads it, to rad/sqrt(s).
         arw: t.float(&ARW)?.map(|n| (n / 60.0).to_radians()),
-        mag: mag_config(t)?,
+        mag,
     };
     filter.check().map_err(|e| t.error(e))?;
-    Ok(Box::new(AttitudeParams { filter }))
+    let state = state(t, filter.mag.is_some(), &cal)?;
+    Ok(Box::new(AttitudeParams { filter, state }))
 }
 
-/// The magnetometer's settings, with `use_mag` (every key read either way, so none is unknown).
-fn mag_config(t: &mut Table<'_, '_>) -> Result<Option<MagConfig>, InputError> {
+/// `mag_hard_iron_ut` (uT) and `mag_soft_iron`, checked, each error naming its key.
+fn calibration(t: &mut Table<'_, '_>) -> Result<Option<Calibration>, InputError> {
+    let src = t.src;
+    let b = t.get::<Vec<f64>>(&MAG_HARD_IRON_UT)?;
+    let w = t.get::<Vec<Vec<f64>>>(&MAG_SOFT_IRON)?;
+    if b.is_none() && w.is_none() {
+        return Ok(None);
+    }
+    let mut cal = Calibration::IDENTITY;
+    if let Some(b) = b {
+        let v = b.get_ref();
+        if v.len() != 3 || !v.iter().all(|x| x.is_finite()) {
+            return Err(src.span(
+                &b,
+                format!("mag_hard_iron_ut must hold 3 finite numbers (x, y, z, uT), not {v:?}"),
+            ));
+        }
+        cal.hard_iron = [v[0], v[1], v[2]];
+    }
+    if let Some(w) = w {
+        let rows = w.get_ref();
+        if rows.len() != 3 || rows.iter().any(|r| r.len() != 3) {
+            return Err(src.span(
+                &w,
+                "mag_soft_iron must be three rows of three numbers: [[a, b, c], [b, d, e],                  [c, e, f]]",
+            ));
+        }
+        let m: Mat3 = [0, 1, 2].map(|i| [rows[i][0], rows[i][1], rows[i][2]]);
+        check_soft_iron(&m).map_err(|e| src.span(&w, format!("mag_soft_iron {e}")))?;
+        cal.soft_iron = m;
+    }
+    Ok(Some(cal))
+}
+
+/// `state_file` and `state_every_s`, with the state loaded; `None` without a `state_file`.
+fn state(
+    t: &mut Table<'_, '_>,
+    on: bool,
+    cal: &Calibration,
+) -> Result<Option<StateConfig>, InputError> {
+    let src = t.src;
+    let Some(file) = t.get::<String>(&STATE_FILE)? else {
+        if t.has(&STATE_EVERY_S) {
+            return Err(t.error("attitude.6d: state_every_s needs state_file"));
+        }
+        return Ok(None);
+    };
+    if !on {
+        return Err(src.span(
+            &file,
+            "attitude.6d: state_file keeps the magnetometer's learnt hard iron: it needs              use_mag = true",
+        ));
+    }
+    let path = src.resolve(file.get_ref());
+    let every_s = t.float_or_default(&STATE_EVERY_S)?;
+    let owner = Owner {
+        pipeline: t.owner.0.to_string(),
+        stage: t.owner.1.to_string(),
+        hard_iron_ut: cal.hard_iron,
+        soft_iron: cal.soft_iron,
+    };
+    let loaded = attitude_state::load(&path, &owner);
+    Ok(Some(StateConfig {
+        path,
+        owner,
+        every: ((every_s * t.cx.rate_hz).round() as u64).max(1),
+        loaded,
+    }))
+}
+
+/// The magnetometer's settings, with `use_mag` (every key read either way, so none is unknown),
+/// and its calibration (uT; the identity without one).
+fn mag_config(t: &mut Table<'_, '_>) -> Result<(Option<MagConfig>, Calibration), InputError> {
     let on = t.bool_or_default(&USE_MAG)?;
+    let cal = calibration(t)?;
+    if let (Some(_), false) = (cal, on) {
+        return Err(t.error(
+            "attitude.6d: mag_hard_iron_ut and mag_soft_iron calibrate the magnetometer: they              need use_mag = true",
+        ));
+    }
+    let cal = cal.unwrap_or(Calibration::IDENTITY);
     let cfg = MagConfig {
+        // The filter sees W m and starts from W b; the keys are in uT, the samples in tesla.
+        soft_iron: (cal.soft_iron != Calibration::IDENTITY.soft_iron).then_some(cal.soft_iron),
+        hard_iron_start: mat_vec(&cal.soft_iron, &cal.hard_iron.map(|v| v * 1e-6)),
         declination: t.float_or_default(&DECLINATION_DEG)?.to_radians(),
         norm_tolerance: t.float_or_default(&MAG_NORM_TOLERANCE)?,
         dip_tolerance: t.float_or_default(&MAG_DIP_TOLERANCE_DEG)?.to_radians(),
@@ -199,7 +340,7 @@ fn mag_config(t: &mut Table<'_, '_>) -> Result<Option<MagConfig>, InputError> {
         delay: t.float(&MAG_DELAY_S)?,
         ..MagConfig::default()
     };
-    Ok(on.then_some(cfg))
+    Ok((on.then_some(cfg), cal))
 }
 
 impl AttitudeParams {
@@ -215,8 +356,42 @@ impl AttitudeParams {
 
 impl Params for AttitudeParams {
     fn stage(&self, cx: &Context) -> Result<Box<dyn Stage>, String> {
-        let filter = Attitude::new(cx.rate_hz, self.config(cx))?;
+        let mut filter = Attitude::new(cx.rate_hz, self.config(cx))?;
+        let mut warm = WarmStart::NotConfigured;
+        let mut writer = None;
+        if let Some(st) = &self.state {
+            // Read again: it may have changed since the pipeline was read.
+            warm = match attitude_state::load(&st.path, &st.owner) {
+                Loaded::Missing => WarmStart::ColdNoFile {
+                    path: st.path.clone(),
+                },
+                Loaded::Saved(saved) => {
+                    let age = state_file::age(saved.saved_unix_ns).unwrap_or_default();
+                    filter.resume_mag(&saved.learnt);
+                    eprintln!(
+                        "driftless: warm start from state_file {}, saved {} ago: {}",
+                        st.path.display(),
+                        humantime::format_duration(std::time::Duration::from_secs(age.as_secs())),
+                        attitude_state::describe(&saved.learnt)
+                    );
+                    WarmStart::Warm {
+                        path: st.path.clone(),
+                        age,
+                    }
+                }
+                Loaded::Unusable(u) => {
+                    state_file::cold_unusable(&st.path, &u, "the magnetometer's hard iron")
+                }
+            };
+            writer = Some((
+                attitude_state::start_writer(st.path.clone(), st.owner.clone())?,
+                st.every,
+            ));
+        }
         Ok(Box::new(AttitudeStage {
+            writer,
+            since_save: 0,
+            warm,
             spare: filter.clone(),
             filter,
             last: None,
@@ -252,6 +427,33 @@ impl Params for AttitudeParams {
                 if m.hard_iron { "learnt" } else { "not learnt" },
                 m.delay.map_or("estimated".into(), |d| format!("{d} s"))
             ));
+            if m.soft_iron.is_some() || m.hard_iron_start != [0.0; 3] {
+                lines.push(format!(
+                    "magnetometer calibration: soft iron {:?}, hard iron {:?} uT (after the soft \
+                     iron)",
+                    m.soft_iron
+                        .unwrap_or(crate::attitude::mag_cal::Calibration::IDENTITY.soft_iron),
+                    m.hard_iron_start.map(|v| v * 1e6)
+                ));
+            }
+        }
+        if let Some(st) = &self.state {
+            lines.push(match &st.loaded {
+                Loaded::Missing => {
+                    format!("state: none yet in {}: a cold start", st.path.display())
+                }
+                Loaded::Saved(saved) => format!(
+                    "state: {}: {}",
+                    st.path.display(),
+                    attitude_state::describe(&saved.learnt)
+                ),
+                Loaded::Unusable(u) if u.movable => format!(
+                    "state: {}: `run` starts cold and moves it aside to {}.unusable-<UTC time>",
+                    u.why,
+                    st.path.display()
+                ),
+                Loaded::Unusable(u) => format!("state: {}: `run` starts cold", u.why),
+            });
         }
         lines
     }
@@ -260,6 +462,11 @@ impl Params for AttitudeParams {
 /// The stage: one attitude filter, and what it saw.
 pub struct AttitudeStage {
     filter: Attitude,
+    /// The magnetometer state's writer and how many samples apart it saves.
+    writer: Option<(StateWriter, u64)>,
+    since_save: u64,
+    /// How the stage started: warm, or cold and why.
+    warm: WarmStart,
     /// What `prewarm` runs the filter's code on (a copy of its state; the result dropped),
     /// and the last sample's inputs to run it with.
     spare: Attitude,
@@ -283,7 +490,22 @@ type Inputs = (
     Option<Upstream>,
 );
 
+impl Drop for AttitudeStage {
+    /// At shutdown: the last state, written before the stage is gone.
+    fn drop(&mut self) {
+        if let (Some((writer, _)), Some(learnt)) = (self.writer.take(), self.filter.mag_learnt()) {
+            if self.samples > 0 {
+                writer.finish(learnt);
+            }
+        }
+    }
+}
+
 impl Stage for AttitudeStage {
+    fn warm_start(&self) -> Option<WarmStart> {
+        self.writer.as_ref().map(|_| self.warm.clone())
+    }
+
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
         let mut out = *input;
         let upstream = input
@@ -345,6 +567,15 @@ impl Stage for AttitudeStage {
             self.no_gravity += 1;
         }
         self.samples += 1;
+        if let Some((writer, every)) = &self.writer {
+            self.since_save += 1;
+            if self.since_save >= *every {
+                self.since_save = 0;
+                if let Some(learnt) = self.filter.mag_learnt() {
+                    writer.offer(|s| *s = learnt);
+                }
+            }
+        }
         Some(out)
     }
 
@@ -368,6 +599,12 @@ impl Stage for AttitudeStage {
                 "attitude: the magnetometer corrected the heading at {} samples and was rejected \
                  at {} (a disturbed field: the heading rested on the gyro)",
                 self.mag_used, self.mag_rejected
+            ));
+        }
+        if let Some(l) = self.filter.mag_learnt() {
+            lines.push(format!(
+                "attitude: magnetometer {}",
+                attitude_state::describe(&l)
             ));
         }
         lines
@@ -394,6 +631,7 @@ mod tests {
     fn stage(white_noise: Option<f64>) -> Box<dyn Stage> {
         AttitudeParams {
             filter: AttitudeConfig::default(),
+            state: None,
         }
         .stage(&cx(white_noise))
         .unwrap()
@@ -468,6 +706,7 @@ mod tests {
                 mag: Some(MagConfig::default()),
                 ..AttitudeConfig::default()
             },
+            state: None,
         }
         .stage(&cx(Some(0.002)))
         .unwrap()

@@ -23,15 +23,14 @@
 //! The file is TOML, one table per axis; `bias_deg_s` and `sd_deg_s` are there for a reader
 //! and are not read back.
 
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
-use crossbeam_channel::{bounded, Sender};
 use serde::{Deserialize, Serialize};
 
 use crate::drift::bias::{BiasTerms, FilterSnapshot, LearnerSnapshot, GRID, MAX_STATES};
-use crate::stages::schema::Src;
+use crate::stages::state_file;
+pub use crate::stages::state_file::{move_aside, Unusable, WarmStart};
 
 /// The file format's version.
 const FORMAT: u32 = 1;
@@ -74,12 +73,7 @@ impl Saved {
     /// How long ago it was saved; None if in the future by more than a second (a clock set
     /// back: the time between is unknown).
     pub fn age(&self) -> Option<Duration> {
-        let saved = UNIX_EPOCH + Duration::from_nanos(self.saved_unix_ns);
-        match SystemTime::now().duration_since(saved) {
-            Ok(age) => Some(age),
-            Err(e) if e.duration() <= Duration::from_secs(1) => Some(Duration::ZERO),
-            Err(_) => None,
-        }
+        state_file::age(self.saved_unix_ns)
     }
 }
 
@@ -120,64 +114,20 @@ struct WalkFile {
 }
 
 /// What a `state_file` held when the pipeline was read.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Loaded {
-    /// No file: the first start.
-    Missing,
-    /// A state of this owner.
-    Saved(Saved),
-    /// A file that cannot be used.
-    Unusable(Unusable),
-}
-
-/// Why a `state_file` cannot be used, and whether it can be moved aside.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Unusable {
-    /// One line naming the file (and its line and column where it does not parse).
-    pub why: String,
-    /// False for a directory: it is not a file we wrote, and is never moved.
-    pub movable: bool,
-}
+pub type Loaded = state_file::Loaded<Saved>;
 
 /// The state in `path` for `owner`: missing, saved, or unusable and why.
 pub fn load(path: &Path, owner: &Owner) -> Loaded {
-    match read(path, owner) {
-        Ok(Some(saved)) => Loaded::Saved(saved),
-        Ok(None) => Loaded::Missing,
-        Err(u) => Loaded::Unusable(u),
-    }
+    Loaded::from(read(path, owner))
 }
 
 fn read(path: &Path, owner: &Owner) -> Result<Option<Saved>, Unusable> {
     let shown = path.display();
-    let unusable = |why: String| Unusable { why, movable: true };
-    let not_ours = "not a bias state driftless wrote";
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) if path.is_dir() => {
-            return Err(Unusable {
-                why: format!("state_file {shown}: a directory ({e}), not a file"),
-                movable: false,
-            })
-        }
-        Err(e) => return Err(unusable(format!("state_file {shown}: cannot be read: {e}"))),
+    let unusable = Unusable::movable;
+    let Some(file) = state_file::read_toml::<File>(path, "not a bias state driftless wrote")?
+    else {
+        return Ok(None);
     };
-    let text = match String::from_utf8(bytes) {
-        Ok(t) => t,
-        Err(e) => {
-            let holds = crate::io::content::classify(e.as_bytes());
-            return Err(unusable(format!(
-                "state_file {shown}: {not_ours}: it holds {}",
-                holds.what()
-            )));
-        }
-    };
-    let file: File = toml::from_str(&text).map_err(|e| {
-        let src = Src { path, text: &text };
-        let why = format!("{not_ours} ({})", e.message().trim_end());
-        unusable(src.at(e.span().map_or(0, |s| s.start), why).to_string())
-    })?;
     if file.format != FORMAT {
         return Err(unusable(format!(
             "state_file {shown}: format {} (this driftless reads {FORMAT})",
@@ -264,139 +214,6 @@ fn read(path: &Path, owner: &Owner) -> Result<Option<Saved>, Unusable> {
     }))
 }
 
-/// Move an unusable state file aside, beside it: `<name>.unusable-<UTC time>`
-/// (`YYYYMMDDTHHMMSSZ`: readable, and sorted by name is sorted by time), `-2`, `-3`, ... after
-/// it if that name is taken. Its bytes stay as they were; the next save lands at `path`.
-pub fn move_aside(path: &Path) -> std::io::Result<PathBuf> {
-    let stamp: String = humantime::format_rfc3339_seconds(SystemTime::now())
-        .to_string()
-        .chars()
-        .filter(|c| !matches!(c, '-' | ':'))
-        .collect();
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let base = path.with_file_name(format!("{name}.unusable-{stamp}"));
-    let mut aside = base.clone();
-    let mut n = 1;
-    while aside.symlink_metadata().is_ok() {
-        n += 1;
-        aside = PathBuf::from(format!("{}-{n}", base.display()));
-    }
-    std::fs::rename(path, &aside)?;
-    Ok(aside)
-}
-
-/// How a `predict.bias` started: resumed, or cold and why. The built stage gives it to the
-/// runtime ([`crate::stages::Stage::warm_start`]); its [`Display`](std::fmt::Display) is the
-/// line `run`'s report prints, [`WarmStart::outcome`] a fixed word for programs.
-#[derive(Debug, Clone, PartialEq)]
-pub enum WarmStart {
-    /// No `state_file`: every start is cold.
-    NotConfigured,
-    /// Resumed from the state saved this long ago.
-    Warm {
-        /// The state file.
-        path: PathBuf,
-        /// How long before the start it was saved.
-        age: Duration,
-    },
-    /// No state file yet (the first start): cold.
-    ColdNoFile {
-        /// The state file to be.
-        path: PathBuf,
-    },
-    /// Saved so long ago that it is worth no more than the prior: cold; the next save
-    /// replaces it.
-    ColdTooOld {
-        /// The state file.
-        path: PathBuf,
-        /// How long before the start it was saved.
-        age: Duration,
-    },
-    /// Saved in the future (the clock was set back: the time since is unknown): cold; the
-    /// next save replaces it.
-    ColdFuture {
-        /// The state file.
-        path: PathBuf,
-    },
-    /// The file could not be used ([`Unusable`]): cold.
-    ColdUnusable {
-        /// The state file.
-        path: PathBuf,
-        /// Why, one line naming the file.
-        why: String,
-        /// Where it was moved to, byte for byte; None when it was not moved (a directory, or
-        /// the move failed: `why` says).
-        moved_to: Option<PathBuf>,
-    },
-}
-
-impl WarmStart {
-    /// A fixed word for programs: `not-configured`, `warm`, `cold-no-file`, `cold-too-old`,
-    /// `cold-future`, `cold-unusable`.
-    pub fn outcome(&self) -> &'static str {
-        match self {
-            WarmStart::NotConfigured => "not-configured",
-            WarmStart::Warm { .. } => "warm",
-            WarmStart::ColdNoFile { .. } => "cold-no-file",
-            WarmStart::ColdTooOld { .. } => "cold-too-old",
-            WarmStart::ColdFuture { .. } => "cold-future",
-            WarmStart::ColdUnusable { .. } => "cold-unusable",
-        }
-    }
-
-    /// The outcome as the stats service carries it ([`crate::wire::WARM_START_WARM`]
-    /// and its siblings; the larger, the worse).
-    pub fn code(&self) -> u64 {
-        use crate::wire::{WARM_START_COLD, WARM_START_NONE, WARM_START_UNUSABLE, WARM_START_WARM};
-        match self {
-            WarmStart::NotConfigured => WARM_START_NONE,
-            WarmStart::Warm { .. } => WARM_START_WARM,
-            WarmStart::ColdNoFile { .. }
-            | WarmStart::ColdTooOld { .. }
-            | WarmStart::ColdFuture { .. } => WARM_START_COLD,
-            WarmStart::ColdUnusable { .. } => WARM_START_UNUSABLE,
-        }
-    }
-
-    /// Whether the filter resumed from a saved state.
-    pub fn is_warm(&self) -> bool {
-        matches!(self, WarmStart::Warm { .. })
-    }
-}
-
-impl std::fmt::Display for WarmStart {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let ago = |age: &Duration| humantime::format_duration(Duration::from_secs(age.as_secs()));
-        match self {
-            WarmStart::NotConfigured => write!(f, "cold: no state_file"),
-            WarmStart::Warm { path, age } => write!(
-                f,
-                "warm from state_file {}, saved {} ago",
-                path.display(),
-                ago(age)
-            ),
-            WarmStart::ColdNoFile { path } => {
-                write!(f, "cold: no state_file {} yet", path.display())
-            }
-            WarmStart::ColdTooOld { path, age } => write!(
-                f,
-                "cold: state_file {} is {} old, no better than the prior",
-                path.display(),
-                ago(age)
-            ),
-            WarmStart::ColdFuture { path } => write!(
-                f,
-                "cold: state_file {} was saved in the future (the clock was set back?)",
-                path.display()
-            ),
-            WarmStart::ColdUnusable { why, moved_to, .. } => match moved_to {
-                Some(to) => write!(f, "cold: {why}; kept as {}", to.display()),
-                None => write!(f, "cold: {why}"),
-            },
-        }
-    }
-}
-
 /// The state as text, saved now.
 fn render(owner: &Owner, filters: &[FilterSnapshot], saved_unix_ns: u64) -> String {
     let axis = filters
@@ -433,28 +250,6 @@ fn render(owner: &Owner, filters: &[FilterSnapshot], saved_unix_ns: u64) -> Stri
     format!("# The bias filter's state, written by driftless's predict.bias (state_file).\n{body}")
 }
 
-/// Write `text` to `path` atomically: a temporary file beside it, synced, renamed over it, the
-/// directory synced.
-fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(text.as_bytes())?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        std::fs::File::open(dir)?.sync_all()
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
-
 /// One save: each axis's filter (fixed size, so that taking one never allocates).
 pub struct Snapshot {
     filters: [Option<FilterSnapshot>; 3],
@@ -470,90 +265,15 @@ impl Snapshot {
 }
 
 /// The thread that writes the state: the hot thread hands it snapshots, never waiting.
-pub struct StateWriter {
-    tx: Option<Sender<Box<Snapshot>>>,
-    spare: crossbeam_channel::Receiver<Box<Snapshot>>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
+pub type StateWriter = state_file::StateWriter<Snapshot>;
 
-impl StateWriter {
-    /// Start the writer of `path` for `owner`.
-    pub fn start(path: PathBuf, owner: Owner) -> Result<StateWriter, String> {
-        let (tx, rx) = bounded::<Box<Snapshot>>(1);
-        // Boxes go back for reuse: the hot thread never allocates one after the first.
-        let (back, spare) = bounded::<Box<Snapshot>>(2);
-        for _ in 0..2 {
-            let _ = back.send(Box::new(Snapshot::new(|_| None)));
-        }
-        let thread = std::thread::Builder::new()
-            .name("driftless-state".into())
-            .spawn(move || {
-                let mut failed = false;
-                for snap in rx {
-                    let filters: Vec<FilterSnapshot> =
-                        snap.filters.iter().flatten().cloned().collect();
-                    let _ = back.try_send(snap);
-                    let now = SystemTime::now()
-                        .duration_since(UNIX_EPOCH)
-                        .map_or(0, |d| d.as_nanos() as u64);
-                    match write_atomically(&path, &render(&owner, &filters, now)) {
-                        Ok(()) if failed => {
-                            failed = false;
-                            eprintln!("driftless: state_file {}: saved again", path.display());
-                        }
-                        Ok(()) => {}
-                        Err(e) if !failed => {
-                            failed = true;
-                            eprintln!(
-                                "driftless: warning: state_file {}: not saved: {e} (the \
-                                 pipeline runs on; the next start may be cold)",
-                                path.display()
-                            );
-                        }
-                        Err(_) => {}
-                    }
-                }
-            })
-            .map_err(|e| format!("cannot start the state writer thread: {e}"))?;
-        Ok(StateWriter {
-            tx: Some(tx),
-            spare,
-            thread: Some(thread),
-        })
-    }
-
-    /// Hand over a snapshot without waiting; skipped if the last is still being written.
-    pub fn offer(&self, fill: impl FnOnce(&mut Snapshot)) {
-        let Some(tx) = &self.tx else { return };
-        if tx.is_full() {
-            return;
-        }
-        let mut snap = self
-            .spare
-            .try_recv()
-            .unwrap_or_else(|_| Box::new(Snapshot::new(|_| None)));
-        fill(&mut snap);
-        let _ = tx.try_send(snap);
-    }
-
-    /// The last snapshot (shutdown): waits until it is written.
-    pub fn finish(mut self, last: Snapshot) {
-        if let Some(tx) = self.tx.take() {
-            let _ = tx.send(Box::new(last));
-        }
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-impl Drop for StateWriter {
-    fn drop(&mut self) {
-        self.tx.take();
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
+/// Start the writer of `path` for `owner`.
+pub fn start_writer(path: PathBuf, owner: Owner) -> Result<StateWriter, String> {
+    let render = move |snap: &Snapshot, now: u64| {
+        let filters: Vec<FilterSnapshot> = snap.filters.iter().flatten().cloned().collect();
+        render(&owner, &filters, now)
+    };
+    state_file::StateWriter::start(path, render, || Snapshot::new(|_| None))
 }
 
 /// The axes of a state for a line: `x +0.1234 +- 0.0012 deg/s, y ...`.
@@ -602,7 +322,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("s.toml");
         let filters = learnt();
-        write_atomically(
+        state_file::write_atomically(
             &path,
             &render(&owner(), &filters, 1_700_000_000_000_000_000),
         )
@@ -662,30 +382,6 @@ mod tests {
                 .ends_with("not a bias state driftless wrote: it holds a damaged gzip stream"),
             "{u:?}"
         );
-        // Moved aside byte for byte, beside it, and a second one in the same second too.
-        let first = move_aside(&path).unwrap();
-        std::fs::write(&path, b"x = ").unwrap();
-        let second = move_aside(&path).unwrap();
-        assert_eq!(std::fs::read(&first).unwrap(), [0x1f, 0x8b, 0, 0xff, 0x10]);
-        assert_eq!(std::fs::read(&second).unwrap(), b"x = ");
-        assert!(!path.exists());
-        let name = first.file_name().unwrap().to_string_lossy().into_owned();
-        let stamp = name.strip_prefix("s.toml.unusable-").unwrap();
-        assert!(
-            stamp.len() == 16 && stamp.as_bytes()[8] == b'T' && stamp.ends_with('Z'),
-            "{name}"
-        );
-        assert!(
-            second.to_string_lossy().ends_with("-2")
-                || second.to_string_lossy() > first.to_string_lossy(),
-            "{second:?}"
-        );
-        // A directory: unusable, never moved.
-        std::fs::create_dir(&path).unwrap();
-        let Loaded::Unusable(u) = load(&path, &owner()) else {
-            panic!("a directory")
-        };
-        assert!(!u.movable && u.why.contains("a directory"), "{u:?}");
         std::fs::remove_dir_all(&dir).unwrap();
         assert_eq!(load(&path, &owner()), Loaded::Missing, "no file: cold");
     }

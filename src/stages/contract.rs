@@ -65,7 +65,7 @@ pub trait Stage {
     /// How a stage that keeps state across runs started (`predict.bias`: warm, or cold and
     /// why); called once, after it is built. None for a stage that keeps no state. Default:
     /// None.
-    fn warm_start(&self) -> Option<crate::stages::bias_state::WarmStart> {
+    fn warm_start(&self) -> Option<crate::stages::state_file::WarmStart> {
         None
     }
 

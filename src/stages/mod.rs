@@ -18,7 +18,9 @@
 //! a stage reads beside the gyro's, as [`stop_rule`] holds the vehicle's stop keys.
 //! [`replay`] is what the file replays (`ingest.csv`, `ingest.mcap`) share: the reader thread,
 //! its blocks of samples and the pacing. [`bias_state`] is `predict.bias`'s saved state (its
-//! warm start): the file, its checks and its writer thread.
+//! warm start): the file and its checks; [`attitude_state`] is `attitude.6d`'s (the
+//! magnetometer's learnt hard iron); [`state_file`] is what both share: the file read, moved
+//! aside and written atomically by a thread of its own.
 //!
 //! # Adding a stage kind
 //! 1. Write `src/stages/<kind>.rs` with: its keys as [`Key`](crate::stages::schema::Key)
@@ -41,8 +43,10 @@ pub mod accel_terms;
 pub mod bias_state;
 pub mod contract;
 pub mod schema;
+pub mod state_file;
 
 pub mod attitude_6d;
+pub mod attitude_state;
 pub mod denoise;
 pub mod external;
 pub mod ingest_csv;
@@ -55,8 +59,8 @@ pub mod publish;
 pub mod replay;
 pub mod stop_rule;
 
-pub use bias_state::WarmStart;
 pub use contract::{Kind, Params, Poll, Role, SideInput, SideValue, Source, Stage};
+pub use state_file::WarmStart;
 
 /// Every stage kind, in the order listed in messages and documentation.
 pub const KINDS: &[&Kind] = &[

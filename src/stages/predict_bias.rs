@@ -440,7 +440,7 @@ impl Params for BiasParams {
                 Loaded::Unusable(u) => cold_unusable(&st.path, &u),
             };
             writer = Some((
-                StateWriter::start(st.path.clone(), st.owner.clone())?,
+                bias_state::start_writer(st.path.clone(), st.owner.clone())?,
                 st.every,
             ));
         }
@@ -581,34 +581,9 @@ fn resume(
     WarmStart::Warm { path, age }
 }
 
-/// A state that cannot be used costs the warm start, never the start: cold, the file moved
-/// aside (a directory stays), one line saying why and where it went.
+/// A state that cannot be used costs the warm start, never the start (the file moved aside).
 fn cold_unusable(path: &std::path::Path, u: &bias_state::Unusable) -> WarmStart {
-    let (moved_to, why, kept) = if u.movable {
-        match bias_state::move_aside(path) {
-            Ok(to) => {
-                let kept = format!("the file is kept as {}", to.display());
-                (Some(to), u.why.clone(), kept)
-            }
-            Err(e) => (
-                None,
-                format!("{} (not moved aside: {e})", u.why),
-                format!("it could not be moved aside ({e}) and stays"),
-            ),
-        }
-    } else {
-        let kept = "no state can be saved there either: point state_file at a file".to_string();
-        (None, u.why.clone(), kept)
-    };
-    eprintln!(
-        "driftless: warning: {}: the filter starts cold; {kept}",
-        u.why
-    );
-    WarmStart::ColdUnusable {
-        path: path.to_path_buf(),
-        why,
-        moved_to,
-    }
+    crate::stages::state_file::cold_unusable(path, u, "the filter")
 }
 
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.

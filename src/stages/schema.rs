@@ -197,6 +197,8 @@ pub enum Type {
     TableList(&'static str),
     /// One of these words, or a finite float in `(0, max]` (`f64::MAX`: no bound).
     WordOrPositive(&'static [&'static str], f64),
+    /// Finite floats in an array (its shape described: a vector, a matrix's rows).
+    Floats(&'static str),
 }
 
 impl Type {
@@ -220,6 +222,7 @@ impl Type {
             Type::WordOrPositive(words, max) => {
                 format!("{} | {}", quoted(words).join(" | "), positive(*max))
             }
+            Type::Floats(d) => format!("floats ({d})"),
         }
     }
 }
