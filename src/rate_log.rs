@@ -19,7 +19,7 @@ use crate::io::csv_table::{read_table, read_table_keeping_time, Table, TimeColum
 use crate::io::{BagError, BagErrorKind, InputError};
 use crate::transport::ros2::bag::Bag;
 use crate::transport::ros2::seconds_text;
-use crate::units::{AccelUnit, RateUnit};
+use crate::units::{AccelUnit, MagUnit, RateUnit};
 
 /// The column names a bag's angular velocity is read into.
 pub const BAG_COLUMNS: [&str; 3] = ["x", "y", "z"];
@@ -433,5 +433,114 @@ pub fn read_log(
             }),
             format_note: sniffed.note("read as a ROS 2 bag"),
         },
+    })
+}
+
+/// The magnetometer's readings of a log, for `mag-cal`: uT, in the log's order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MagLog {
+    /// The readings, uT (those a recording marks absent left out).
+    pub readings_ut: Vec<[f64; 3]>,
+    /// What was read: "x.csv, columns mx, my, mz (uT)" or "x.mcap, topic /nav/raw".
+    pub source: String,
+    /// One line when the file's name claims another format than it holds.
+    pub format_note: Option<String>,
+}
+
+/// Why a bag cannot be calibrated from.
+const NO_MAG_IN_BAGS: &str = "a ROS 2 bag's sensor_msgs/msg/Imu carries no magnetometer: give a \
+`driftless record` recording of the raw service, or a CSV file with --mag-columns";
+
+/// Read a log's magnetometer, by what the file holds whatever its name: a `driftless record`
+/// recording (its raw or corrected samples' `mag`, `topic` or its only such topic, else its
+/// only raw one) or CSV text (the three `columns`, in `unit`). A ROS 2 bag's Imu messages
+/// carry no magnetometer: refused, saying so.
+pub fn read_mag_log(
+    path: &Path,
+    columns: Option<&[String]>,
+    unit: MagUnit,
+    topic: Option<&str>,
+) -> Result<MagLog, InputError> {
+    let sniffed = sniff(path)?;
+    match sniffed.content {
+        Content::Directory => Err(InputError::file(path, NO_MAG_IN_BAGS)),
+        Content::Mcap => read_mag_recording(path, topic),
+        c if c.is_text() => {
+            let Some(columns) = columns.filter(|c| c.len() == 3) else {
+                return Err(InputError::file(
+                    path,
+                    "a CSV file: name its magnetometer's three columns with --mag-columns \
+                     (x,y,z)",
+                ));
+            };
+            if topic.is_some() {
+                return Err(InputError::file(path, "--topic: not an MCAP recording"));
+            }
+            let table = read_table(path, columns)?;
+            let to_ut = unit.to_tesla() * 1e6;
+            let n = table.columns.first().map_or(0, Vec::len);
+            let readings_ut = (0..n)
+                .map(|k| [0, 1, 2].map(|i| table.columns[i][k] * to_ut))
+                .collect();
+            Ok(MagLog {
+                readings_ut,
+                source: format!(
+                    "{}, columns {} ({unit})",
+                    path.display(),
+                    columns.join(", ")
+                ),
+                format_note: sniffed.csv_note(),
+            })
+        }
+        _ => Err(sniffed.refuse(
+            "mag-cal reads CSV text (gzip-compressed too) or a `driftless record` recording",
+        )),
+    }
+}
+
+/// A recording's magnetometer (see [`read_mag_log`]).
+fn read_mag_recording(path: &Path, topic: Option<&str>) -> Result<MagLog, InputError> {
+    use crate::io::recording::{GyroMessage, RawMessage, Recording, GYRO_SCHEMA, RAW_SCHEMA};
+    let rec = Recording::open(path).map_err(|e| InputError::file(path, e))?;
+    let ours: Vec<_> = rec
+        .channels()
+        .into_iter()
+        .filter(|c| c.schema == RAW_SCHEMA || c.schema == GYRO_SCHEMA)
+        .collect();
+    let raw: Vec<_> = ours.iter().filter(|c| c.schema == RAW_SCHEMA).collect();
+    let channel = match topic {
+        Some(t) => ours
+            .iter()
+            .find(|c| c.topic == t || c.topic == format!("/{t}")),
+        None if ours.len() == 1 => ours.first(),
+        // A pipeline's recording: its raw samples, as the sensor gave them.
+        None => (raw.len() == 1).then(|| raw[0]),
+    };
+    let Some(channel) = channel else {
+        let topics: Vec<_> = ours.iter().map(|c| c.topic.as_str()).collect();
+        let why = if ours.is_empty() {
+            NO_MAG_IN_BAGS.to_string()
+        } else {
+            format!("choose its topic with --topic: {}", topics.join(", "))
+        };
+        return Err(InputError::file(path, why));
+    };
+    let to_ut = |m: [f64; 3]| m.map(|v| v * 1e6);
+    let mut readings_ut = Vec::new();
+    if channel.schema == RAW_SCHEMA {
+        for m in rec.messages::<RawMessage>(&channel.topic) {
+            let m = m.map_err(|e| InputError::file(path, e))?;
+            readings_ut.extend(m.mag_t.map(|x| to_ut(x.into())));
+        }
+    } else {
+        for m in rec.messages::<GyroMessage>(&channel.topic) {
+            let m = m.map_err(|e| InputError::file(path, e))?;
+            readings_ut.extend(m.mag_t.map(|x| to_ut(x.into())));
+        }
+    }
+    Ok(MagLog {
+        readings_ut,
+        source: format!("{}, topic {}", path.display(), channel.topic),
+        format_note: None,
     })
 }

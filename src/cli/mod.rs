@@ -26,6 +26,7 @@ pub mod eval;
 pub mod iceoryx2;
 pub mod list;
 pub mod log_input;
+pub mod mag_cal;
 pub mod man;
 pub mod nav_eval;
 pub mod num;
@@ -85,6 +86,9 @@ enum Command {
     Allan(allan::Args),
     /// Simulate a gyro log with known IEEE Std 952 noise terms.
     Simulate(simulate::Args),
+    /// The magnetometer's hard and soft iron from a recorded rotation (an ellipsoid fit), with
+    /// their uncertainty and the rotation's coverage, as a ready attitude.6d table.
+    MagCal(mag_cal::Args),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     Completions(completions::Args),
     /// Print the manual page (roff), or write one page per command into a folder, or print the
@@ -232,6 +236,7 @@ pub fn main() -> ExitCode {
         Command::Bridge(args) => bridge::run(args),
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::MagCal(args) => mag_cal::run(args),
         Command::Completions(args) => completions::run(args),
         Command::Man(args) => man::run(args),
     };
