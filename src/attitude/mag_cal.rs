@@ -338,7 +338,8 @@ fn ellipsoid(readings: &[[f64; 3]]) -> Result<([f64; 3], Mat3), String> {
     let k = (p0.transpose() * a * p0)[0] - v[9];
     let shape = a / k;
     let e = SymmetricEigen::new(shape);
-    if !(e.eigenvalues.min() > 0.0) {
+    // Not `<= 0`: a NaN eigenvalue is no ellipsoid either.
+    if e.eigenvalues.min().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err("the quadric is not an ellipsoid".into());
     }
     // Back in the readings' units: (m - b)^T (shape / s^2) (m - b) = 1.
@@ -543,9 +544,9 @@ mod tests {
             cal.hard_iron_sd.iter().all(|s| *s > 0.001 && *s < 0.05),
             "{cal:?}"
         );
-        for i in 0..3 {
-            let err = cal.cal.hard_iron[i] - B[i];
-            assert!(err.abs() < 5.0 * cal.hard_iron_sd[i], "{i}: {err} {cal:?}");
+        for (i, (got, sd)) in cal.cal.hard_iron.iter().zip(cal.hard_iron_sd).enumerate() {
+            let err = got - B[i];
+            assert!(err.abs() < 5.0 * sd, "{i}: {err} {cal:?}");
         }
         // W W_inv is a multiple of the identity (its scale keeps det W = 1).
         let w = to_matrix(&cal.cal.soft_iron);
