@@ -146,19 +146,19 @@ const MAG_HARD_IRON_UT: Key = Key {
     name: "mag_hard_iron_ut",
     ty: Type::Floats("x, y, z, uT"),
     default: DefaultValue::Absent("none: no offset (the online hard iron starts from 0)"),
-    doc: "the magnetometer's hard-iron offset `b` from `driftless mag-cal`, removed before the           heading filter; with `mag_hard_iron` the filter learns on from it (with `use_mag`)",
+    doc: "the magnetometer's hard-iron offset `b` from `driftless mag-cal`, removed before the heading filter; with `mag_hard_iron` the filter learns on from it (with `use_mag`)",
 };
 const MAG_SOFT_IRON: Key = Key {
     name: "mag_soft_iron",
     ty: Type::Floats("three rows of three: symmetric, positive definite, condition <= 3"),
     default: DefaultValue::Absent("none: the identity"),
-    doc: "the magnetometer's soft-iron matrix `W` from `driftless mag-cal`: each reading becomes           `W (m - b)` before the heading filter (with `use_mag`)",
+    doc: "the magnetometer's soft-iron matrix `W` from `driftless mag-cal`: each reading becomes `W (m - b)` before the heading filter (with `use_mag`)",
 };
 const STATE_FILE: Key = Key {
     name: "state_file",
     ty: Type::Str("a file path, relative to the pipeline file"),
     default: DefaultValue::Absent("none: every start is cold"),
-    doc: "where the magnetometer's learnt hard iron (with its sd) and reference field are saved           (at shutdown and every state_every_s) and started from at the next start; an unusable           file costs the warm start, never the start: it is moved aside to           `<name>.unusable-<UTC time>` (with `use_mag`)",
+    doc: "where the magnetometer's learnt hard iron (with its sd) and reference field are saved (at shutdown and every state_every_s) and started from at the next start; an unusable file costs the warm start, never the start: it is moved aside to `<name>.unusable-<UTC time>` (with `use_mag`)",
 };
 const STATE_EVERY_S: Key = Key {
     name: "state_every_s",
@@ -272,7 +272,7 @@ fn calibration(t: &mut Table<'_, '_>) -> Result<Option<Calibration>, InputError>
         if rows.len() != 3 || rows.iter().any(|r| r.len() != 3) {
             return Err(src.span(
                 &w,
-                "mag_soft_iron must be three rows of three numbers: [[a, b, c], [b, d, e],                  [c, e, f]]",
+                "mag_soft_iron must be three rows of three numbers: [[a, b, c], [b, d, e], [c, e, f]]",
             ));
         }
         let m: Mat3 = [0, 1, 2].map(|i| [rows[i][0], rows[i][1], rows[i][2]]);
@@ -298,7 +298,7 @@ fn state(
     if !on {
         return Err(src.span(
             &file,
-            "attitude.6d: state_file keeps the magnetometer's learnt hard iron: it needs              use_mag = true",
+            "attitude.6d: state_file keeps the magnetometer's learnt hard iron: it needs use_mag = true",
         ));
     }
     let path = src.resolve(file.get_ref());
@@ -325,7 +325,7 @@ fn mag_config(t: &mut Table<'_, '_>) -> Result<(Option<MagConfig>, Calibration),
     let cal = calibration(t)?;
     if let (Some(_), false) = (cal, on) {
         return Err(t.error(
-            "attitude.6d: mag_hard_iron_ut and mag_soft_iron calibrate the magnetometer: they              need use_mag = true",
+            "attitude.6d: mag_hard_iron_ut and mag_soft_iron calibrate the magnetometer: they need use_mag = true",
         ));
     }
     let cal = cal.unwrap_or(Calibration::IDENTITY);
