@@ -89,8 +89,7 @@ pub fn check_soft_iron(w: &Mat3) -> Result<(), String> {
     }
     if hi / lo > MAX_CONDITION {
         return Err(format!(
-            "is too far from a rotation's shape to be a soft iron (condition {:.2}, at most \
-             {MAX_CONDITION})",
+            "is too stretched for a soft iron (condition {:.2}, at most {MAX_CONDITION})",
             hi / lo
         ));
     }

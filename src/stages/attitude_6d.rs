@@ -203,6 +203,8 @@ pub struct AttitudeParams {
     pub filter: AttitudeConfig,
     /// Where the magnetometer's learnt state is saved and resumed from, if anywhere.
     pub state: Option<StateConfig>,
+    /// The magnetometer's calibration as given (uT; the identity without one).
+    pub calibration: Calibration,
 }
 
 /// `state_file` and what it held when the pipeline was read.
@@ -245,7 +247,11 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     };
     filter.check().map_err(|e| t.error(e))?;
     let state = state(t, filter.mag.is_some(), &cal)?;
-    Ok(Box::new(AttitudeParams { filter, state }))
+    Ok(Box::new(AttitudeParams {
+        filter,
+        state,
+        calibration: cal,
+    }))
 }
 
 /// `mag_hard_iron_ut` (uT) and `mag_soft_iron`, checked, each error naming its key.
@@ -427,13 +433,11 @@ impl Params for AttitudeParams {
                 if m.hard_iron { "learnt" } else { "not learnt" },
                 m.delay.map_or("estimated".into(), |d| format!("{d} s"))
             ));
-            if m.soft_iron.is_some() || m.hard_iron_start != [0.0; 3] {
+            let c = &self.calibration;
+            if *c != Calibration::IDENTITY {
                 lines.push(format!(
-                    "magnetometer calibration: soft iron {:?}, hard iron {:?} uT (after the soft \
-                     iron)",
-                    m.soft_iron
-                        .unwrap_or(crate::attitude::mag_cal::Calibration::IDENTITY.soft_iron),
-                    m.hard_iron_start.map(|v| v * 1e6)
+                    "magnetometer calibration: hard iron {:?} uT, soft iron {:?}",
+                    c.hard_iron, c.soft_iron
                 ));
             }
         }
@@ -632,6 +636,7 @@ mod tests {
         AttitudeParams {
             filter: AttitudeConfig::default(),
             state: None,
+            calibration: Calibration::IDENTITY,
         }
         .stage(&cx(white_noise))
         .unwrap()
@@ -707,6 +712,7 @@ mod tests {
                 ..AttitudeConfig::default()
             },
             state: None,
+            calibration: Calibration::IDENTITY,
         }
         .stage(&cx(Some(0.002)))
         .unwrap()
