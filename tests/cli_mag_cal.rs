@@ -64,6 +64,21 @@ fn band(n: usize, axis: usize) -> Vec<[f64; 3]> {
         .collect()
 }
 
+/// `driftless mag-cal LOG --mag-columns mx,my,mz`: exit code, stdout, stderr.
+fn mag_cal(log: &std::path::Path) -> (Option<i32>, String, String) {
+    let o = driftless(&[
+        "mag-cal",
+        log.to_str().unwrap(),
+        "--mag-columns",
+        "mx,my,mz",
+    ]);
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
 fn floats(v: &toml::Value) -> Vec<f64> {
     v.as_array()
         .unwrap()
@@ -92,19 +107,8 @@ fn a_full_rotation_gives_a_table_the_stage_takes() {
     let dir = Dir::new();
     let text = csv(&sphere(2000), &SOFT_INV);
     let log = dir.write("rot.csv", &text);
-    let o = driftless(&[
-        "mag-cal",
-        log.to_str().unwrap(),
-        "--mag-columns",
-        "mx,my,mz",
-    ]);
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let (code, out, err) = mag_cal(&log);
+    assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("# fitted: hard and soft iron"), "{out}");
     let table: toml::Table = toml::from_str(&out).expect("the whole output is TOML");
     let stage = &table["stage"].as_array().unwrap()[0];
