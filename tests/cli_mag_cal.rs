@@ -161,15 +161,9 @@ fn poor_coverage_is_refused_or_gives_the_hard_iron_alone() {
     let dir = Dir::new();
     let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     let log = dir.write("band.csv", &csv(&band(800, 1), &SOFT_INV));
-    let o = driftless(&[
-        "mag-cal",
-        log.to_str().unwrap(),
-        "--mag-columns",
-        "mx,my,mz",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(o.stdout.is_empty(), "nothing printed on a refusal");
+    let (code, out, err) = mag_cal(&log);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(out.is_empty(), "nothing printed on a refusal");
     assert!(
         err.contains("only a band") && err.contains("its y axis") && err.contains("rotate it"),
         "{err}"
@@ -178,15 +172,8 @@ fn poor_coverage_is_refused_or_gives_the_hard_iron_alone() {
     let mut dirs = band(800, 2);
     dirs.extend(band(800, 0));
     let log = dir.write("two.csv", &csv(&dirs, &identity));
-    let o = driftless(&[
-        "mag-cal",
-        log.to_str().unwrap(),
-        "--mag-columns",
-        "mx,my,mz",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert_eq!(o.status.code(), Some(0), "{err}");
+    let (code, out, err) = mag_cal(&log);
+    assert_eq!(code, Some(0), "{err}");
     assert!(err.contains("the hard iron alone"), "{err}");
     let table: toml::Table = toml::from_str(&out).expect("TOML");
     let stage = &table["stage"].as_array().unwrap()[0];

@@ -221,37 +221,25 @@ mod tests {
             "{back:?}"
         );
         assert_eq!(saved.saved_unix_ns, 1_700_000_000_000_000_000);
-        for (other, why) in [
-            (
-                Owner {
-                    stage: "q".into(),
-                    ..owner()
-                },
-                "stage \"attitude\"'s, not",
-            ),
-            (
-                Owner {
-                    hard_iron_ut: [1.0, 2.0, 4.0],
-                    ..owner()
-                },
-                "another calibration",
-            ),
-        ] {
-            let Loaded::Unusable(u) = load(&path, &other) else {
-                panic!("{why}: refused")
-            };
-            assert!(u.why.contains(why) && u.movable, "{u:?}");
-        }
+        // Why the state is refused to `other`, which must be able to move it aside.
+        let refused = |other: &Owner| match load(&path, other) {
+            Loaded::Unusable(u) if u.movable => u.why,
+            got => panic!("refused: {got:?}"),
+        };
+        let stage = Owner {
+            stage: "q".into(),
+            ..owner()
+        };
+        assert!(refused(&stage).contains("stage \"attitude\"'s, not"));
+        let recalibrated = Owner {
+            hard_iron_ut: [1.0, 2.0, 4.0],
+            ..owner()
+        };
+        assert!(refused(&recalibrated).contains("another calibration"));
         let text = std::fs::read_to_string(&path).unwrap();
         std::fs::write(&path, text.replace("field_ut = 48", "field_ut = -48")).unwrap();
-        let Loaded::Unusable(u) = load(&path, &owner()) else {
-            panic!("a negative field")
-        };
-        assert!(u.why.contains("not a usable estimate"), "{u:?}");
+        assert!(refused(&owner()).contains("not a usable estimate"));
         std::fs::write(&path, &text[..text.len() / 2]).unwrap();
-        let Loaded::Unusable(u) = load(&path, &owner()) else {
-            panic!("half a state")
-        };
-        assert!(u.why.contains("not a magnetometer state"), "{u:?}");
+        assert!(refused(&owner()).contains("not a magnetometer state"));
     }
 }
