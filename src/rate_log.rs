@@ -518,10 +518,13 @@ fn read_mag_recording(path: &Path, topic: Option<&str>) -> Result<MagLog, InputE
     };
     let Some(channel) = channel else {
         let topics: Vec<_> = ours.iter().map(|c| c.topic.as_str()).collect();
-        let why = if ours.is_empty() {
-            NO_MAG_IN_BAGS.to_string()
-        } else {
-            format!("choose its topic with --topic: {}", topics.join(", "))
+        let why = match (ours.is_empty(), topic) {
+            (true, _) => NO_MAG_IN_BAGS.to_string(),
+            (false, Some(t)) => format!(
+                "--topic {t}: no such topic of raw or corrected samples; it has {}",
+                topics.join(", ")
+            ),
+            (false, None) => format!("choose its topic with --topic: {}", topics.join(", ")),
         };
         return Err(InputError::file(path, why));
     };
@@ -543,4 +546,83 @@ fn read_mag_recording(path: &Path, topic: Option<&str>) -> Result<MagLog, InputE
         source: format!("{}, topic {}", path.display(), channel.topic),
         format_note: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::recording::{self, RawMessage};
+    use crate::wire::{RawSample, RAW_MAG};
+
+    /// A recording of raw samples, every third without the magnetometer: its readings in uT,
+    /// the absent ones left out; a CSV without --mag-columns, and a bag, are refused saying why.
+    #[test]
+    fn a_recordings_magnetometer_is_read_in_ut() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rec.mcap");
+        let mut w = mcap::Writer::new(std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap(),
+        ))
+        .unwrap();
+        let schema = w
+            .add_schema(
+                recording::RAW_SCHEMA,
+                recording::SCHEMA_ENCODING,
+                recording::raw_schema().as_bytes(),
+            )
+            .unwrap();
+        let channel = w
+            .add_channel(
+                schema,
+                "/nav/raw",
+                recording::MESSAGE_ENCODING,
+                &Default::default(),
+            )
+            .unwrap();
+        for k in 0..30u64 {
+            let with_mag = k % 3 != 0;
+            let s = RawSample {
+                seq: k,
+                t_ns: k * 10_000_000,
+                flags: if with_mag { RAW_MAG } else { 0 },
+                mag: [k as f64 * 1e-6, -20e-6, 40e-6],
+                ..RawSample::default()
+            };
+            let data = serde_json::to_vec(&RawMessage::from(&s)).unwrap();
+            let header = mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: k as u32,
+                log_time: s.t_ns,
+                publish_time: s.t_ns,
+            };
+            w.write_to_known_channel(&header, &data).unwrap();
+        }
+        w.finish().unwrap();
+        drop(w);
+        let log = read_mag_log(&path, None, MagUnit::MicroT, None).unwrap();
+        assert_eq!(log.readings_ut.len(), 20);
+        let first = log.readings_ut[0];
+        assert!(
+            (first[0] - 1.0).abs() < 1e-9 && (first[1] + 20.0).abs() < 1e-9,
+            "{first:?}"
+        );
+        assert!(log.source.ends_with("topic /nav/raw"), "{}", log.source);
+        let other = read_mag_log(&path, None, MagUnit::MicroT, Some("/nav/other"));
+        let e = other.unwrap_err().to_string();
+        assert!(
+            e.contains("--topic /nav/other: no such topic") && e.ends_with("it has /nav/raw"),
+            "{e}"
+        );
+
+        let csv = dir.path().join("m.csv");
+        std::fs::write(&csv, "mx,my,mz\n0.1,0.2,0.3\n").unwrap();
+        let e = read_mag_log(&csv, None, MagUnit::Gauss, None).unwrap_err();
+        assert!(e.to_string().contains("--mag-columns"), "{e}");
+        let cols = ["mx", "my", "mz"].map(String::from);
+        let log = read_mag_log(&csv, Some(&cols), MagUnit::Gauss, None).unwrap();
+        // 1 gauss is 100 uT.
+        assert!((log.readings_ut[0][2] - 30.0).abs() < 1e-9, "{log:?}");
+        let e = read_mag_log(dir.path(), None, MagUnit::MicroT, None).unwrap_err();
+        assert!(e.to_string().contains("carries no magnetometer"), "{e}");
+    }
 }
