@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use crate::io::content::{sniff, Content, Sniffed};
 use crate::io::csv_table::{read_table, read_table_keeping_time, Table, TimeColumn};
 use crate::io::{BagError, BagErrorKind, InputError};
-use crate::transport::ros2::bag::Bag;
+use crate::transport::ros2::bag::{Bag, TopicInfo};
 use crate::transport::ros2::seconds_text;
 use crate::units::{AccelUnit, MagUnit, RateUnit};
 
@@ -447,14 +447,15 @@ pub struct MagLog {
     pub format_note: Option<String>,
 }
 
-/// Why a bag cannot be calibrated from.
-const NO_MAG_IN_BAGS: &str = "a ROS 2 bag's sensor_msgs/msg/Imu carries no magnetometer: give a \
-`driftless record` recording of the raw service, or a CSV file with --mag-columns";
+/// Why a recording without a magnetometer cannot be calibrated from.
+const NO_MAG: &str = "no magnetometer in it: give a ROS 2 bag with a \
+sensor_msgs/msg/MagneticField topic, a `driftless record` recording of the raw service, or a CSV \
+file with --mag-columns";
 
-/// Read a log's magnetometer, by what the file holds whatever its name: a `driftless record`
+/// Read a log's magnetometer, by what the file holds whatever its name: a ROS 2 bag's
+/// `sensor_msgs/msg/MagneticField` topic (`topic` or its only one, tesla), a `driftless record`
 /// recording (its raw or corrected samples' `mag`, `topic` or its only such topic, else its
-/// only raw one) or CSV text (the three `columns`, in `unit`). A ROS 2 bag's Imu messages
-/// carry no magnetometer: refused, saying so.
+/// only raw one) or CSV text (the three `columns`, in `unit`).
 pub fn read_mag_log(
     path: &Path,
     columns: Option<&[String]>,
@@ -463,8 +464,14 @@ pub fn read_mag_log(
 ) -> Result<MagLog, InputError> {
     let sniffed = sniff(path)?;
     match sniffed.content {
-        Content::Directory => Err(InputError::file(path, NO_MAG_IN_BAGS)),
-        Content::Mcap => read_mag_recording(path, topic),
+        Content::Directory => read_mag_bag(path, &Bag::open(path)?, topic),
+        // An MCAP file is a bag when it has a magnetometer topic, else a recording.
+        Content::Mcap => match Bag::open(path) {
+            Ok(bag) if bag.topics().iter().any(TopicInfo::is_mag) => {
+                read_mag_bag(path, &bag, topic)
+            }
+            _ => read_mag_recording(path, topic),
+        },
         c if c.is_text() => {
             let Some(columns) = columns.filter(|c| c.len() == 3) else {
                 return Err(InputError::file(
@@ -498,6 +505,47 @@ pub fn read_mag_log(
     }
 }
 
+/// A bag's magnetometer topic (see [`read_mag_log`]): every reading in file order, uT; one
+/// that does not decode or is not finite stops the read, naming its message.
+fn read_mag_bag(path: &Path, bag: &Bag, topic: Option<&str>) -> Result<MagLog, InputError> {
+    let mags: Vec<TopicInfo> = bag.topics().into_iter().filter(TopicInfo::is_mag).collect();
+    let topic = match (topic, mags.as_slice()) {
+        (Some(t), _) => t.to_string(),
+        (None, [only]) => only.topic.clone(),
+        (None, []) => return Err(InputError::file(path, NO_MAG)),
+        (None, _) => {
+            let names: Vec<_> = mags.iter().map(|t| t.topic.as_str()).collect();
+            return Err(InputError::file(
+                path,
+                format!(
+                    "choose its magnetometer topic with --topic: {}",
+                    names.join(", ")
+                ),
+            ));
+        }
+    };
+    let mut readings_ut = Vec::new();
+    for m in bag.mag_messages(&topic)? {
+        let m = m?;
+        let f = m.msg.magnetic_field;
+        if let Some(v) = f.iter().find(|v| !v.is_finite()) {
+            return Err(InputError::file(
+                path,
+                format!(
+                    "topic {topic}, message {} (log time {} ns): magnetic_field is {v}",
+                    m.number, m.log_time_ns
+                ),
+            ));
+        }
+        readings_ut.push(f.map(|v| v * 1e6));
+    }
+    Ok(MagLog {
+        readings_ut,
+        source: format!("{}, topic {topic} (tesla)", path.display()),
+        format_note: None,
+    })
+}
+
 /// A recording's magnetometer (see [`read_mag_log`]).
 fn read_mag_recording(path: &Path, topic: Option<&str>) -> Result<MagLog, InputError> {
     use crate::io::recording::{GyroMessage, RawMessage, Recording, GYRO_SCHEMA, RAW_SCHEMA};
@@ -519,7 +567,7 @@ fn read_mag_recording(path: &Path, topic: Option<&str>) -> Result<MagLog, InputE
     let Some(channel) = channel else {
         let topics: Vec<_> = ours.iter().map(|c| c.topic.as_str()).collect();
         let why = match (ours.is_empty(), topic) {
-            (true, _) => NO_MAG_IN_BAGS.to_string(),
+            (true, _) => NO_MAG.to_string(),
             (false, Some(t)) => format!(
                 "--topic {t}: no such topic of raw or corrected samples; it has {}",
                 topics.join(", ")
@@ -555,7 +603,7 @@ mod tests {
     use crate::wire::{RawSample, RAW_MAG};
 
     /// A recording of raw samples, every third without the magnetometer: its readings in uT,
-    /// the absent ones left out; a CSV without --mag-columns, and a bag, are refused saying why.
+    /// the absent ones left out; a CSV without --mag-columns is refused saying why.
     #[test]
     fn a_recordings_magnetometer_is_read_in_ut() {
         let dir = tempfile::tempdir().unwrap();
@@ -622,7 +670,76 @@ mod tests {
         let log = read_mag_log(&csv, Some(&cols), MagUnit::Gauss, None).unwrap();
         // 1 gauss is 100 uT.
         assert!((log.readings_ut[0][2] - 30.0).abs() < 1e-9, "{log:?}");
-        let e = read_mag_log(dir.path(), None, MagUnit::MicroT, None).unwrap_err();
-        assert!(e.to_string().contains("carries no magnetometer"), "{e}");
+    }
+
+    /// A ROS 2 bag's MagneticField topic: its readings in uT, the topic named in the source; a
+    /// reading that is not finite names its message; a bag without one says what to give.
+    #[test]
+    fn a_bags_magnetometer_is_read_in_ut() {
+        use crate::transport::ros2::{Imu, MagneticField, Time, IMU_TYPE, MAG_TYPE};
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, ty: &str, messages: Vec<Vec<u8>>| {
+            let path = dir.path().join(name);
+            let mut w = mcap::WriteOptions::new()
+                .profile("ros2")
+                .create(std::io::BufWriter::new(
+                    std::fs::File::create(&path).unwrap(),
+                ))
+                .unwrap();
+            let schema = w.add_schema(ty, "ros2msg", b"").unwrap();
+            let channel = w
+                .add_channel(schema, "/imu/mag", "cdr", &Default::default())
+                .unwrap();
+            for (k, data) in messages.iter().enumerate() {
+                let t = 1_000_000_000 + k as u64 * 10_000_000;
+                let header = mcap::records::MessageHeader {
+                    channel_id: channel,
+                    sequence: k as u32,
+                    log_time: t,
+                    publish_time: t,
+                };
+                w.write_to_known_channel(&header, data).unwrap();
+            }
+            w.finish().unwrap();
+            path
+        };
+        let field = |k: i64, x: f64| MagneticField {
+            stamp: Time::from_ns(1_000_000_000 + k * 10_000_000).unwrap(),
+            magnetic_field: [x, -20e-6, 40e-6],
+            ..MagneticField::default()
+        };
+        let cdr = |m: MagneticField| m.to_cdr().unwrap();
+        let good = write(
+            "mag.mcap",
+            MAG_TYPE,
+            (0..5).map(|k| cdr(field(k, k as f64 * 1e-6))).collect(),
+        );
+        let log = read_mag_log(&good, None, MagUnit::MicroT, None).unwrap();
+        assert_eq!(log.readings_ut.len(), 5);
+        assert!((log.readings_ut[3][0] - 3.0).abs() < 1e-9, "{log:?}");
+        assert!((log.readings_ut[3][2] - 40.0).abs() < 1e-9, "{log:?}");
+        assert!(
+            log.source.ends_with("topic /imu/mag (tesla)"),
+            "{}",
+            log.source
+        );
+        let bad = write(
+            "nan.mcap",
+            MAG_TYPE,
+            vec![cdr(field(0, 1e-6)), cdr(field(1, f64::NAN))],
+        );
+        let e = read_mag_log(&bad, None, MagUnit::MicroT, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("message 2") && e.contains("is NaN"), "{e}");
+        let imu = Imu {
+            stamp: Time::from_ns(1_000_000_000).unwrap(),
+            ..Imu::default()
+        };
+        let none = write("imu.mcap", IMU_TYPE, vec![imu.to_cdr().unwrap()]);
+        let e = read_mag_log(&none, None, MagUnit::MicroT, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no magnetometer in it"), "{e}");
     }
 }

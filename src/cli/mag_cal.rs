@@ -13,8 +13,9 @@ use crate::units::MagUnit;
 /// `driftless mag-cal`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The rotation: a CSV file (with --mag-columns) or a `driftless record` recording whose
-    /// raw or corrected samples carry the magnetometer. Turn the sensor slowly through every
+    /// The rotation: a CSV file (with --mag-columns), a ROS 2 bag with a
+    /// sensor_msgs/msg/MagneticField topic, or a `driftless record` recording whose raw or
+    /// corrected samples carry the magnetometer. Turn the sensor slowly through every
     /// direction, away from steel and magnets that do not move with it (tumble it so that each
     /// face points along the field in turn).
     #[arg(value_name = "LOG")]
@@ -22,15 +23,15 @@ pub struct Args {
     /// For a CSV file: the magnetometer's three columns, x,y,z.
     #[arg(long, value_name = "X,Y,Z", value_delimiter = ',')]
     pub mag_columns: Vec<String>,
-    /// Unit of --mag-columns (a recording's are tesla).
+    /// Unit of --mag-columns (a bag's and a recording's are tesla).
     #[arg(
         long,
         default_value = "uT",
         value_parser = super::unit_arg::<MagUnit>(MagUnit::NAMES)
     )]
     pub mag_units: MagUnit,
-    /// For a recording: the topic to read (default: its only raw or corrected one, else its
-    /// only raw one).
+    /// For a bag: its MagneticField topic (default: its only one); for a recording: the topic
+    /// to read (default: its only raw or corrected one, else its only raw one).
     #[arg(long, value_name = "TOPIC")]
     pub topic: Option<String>,
     /// The name of the `attitude.6d` stage in the printed table.
