@@ -138,7 +138,6 @@ fn publish(prefix: &str, o: &Options, stop: &AtomicBool) -> Result<(), String> {
             },
             mag: if o.mag { mag } else { [0.0; 3] },
             epoch,
-            ..RawSample::default()
         };
         out.send(&raw).map_err(|e| e.to_string())?;
         out.notify();

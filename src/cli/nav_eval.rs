@@ -20,7 +20,9 @@ use crate::drift::PredictorKind;
 use crate::io::plot::{self, Panel, PanelStyle, Series};
 use crate::io::truth::{read_truth, Truth};
 use crate::nav::{format_table_labelled, MethodSummary, Profile};
-use crate::nav_eval::{Bench, Chain, HeadingTraces, Motion, NavEvalError, Outcome, Source};
+use crate::nav_eval::{
+    Bench, Chain, HeadingTraces, Motion, NavEvalError, OdometryVariant, Outcome, Source,
+};
 use crate::rate_log::RateLog;
 use crate::sim::SimConfig;
 use crate::units::AccelUnit;
@@ -102,6 +104,11 @@ pub struct Args {
     /// (repeatable). Its rate must be the log's; rates are fed in its `input_units`.
     #[arg(long = "pipeline", value_name = "FILE.toml")]
     pub pipelines: Vec<PathBuf>,
+    /// Add the bias filter with the true stops and a wheel odometry derived from each vehicle
+    /// profile's motion (stop-and-go, vehicle, continuous), beside the same without it, and
+    /// its robustness variants (docs/navigation.md).
+    #[arg(long)]
+    pub odometry: bool,
     /// One JSON document on stdout instead of tables.
     #[arg(long)]
     pub json: bool,
@@ -206,6 +213,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         None
     };
     let chains = chains(&args, &source, &terms, accel_terms.as_ref(), rate)?;
+    let odometry = if args.odometry {
+        OdometryVariant::all(window as f64 / rate)
+    } else {
+        Vec::new()
+    };
     let bench = Bench {
         source,
         terms,
@@ -214,6 +226,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         motions,
         chains,
         judge_from,
+        odometry,
     };
     let outcome = bench.run(args.plot.is_some())?;
     if let (Some(path), Some(traces)) = (&args.plot, &outcome.traces) {
@@ -483,12 +496,22 @@ fn print_json(bench: &Bench, out: &Outcome) {
                    "axis": src.axes[c.axis].0, "methods": methods})
         })
         .collect();
+    let odometry: Vec<Value> = out
+        .odometry_against_stops(bench)
+        .iter()
+        .map(|c| {
+            json!({"method": c.label, "profile": c.motion, "stops_rms_median": c.stops_rms,
+                   "odometry_rms_median": c.odometry_rms,
+                   "ratio_to_stops": {"median": c.ratio.median, "p90": c.ratio.p90, "worst": c.ratio.worst},
+                   "cases_worse_by_2pct": c.worse, "cases": c.cases})
+        })
+        .collect();
     println!(
         "{}",
         json!({"source": src.name, "rate_hz": rate, "window_s": bench.window_s(), "judge_from_s": bench.judge_from as f64 / rate,
                "windows_per_axis": out.windows, "axes": src.axes.len(), "terms": terms,
                "accel_terms": bench.accel_terms.map(|a| json!({"vrw_m_s_per_sqrt_h": a.vrw * VRW_PER_HOUR, "bias_instability_mg": a.b * MG_PER_M_S2})),
-               "reference": "ZARU oracle", "sections": sections, "cases": cases})
+               "reference": "ZARU oracle", "sections": sections, "cases": cases, "odometry": odometry})
     );
 }
 
@@ -545,4 +568,25 @@ fn print_text(args: &Args, bench: &Bench, out: &Outcome) {
         println!();
     }
     println!("RMS heading: the RMS over time of the integrated error (deg); final: |error| at the window's end; ref: ZARU with the true stops, per window.");
+    let odo = out.odometry_against_stops(bench);
+    if !odo.is_empty() {
+        println!();
+        println!("| odometry against the true stops alone (KF oracle) | profile | stops alone, RMS med | with odometry, RMS med | ratio of medians | per case med | p90 | worst | cases > 1.02x |");
+        println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
+        for c in &odo {
+            println!(
+                "| {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} of {} |",
+                c.label,
+                c.motion,
+                c.stops_rms,
+                c.odometry_rms,
+                c.odometry_rms / c.stops_rms,
+                c.ratio.median,
+                c.ratio.p90,
+                c.ratio.worst,
+                c.worse,
+                c.cases
+            );
+        }
+    }
 }

@@ -94,6 +94,9 @@ pub enum EvalError {
     /// A bad denoiser setting.
     #[error(transparent)]
     Wavelet(#[from] WaveletError),
+    /// A bad odometry setting.
+    #[error("odometry: {0}")]
+    Odometry(String),
 }
 
 /// Everything the methods are built from; no per-window tuning.

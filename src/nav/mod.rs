@@ -10,6 +10,8 @@
 //!   ([`crate::drift::bias::BiasTracker`]).
 //! - [`force`]: the accelerometer's side of a profile: the vehicle's body acceleration at each
 //!   sample (longitudinal at starts and stops, centripetal in turns) from its stated speed.
+//! - [`odometry`]: a wheel odometry's yaw rate derived from a profile's truth with stated errors
+//!   (scale, ticks, noise, slip, latency), and the bias filter given the true stops and it.
 //! - [`fusion`]: x-io Fusion's gyroscope bias algorithm, three axes at once, as deployed.
 //! - [`eval`]: every method on one window, and summaries against a reference (oracle ZARU).
 //!
@@ -21,6 +23,7 @@ pub mod eval;
 pub mod force;
 pub mod fusion;
 pub mod metrics;
+pub mod odometry;
 pub mod profiles;
 
 pub use baselines::{BiasEstimator, Raw, Tracked, Zaru};
@@ -32,4 +35,5 @@ pub use force::body_acceleration;
 pub use metrics::{
     heading_error, heading_metrics, summarize, HeadingAccumulator, HeadingMetrics, Summary,
 };
+pub use odometry::{evaluate_odometry, odometry, OdometryModel, OdometryTrace};
 pub use profiles::{generate, MotionTrace, Profile, ProfileError};

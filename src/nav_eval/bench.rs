@@ -2,11 +2,13 @@
 //! plus the motion, and is judged by the heading error of the integrated rate.
 
 use super::{Chain, NavEvalError, Source};
+use crate::drift::bias::OdometryAidConfig;
 use crate::drift::bias::{stillness_from_terms, AccelTerms, BiasModel, BiasTerms};
 use crate::io::truth::Truth;
 use crate::nav::{
-    body_acceleration, evaluate, fusion, generate, heading_error, summarize_methods, BiasEstimator,
-    HeadingAccumulator, HeadingMetrics, Method, MethodSummary, MotionTrace, Profile, Setup, Zaru,
+    body_acceleration, evaluate, evaluate_odometry, fusion, generate, heading_error, odometry,
+    summarize_methods, BiasEstimator, HeadingAccumulator, HeadingMetrics, Method, MethodSummary,
+    MotionTrace, OdometryModel, Profile, Setup, Zaru,
 };
 use crate::pipeline::offline::Offline;
 
@@ -100,6 +102,70 @@ pub struct Bench {
     /// Samples of each window every method runs before its heading is judged (0: from the
     /// first sample, start-up included).
     pub judge_from: usize,
+    /// The bias filter with the true stops and a wheel odometry, one column per variant
+    /// (after x-io Fusion's): on the vehicle profiles only (the others' cases are NaN there).
+    pub odometry: Vec<OdometryVariant>,
+}
+
+/// One odometry column: the odometry's errors and how the filter weighs it.
+#[derive(Debug, Clone)]
+pub struct OdometryVariant {
+    /// Its column's label.
+    pub label: String,
+    /// The odometry's errors ([`crate::nav::odometry`]).
+    pub model: OdometryModel,
+    /// How the filter weighs and tests it.
+    pub aid: OdometryAidConfig,
+}
+
+impl OdometryVariant {
+    /// The default odometry and filter, then the robustness variants: scale error 3%, ten
+    /// slip bursts per window, 100 ms latency, an odometry that stops at mid-window, white
+    /// noise of 0.5 deg/s per message, and the default without the innovation tests (what
+    /// they are worth). `window_s` places the mid-window stop.
+    pub fn all(window_s: f64) -> Vec<OdometryVariant> {
+        let m = OdometryModel::default();
+        let a = OdometryAidConfig::default();
+        let v = |label: &str, model: OdometryModel, aid: OdometryAidConfig| OdometryVariant {
+            label: format!("KF true stops + odometry{label}"),
+            model,
+            aid,
+        };
+        vec![
+            v("", m, a),
+            v(
+                ", scale 3%",
+                OdometryModel {
+                    scale_error: 0.03,
+                    ..m
+                },
+                a,
+            ),
+            v(", 10 slips", OdometryModel { slips: 10, ..m }, a),
+            v(
+                ", latency 100 ms",
+                OdometryModel {
+                    latency_s: (0.1, 0.1),
+                    ..m
+                },
+                a,
+            ),
+            v(
+                ", stops at mid-window",
+                OdometryModel {
+                    ends_at_s: Some(window_s / 2.0),
+                    ..m
+                },
+                a,
+            ),
+            v(
+                ", white 0.5 deg/s",
+                OdometryModel { white_sd: 0.5, ..m },
+                OdometryAidConfig { white_sd: 0.5, ..a },
+            ),
+            v(", no slip test", m, OdometryAidConfig { test: false, ..a }),
+        ]
+    }
 }
 
 /// One evaluated case: a window of one axis under one motion.
@@ -180,6 +246,7 @@ impl Bench {
         let methods = self.methods();
         let mut labels: Vec<String> = methods.iter().map(|m| m.label().to_string()).collect();
         labels.push(FUSION_LABEL.into());
+        labels.extend(self.odometry.iter().map(|v| v.label.clone()));
         labels.extend(self.chains.iter().map(|c| c.label.clone()));
         let src = &self.source;
         let windows = src.windows(self.window);
@@ -205,6 +272,13 @@ impl Bench {
                         .map_err(|e| NavEvalError::Input(format!("{}: {e}", src.name)))?;
                     let dt = 1.0 / src.rate;
                     metrics.push(metrics_of(&fusion_out[a], &m.truth, dt, self.judge_from));
+                    metrics.extend(self.odometry_metrics(
+                        motion,
+                        &measured[a],
+                        m,
+                        &setup,
+                        (w * 3 + a) as u64,
+                    )?);
                     for out in &chain_out {
                         metrics.push(metrics_of(&out[a], &m.truth, dt, self.judge_from));
                     }
@@ -228,6 +302,41 @@ impl Bench {
             sections,
             traces: first,
         })
+    }
+
+    /// Each odometry variant's figures on one case: a vehicle profile's (the odometry seeded
+    /// by the case), NaN for the others (a walker, a truth file: no wheels).
+    fn odometry_metrics(
+        &self,
+        motion: &Motion,
+        measured: &[f64],
+        m: &MotionTrace,
+        setup: &Setup,
+        seed: u64,
+    ) -> Result<Vec<HeadingMetrics>, NavEvalError> {
+        let wheels = matches!(
+            motion,
+            Motion::Profile(Profile::Vehicle | Profile::Continuous | Profile::StopAndGo)
+        );
+        self.odometry
+            .iter()
+            .map(|v| {
+                if !wheels {
+                    let nan = f64::NAN;
+                    return Ok(HeadingMetrics {
+                        final_deg: nan,
+                        rms_deg: nan,
+                        max_deg: nan,
+                        rms_rate: nan,
+                    });
+                }
+                let odo = odometry(m, &v.model, seed)
+                    .map_err(|e| NavEvalError::Internal(e.to_string()))?;
+                evaluate_odometry(measured, &m.truth, &m.still, setup, &odo, &v.aid)
+                    .map(|r| r.0)
+                    .map_err(|e| NavEvalError::Input(format!("{}: {e}", self.source.name)))
+            })
+            .collect()
     }
 
     /// Window `w` of each axis' noise plus its motion.
@@ -400,6 +509,72 @@ impl Bench {
                 .map(|(c, out)| (c.label.clone(), thin(&out[axis]))),
         );
         Ok(HeadingTraces { t, series })
+    }
+}
+
+/// One odometry column against the same filter without it ("KF oracle": the true stops
+/// alone), over one motion's cases.
+#[derive(Debug, Clone)]
+pub struct OdometryComparison {
+    /// The motion's label.
+    pub motion: String,
+    /// The odometry column's label.
+    pub label: String,
+    /// Median RMS heading error of the true stops alone, deg.
+    pub stops_rms: f64,
+    /// Median RMS heading error with the odometry, deg.
+    pub odometry_rms: f64,
+    /// Per case, RMS with the odometry over RMS with the stops alone.
+    pub ratio: crate::nav::Summary,
+    /// Cases where the odometry's RMS is more than 2% above the stops alone's.
+    pub worse: usize,
+    /// Cases.
+    pub cases: usize,
+}
+
+impl Outcome {
+    /// Each odometry column against the true stops alone, per motion that has its cases
+    /// (the vehicle profiles).
+    pub fn odometry_against_stops(&self, bench: &Bench) -> Vec<OdometryComparison> {
+        let Some(stops) = self
+            .labels
+            .iter()
+            .position(|l| l == Method::KfOracle.label())
+        else {
+            return Vec::new();
+        };
+        let median = |v: &[f64]| crate::nav::summarize(v).median;
+        let mut out = Vec::new();
+        for (mi, motion) in bench.motions.iter().enumerate() {
+            for v in &bench.odometry {
+                let Some(col) = self.labels.iter().position(|l| *l == v.label) else {
+                    continue;
+                };
+                let pairs: Vec<(f64, f64)> = self
+                    .cases
+                    .iter()
+                    .filter(|c| c.motion == mi)
+                    .map(|c| (c.metrics[stops].rms_deg, c.metrics[col].rms_deg))
+                    .filter(|(_, o)| o.is_finite())
+                    .collect();
+                if pairs.is_empty() {
+                    continue;
+                }
+                let a: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+                let b: Vec<f64> = pairs.iter().map(|p| p.1).collect();
+                let r: Vec<f64> = pairs.iter().map(|p| p.1 / p.0).collect();
+                out.push(OdometryComparison {
+                    motion: motion.label(),
+                    label: v.label.clone(),
+                    stops_rms: median(&a),
+                    odometry_rms: median(&b),
+                    ratio: crate::nav::summarize(&r),
+                    worse: r.iter().filter(|&&x| x > 1.02).count(),
+                    cases: pairs.len(),
+                });
+            }
+        }
+        out
     }
 }
 

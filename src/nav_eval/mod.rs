@@ -19,7 +19,10 @@ pub mod bench;
 pub mod chains;
 pub mod source;
 
-pub use bench::{Bench, Case, HeadingTraces, Motion, Outcome, Section, FUSION_LABEL};
+pub use bench::{
+    Bench, Case, HeadingTraces, Motion, OdometryComparison, OdometryVariant, Outcome, Section,
+    FUSION_LABEL,
+};
 pub use chains::Chain;
 pub use source::Source;
 

@@ -390,6 +390,34 @@ impl BiasFilter {
         innovation
     }
 
+    /// Measurement update with a measurement `z` of the bias (deg/s) of variance `r`
+    /// ((deg/s)^2) given by the caller, not the model's: a reference other than a still
+    /// sample (the vehicle's odometry while it drives, [`super::odometry`]). Returns the
+    /// innovation. Unlike [`BiasFilter::update`] it does not feed the walk learner, which
+    /// learns from stops alone. A non-finite `z` or an `r` that is not a finite number > 0
+    /// is ignored (returns NaN).
+    pub fn update_with_variance(&mut self, z: f64, r: f64) -> f64 {
+        if !(z.is_finite() && r.is_finite() && r > 0.0) {
+            return f64::NAN;
+        }
+        let n = self.model.states;
+        let mut pu = [0.0; MAX_STATES];
+        for (i, pui) in pu.iter_mut().enumerate().take(n) {
+            *pui = self.p[i][..n].iter().sum();
+        }
+        let v: f64 = pu[..n].iter().sum::<f64>().max(0.0);
+        let s = v + r;
+        let innovation = z - self.estimate();
+        for i in 0..n {
+            self.x[i] += pu[i] / s * innovation;
+            for j in 0..n {
+                self.p[i][j] -= pu[i] * pu[j] / s;
+            }
+        }
+        self.updates += 1;
+        innovation
+    }
+
     /// The bias estimate (the sum of the states), deg/s.
     pub fn estimate(&self) -> f64 {
         self.x[..self.model.states].iter().sum()

@@ -78,10 +78,12 @@
 //! delay window, the ends of a stop); `walk.rs` how the filter learns its random walk from the
 //! stops ([`WalkLearner`], [`LearnWalk`]); `own_terms.rs` one unit's terms from its still
 //! record ([`own_terms`], and its accelerometer's: [`own_accel_terms`]); `accel.rs` the
-//! accelerometer's terms a stage reads ([`AccelTerms`]).
+//! accelerometer's terms a stage reads ([`AccelTerms`]); `odometry.rs` the vehicle's odometry
+//! as a measurement of the bias while it drives ([`OdometryAid`]).
 
 mod accel;
 mod filter;
+mod odometry;
 mod own_terms;
 mod tracker;
 mod walk;
@@ -90,6 +92,9 @@ pub use accel::{
     AccelTerms, ADIS16405_BIAS_INSTABILITY_MG, ADIS16405_VRW_PER_HOUR, MG_PER_M_S2, VRW_PER_HOUR,
 };
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
+pub use odometry::{
+    Measurement, OdometryAid, OdometryAidConfig, OdometryDiagnostics, OdometrySample,
+};
 pub use own_terms::{
     accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,
     OwnAccelTerms, OwnTerms, TermChoices,

@@ -778,6 +778,17 @@ impl BiasTracker {
         step
     }
 
+    /// A measurement `z` of the bias with variance `r` from a reference while the body moves
+    /// (the vehicle's odometry, [`super::OdometryAid`]), taken only between stops: during a
+    /// stop the same gyro samples already measure the bias, and taking them twice would count
+    /// their noise twice. Returns whether it was taken.
+    pub fn update_in_motion(&mut self, z: f64, r: f64) -> bool {
+        if self.mode == BiasMode::Still || self.delay.pending > 0 {
+            return false;
+        }
+        self.filter.update_with_variance(z, r).is_finite()
+    }
+
     /// The estimate and its variance as output now: the filter's, with the waiting samples'
     /// mean as a provisional measurement.
     fn output(&self) -> (f64, f64) {

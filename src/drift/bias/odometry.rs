@@ -1,0 +1,586 @@
+//! [`OdometryAid`]: the vehicle's own yaw rate (wheel odometry) as a measurement of the gyro
+//! bias while the vehicle drives, about the vehicle's up axis (the gyro's axis here).
+//!
+//! # The measurement
+//! The odometry reports its yaw rate over its period (T, e.g. 20 ms at 50 Hz), stamped with
+//! the end of that period; it arrives some latency later. The gyro samples whose times lie in
+//! that period are kept in a short history ([`OdometryAidConfig::history_s`]), so a late
+//! message is matched to the gyro of its own stamp, not to the gyro of its arrival. Messages
+//! are pooled over a span ([`OdometryAidConfig::span_s`], 0.5 s) and the span gives one
+//! measurement of the bias:
+//!
+//! ```text
+//! z = mean(gyro over the span's periods) - (1 + s) mean(odometry over the span)
+//! ```
+//!
+//! with the true rate w = (1 + s) w_odo: s is the odometry's scale error as a correction
+//! (tyre radius, track width; it also absorbs the gyro's own scale error: only the ratio of
+//! the two is observable without a third reference). Pooling over a span, not one message:
+//! encoder ticks quantise the odometry's *angle*, so one message's rate is noisy (a tick per
+//! period: 0.02 deg in 20 ms is 1 deg/s) while the angle over a span is exact to two ticks;
+//! and a slip burst of 1-3 s stands out of a 0.5 s mean far better than of one message.
+//!
+//! Its variance, each term independent:
+//!
+//! ```text
+//! r = R_gyro / m                 the gyro's white noise over the m samples averaged
+//!   + sd_white^2 / n             the odometry's white noise over its n messages
+//!   + tick^2 / 6 / span^2        the angle's quantisation at the span's two ends
+//!   + (sd_s * mean odometry)^2   what the scale's estimate does not know
+//! ```
+//!
+//! A span is a measurement only while the bias filter's stop gate says the vehicle moves
+//! (at a stop the same gyro samples measure the bias already).
+//!
+//! # The scale: a separate term, not a state of the bias filter
+//! s is estimated by its own scalar Kalman filter (a random walk, prior `scale_sd`), from the
+//! accepted spans' residual y = mean gyro - mean odometry - b_hat = s mean odometry + e, with
+//! Var e = r (without its scale term) + the bias's variance. Why not a state: the bias filter
+//! keeps its model and its H = [1, ..., 1] (stops and every result without odometry are
+//! unchanged by construction); s is seen only in turns and the bias mostly on straights and
+//! at stops, so the cross-covariance the split ignores is small; and the bias update carries
+//! the scale's uncertainty honestly in r.
+//!
+//! # Slip: an innovation test, and a span waits for the next
+//! Slip (the wheels turn, the vehicle does not follow: skid-steer turns, ice) makes the
+//! odometry wrong for seconds. Each span's innovation against the filter, nu = z - b_hat, is
+//! tested as the stop rule tests a stop signal against the gyro: chi-square with one degree of
+//! freedom, nu^2 / (P + r) > `gate` rejects it. A span that passes still waits: it enters the
+//! filter only when the next span passes too and agrees with it ((z1 - z2)^2 / (r1 + r2) <=
+//! `gate`), so a slip that began at the end of a span (too little of it there to fail the
+//! test) is dropped with the span after it. A slip never teaches the bias, nor the scale.
+//! Rejected spans are counted, and so are runs of them ([`OdometryDiagnostics`]).
+//!
+//! Pure: no I/O, fixed buffers sized at construction, nothing allocated per sample.
+
+/// One odometry message: its yaw rate over its period, stamped with the period's end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometrySample {
+    /// The end of the period it measures, s, on the gyro's clock.
+    pub stamp_s: f64,
+    /// The period it measures, s (its rate's mean is over (stamp - period, stamp]).
+    pub period_s: f64,
+    /// Yaw rate, deg/s, about the vehicle's up axis (the gyro's axis).
+    pub yaw_rate: f64,
+}
+
+/// How [`OdometryAid`] weighs and tests the odometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryAidConfig {
+    /// Messages are pooled into one measurement over this long, s.
+    pub span_s: f64,
+    /// The odometry's white rate noise per message, deg/s.
+    pub white_sd: f64,
+    /// The odometry's angle resolution (one encoder tick of yaw), deg.
+    pub tick_deg: f64,
+    /// Prior standard deviation of the scale error s.
+    pub scale_sd: f64,
+    /// The scale's random walk, per sqrt(s).
+    pub scale_walk: f64,
+    /// The least |mean odometry rate| (deg/s) a span must have to teach the scale.
+    pub scale_min_rate: f64,
+    /// Chi-square bound of the innovation tests (one degree of freedom).
+    pub gate: f64,
+    /// How far back the gyro is kept for matching a late message, s.
+    pub history_s: f64,
+    /// Whether the innovation tests run (off only to measure what they are worth).
+    pub test: bool,
+}
+
+impl Default for OdometryAidConfig {
+    /// A 0.5 s span; a 50 Hz odometry with 0.1 deg/s white noise per message and ticks of
+    /// 0.02 deg; a scale error of sd 1% (0.5-2% is usual), walking 1e-4 per sqrt(s); spans
+    /// from 2 deg/s teach the scale; the tests at 10.83 (chi-square, 1 dof, 99.9%); 0.5 s of
+    /// gyro history (room for 0.4 s of latency at a 50 Hz odometry).
+    fn default() -> Self {
+        OdometryAidConfig {
+            span_s: 0.5,
+            white_sd: 0.1,
+            tick_deg: 0.02,
+            scale_sd: 0.01,
+            scale_walk: 1e-4,
+            scale_min_rate: 2.0,
+            gate: 10.83,
+            history_s: 0.5,
+            test: true,
+        }
+    }
+}
+
+/// What the odometry did for the bias so far.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct OdometryDiagnostics {
+    /// Spans given to the filter.
+    pub accepted: u64,
+    /// Spans rejected by the innovation tests (slip, or a model that does not fit).
+    pub rejected: u64,
+    /// Runs of consecutive rejected spans (each a slip, most likely).
+    pub slips: u64,
+    /// The longest run of rejected spans.
+    pub longest_run: u64,
+    /// Messages whose period had left the gyro history (too late) or held no gyro sample.
+    pub unmatched: u64,
+    /// The scale correction s now.
+    pub scale: f64,
+    /// Its standard deviation.
+    pub scale_sd: f64,
+}
+
+/// A span's measurement of the bias.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measurement {
+    /// The bias it measures, deg/s.
+    pub z: f64,
+    /// Its variance, (deg/s)^2.
+    pub r: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    gyro_mean: f64,
+    odo_mean: f64,
+    /// r without the scale's term.
+    r_noise: f64,
+}
+
+impl Span {
+    fn measurement(&self, scale: f64, scale_var: f64) -> Measurement {
+        Measurement {
+            z: self.gyro_mean - (1.0 + scale) * self.odo_mean,
+            r: self.r_noise + scale_var * self.odo_mean * self.odo_mean,
+        }
+    }
+}
+
+/// The odometry's yaw rate as a measurement of the bias while moving (module documentation).
+#[derive(Debug, Clone)]
+pub struct OdometryAid {
+    cfg: OdometryAidConfig,
+    /// The gyro's measurement variance per sample, (deg/s)^2 (the bias model's R).
+    r_gyro: f64,
+    ring_t: Vec<f64>,
+    ring_x: Vec<f64>,
+    head: usize,
+    filled: usize,
+    tol: f64,
+    // The span being pooled.
+    g_sum: f64,
+    g_n: usize,
+    o_angle: f64,
+    o_time: f64,
+    o_n: usize,
+    pending: Option<Span>,
+    scale: f64,
+    scale_var: f64,
+    run: u64,
+    diag: OdometryDiagnostics,
+}
+
+impl OdometryAid {
+    /// An aid for a gyro at `rate_hz` whose bias model has measurement variance `r_gyro` per
+    /// sample ([`super::BiasModel::measurement_variance`]). Refused: a rate, span, history or
+    /// gate that is not a finite number > 0, or a noise term < 0.
+    pub fn new(cfg: OdometryAidConfig, r_gyro: f64, rate_hz: f64) -> Result<Self, String> {
+        for (name, v) in [
+            ("rate", rate_hz),
+            ("span_s", cfg.span_s),
+            ("history_s", cfg.history_s),
+            ("gate", cfg.gate),
+            ("r_gyro", r_gyro),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} must be a finite number > 0, not {v}"));
+            }
+        }
+        for (name, v) in [
+            ("white_sd", cfg.white_sd),
+            ("tick_deg", cfg.tick_deg),
+            ("scale_sd", cfg.scale_sd),
+            ("scale_walk", cfg.scale_walk),
+            ("scale_min_rate", cfg.scale_min_rate),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} must be a finite number >= 0, not {v}"));
+            }
+        }
+        let len = ((cfg.history_s * rate_hz).ceil() as usize).max(2);
+        Ok(OdometryAid {
+            cfg,
+            r_gyro,
+            ring_t: vec![0.0; len],
+            ring_x: vec![0.0; len],
+            head: 0,
+            filled: 0,
+            tol: 0.25 / rate_hz,
+            g_sum: 0.0,
+            g_n: 0,
+            o_angle: 0.0,
+            o_time: 0.0,
+            o_n: 0,
+            pending: None,
+            scale: 0.0,
+            scale_var: cfg.scale_sd * cfg.scale_sd,
+            run: 0,
+            diag: OdometryDiagnostics {
+                scale_sd: cfg.scale_sd,
+                ..OdometryDiagnostics::default()
+            },
+        })
+    }
+
+    /// One gyro sample (deg/s, the rate the bias filter sees) at time `t_s`.
+    pub fn push_gyro(&mut self, t_s: f64, x: f64) {
+        let len = self.ring_t.len();
+        self.ring_t[self.head] = t_s;
+        self.ring_x[self.head] = x;
+        self.head = (self.head + 1) % len;
+        self.filled = (self.filled + 1).min(len);
+    }
+
+    /// The vehicle stands (or the stop gate says so): the span being pooled and the one
+    /// waiting are dropped; the next span starts with the next message.
+    pub fn stop(&mut self) {
+        self.clear_span();
+        self.pending = None;
+    }
+
+    fn clear_span(&mut self) {
+        self.g_sum = 0.0;
+        self.g_n = 0;
+        self.o_angle = 0.0;
+        self.o_time = 0.0;
+        self.o_n = 0;
+    }
+
+    /// One odometry message, arrived now, while the vehicle moves; `estimate` and `variance`
+    /// are the bias filter's now. Returns the measurement the filter takes now, if a span
+    /// waiting for confirmation has just been confirmed (module documentation).
+    pub fn push_odometry(
+        &mut self,
+        m: OdometrySample,
+        estimate: f64,
+        variance: f64,
+    ) -> Option<Measurement> {
+        if !(m.stamp_s.is_finite() && m.period_s > 0.0 && m.yaw_rate.is_finite()) {
+            self.diag.unmatched += 1;
+            return None;
+        }
+        let (from, to) = (m.stamp_s - m.period_s + self.tol, m.stamp_s + self.tol);
+        let len = self.ring_t.len();
+        // The period must lie inside the history: once it is full, its oldest sample must be
+        // older than the period's start (a later message has lost its gyro).
+        let oldest = self.ring_t[(self.head + len - self.filled) % len];
+        if self.filled == len && oldest > from {
+            self.diag.unmatched += 1;
+            return None;
+        }
+        let (mut sum, mut n) = (0.0, 0usize);
+        for i in 0..self.filled {
+            let k = (self.head + len - 1 - i) % len;
+            let t = self.ring_t[k];
+            if t <= from {
+                break;
+            }
+            if t <= to && self.ring_x[k].is_finite() {
+                sum += self.ring_x[k];
+                n += 1;
+            }
+        }
+        if n == 0 {
+            self.diag.unmatched += 1;
+            return None;
+        }
+        self.g_sum += sum;
+        self.g_n += n;
+        self.o_angle += m.yaw_rate * m.period_s;
+        self.o_time += m.period_s;
+        self.o_n += 1;
+        if self.o_time + 1e-9 < self.cfg.span_s {
+            return None;
+        }
+        let tick = self.cfg.tick_deg;
+        let span = Span {
+            gyro_mean: self.g_sum / self.g_n as f64,
+            odo_mean: self.o_angle / self.o_time,
+            r_noise: self.r_gyro / self.g_n as f64
+                + self.cfg.white_sd * self.cfg.white_sd / self.o_n as f64
+                + tick * tick / 6.0 / (self.o_time * self.o_time),
+        };
+        // The scale walks over the span.
+        self.scale_var += self.cfg.scale_walk * self.cfg.scale_walk * self.o_time;
+        self.clear_span();
+        self.judge(span, estimate, variance)
+    }
+
+    fn judge(&mut self, span: Span, estimate: f64, variance: f64) -> Option<Measurement> {
+        let gate = self.cfg.gate;
+        let now = span.measurement(self.scale, self.scale_var);
+        let nu = now.z - estimate;
+        if self.cfg.test && nu * nu > gate * (variance.max(0.0) + now.r) {
+            self.reject(true);
+            return None;
+        }
+        let prev = self.pending.replace(span)?;
+        let before = prev.measurement(self.scale, self.scale_var);
+        let d = now.z - before.z;
+        if self.cfg.test && d * d > gate * (now.r + before.r) {
+            // They disagree: the older one may hold the start of a slip; the newer waits.
+            self.reject(false);
+            return None;
+        }
+        self.run = 0;
+        self.diag.accepted += 1;
+        self.learn_scale(&prev, estimate, variance);
+        Some(prev.measurement(self.scale, self.scale_var))
+    }
+
+    /// A span rejected (`both`: the new one failed against the filter, so the waiting one,
+    /// unconfirmed, goes with it).
+    fn reject(&mut self, both: bool) {
+        if both {
+            self.pending = None;
+        }
+        self.diag.rejected += 1;
+        if self.run == 0 {
+            self.diag.slips += 1;
+        }
+        self.run += 1;
+        self.diag.longest_run = self.diag.longest_run.max(self.run);
+    }
+
+    /// The scale's scalar update from an accepted span in a turn.
+    fn learn_scale(&mut self, span: &Span, estimate: f64, variance: f64) {
+        let w = span.odo_mean;
+        if w.abs() < self.cfg.scale_min_rate || self.cfg.scale_sd == 0.0 {
+            return;
+        }
+        let y = span.gyro_mean - w - estimate;
+        let e = span.r_noise + variance.max(0.0);
+        let s = w * w * self.scale_var + e;
+        let k = self.scale_var * w / s;
+        self.scale += k * (y - self.scale * w);
+        self.scale_var -= k * w * self.scale_var;
+    }
+
+    /// What it has done so far, and the scale now.
+    pub fn diagnostics(&self) -> OdometryDiagnostics {
+        OdometryDiagnostics {
+            scale: self.scale,
+            scale_sd: self.scale_var.max(0.0).sqrt(),
+            ..self.diag
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{BiasFilter, BiasModel, BiasTerms, Instability};
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_distr::StandardNormal;
+
+    const RATE: f64 = 100.0;
+    const BIAS: f64 = 0.3;
+
+    fn terms() -> BiasTerms {
+        BiasTerms {
+            n: 0.04,
+            b: 0.005,
+            k: 0.0,
+            q: 0.0,
+            lsb: 0.0,
+            initial_sd: 1.0,
+        }
+    }
+
+    /// A drive for `secs`: the true rate `w(t)`, the gyro = w + BIAS + white noise of the
+    /// terms, a 50 Hz odometry reading (1 + e) w (1 + slip(t)) + 0.1 deg/s white, arriving
+    /// `latency` s after its stamp; stamped with its period's end, or (`honest` false) with
+    /// its arrival. The filter starts at its prior, or (`known`) knowing the bias to 0.01
+    /// deg/s as a stop would leave it. Returns the filter and the aid.
+    #[allow(clippy::too_many_arguments)]
+    fn drive(
+        secs: f64,
+        w: impl Fn(f64) -> f64,
+        e: f64,
+        slip: impl Fn(f64) -> f64,
+        latency: f64,
+        honest: bool,
+        known: bool,
+        cfg: OdometryAidConfig,
+    ) -> (BiasFilter, OdometryAid) {
+        let t = terms();
+        let model = BiasModel::new(&t, RATE, Instability::from_terms(&t)).unwrap();
+        let r = model.measurement_variance();
+        let mut f = BiasFilter::new(model);
+        if known {
+            // A long stop: the bias to about 0.01 deg/s.
+            let n = (r / 1e-4) as usize;
+            for _ in 0..n {
+                f.update(BIAS);
+            }
+        }
+        let mut aid = OdometryAid::new(cfg, r, RATE).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let sd = (t.n * t.n * RATE).sqrt();
+        let n = (secs * RATE) as usize;
+        let mut queue: Vec<(usize, OdometrySample)> = Vec::new();
+        let mut angle = 0.0;
+        let mut last = 0.0;
+        for k in 0..n {
+            let tt = k as f64 / RATE;
+            let g: f64 = rng.sample(StandardNormal);
+            let x = w(tt) + BIAS + sd * g;
+            angle += (1.0 + e) * (1.0 + slip(tt)) * w(tt) / RATE;
+            if k > 0 && k % 2 == 0 {
+                let o: f64 = rng.sample(StandardNormal);
+                let arrival = k + (latency * RATE).round() as usize;
+                let stamp = if honest { tt } else { arrival as f64 / RATE };
+                let yaw_rate = (angle - last) / 0.02 + 0.1 * o;
+                last = angle;
+                queue.push((
+                    arrival,
+                    OdometrySample {
+                        stamp_s: stamp,
+                        period_s: 0.02,
+                        yaw_rate,
+                    },
+                ));
+            }
+            f.predict();
+            aid.push_gyro(tt, x);
+            while queue.first().is_some_and(|(a, _)| *a <= k) {
+                let (_, m) = queue.remove(0);
+                if let Some(z) = aid.push_odometry(m, f.estimate(), f.variance()) {
+                    f.update_with_variance(z.z, z.r);
+                }
+            }
+        }
+        (f, aid)
+    }
+
+    fn no_slip(_: f64) -> f64 {
+        0.0
+    }
+
+    #[test]
+    fn a_bias_is_learnt_while_driving_straight() {
+        // From the prior (1 deg/s), no stop at all: 60 s straight with road vibration.
+        let w = |t: f64| 0.8 * (2.0 * std::f64::consts::PI * 9.3 * t).sin();
+        let (f, aid) = drive(
+            60.0,
+            w,
+            0.01,
+            no_slip,
+            0.03,
+            true,
+            false,
+            Default::default(),
+        );
+        let sd = f.variance().sqrt();
+        assert!(sd < 0.02, "sd {sd}");
+        assert!(
+            (f.estimate() - BIAS).abs() < 4.0 * sd,
+            "{} +- {sd}",
+            f.estimate()
+        );
+        let d = aid.diagnostics();
+        assert!(d.accepted > 100 && d.rejected <= 2, "{d:?}");
+    }
+
+    /// Turns: 10 deg/s plus 15 deg/s at 0.05 Hz (the scale shows where the rate varies).
+    fn turning(t: f64) -> f64 {
+        10.0 + 15.0 * (2.0 * std::f64::consts::PI * 0.05 * t).sin()
+    }
+
+    #[test]
+    fn a_slip_burst_never_teaches_the_bias() {
+        // 20% slip for 2 s in a turn (about 5 deg/s of error).
+        let slip = |t: f64| if (30.0..32.0).contains(&t) { 0.2 } else { 0.0 };
+        let run = |test: bool| {
+            let cfg = OdometryAidConfig {
+                test,
+                ..Default::default()
+            };
+            drive(40.0, turning, 0.0, slip, 0.03, true, true, cfg)
+        };
+        let (f, aid) = run(true);
+        let d = aid.diagnostics();
+        assert!(d.slips >= 1 && d.rejected >= 3, "{d:?}");
+        assert!((f.estimate() - BIAS).abs() < 0.02, "{}", f.estimate());
+        // Without the test the same burst moves the estimate far more.
+        let (blind, _) = run(false);
+        assert!(
+            (blind.estimate() - BIAS).abs() > 3.0 * (f.estimate() - BIAS).abs(),
+            "{} against {}",
+            blind.estimate(),
+            f.estimate()
+        );
+        assert!(
+            (blind.estimate() - BIAS).abs() > 0.05,
+            "{}",
+            blind.estimate()
+        );
+    }
+
+    #[test]
+    fn a_late_message_is_matched_to_the_gyro_of_its_stamp() {
+        // A fast-changing turn (20 deg/s at 0.5 Hz), messages 100 ms late.
+        let w = |t: f64| 20.0 * (2.0 * std::f64::consts::PI * 0.5 * t).sin();
+        let (f, aid) = drive(60.0, w, 0.0, no_slip, 0.1, true, false, Default::default());
+        assert!((f.estimate() - BIAS).abs() < 0.02, "{}", f.estimate());
+        assert!(aid.diagnostics().rejected <= 3, "{:?}", aid.diagnostics());
+        // Stamped at arrival instead, the gyro it is matched to is 100 ms off: the tests
+        // refuse most spans (a 6 deg/s mismatch at the turn's quickest).
+        let (_, blind) = drive(60.0, w, 0.0, no_slip, 0.1, false, false, Default::default());
+        assert!(
+            blind.diagnostics().rejected > 10 * aid.diagnostics().rejected.max(1),
+            "{:?}",
+            blind.diagnostics()
+        );
+    }
+
+    #[test]
+    fn the_odometry_scale_is_learnt_in_turns() {
+        // The odometry reads 2% high: the correction is 1/1.02 - 1.
+        let (f, aid) = drive(
+            300.0,
+            turning,
+            0.02,
+            no_slip,
+            0.03,
+            true,
+            true,
+            Default::default(),
+        );
+        let d = aid.diagnostics();
+        let s = 1.0 / 1.02 - 1.0;
+        assert!((d.scale - s).abs() < 0.003, "{d:?}");
+        assert!(d.scale_sd < 0.003, "{d:?}");
+        assert!((f.estimate() - BIAS).abs() < 0.02, "{}", f.estimate());
+        // Not learning it (a prior of 0) takes the scale error as bias in every turn.
+        let cfg = OdometryAidConfig {
+            scale_sd: 0.0,
+            ..Default::default()
+        };
+        let (g, _) = drive(300.0, turning, 0.02, no_slip, 0.03, true, true, cfg);
+        assert!((g.estimate() - BIAS).abs() > 2.0 * (f.estimate() - BIAS).abs());
+    }
+
+    #[test]
+    fn bad_settings_are_refused() {
+        let c = OdometryAidConfig::default();
+        assert!(OdometryAid::new(c, 0.1, 0.0).is_err());
+        assert!(OdometryAid::new(OdometryAidConfig { span_s: 0.0, ..c }, 0.1, 100.0).is_err());
+        assert!(OdometryAid::new(
+            OdometryAidConfig {
+                white_sd: -1.0,
+                ..c
+            },
+            0.1,
+            100.0
+        )
+        .is_err());
+        assert!(OdometryAid::new(c, f64::NAN, 100.0).is_err());
+    }
+}
