@@ -526,7 +526,10 @@ pub struct OdometryComparison {
     pub odometry_rms: f64,
     /// Per case, RMS with the odometry over RMS with the stops alone.
     pub ratio: crate::nav::Summary,
-    /// Cases where the odometry's RMS is more than 2% above the stops alone's.
+    /// The same over the stops alone's RMS or [`crate::nav::eval::RATIO_FLOOR_DEG`], whichever
+    /// is larger (below it a window's error is noise, as for the ratios to ZARU).
+    pub ratio_floored: crate::nav::Summary,
+    /// Cases where the odometry's RMS is more than 2% above the stops alone's (floored).
     pub worse: usize,
     /// Cases.
     pub cases: usize,
@@ -563,13 +566,16 @@ impl Outcome {
                 let a: Vec<f64> = pairs.iter().map(|p| p.0).collect();
                 let b: Vec<f64> = pairs.iter().map(|p| p.1).collect();
                 let r: Vec<f64> = pairs.iter().map(|p| p.1 / p.0).collect();
+                let floor = crate::nav::eval::RATIO_FLOOR_DEG;
+                let rf: Vec<f64> = pairs.iter().map(|p| p.1 / p.0.max(floor)).collect();
                 out.push(OdometryComparison {
                     motion: motion.label(),
                     label: v.label.clone(),
                     stops_rms: median(&a),
                     odometry_rms: median(&b),
                     ratio: crate::nav::summarize(&r),
-                    worse: r.iter().filter(|&&x| x > 1.02).count(),
+                    ratio_floored: crate::nav::summarize(&rf),
+                    worse: rf.iter().filter(|&&x| x > 1.02).count(),
                     cases: pairs.len(),
                 });
             }
