@@ -10,7 +10,7 @@
 //!   ([`crate::drift::bias::BiasTracker`]).
 //! - [`force`]: the accelerometer's side of a profile: the vehicle's body acceleration at each
 //!   sample (longitudinal at starts and stops, centripetal in turns) from its stated speed.
-//! - [`odometry`]: a wheel odometry's yaw rate derived from a profile's truth with stated errors
+//! - [`mod@odometry`]: a wheel odometry's yaw rate derived from a profile's truth with stated errors
 //!   (scale, ticks, noise, slip, latency), and the bias filter given the true stops and it.
 //! - [`fusion`]: x-io Fusion's gyroscope bias algorithm, three axes at once, as deployed.
 //! - [`eval`]: every method on one window, and summaries against a reference (oracle ZARU).

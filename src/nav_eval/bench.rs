@@ -112,7 +112,7 @@ pub struct Bench {
 pub struct OdometryVariant {
     /// Its column's label.
     pub label: String,
-    /// The odometry's errors ([`crate::nav::odometry`]).
+    /// The odometry's errors ([`mod@crate::nav::odometry`]).
     pub model: OdometryModel,
     /// How the filter weighs and tests it.
     pub aid: OdometryAidConfig,

@@ -392,7 +392,7 @@ impl BiasFilter {
 
     /// Measurement update with a measurement `z` of the bias (deg/s) of variance `r`
     /// ((deg/s)^2) given by the caller, not the model's: a reference other than a still
-    /// sample (the vehicle's odometry while it drives, [`super::odometry`]). Returns the
+    /// sample (the vehicle's odometry while it drives, [`super::OdometryAid`]). Returns the
     /// innovation. Unlike [`BiasFilter::update`] it does not feed the walk learner, which
     /// learns from stops alone. A non-finite `z` or an `r` that is not a finite number > 0
     /// is ignored (returns NaN).
