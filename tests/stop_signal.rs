@@ -117,12 +117,11 @@ output = "v/corrected"
             assert_eq!(got.len(), i, "samples before {p:?} corrected");
         }
         if p != Phase::Silent {
-            stop.send(&StopSignal {
-                t_ns: monotonic_ns(),
-                speed_m_s: f64::NAN,
-                stopped: u32::from(p != Phase::Moves),
-                reserved: 0,
-            })
+            stop.send(&StopSignal::new(
+                monotonic_ns(),
+                f64::NAN,
+                u32::from(p != Phase::Moves),
+            ))
             .expect("send stop signal");
         }
         let turn = if matches!(p, Phase::Lies | Phase::Moves) {

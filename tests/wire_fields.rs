@@ -104,7 +104,7 @@ fn python_struct_formats_are_the_tables() {
     // The formats as they stand: a change here is a change of the wire (and of its version).
     assert_eq!(
         [raw.as_str(), gyro.as_str(), stop.as_str()],
-        ["<QQ3dII6d", "<QQQ9dII12dII7d", "<QdII"]
+        ["<QQ3dII6d", "<QQQ9dII12dII7d", "<QdII3dQ"]
     );
     let wanted: &[(&str, &[&str])] = &[
         ("docs/wire-types.md", &[&raw, &gyro, &stop]),
@@ -214,7 +214,7 @@ fn the_documented_layouts_are_the_tables() {
     for (after, table, typed) in [
         ("`driftless::RawSample.v2`, 96 bytes", &RAW_FIELDS, true),
         ("`driftless::GyroSample.v4`, 264 bytes", &GYRO_FIELDS, true),
-        ("`driftless::StopSignal`, 24 bytes", &STOP_FIELDS, true),
+        ("`driftless::StopSignal.v2`, 56 bytes", &STOP_FIELDS, true),
         (
             "`driftless::StatsSnapshot.v3`, 952 bytes",
             &STATS_FIELDS,
@@ -230,7 +230,10 @@ fn the_documented_layouts_are_the_tables() {
     }
     let source = read("src/wire/samples.rs");
     for (after, table) in [
-        ("/// Whether the vehicle stands", &STOP_FIELDS),
+        (
+            "/// Whether the vehicle stands, and how it moves",
+            &STOP_FIELDS,
+        ),
         (
             "/// A raw IMU sample as a sensor driver publishes it",
             &RAW_FIELDS,

@@ -181,12 +181,11 @@ impl Offline {
                 raw.flags |= RAW_MAG;
             }
             if let Some(stopped) = stops.and_then(|s| s.get(k)) {
-                off.side(&SideValue::Stop(StopSignal {
-                    t_ns: raw.t_ns.max(1),
-                    speed_m_s: f64::NAN,
-                    stopped: u32::from(*stopped),
-                    reserved: 0,
-                }));
+                off.side(&SideValue::Stop(StopSignal::new(
+                    raw.t_ns.max(1),
+                    f64::NAN,
+                    u32::from(*stopped),
+                )));
             }
             off.push(&raw, &mut put);
         }

@@ -30,7 +30,8 @@ use super::predict::motion_flags;
 use crate::drift::accel_rest::AccelRest;
 use crate::drift::bias::{
     accel_rest_from_terms, default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms,
-    BiasTracker, Instability, LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
+    BiasTracker, Instability, LearnWalk, OdometryAid, OdometryAidConfig, OdometrySample,
+    TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
@@ -124,6 +125,23 @@ const STOP_INPUT: Key = Key {
     default: DefaultValue::Absent("none: our own stillness detector alone"),
     doc: "the vehicle's stop signal (wheel odometry, speed): trusted while fresh, checked against the gyro; our detector decides while it is stale",
 };
+const VEHICLE_UP: Key = Key {
+    name: "vehicle_up",
+    ty: Type::Choice(&["+x", "-x", "+y", "-y", "+z", "-z"]),
+    default: DefaultValue::Absent(
+        "none: a yaw rate on stop_input is refused (an error line at its first message), never used",
+    ),
+    doc: "which gyro axis, and which way, is the vehicle's up: the yaw rate on stop_input (counter-clockwise seen from above positive) is that axis's rate times its sign",
+};
+const ODOMETRY: Key = Key {
+    name: "odometry",
+    ty: Type::Bool,
+    default: DefaultValue::Noted(
+        &DefaultValue::Bool(true),
+        " (with vehicle_up): a finite yaw rate is used",
+    ),
+    doc: "true: while the vehicle moves, each stop_input message with a finite yaw rate teaches the bias of the vehicle_up axis (its scale learnt too, slips caught by an innovation test); false: the yaw rate is ignored",
+};
 const STATE_FILE: Key = Key {
     name: "state_file",
     ty: Type::Str("a file path, relative to the pipeline file"),
@@ -173,6 +191,8 @@ pub const KIND: Kind = Kind {
         STOP_INPUT,
         STOP_MAX_AGE_S,
         STOP_SPEED_OF_SIGNAL,
+        VEHICLE_UP,
+        ODOMETRY,
         STATE_FILE,
         STATE_EVERY_S,
         STATE_REQUIRED,
@@ -219,6 +239,19 @@ pub struct StopConfig {
     pub service: String,
     /// How it is judged (`stop_speed`, `stop_max_age_s`).
     pub rule: StopRule,
+    /// `vehicle_up`: the gyro axis that is the vehicle's up, and its sign (+1 or -1).
+    pub up: Option<(usize, f64)>,
+    /// `odometry`: whether a yaw rate (with `vehicle_up`) teaches the bias while moving.
+    pub odometry: bool,
+}
+
+/// The word of `vehicle_up` for an axis and a sign.
+fn up_word(axis: usize, sign: f64) -> String {
+    format!(
+        "{}{}",
+        if sign < 0.0 { '-' } else { '+' },
+        ["x", "y", "z"][axis]
+    )
 }
 
 impl StopConfig {
@@ -307,8 +340,57 @@ fn state(
     })
 }
 
-fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
+/// The stop signal's settings (`stop_input`, its rule, `vehicle_up`, `odometry`); `None`
+/// without a `stop_input`, whose keys then are refused.
+fn stop(t: &mut Table<'_, '_>) -> Result<Option<StopConfig>, InputError> {
     let src = t.src;
+    let input = t.get::<String>(&STOP_INPUT)?;
+    let (rule, set) = StopRule::parse(t, &STOP_SPEED_OF_SIGNAL)?;
+    let up = t.choice(&VEHICLE_UP, "vehicle_up", true)?;
+    let odometry_given = t.has(&ODOMETRY);
+    let odometry = t.bool_or_default(&ODOMETRY)?;
+    let up = match up {
+        Some(word) => {
+            let axis = match &word[1..] {
+                "x" => 0,
+                "y" => 1,
+                _ => 2,
+            };
+            if axis >= t.cx.axes {
+                return Err(t.error(format!(
+                    "predict.bias: vehicle_up = \"{word}\" but the pipeline has {} axis(es): \
+                     name one of its axes",
+                    t.cx.axes
+                )));
+            }
+            Some((axis, if word.starts_with('-') { -1.0 } else { 1.0 }))
+        }
+        None => None,
+    };
+    Ok(match input {
+        Some(v) => Some(StopConfig {
+            service: src.service(&v)?,
+            rule,
+            up,
+            odometry,
+        }),
+        None => {
+            let needs = set
+                .or(up.map(|_| VEHICLE_UP.name))
+                .or(odometry_given.then_some(ODOMETRY.name));
+            match needs {
+                Some(key) => {
+                    return Err(t.error(format!(
+                        "predict.bias: {key} needs stop_input (the service of the stop signal)"
+                    )))
+                }
+                None => None,
+            }
+        }
+    })
+}
+
+fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let profile = t.choice(&PROFILE, "profile", false)?;
     let arw = t.float(&ARW)?;
     let b = t.float(&BIAS_INSTABILITY)?;
@@ -379,22 +461,7 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
         }
     }
     tracker.walk_range = walk_range(t, &terms)?;
-    let input = t.get::<String>(&STOP_INPUT)?;
-    let (rule, set) = StopRule::parse(t, &STOP_SPEED_OF_SIGNAL)?;
-    let stop = match input {
-        Some(v) => Some(StopConfig {
-            service: src.service(&v)?,
-            rule,
-        }),
-        None => match set {
-            Some(key) => {
-                return Err(t.error(format!(
-                    "predict.bias: {key} needs stop_input (the service of the stop signal)"
-                )))
-            }
-            None => None,
-        },
-    };
+    let stop = stop(t)?;
     let state = state(t, &terms, &tracker)?;
     let params = BiasParams {
         terms,
@@ -446,7 +513,27 @@ impl Params for BiasParams {
         }
         let rest = accel_rest_from_terms(&self.accel, cx.rate_hz, &self.tracker)
             .map_err(|e| e.to_string())?;
+        let odometry = match &self.stop {
+            Some(StopConfig {
+                up: Some((axis, sign)),
+                odometry: true,
+                ..
+            }) => {
+                let r_gyro = trackers[*axis].filter().model().measurement_variance();
+                Some(Odometry {
+                    axis: *axis,
+                    sign: *sign,
+                    aid: OdometryAid::new(OdometryAidConfig::default(), r_gyro, cx.rate_hz)?,
+                    last_t_ns: 0,
+                    learnt: 0,
+                })
+            }
+            _ => None,
+        };
         Ok(Box::new(BiasStage {
+            odometry,
+            fresh: None,
+            refused_yaw: false,
             trackers,
             rest: AccelRest::new(rest),
             accel_seen: false,
@@ -489,6 +576,19 @@ impl Params for BiasParams {
                 .iter()
                 .map(|s| format!("stop signal: {} ({})", s.service, s.rule.describe())),
         )
+        .chain(self.stop.iter().filter_map(|s| {
+            let (axis, sign) = s.up?;
+            let up = up_word(axis, sign);
+            Some(if s.odometry {
+                format!(
+                    "odometry: the vehicle's up is the gyro's {up}: while it moves, its yaw rate \
+                     on {} teaches that axis's bias",
+                    s.service
+                )
+            } else {
+                format!("odometry: off (odometry = false): the yaw rate on {} is ignored", s.service)
+            })
+        }))
         .chain(self.state.iter().map(|st| match &st.loaded {
             Loaded::Missing => format!("state: none yet in {}: a cold start", st.path.display()),
             Loaded::Saved(_) => format!("state: {} (a warm start if not too old)", st.path.display()),
@@ -586,8 +686,89 @@ fn cold_unusable(path: &std::path::Path, u: &bias_state::Unusable) -> WarmStart 
     crate::stages::state_file::cold_unusable(path, u, "the filter")
 }
 
+/// The vehicle's yaw rate as a measurement of the up axis's bias while it moves.
+struct Odometry {
+    /// The gyro axis that is the vehicle's up, and its sign.
+    axis: usize,
+    sign: f64,
+    aid: OdometryAid,
+    /// The stamp of the last message, ns (its period, when the message does not say it).
+    last_t_ns: u64,
+    /// Measurements the filter took.
+    learnt: u64,
+}
+
+impl Odometry {
+    /// One sample of the up axis (`x` deg/s, the rate the filter sees) at ingest time `now_ns`,
+    /// and the message that came with it, if any; `tracker` is that axis's, after the sample.
+    fn push(
+        &mut self,
+        tracker: &mut BiasTracker,
+        x: f64,
+        now_ns: u64,
+        message: Option<&StopSignal>,
+    ) {
+        self.aid.push_gyro(now_ns as f64 * 1e-9, self.sign * x);
+        let moving = !tracker.is_still();
+        if !moving {
+            self.aid.stop();
+        }
+        let Some(m) = message.filter(|m| m.yaw_rate_rad_s.is_finite() && m.t_ns != 0) else {
+            return;
+        };
+        let period_ns = if m.period_ns > 0 {
+            m.period_ns
+        } else {
+            m.t_ns.saturating_sub(self.last_t_ns)
+        };
+        let first = self.last_t_ns == 0;
+        self.last_t_ns = m.t_ns;
+        // Without a period, the first message only starts the clock; a gap over 1 s is no period.
+        if !moving || (m.period_ns == 0 && (first || period_ns > 1_000_000_000)) {
+            return;
+        }
+        let sample = OdometrySample {
+            stamp_s: m.t_ns as f64 * 1e-9,
+            period_s: period_ns as f64 * 1e-9,
+            yaw_rate: m.yaw_rate_rad_s.to_degrees(),
+        };
+        let f = tracker.filter();
+        let (estimate, variance) = (self.sign * f.estimate(), f.variance());
+        if let Some(z) = self.aid.push_odometry(sample, estimate, variance) {
+            if tracker.update_in_motion(self.sign * z.z, z.r) {
+                self.learnt += 1;
+            }
+        }
+    }
+
+    /// The summary line of what it did.
+    fn learnt(&self) -> String {
+        let d = self.aid.diagnostics();
+        format!(
+            "odometry (vehicle_up = {}): {} spans accepted ({} taught the filter), {} rejected \
+             in {} slips (longest {} spans), {} messages unmatched; odometry scale {:+.2} % \
+             +- {:.2} %",
+            up_word(self.axis, self.sign),
+            d.accepted,
+            self.learnt,
+            d.rejected,
+            d.slips,
+            d.longest_run,
+            d.unmatched,
+            d.scale * 100.0,
+            d.scale_sd * 100.0
+        )
+    }
+}
+
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
 pub struct BiasStage {
+    /// The vehicle's yaw rate, with `vehicle_up` and `odometry` on.
+    odometry: Option<Odometry>,
+    /// The stop signal that came since the last sample, if any.
+    fresh: Option<StopSignal>,
+    /// Whether a yaw rate without `vehicle_up` has been refused (said once).
+    refused_yaw: bool,
     trackers: Vec<BiasTracker>,
     /// The accelerometer's rest test, for the whole body (its verdict aids every axis).
     rest: AccelRest,
@@ -642,8 +823,9 @@ impl Stage for BiasStage {
             LearnWalk::ConfirmedStops => given || self.accel_seen,
             LearnWalk::Always | LearnWalk::Off => true,
         };
+        let odometry = self.odometry.iter().map(Odometry::learnt);
         if !can {
-            return Vec::new();
+            return odometry.collect();
         }
         self.trackers
             .iter()
@@ -661,12 +843,28 @@ impl Stage for BiasStage {
                     self.learn.name()
                 ))
             })
+            .chain(odometry)
             .collect()
     }
 
     fn side(&mut self, _slot: usize, value: &SideValue) {
         let SideValue::Stop(s) = value;
         self.signal = Some(*s);
+        self.fresh = Some(*s);
+        if let Some(cfg) = &self.stop {
+            if cfg.up.is_none() && cfg.odometry && s.yaw_rate_rad_s.is_finite() && !self.refused_yaw
+            {
+                self.refused_yaw = true;
+                eprintln!(
+                    "driftless: error: {} carries a yaw rate, but predict.bias does not know \
+                     which gyro axis is the vehicle's up: the yaw rate is refused (not used). \
+                     Set vehicle_up = \"+z\" (or -z, +x, -x, +y, -y: the axis pointing up, \
+                     its sign) in the predict.bias table, or odometry = false to ignore the \
+                     yaw rate (docs/navigation.md#feeding-the-odometry-to-the-daemon)",
+                    cfg.service
+                );
+            }
+        }
     }
 
     fn process(&mut self, input: &GyroSample) -> Option<GyroSample> {
@@ -715,6 +913,16 @@ impl Stage for BiasStage {
             }
             warming |= !step.informed;
         }
+        let fresh = self.fresh.take();
+        if let Some(o) = &mut self.odometry {
+            let x = input.denoised[o.axis].to_degrees();
+            o.push(
+                &mut self.trackers[o.axis],
+                x,
+                input.ingest_ns,
+                fresh.as_ref(),
+            );
+        }
         out.flags |= motion_flags(still, moving, warming);
         self.samples += 1;
         if let Some((writer, every)) = &self.writer {
@@ -736,12 +944,7 @@ mod tests {
     use super::*;
 
     fn signal(t_ns: u64, speed_m_s: f64, stopped: u32) -> StopSignal {
-        StopSignal {
-            t_ns,
-            speed_m_s,
-            stopped,
-            reserved: 0,
-        }
+        StopSignal::new(t_ns, speed_m_s, stopped)
     }
 
     #[test]
@@ -752,6 +955,8 @@ mod tests {
                 max_age_ns: 500_000_000,
                 speed_m_s: None,
             },
+            up: None,
+            odometry: true,
         };
         let now = 10_000_000_000;
         assert_eq!(

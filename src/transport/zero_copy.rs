@@ -40,9 +40,9 @@ mod tests {
             assert_eq!(RawSample::type_name(), "driftless::RawSample.v2");
             assert_eq!(GyroSample::type_name(), "driftless::GyroSample.v4");
             assert_eq!(StatsSnapshot::type_name(), "driftless::StatsSnapshot.v3");
-            assert_eq!(StopSignal::type_name(), "driftless::StopSignal");
+            assert_eq!(StopSignal::type_name(), "driftless::StopSignal.v2");
         }
-        assert_eq!(std::mem::size_of::<StopSignal>(), 24);
+        assert_eq!(std::mem::size_of::<StopSignal>(), 56);
         assert_eq!(std::mem::offset_of!(StopSignal, stopped), 16);
     }
 }

@@ -500,6 +500,10 @@ pub const STOP_FIELDS: FieldTable = FieldTable::of::<StopSignal>(
         Field::new("speed_m_s", 8, F64, 1, MPerS, 1),
         Field::new("stopped", 16, U32, 1, Unitless, 1),
         Field::new("reserved", 20, U32, 1, Unitless, 1),
+        Field::new("yaw_rate_rad_s", 24, F64, 1, RadPerS, 2),
+        Field::new("speed_std_m_s", 32, F64, 1, MPerS, 2),
+        Field::new("yaw_rate_std_rad_s", 40, F64, 1, RadPerS, 2),
+        Field::new("period_ns", 48, U64, 1, Ns, 2),
     ],
 );
 
@@ -591,7 +595,7 @@ mod tests {
     use super::*;
     use crate::wire::{
         WireBytes, GYRO_V1_SIZE, GYRO_V2_SIZE, GYRO_V3_SIZE, GYRO_VERSION, RAW_V1_SIZE,
-        RAW_VERSION, STATS_V1_SIZE, STATS_V2_SIZE, STATS_VERSION,
+        RAW_VERSION, STATS_V1_SIZE, STATS_V2_SIZE, STATS_VERSION, STOP_V1_SIZE, STOP_VERSION,
     };
 
     /// The table of `$ty` holds exactly the fields listed, each at its `offset_of!` with its
@@ -658,7 +662,11 @@ mod tests {
                 t_ns,
                 speed_m_s,
                 stopped,
-                reserved
+                reserved,
+                yaw_rate_rad_s,
+                speed_std_m_s,
+                yaw_rate_std_rad_s,
+                period_ns
             }
         );
         the_table_is_the_layout!(
@@ -724,6 +732,7 @@ mod tests {
                 STATS_VERSION,
                 &[STATS_V1_SIZE, STATS_V2_SIZE],
             ),
+            (&STOP_FIELDS, STOP_VERSION, &[STOP_V1_SIZE][..]),
         ] {
             let sizes: Vec<usize> = (1..version).map(|v| table.size_of_version(v)).collect();
             assert_eq!(sizes, old, "{}", table.name);

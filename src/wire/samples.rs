@@ -30,13 +30,22 @@ pub const GYRO_V1_SIZE: usize = 104;
 pub const GYRO_V2_SIZE: usize = 128;
 /// Size of [`GyroSample`] version 3, bytes (before the orientation).
 pub const GYRO_V3_SIZE: usize = 208;
-/// Type name of [`StopSignal`] on the wire.
-pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
+/// Type name of [`StopSignal`] on the wire; `.v2` names the layout, as for [`GYRO_TYPE_NAME`].
+pub const STOP_TYPE_NAME: &str = "driftless::StopSignal.v2";
+/// The layout version of [`StopSignal`] (the `.vN` of [`STOP_TYPE_NAME`]).
+pub const STOP_VERSION: u32 = 2;
+/// The type name of [`StopSignal`] version 1 (24 bytes, before the yaw rate).
+pub const STOP_V1_TYPE_NAME: &str = "driftless::StopSignal";
+/// Size of [`StopSignal`] version 1, bytes.
+pub const STOP_V1_SIZE: usize = 24;
 
-/// Whether the vehicle stands, as its own sensors say (wheel odometry, a speed over ground,
-/// the drive's state): what a vehicle's process publishes for `predict.bias`'s `stop_input`
-/// (24 bytes, 8-byte aligned). Publish it whenever it is known, at any rate; the stage reads the
-/// newest at each gyro sample and treats one older than its `stop_max_age_s` as unknown.
+/// Whether the vehicle stands, and how it moves, as its own sensors say (wheel odometry, a
+/// speed over ground, the drive's state): what a vehicle's process publishes for
+/// `predict.bias`'s `stop_input` (56 bytes, 8-byte aligned; type name [`STOP_TYPE_NAME`],
+/// layout version [`STOP_VERSION`]). Publish it whenever it is known, at any rate; the stage
+/// reads the newest at each gyro sample and treats one older than its `stop_max_age_s` as
+/// unknown. A yaw rate, where given, teaches the bias about the vehicle's up axis while it
+/// drives (`vehicle_up`).
 ///
 /// | offset | type | field |
 /// |---:|---|---|
@@ -44,7 +53,13 @@ pub const STOP_TYPE_NAME: &str = "driftless::StopSignal";
 /// | 8 | f64 | `speed_m_s` speed, m/s (NaN: not measured) |
 /// | 16 | u32 | `stopped` 1: stands, 0: moves, anything else: unknown |
 /// | 20 | u32 | `reserved` 0 |
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// | 24 | f64 | `yaw_rate_rad_s` the vehicle's yaw rate about its up axis, rad/s, counter-clockwise seen from above positive (REP 103) (NaN: not measured) |
+/// | 32 | f64 | `speed_std_m_s` 1-sigma of `speed_m_s`, m/s (NaN: not known) |
+/// | 40 | f64 | `yaw_rate_std_rad_s` 1-sigma of `yaw_rate_rad_s`, rad/s (NaN: not known) |
+/// | 48 | u64 | `period_ns` the yaw rate is the mean over the `period_ns` before `t_ns` (0: not said) |
+///
+/// [`StopSignal::new`] gives a signal with nothing measured but its stop word.
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct StopSignal {
     /// CLOCK_MONOTONIC nanoseconds when the state was measured (the clock of `ingest_ns`).
@@ -55,6 +70,39 @@ pub struct StopSignal {
     pub stopped: u32,
     /// Reserved, 0.
     pub reserved: u32,
+    /// The vehicle's yaw rate about its up axis, rad/s (counter-clockwise seen from above is
+    /// positive, REP 103); NaN when not measured.
+    pub yaw_rate_rad_s: f64,
+    /// Standard deviation (1 sigma) of `speed_m_s`, m/s; NaN when not known.
+    pub speed_std_m_s: f64,
+    /// Standard deviation (1 sigma) of `yaw_rate_rad_s`, rad/s; NaN when not known.
+    pub yaw_rate_std_rad_s: f64,
+    /// The period the yaw rate is the mean over, ns, ending at `t_ns`; 0 when not said.
+    pub period_ns: u64,
+}
+
+impl StopSignal {
+    /// A signal at `t_ns` with `speed_m_s` and the word `stopped`, no yaw rate, nothing else
+    /// known.
+    pub fn new(t_ns: u64, speed_m_s: f64, stopped: u32) -> Self {
+        StopSignal {
+            t_ns,
+            speed_m_s,
+            stopped,
+            reserved: 0,
+            yaw_rate_rad_s: f64::NAN,
+            speed_std_m_s: f64::NAN,
+            yaw_rate_std_rad_s: f64::NAN,
+            period_ns: 0,
+        }
+    }
+}
+
+impl Default for StopSignal {
+    /// Never stamped (`t_ns` 0: unknown), nothing measured.
+    fn default() -> Self {
+        StopSignal::new(0, f64::NAN, u32::MAX)
+    }
 }
 
 /// A raw IMU sample as a sensor driver publishes it (96 bytes, 8-byte aligned; type name

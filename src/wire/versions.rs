@@ -3,10 +3,12 @@
 use super::samples::{
     GyroSample, RawSample, GYRO_TYPE_NAME, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME, GYRO_V2_SIZE,
     GYRO_V3_SIZE, GYRO_VERSION, RAW_TYPE_NAME, RAW_V1_SIZE, RAW_V1_TYPE_NAME, RAW_VERSION,
+    STOP_TYPE_NAME, STOP_V1_SIZE, STOP_V1_TYPE_NAME, STOP_VERSION,
 };
 use super::stats::{
     StatsSnapshot, STATS_TYPE_NAME, STATS_V1_SIZE, STATS_V1_TYPE_NAME, STATS_V2_SIZE, STATS_VERSION,
 };
+use super::StopSignal;
 
 /// One of our wire types whose layout has changed.
 struct Versioned {
@@ -24,7 +26,7 @@ struct Versioned {
 }
 
 /// Every type whose layout has changed (docs/wire-types.md#versions).
-const VERSIONED: [Versioned; 3] = [
+const VERSIONED: [Versioned; 4] = [
     Versioned {
         short: "RawSample",
         v1: RAW_V1_TYPE_NAME,
@@ -51,6 +53,15 @@ const VERSIONED: [Versioned; 3] = [
         version: STATS_VERSION,
         size: std::mem::size_of::<StatsSnapshot>(),
         added: "the stamp faults and the warm start",
+    },
+    Versioned {
+        short: "StopSignal",
+        v1: STOP_V1_TYPE_NAME,
+        old_sizes: &[STOP_V1_SIZE],
+        name: STOP_TYPE_NAME,
+        version: STOP_VERSION,
+        size: std::mem::size_of::<StopSignal>(),
+        added: "the yaw rate",
     },
 ];
 

@@ -788,12 +788,11 @@ impl MotionSubscription {
 
 /// The stop signal of a linear velocity `v` (m/s) received at `now_ns`.
 fn stop_signal(v: [f64; 3], now_ns: u64) -> StopSignal {
-    StopSignal {
-        t_ns: now_ns,
-        speed_m_s: v.iter().map(|c| c * c).sum::<f64>().sqrt(),
-        stopped: u32::MAX,
-        reserved: 0,
-    }
+    StopSignal::new(
+        now_ns,
+        v.iter().map(|c| c * c).sum::<f64>().sqrt(),
+        u32::MAX,
+    )
 }
 
 #[cfg(test)]

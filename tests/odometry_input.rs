@@ -1,0 +1,213 @@
+//! `predict.bias` learning the bias while the vehicle drives, from the yaw rate of its
+//! odometry, between real processes: this test is the sensor driver and the vehicle. It
+//! publishes raw rates at 200 Hz (a known bias on every axis, the vehicle turning about the
+//! gyro's -z) and `StopSignal`s at 50 Hz saying "moves", with the true turn rate as the yaw
+//! rate. The vehicle never stops, so the stops teach nothing: the bias of the up axis is learnt
+//! from the yaw rate alone, with the sign of `vehicle_up` applied; without `vehicle_up` the yaw
+//! rate is refused with a message naming the fix, and without a yaw rate nothing is learnt.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::{collect, finish, qos, raw, report, signal, start, wait_ready, Dir, Prefix};
+use driftless::transport::{monotonic_ns, Transport};
+use driftless::wire::{GyroSample, RawSample, StopSignal};
+use libc::SIGTERM;
+
+const BIAS_DEG_S: f64 = 0.5;
+const RATE_HZ: u64 = 200;
+/// Samples per odometry message (50 Hz).
+const PER_MESSAGE: usize = 4;
+const N: usize = 3000;
+
+/// The vehicle's true turn rate, deg/s: 2 s segments, straight and turning both ways.
+fn turn(i: usize) -> f64 {
+    [0.0, 15.0, 0.0, -10.0, 5.0][(i / 400) % 5]
+}
+
+struct Run {
+    got: Vec<GyroSample>,
+    stderr: String,
+    learnt: Vec<String>,
+}
+
+/// The daemon with `keys` in its predict.bias table, fed by this test; `yaw`: whether the
+/// signals carry the yaw rate.
+fn run(test: &str, keys: &str, yaw: bool) -> Run {
+    let prefix = Prefix::new(test);
+    let dir = Dir::new();
+    let text = format!(
+        r#"
+name = "o"
+rate_hz = {RATE_HZ}.0
+axes = 3
+input_units = "deg/s"
+report_interval_s = 60.0
+
+[iceoryx2]
+buffer_size = 4096
+
+[[stage]]
+name = "sensor"
+kind = "ingest.iceoryx2"
+input = "o/sensor"
+output = "o/raw"
+
+[[stage]]
+name = "denoise"
+kind = "denoise.none"
+input = "o/raw"
+output = "o/denoised"
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "o/denoised"
+output = "o/predicted"
+profile = "adis16405"
+stop_input = "o/stop"
+stop_max_age_s = 2.0
+{keys}
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "o/predicted"
+output = "o/corrected"
+"#
+    );
+    let file = dir.write("p.toml", &text);
+    let me = Transport::new(&prefix.0, "vehicle", qos(4096)).expect("node");
+    let corrected = me.input::<GyroSample>("o/corrected").expect("subscriber");
+    let sensor = me.output::<RawSample>("o/sensor", true).expect("sensor");
+    let stop = me
+        .output::<StopSignal>("o/stop", false)
+        .expect("stop signal");
+    let mut child = start(
+        &file,
+        &prefix,
+        &["--report", dir.path("report.json").to_str().unwrap()],
+    );
+    wait_ready(&prefix, "o/stats", &mut child);
+
+    let noise = |i: usize| 0.3 * (((i * 7919) % 101) as f64 / 101.0 - 0.5);
+    let period = Duration::from_nanos(1_000_000_000 / RATE_HZ);
+    let started = Instant::now();
+    let mut got = Vec::with_capacity(N);
+    for i in 0..N {
+        let w = turn(i);
+        // The vehicle's up is the gyro's -z: a turn to the left reads negative there.
+        let x = BIAS_DEG_S + noise(i);
+        let z = BIAS_DEG_S - w + noise(i + 17);
+        assert_eq!(
+            sensor
+                .send(&raw(
+                    i as u64,
+                    i as u64 * 1_000_000_000 / RATE_HZ,
+                    [x, x, z]
+                ))
+                .unwrap(),
+            1
+        );
+        if (i + 1) % PER_MESSAGE == 0 {
+            // The mean yaw rate over the message's period, which ends now.
+            let mut s = StopSignal::new(monotonic_ns(), 3.0, 0);
+            if yaw {
+                s.yaw_rate_rad_s = w.to_radians();
+                s.yaw_rate_std_rad_s = 0.1f64.to_radians();
+                s.period_ns = PER_MESSAGE as u64 * 1_000_000_000 / RATE_HZ;
+            }
+            stop.send(&s).expect("send stop signal");
+        }
+        if i % 200 == 199 {
+            got.extend(collect(
+                &corrected,
+                i + 1 - got.len(),
+                Duration::from_secs(10),
+            ));
+        }
+        let due = started + period * (i as u32 + 1);
+        if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+    }
+    got.extend(collect(&corrected, N - got.len(), Duration::from_secs(10)));
+    signal(&child, SIGTERM);
+    let (code, stderr) = finish(child, Duration::from_secs(10));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(got.len(), N, "every sample once");
+    let r = report(&dir);
+    let learnt = r["learnt"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l.as_str().unwrap().to_string())
+        .collect();
+    Run {
+        got,
+        stderr,
+        learnt,
+    }
+}
+
+fn drift_deg(s: &GyroSample, axis: usize) -> f64 {
+    s.drift[axis].to_degrees()
+}
+
+#[test]
+fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
+    let r = run("odo-up", "vehicle_up = \"-z\"", true);
+    let last = &r.got[N - 1];
+    // The up axis (-z) learnt its bias in motion, with the sign of vehicle_up; the others
+    // were never told anything (no stop).
+    assert!(
+        (drift_deg(last, 2) - BIAS_DEG_S).abs() < 0.1,
+        "z drift {} deg/s, not {BIAS_DEG_S}; {:?}",
+        drift_deg(last, 2),
+        r.learnt
+    );
+    // Its uncertainty shrank from the prior (1 deg/s) with it.
+    assert!(last.drift_std[2].to_degrees() < 0.1, "{:?}", last.drift_std);
+    for axis in [0, 1] {
+        assert!(drift_deg(last, axis).abs() < 0.05, "{:?}", last.drift);
+    }
+    // Converged within the first half and stays there.
+    assert!(r.got[N / 2..]
+        .iter()
+        .all(|s| (drift_deg(s, 2) - BIAS_DEG_S).abs() < 0.15));
+    let line = r
+        .learnt
+        .iter()
+        .find(|l| l.contains("odometry (vehicle_up = -z)"))
+        .unwrap_or_else(|| panic!("no odometry line in {:?}", r.learnt));
+    assert!(line.contains("spans accepted"), "{line}");
+    assert!(!r.stderr.contains("refused"), "{}", r.stderr);
+}
+
+#[test]
+fn without_the_yaw_rate_nothing_is_learnt_while_driving() {
+    let r = run("odo-none", "vehicle_up = \"-z\"", false);
+    let last = &r.got[N - 1];
+    assert!(drift_deg(last, 2).abs() < 0.05, "{:?}", last.drift);
+    assert!(last.drift_std[2].to_degrees() > 0.5, "{:?}", last.drift_std);
+}
+
+#[test]
+fn a_yaw_rate_without_vehicle_up_is_refused_with_the_fix() {
+    let r = run("odo-refused", "", true);
+    let last = &r.got[N - 1];
+    assert!(drift_deg(last, 2).abs() < 0.05, "{:?}", last.drift);
+    assert!(
+        r.stderr.contains("the yaw rate is refused") && r.stderr.contains("vehicle_up = \"+z\""),
+        "{}",
+        r.stderr
+    );
+    assert_eq!(
+        r.stderr.matches("the yaw rate is refused").count(),
+        1,
+        "said once: {}",
+        r.stderr
+    );
+    assert!(r.learnt.iter().all(|l| !l.contains("odometry")));
+}
