@@ -1,6 +1,7 @@
-//! The layout versions of `RawSample`, `GyroSample` and `StatsSnapshot` between real processes:
-//! a service of an older layout (as a driftless before `drift_std`, or before the misses'
-//! explanation, publishes it; or a driver built before the accelerometer) is refused by name by
+//! The layout versions of `RawSample`, `GyroSample`, `StatsSnapshot` and `StopSignal` between
+//! real processes: a service of an older layout (as a driftless before `drift_std`, or before
+//! the misses' explanation, publishes it; or a driver built before the accelerometer, or a
+//! vehicle's process before the yaw rate) is refused by name by
 //! `run`, `tap`, `record`, `stats` and the transport, and a subscriber built for version 1
 //! cannot open our current service (iceoryx2 refuses it: it is never handed bytes it would
 //! misread).
@@ -11,7 +12,7 @@ use common::{text, Prefix};
 use driftless::transport::{Qos, Transport, TransportError};
 use driftless::wire::{
     GyroSample, StatsSnapshot, GYRO_V1_SIZE, GYRO_V1_TYPE_NAME, RAW_V1_SIZE, RAW_V1_TYPE_NAME,
-    STATS_V1_SIZE, STATS_V1_TYPE_NAME,
+    STATS_V1_SIZE, STATS_V1_TYPE_NAME, STOP_V1_SIZE, STOP_V1_TYPE_NAME,
 };
 use iceoryx2::prelude::*;
 
@@ -41,6 +42,18 @@ struct RawSampleV1 {
     rate: [f64; 3],
     flags: u32,
     epoch: u32,
+}
+
+/// `StopSignal` as a vehicle process built before the yaw rate publishes it (layout version 1,
+/// 24 bytes).
+#[derive(Debug, Clone, Copy, Default, ZeroCopySend)]
+#[repr(C)]
+#[type_name("driftless::StopSignal")]
+struct StopSignalV1 {
+    t_ns: u64,
+    speed_m_s: f64,
+    stopped: u32,
+    reserved: u32,
 }
 
 /// `StatsSnapshot` as driftless published it before the misses' explanation (layout version
@@ -281,5 +294,50 @@ output = "olddrv/corrected"
         "{err}"
     );
     drop((_publisher, service, driver));
+    driftless::transport::remove_prefix_leftovers(&prefix.0);
+}
+
+#[test]
+fn a_vehicle_publishing_the_old_stop_signal_is_refused_by_name_before_the_run_starts() {
+    assert_eq!(std::mem::size_of::<StopSignalV1>(), STOP_V1_SIZE);
+    // SAFETY: type_name only returns the static string of the derive attribute.
+    assert_eq!(unsafe { StopSignalV1::type_name() }, STOP_V1_TYPE_NAME);
+    let prefix = Prefix::new("stopver");
+    let dir = common::Dir::with_csv(64);
+    let vehicle = node(&prefix, "old-vehicle");
+    let service = vehicle
+        .service_builder(&"vehicle/stop".try_into().expect("name"))
+        .publish_subscribe::<StopSignalV1>()
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .subscriber_max_buffer_size(256)
+        .open_or_create()
+        .expect("old vehicle's service");
+    let _publisher = service.publisher_builder().create().expect("publisher");
+    let text_ = common::csv_pipeline("asap", false, 256).replace(
+        "kind = \"denoise.none\"",
+        "kind = \"predict.bias\"\nstop_input = \"vehicle/stop\"",
+    );
+    assert!(text_.contains("stop_input"), "{text_}");
+    let file = dir.write("old-vehicle.toml", &text_);
+    let o = common::driftless(&[
+        "run",
+        file.to_str().unwrap(),
+        "--prefix",
+        &prefix.0,
+        "--duration",
+        "5s",
+    ]);
+    let (_, err) = text(&o);
+    assert_ne!(o.status.code(), Some(0), "run: {err}");
+    assert!(
+        err.contains(
+            "service \"vehicle/stop\" carries driftless::StopSignal (layout v1, 24 bytes, from \
+             an older driftless); this driftless reads driftless::StopSignal.v2 (layout v2, 56 \
+             bytes, with the yaw rate)"
+        ),
+        "{err}"
+    );
+    drop((_publisher, service, vehicle));
     driftless::transport::remove_prefix_leftovers(&prefix.0);
 }
