@@ -947,6 +947,50 @@ mod tests {
         StopSignal::new(t_ns, speed_m_s, stopped)
     }
 
+    /// A vehicle driving at 200 Hz with the gyro's up its -z (bias 0.5 deg/s), its odometry
+    /// at 50 Hz without a period (taken from the stamps); `stands`: it stands still, and says so.
+    fn drive(stands: bool) -> (BiasTracker, Odometry) {
+        let rate = 200.0;
+        let mut tracker = BiasTracker::for_profile("adis16405", rate).unwrap();
+        let r_gyro = tracker.filter().model().measurement_variance();
+        let mut odo = Odometry {
+            axis: 2,
+            sign: -1.0,
+            aid: OdometryAid::new(OdometryAidConfig::default(), r_gyro, rate).unwrap(),
+            last_t_ns: 0,
+            learnt: 0,
+        };
+        for i in 0..2000u64 {
+            let turn = if stands {
+                0.0
+            } else {
+                [0.0, 12.0, -6.0][(i / 300 % 3) as usize]
+            };
+            let x = 0.5 - turn + 0.2 * ((i * 7919 % 101) as f64 / 101.0 - 0.5);
+            let t_ns = 1_000_000_000 + i * 5_000_000;
+            tracker.push_signal_with(x, Some(stands), crate::drift::stillness::Aid::Unknown);
+            let mut m = StopSignal::new(t_ns, 2.0, u32::from(stands));
+            m.yaw_rate_rad_s = turn.to_radians();
+            let message = (i % 4 == 3).then_some(&m);
+            odo.push(&mut tracker, x, t_ns, message);
+        }
+        (tracker, odo)
+    }
+
+    #[test]
+    fn the_yaw_rate_teaches_the_up_axis_with_its_sign_while_moving_only() {
+        let (tracker, odo) = drive(false);
+        let d = odo.aid.diagnostics();
+        assert!(odo.learnt > 5 && d.accepted > 5, "{d:?}");
+        let b = tracker.filter().estimate();
+        assert!((b - 0.5).abs() < 0.1, "bias {b}, {d:?}");
+        assert!(odo.learnt().contains("vehicle_up = -z"), "{}", odo.learnt());
+        // At a stop the odometry teaches nothing (the stop does).
+        let (_, odo) = drive(true);
+        assert_eq!(odo.learnt, 0);
+        assert_eq!(odo.aid.diagnostics().accepted, 0);
+    }
+
     #[test]
     fn a_stop_signal_is_judged_by_age_then_speed_or_flag() {
         let by_flag = StopConfig {
