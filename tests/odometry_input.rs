@@ -182,6 +182,11 @@ fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
         .find(|l| l.contains("odometry (vehicle_up = -z)"))
         .unwrap_or_else(|| panic!("no odometry line in {:?}", r.learnt));
     assert!(line.contains("spans accepted"), "{line}");
+    eprintln!(
+        "{line}; z drift {} deg/s, sd {} deg/s",
+        drift_deg(last, 2),
+        last.drift_std[2].to_degrees()
+    );
     assert!(!r.stderr.contains("refused"), "{}", r.stderr);
 }
 
