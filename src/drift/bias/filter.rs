@@ -372,22 +372,7 @@ impl BiasFilter {
         if let Some(l) = &mut self.learner {
             l.sample(z, self.x[..self.model.states].iter().sum());
         }
-        let n = self.model.states;
-        let mut pu = [0.0; MAX_STATES];
-        for (i, pui) in pu.iter_mut().enumerate().take(n) {
-            *pui = self.p[i][..n].iter().sum();
-        }
-        let v: f64 = pu[..n].iter().sum::<f64>().max(0.0);
-        let s = v + self.model.r;
-        let innovation = z - self.estimate();
-        for i in 0..n {
-            self.x[i] += pu[i] / s * innovation;
-            for j in 0..n {
-                self.p[i][j] -= pu[i] * pu[j] / s;
-            }
-        }
-        self.updates += 1;
-        innovation
+        self.correct(z, self.model.r)
     }
 
     /// Measurement update with a measurement `z` of the bias (deg/s) of variance `r`
@@ -400,6 +385,11 @@ impl BiasFilter {
         if !(z.is_finite() && r.is_finite() && r > 0.0) {
             return f64::NAN;
         }
+        self.correct(z, r)
+    }
+
+    /// The Kalman update with H = [1, ..., 1]: `z` of variance `r`; the innovation.
+    fn correct(&mut self, z: f64, r: f64) -> f64 {
         let n = self.model.states;
         let mut pu = [0.0; MAX_STATES];
         for (i, pui) in pu.iter_mut().enumerate().take(n) {
