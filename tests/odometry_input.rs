@@ -179,7 +179,7 @@ fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
     let line = r
         .learnt
         .iter()
-        .find(|l| l.contains("odometry (vehicle_up = -z)"))
+        .find(|l| l.contains("odometry (vehicle_up = -z, confirmed by the turns (slope"))
         .unwrap_or_else(|| panic!("no odometry line in {:?}", r.learnt));
     assert!(line.contains("spans accepted"), "{line}");
     eprintln!(
@@ -188,6 +188,35 @@ fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
         last.drift_std[2].to_degrees()
     );
     assert!(!r.stderr.contains("refused"), "{}", r.stderr);
+}
+
+/// The wrong sign: the gyro's up is -z, the file says +z. The first turns show it, the daemon
+/// says so once with the fix, and the yaw rate teaches nothing after (the summary says it was
+/// refused).
+#[test]
+fn a_yaw_rate_of_the_wrong_sign_is_found_and_refused_with_the_fix() {
+    let r = run("odo-sign", "vehicle_up = \"+z\"", true);
+    let said: Vec<_> = r
+        .stderr
+        .lines()
+        .filter(|l| l.contains("the yaw rate turns against the gyro's +z axis"))
+        .collect();
+    assert_eq!(said.len(), 1, "{}", r.stderr);
+    assert!(said[0].contains("set vehicle_up = \"-z\""), "{}", said[0]);
+    // Before the turns told, the straights taught it (a sign does not matter there); the
+    // turns, of the wrong sign, never pulled it off: the truth, or nothing learnt.
+    let z = drift_deg(&r.got[N - 1], 2);
+    assert!(
+        (z - BIAS_DEG_S).abs() < 0.15 || z.abs() < 0.05,
+        "the wrong sign pulled z to {z} deg/s"
+    );
+    assert!(
+        r.learnt
+            .iter()
+            .any(|l| l.contains("refused: it did not turn with the gyro")),
+        "{:?}",
+        r.learnt
+    );
 }
 
 #[test]

@@ -30,7 +30,7 @@ use super::predict::motion_flags;
 use crate::drift::accel_rest::AccelRest;
 use crate::drift::bias::{
     accel_rest_from_terms, default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms,
-    BiasTracker, Instability, LearnWalk, OdometryAid, OdometryAidConfig, OdometrySample,
+    BiasTracker, Instability, LearnWalk, Mounting, OdometryAid, OdometryAidConfig, OdometrySample,
     TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
@@ -734,20 +734,53 @@ impl Odometry {
         };
         let f = tracker.filter();
         let (estimate, variance) = (self.sign * f.estimate(), f.variance());
+        let judged = self.aid.mounting() != Mounting::Unknown;
         if let Some(z) = self.aid.push_odometry(sample, estimate, variance) {
             if tracker.update_in_motion(self.sign * z.z, z.r) {
                 self.learnt += 1;
             }
+        }
+        if !judged {
+            if let Some(why) = self.mounting_refused() {
+                eprintln!("driftless: predict.bias: {why}");
+            }
+        }
+    }
+
+    /// Why the yaw rate is refused, once the mounting check found it does not turn with the
+    /// `vehicle_up` axis; the fix named.
+    fn mounting_refused(&self) -> Option<String> {
+        let up = up_word(self.axis, self.sign);
+        let other = up_word(self.axis, -self.sign);
+        match self.aid.mounting() {
+            Mounting::WrongSign { slope } => Some(format!(
+                "the yaw rate turns against the gyro's {up} axis (slope {slope:+.2} over the                  first turns): one of the two has the other sign. The yaw rate is refused from                  now on. If the gyro's {other} points up, set vehicle_up = \"{other}\"; else \
+                 the odometry's yaw rate must be counter-clockwise seen from above (ROS's \
+                 angular.z)"
+            )),
+            Mounting::WrongAxis { slope } => Some(format!(
+                "the gyro's {up} axis does not see the odometry's turns (slope {slope:+.2} over \
+                 the first turns): the vehicle's up is another axis. The yaw rate is refused \
+                 from now on. Set vehicle_up to the gyro axis that points up"
+            )),
+            Mounting::Unknown | Mounting::Confirmed { .. } => None,
         }
     }
 
     /// The summary line of what it did.
     fn learnt(&self) -> String {
         let d = self.aid.diagnostics();
+        let mounting = match self.aid.mounting() {
+            Mounting::Unknown => "not judged (too little turning)".to_string(),
+            Mounting::Confirmed { slope } => format!("confirmed by the turns (slope {slope:.2})"),
+            Mounting::WrongSign { .. } | Mounting::WrongAxis { .. } => {
+                "refused: it did not turn with the gyro".to_string()
+            }
+        };
         format!(
-            "odometry (vehicle_up = {}): {} spans accepted ({} taught the filter), {} rejected \
-             in {} slips (longest {} spans), {} messages unmatched; odometry scale {:+.2} % \
-             +- {:.2} %",
+            "odometry (vehicle_up = {}, {mounting}): {} spans accepted ({} taught the filter), \
+             {} rejected in {} slips (longest {} spans), {} messages unmatched; odometry scale \
+             {:+.2} % +- {:.2} %",
             up_word(self.axis, self.sign),
             d.accepted,
             self.learnt,

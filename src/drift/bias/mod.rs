@@ -93,7 +93,8 @@ pub use accel::{
 };
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
 pub use odometry::{
-    Measurement, OdometryAid, OdometryAidConfig, OdometryDiagnostics, OdometrySample,
+    Measurement, Mounting, OdometryAid, OdometryAidConfig, OdometryDiagnostics, OdometrySample,
+    MOUNT_MIN_SLOPE, MOUNT_MIN_SPANS, MOUNT_SPREAD_DEG_S,
 };
 pub use own_terms::{
     accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,

@@ -126,6 +126,42 @@ pub struct OdometryDiagnostics {
     pub scale_sd: f64,
 }
 
+/// Whether the odometry's yaw rate turns with the gyro axis it is given as the vehicle's up:
+/// the slope of the gyro's span means on the odometry's, both centred (so the bias, however
+/// far the filter is from it, drops out), judged once the odometry's means spread by
+/// [`MOUNT_SPREAD_DEG_S`] over [`MOUNT_MIN_SPANS`] spans or more.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Mounting {
+    /// Not enough turning yet; spans are used as they pass the tests.
+    Unknown,
+    /// The gyro follows the odometry (slope at least [`MOUNT_MIN_SLOPE`]).
+    Confirmed {
+        /// The slope (1 for a perfect match).
+        slope: f64,
+    },
+    /// The gyro turns against the odometry (slope at most -[`MOUNT_MIN_SLOPE`]): one of the
+    /// two has its sign the other way round. No span is used after it.
+    WrongSign {
+        /// The slope.
+        slope: f64,
+    },
+    /// The gyro axis does not see the odometry's turns: the vehicle's up is another axis.
+    /// No span is used after it.
+    WrongAxis {
+        /// The slope.
+        slope: f64,
+    },
+}
+
+/// The spread (standard deviation) of the odometry's span means the mounting check needs,
+/// deg/s: turns and straights, or turns of different rates.
+pub const MOUNT_SPREAD_DEG_S: f64 = 3.0;
+/// The fewest spans the mounting check judges on.
+pub const MOUNT_MIN_SPANS: f64 = 6.0;
+/// The least slope of gyro on odometry that says they turn together (a scale error of tens
+/// of percent passes; an axis 60 deg off the vertical sees half the turn).
+pub const MOUNT_MIN_SLOPE: f64 = 0.5;
+
 /// A span's measurement of the bias.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measurement {
@@ -174,6 +210,9 @@ pub struct OdometryAid {
     scale_var: f64,
     run: u64,
     diag: OdometryDiagnostics,
+    // The mounting check: sums over spans of 1, gyro, odometry, their product, odometry^2.
+    mount_sums: [f64; 5],
+    mounting: Mounting,
 }
 
 impl OdometryAid {
@@ -225,6 +264,8 @@ impl OdometryAid {
                 scale_sd: cfg.scale_sd,
                 ..OdometryDiagnostics::default()
             },
+            mount_sums: [0.0; 5],
+            mounting: Mounting::Unknown,
         })
     }
 
@@ -309,7 +350,41 @@ impl OdometryAid {
         // The scale walks over the span.
         self.scale_var += self.cfg.scale_walk * self.cfg.scale_walk * self.o_time;
         self.clear_span();
-        self.judge(span, estimate, variance)
+        self.check_mounting(&span);
+        match self.mounting {
+            Mounting::WrongSign { .. } | Mounting::WrongAxis { .. } => None,
+            _ => self.judge(span, estimate, variance),
+        }
+    }
+
+    /// The mounting check's sums from a span, and its verdict once the odometry spread
+    /// enough (judged once).
+    fn check_mounting(&mut self, span: &Span) {
+        if self.mounting != Mounting::Unknown {
+            return;
+        }
+        let (g, o) = (span.gyro_mean, span.odo_mean);
+        for (sum, add) in self.mount_sums.iter_mut().zip([1.0, g, o, g * o, o * o]) {
+            *sum += add;
+        }
+        let [n, sg, so, sgo, soo] = self.mount_sums;
+        let var_o = soo / n - (so / n) * (so / n);
+        if n < MOUNT_MIN_SPANS || var_o < MOUNT_SPREAD_DEG_S * MOUNT_SPREAD_DEG_S {
+            return;
+        }
+        let slope = (sgo / n - (sg / n) * (so / n)) / var_o;
+        self.mounting = if slope >= MOUNT_MIN_SLOPE {
+            Mounting::Confirmed { slope }
+        } else if slope <= -MOUNT_MIN_SLOPE {
+            Mounting::WrongSign { slope }
+        } else {
+            Mounting::WrongAxis { slope }
+        };
+    }
+
+    /// What the mounting check found so far.
+    pub fn mounting(&self) -> Mounting {
+        self.mounting
     }
 
     fn judge(&mut self, span: Span, estimate: f64, variance: f64) -> Option<Measurement> {
@@ -565,6 +640,47 @@ mod tests {
         };
         let (g, _) = drive(300.0, turning, 0.02, no_slip, 0.03, true, true, cfg);
         assert!((g.estimate() - BIAS).abs() > 2.0 * (f.estimate() - BIAS).abs());
+    }
+
+    /// The mounting check: an odometry that turns with the gyro is confirmed (slope near 1);
+    /// one of the other sign, or one whose turns the gyro axis does not see (here ten times
+    /// the gyro's), is found within seconds of turning, and then teaches nothing: the bias
+    /// stays where the stop left it.
+    #[test]
+    fn a_wrong_sign_or_axis_is_found_and_never_teaches() {
+        let run = |gain: f64| {
+            let odo = move |_: f64| gain - 1.0;
+            drive(
+                120.0,
+                turning,
+                0.0,
+                odo,
+                0.03,
+                true,
+                true,
+                Default::default(),
+            )
+        };
+        let (_, right) = run(1.0);
+        assert!(
+            matches!(right.mounting(), Mounting::Confirmed { slope } if (slope - 1.0).abs() < 0.05),
+            "{:?}",
+            right.mounting()
+        );
+        for (gain, wrong) in [(-1.0, "sign"), (10.0, "axis")] {
+            let (f, aid) = run(gain);
+            let found = match aid.mounting() {
+                Mounting::WrongSign { slope } => slope < -0.5 && wrong == "sign",
+                Mounting::WrongAxis { slope } => slope.abs() < 0.5 && wrong == "axis",
+                _ => false,
+            };
+            assert!(found, "{wrong}: {:?}", aid.mounting());
+            assert!(
+                (f.estimate() - BIAS).abs() < 0.02,
+                "{wrong}: {}",
+                f.estimate()
+            );
+        }
     }
 
     #[test]
