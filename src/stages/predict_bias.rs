@@ -750,18 +750,26 @@ impl Odometry {
     /// Why the yaw rate is refused, once the mounting check found it does not turn with the
     /// `vehicle_up` axis; the fix named.
     fn mounting_refused(&self) -> Option<String> {
-        let up = up_word(self.axis, self.sign);
-        let other = up_word(self.axis, -self.sign);
+        // The words are built only for the one line said: this runs at each message until the
+        // verdict.
+        let up = || up_word(self.axis, self.sign);
         match self.aid.mounting() {
-            Mounting::WrongSign { slope } => Some(format!(
-                "the yaw rate turns against the gyro's {up} axis (slope {slope:+.2} over the                  first turns): one of the two has the other sign. The yaw rate is refused from                  now on. If the gyro's {other} points up, set vehicle_up = \"{other}\"; else \
-                 the odometry's yaw rate must be counter-clockwise seen from above (ROS's \
-                 angular.z)"
-            )),
+            Mounting::WrongSign { slope } => {
+                let other = up_word(self.axis, -self.sign);
+                Some(format!(
+                    "the yaw rate turns against the gyro's {} axis (slope {slope:+.2} over the \
+                     first turns): one of the two has the other sign. The yaw rate is refused \
+                     from now on. If the gyro's {other} points up, set vehicle_up = \"{other}\"; \
+                     else the odometry's yaw rate must be counter-clockwise seen from above \
+                     (ROS's angular.z)",
+                    up()
+                ))
+            }
             Mounting::WrongAxis { slope } => Some(format!(
-                "the gyro's {up} axis does not see the odometry's turns (slope {slope:+.2} over \
+                "the gyro's {} axis does not see the odometry's turns (slope {slope:+.2} over \
                  the first turns): the vehicle's up is another axis. The yaw rate is refused \
-                 from now on. Set vehicle_up to the gyro axis that points up"
+                 from now on. Set vehicle_up to the gyro axis that points up",
+                up()
             )),
             Mounting::Unknown | Mounting::Confirmed { .. } => None,
         }
