@@ -731,6 +731,7 @@ impl Odometry {
             stamp_s: m.t_ns as f64 * 1e-9,
             period_s: period_ns as f64 * 1e-9,
             yaw_rate: m.yaw_rate_rad_s.to_degrees(),
+            yaw_rate_sd: m.yaw_rate_std_rad_s.to_degrees(),
         };
         let f = tracker.filter();
         let (estimate, variance) = (self.sign * f.estimate(), f.variance());

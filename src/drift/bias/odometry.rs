@@ -24,7 +24,8 @@
 //!
 //! ```text
 //! r = R_gyro / m                 the gyro's white noise over the m samples averaged
-//!   + sd_white^2 / n             the odometry's white noise over its n messages
+//!   + sum(sd_i^2) / n^2          the odometry's white noise over its n messages (each
+//!                                message's own sd where it says one, else `white_sd`)
 //!   + tick^2 / 6 / span^2        the angle's quantisation at the span's two ends
 //!   + (sd_s * mean odometry)^2   what the scale's estimate does not know
 //! ```
@@ -62,6 +63,9 @@ pub struct OdometrySample {
     pub period_s: f64,
     /// Yaw rate, deg/s, about the vehicle's up axis (the gyro's axis).
     pub yaw_rate: f64,
+    /// The message's own standard deviation of `yaw_rate`, deg/s; NaN (or not > 0): not said,
+    /// and [`OdometryAidConfig::white_sd`] stands in.
+    pub yaw_rate_sd: f64,
 }
 
 /// How [`OdometryAid`] weighs and tests the odometry.
@@ -205,6 +209,8 @@ pub struct OdometryAid {
     o_angle: f64,
     o_time: f64,
     o_n: usize,
+    /// The sum of the pooled messages' variances, (deg/s)^2.
+    o_var: f64,
     pending: Option<Span>,
     scale: f64,
     scale_var: f64,
@@ -256,6 +262,7 @@ impl OdometryAid {
             o_angle: 0.0,
             o_time: 0.0,
             o_n: 0,
+            o_var: 0.0,
             pending: None,
             scale: 0.0,
             scale_var: cfg.scale_sd * cfg.scale_sd,
@@ -291,6 +298,7 @@ impl OdometryAid {
         self.o_angle = 0.0;
         self.o_time = 0.0;
         self.o_n = 0;
+        self.o_var = 0.0;
     }
 
     /// One odometry message, arrived now, while the vehicle moves; `estimate` and `variance`
@@ -336,6 +344,12 @@ impl OdometryAid {
         self.o_angle += m.yaw_rate * m.period_s;
         self.o_time += m.period_s;
         self.o_n += 1;
+        let sd = if m.yaw_rate_sd > 0.0 && m.yaw_rate_sd.is_finite() {
+            m.yaw_rate_sd
+        } else {
+            self.cfg.white_sd
+        };
+        self.o_var += sd * sd;
         if self.o_time + 1e-9 < self.cfg.span_s {
             return None;
         }
@@ -344,7 +358,7 @@ impl OdometryAid {
             gyro_mean: self.g_sum / self.g_n as f64,
             odo_mean: self.o_angle / self.o_time,
             r_noise: self.r_gyro / self.g_n as f64
-                + self.cfg.white_sd * self.cfg.white_sd / self.o_n as f64
+                + self.o_var / (self.o_n * self.o_n) as f64
                 + tick * tick / 6.0 / (self.o_time * self.o_time),
         };
         // The scale walks over the span.
@@ -519,6 +533,7 @@ mod tests {
                         stamp_s: stamp,
                         period_s: 0.02,
                         yaw_rate,
+                        yaw_rate_sd: f64::NAN,
                     },
                 ));
             }
@@ -680,6 +695,43 @@ mod tests {
                 "{wrong}: {}",
                 f.estimate()
             );
+        }
+    }
+
+    #[test]
+    fn a_message_that_states_its_sd_is_weighed_by_it() {
+        // Two identical straight spans' worth of messages; the second run's messages say
+        // 1 deg/s (ten times the default): the measurement's variance grows by the difference
+        // over the span's 25 messages, its value is the same.
+        let first = |sd: f64| {
+            let cfg = OdometryAidConfig::default();
+            let mut aid = OdometryAid::new(cfg, 0.0016, RATE).unwrap();
+            let mut out = Vec::new();
+            for k in 0..300 {
+                let t = k as f64 / RATE;
+                aid.push_gyro(t, BIAS);
+                if k > 0 && k % 2 == 0 {
+                    let m = OdometrySample {
+                        stamp_s: t,
+                        period_s: 0.02,
+                        yaw_rate: 0.0,
+                        yaw_rate_sd: sd,
+                    };
+                    out.extend(aid.push_odometry(m, BIAS, 1e-4));
+                }
+            }
+            out[0]
+        };
+        let (unsaid, said) = (first(f64::NAN), first(1.0));
+        assert_eq!(unsaid.z, said.z);
+        let want = (1.0 - 0.01) / 25.0;
+        assert!(
+            ((said.r - unsaid.r) - want).abs() < 1e-9,
+            "{said:?} {unsaid:?}"
+        );
+        // Zero, negative or infinite: not said.
+        for sd in [0.0, -1.0, f64::INFINITY] {
+            assert_eq!(first(sd), unsaid, "{sd}");
         }
     }
 

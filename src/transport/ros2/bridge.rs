@@ -18,8 +18,10 @@
 //!   when `imu_in` feeds the pipeline; otherwise the sample's ingest time on the system clock.
 //!   The frame: `frame_id` when it is set; else the input's own `header.frame_id` when `imu_in`
 //!   feeds the pipeline (a navigator's TF lookup wants the driver's frame); else `imu_link`.
-//! - **Motion:** each message becomes a [`StopSignal`] stamped at receipt (its speed the norm
-//!   of the linear velocity).
+//! - **Motion:** each message becomes a [`StopSignal`]: its speed the norm of the linear
+//!   velocity, its yaw rate `angular.z`, their sds from the twist covariance, at its header
+//!   stamp on the monotonic clock (the receipt when the stamp is on another clock:
+//!   [`super::motion::Motion::stop_signal`]).
 //! - A topic nobody matches after [`MATCH_GRACE`] is said on stderr, and again when it matches.
 
 use std::collections::HashSet;
@@ -584,6 +586,8 @@ impl Diagnostics {
 struct MotionIn {
     sub: MotionSubscription,
     out: Output<StopSignal>,
+    /// Whether a stamp not on this host's clock has been said (once).
+    said_receipt: bool,
 }
 
 impl MotionIn {
@@ -600,15 +604,30 @@ impl MotionIn {
         Ok(MotionIn {
             sub: node.motion_subscription(topic, kind, depth)?,
             out: transport.external_output::<StopSignal>(service, false)?,
+            said_receipt: false,
         })
     }
 
-    /// Take what arrived, each message a stop signal stamped at its receipt.
+    /// Take what arrived, each message a stop signal at its header stamp
+    /// ([`super::motion::Motion::stop_signal`]).
     fn pump(&mut self, counts: &mut BridgeCounts) {
+        let offset = realtime_offset_ns();
         loop {
-            match self.sub.take(monotonic_ns()) {
-                Ok(Some(signal)) => {
+            match self.sub.take() {
+                Ok(Some(m)) => {
                     counts.motion_in += 1;
+                    let received = monotonic_ns();
+                    let (signal, believed) = m.stop_signal(received, offset);
+                    if !believed && !self.said_receipt {
+                        self.said_receipt = true;
+                        let off = (i128::from(m.stamp.ns()) - offset - i128::from(received)) as f64;
+                        say(format_args!(
+                            "the motion's header.stamp is {:+.3} s off this host's clock (a \
+                             simulation's clock, or a driver's own): its messages are timed at \
+                             receipt, so the odometry's latency is taken for motion",
+                            off * 1e-9
+                        ));
+                    }
                     let _ = self.out.send(&signal);
                 }
                 Ok(None) => break,

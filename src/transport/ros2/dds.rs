@@ -1,7 +1,7 @@
 //! Live ROS 2 topics over DDS (cargo feature `ros2`): a node in the ROS 2 graph that publishes
 //! and subscribes `sensor_msgs/msg/Imu`, and subscribes a vehicle's motion
 //! (`nav_msgs/msg/Odometry`, `geometry_msgs/msg/TwistStamped`,
-//! `geometry_msgs/msg/TwistWithCovarianceStamped`) as a [`StopSignal`].
+//! `geometry_msgs/msg/TwistWithCovarianceStamped`) as a [`Motion`].
 //!
 //! Built on `ros2-client` 0.12.1 (a pure-Rust DDS, RustDDS): it talks to ROS 2's own DDS
 //! (Fast DDS in Kilted) without a ROS install. `r2r` and `rclrs` bind ROS's C client library
@@ -33,9 +33,8 @@ use serde::{Deserialize, Serialize};
 
 use super::imu::{Imu, Time};
 use super::mag::MagneticField;
-use super::motion::MotionKind;
+use super::motion::{Motion, MotionKind};
 use crate::transport::TransportError;
-use crate::wire::StopSignal;
 
 /// Wakes a thread when a watched subscription has messages: its descriptor turns readable
 /// (edge-triggered: [`DdsReadiness::clear`] before taking everything, then wait again).
@@ -765,34 +764,38 @@ impl MotionPort {
     }
 }
 
-/// Receives a vehicle's motion as [`StopSignal`]s.
+/// Receives a vehicle's motion.
 pub struct MotionSubscription {
     port: MotionPort,
 }
 
 impl MotionSubscription {
-    /// The next motion message that arrived, as a stop signal stamped `now_ns` (the receipt, on
-    /// the clock of `ingest_ns`: a stop signal's age is judged on it, and a ROS stamp is on
-    /// another clock): its speed the norm of the linear velocity, `stopped` unknown (the
-    /// pipeline's `stop_speed` decides). Never waits.
-    pub fn take(&self, now_ns: u64) -> Result<Option<StopSignal>, String> {
-        let linear = match &self.port {
-            MotionPort::Odometry(s) => s.take().map(|m| m.map(|(m, _)| m.twist.twist.linear)),
-            MotionPort::Twist(s) => s.take().map(|m| m.map(|(m, _)| m.twist.linear)),
-            MotionPort::TwistCov(s) => s.take().map(|m| m.map(|(m, _)| m.twist.twist.linear)),
+    /// The next motion message that arrived, if any; never waits. An error is a message that
+    /// could not be read.
+    pub fn take(&self) -> Result<Option<Motion>, String> {
+        let taken = match &self.port {
+            MotionPort::Odometry(s) => s
+                .take()
+                .map(|m| m.map(|(m, _)| (m.header, m.twist.twist, Some(m.twist.covariance)))),
+            MotionPort::Twist(s) => s.take().map(|m| m.map(|(m, _)| (m.header, m.twist, None))),
+            MotionPort::TwistCov(s) => s
+                .take()
+                .map(|m| m.map(|(m, _)| (m.header, m.twist.twist, Some(m.twist.covariance)))),
         }
         .map_err(|e| format!("{e:?}"))?;
-        Ok(linear.map(|v| stop_signal(v, now_ns)))
+        let Some((header, twist, covariance)) = taken else {
+            return Ok(None);
+        };
+        Ok(Some(Motion {
+            stamp: Time {
+                sec: header.stamp.sec,
+                nanosec: header.stamp.nanosec,
+            },
+            linear: twist.linear,
+            yaw_rate: twist.angular[2],
+            variance: covariance.map_or([f64::NAN; 6], |c| std::array::from_fn(|i| c[i][i])),
+        }))
     }
-}
-
-/// The stop signal of a linear velocity `v` (m/s) received at `now_ns`.
-fn stop_signal(v: [f64; 3], now_ns: u64) -> StopSignal {
-    StopSignal::new(
-        now_ns,
-        v.iter().map(|c| c * c).sum::<f64>().sqrt(),
-        u32::MAX,
-    )
 }
 
 #[cfg(test)]
@@ -889,11 +892,5 @@ mod tests {
             "geometry_msgs/msg/TwistStamped"
         );
         assert_eq!(ros_type_name("Other"), "Other");
-    }
-
-    #[test]
-    fn a_stop_signal_carries_the_speed_and_leaves_the_verdict_to_stop_speed() {
-        let s = stop_signal([3.0, 4.0, 0.0], 99);
-        assert_eq!((s.t_ns, s.speed_m_s, s.stopped), (99, 5.0, u32::MAX));
     }
 }

@@ -266,6 +266,22 @@ impl<'a> Cursor<'a> {
         })
     }
 
+    /// `N` doubles in a row (a fixed array), named `field` as one.
+    pub(super) fn f64s<const N: usize>(&mut self, field: &str) -> Result<[f64; N], CdrError> {
+        let pad = (8 - self.pos % 8) % 8;
+        let big = self.big;
+        let s = self.take(pad + 8 * N, || field.to_string())?;
+        Ok(std::array::from_fn(|i| {
+            let mut w = [0u8; 8];
+            w.copy_from_slice(&s[pad + 8 * i..pad + 8 * i + 8]);
+            if big {
+                f64::from_be_bytes(w)
+            } else {
+                f64::from_le_bytes(w)
+            }
+        }))
+    }
+
     /// Step over a string (its length checked against the bytes left, never allocated).
     pub(super) fn skip_string(&mut self, field: &'static str) -> Result<(), CdrError> {
         let len = self.u32(field)? as usize;
