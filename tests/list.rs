@@ -122,7 +122,7 @@ fn a_running_pipeline_a_tap_and_a_foreign_service_are_listed_with_types_and_port
         ("c/raw", "RawSample", "driftless::RawSample.v2", 0),
         ("c/denoised", "GyroSample", "driftless::GyroSample.v4", 0),
         ("c/corrected", "GyroSample", "driftless::GyroSample.v4", 1),
-        ("c/stats", "StatsSnapshot", "driftless::StatsSnapshot.v3", 0),
+        ("c/stats", "StatsSnapshot", "driftless::StatsSnapshot.v4", 0),
     ] {
         let s = service(&doc, name, "publish-subscribe");
         assert_eq!(s["wire_type"], wire, "{s}");

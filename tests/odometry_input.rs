@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use common::{collect, finish, qos, raw, report, signal, start, wait_ready, Dir, Prefix};
 use driftless::transport::{monotonic_ns, Transport};
-use driftless::wire::{GyroSample, RawSample, StopSignal};
+use driftless::wire::{GyroSample, OdometryStats, RawSample, StatsSnapshot, StopSignal};
 use libc::SIGTERM;
 
 const BIAS_DEG_S: f64 = 0.5;
@@ -30,6 +30,8 @@ struct Run {
     got: Vec<GyroSample>,
     stderr: String,
     learnt: Vec<String>,
+    /// The stats service's odometry, from a snapshot taken after the last sample.
+    odometry: OdometryStats,
 }
 
 /// The daemon with `keys` in its predict.bias table, fed by this test; `yaw`: whether the
@@ -43,7 +45,7 @@ name = "o"
 rate_hz = {RATE_HZ}.0
 axes = 3
 input_units = "deg/s"
-report_interval_s = 60.0
+report_interval_s = 0.5
 
 [iceoryx2]
 buffer_size = 4096
@@ -90,6 +92,7 @@ output = "o/corrected"
         &["--report", dir.path("report.json").to_str().unwrap()],
     );
     wait_ready(&prefix, "o/stats", &mut child);
+    let stats = me.input::<StatsSnapshot>("o/stats").expect("stats");
 
     let noise = |i: usize| 0.3 * (((i * 7919) % 101) as f64 / 101.0 - 0.5);
     let period = Duration::from_nanos(1_000_000_000 / RATE_HZ);
@@ -133,6 +136,19 @@ output = "o/corrected"
         }
     }
     got.extend(collect(&corrected, N - got.len(), Duration::from_secs(10)));
+    // A snapshot from after the last sample (one every 0.5 s).
+    let mut snapshot = None;
+    let until = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < until {
+        while let Some(s) = stats.receive().expect("stats") {
+            snapshot = Some(s);
+        }
+        if snapshot.is_some_and(|s| s.samples_out >= N as u64) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let odometry = snapshot.expect("a stats snapshot").odometry;
     signal(&child, SIGTERM);
     let (code, stderr) = finish(child, Duration::from_secs(10));
     assert_eq!(code, Some(0), "{stderr}");
@@ -148,6 +164,7 @@ output = "o/corrected"
         got,
         stderr,
         learnt,
+        odometry,
     }
 }
 
@@ -188,6 +205,18 @@ fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
         last.drift_std[2].to_degrees()
     );
     assert!(!r.stderr.contains("refused"), "{}", r.stderr);
+    // The stats service (and so ROS 2's /diagnostics) says the same.
+    let o = r.odometry;
+    assert_eq!(
+        (o.up_name(), o.mounting_name()),
+        ("-z", "confirmed"),
+        "{o:?}"
+    );
+    assert!(o.learnt > 10 && o.spans_accepted >= o.learnt, "{o:?}");
+    assert!(
+        (o.bias_learnt_rad_s.to_degrees() - BIAS_DEG_S).abs() < 0.1,
+        "{o:?}"
+    );
 }
 
 /// The wrong sign: the gyro's up is -z, the file says +z. The first turns show it, the daemon
@@ -217,6 +246,7 @@ fn a_yaw_rate_of_the_wrong_sign_is_found_and_refused_with_the_fix() {
         "{:?}",
         r.learnt
     );
+    assert_eq!(r.odometry.mounting_name(), "refused: wrong sign");
 }
 
 #[test]
@@ -230,6 +260,7 @@ fn without_the_yaw_rate_nothing_is_learnt_while_driving() {
 #[test]
 fn a_yaw_rate_without_vehicle_up_is_refused_with_the_fix() {
     let r = run("odo-refused", "", true);
+    assert_eq!(r.odometry.up, 0, "no odometry in the stats");
     let last = &r.got[N - 1];
     assert!(drift_deg(last, 2).abs() < 0.05, "{:?}", last.drift);
     assert!(

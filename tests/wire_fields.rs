@@ -21,8 +21,8 @@ use driftless::io::recording::{
     gyro_schema, raw_schema, stats_schema, GyroMessage, RawMessage, StatsMessage,
 };
 use driftless::wire::{
-    Field, FieldKind, FieldTable, GyroSample, RawSample, StageStats, StatsSnapshot, WireBytes,
-    GYRO_FIELDS, GYRO_TYPE_NAME, RAW_FIELDS, RAW_TYPE_NAME, SENSOR_NAMES, STATS_FIELDS,
+    Field, FieldKind, FieldTable, GyroSample, OdometryStats, RawSample, StageStats, StatsSnapshot,
+    WireBytes, GYRO_FIELDS, GYRO_TYPE_NAME, RAW_FIELDS, RAW_TYPE_NAME, SENSOR_NAMES, STATS_FIELDS,
     STOP_FIELDS,
 };
 use serde_json::Value;
@@ -216,7 +216,7 @@ fn the_documented_layouts_are_the_tables() {
         ("`driftless::GyroSample.v4`, 264 bytes", &GYRO_FIELDS, true),
         ("`driftless::StopSignal.v2`, 56 bytes", &STOP_FIELDS, true),
         (
-            "`driftless::StatsSnapshot.v3`, 952 bytes",
+            "`driftless::StatsSnapshot.v4`, 1024 bytes",
             &STATS_FIELDS,
             false,
         ),
@@ -501,6 +501,10 @@ fn the_recorded_statistics_are_the_table() {
     let mut s = StatsSnapshot {
         stage_count: 1,
         last_miss_uptime_ns: 5,
+        odometry: OdometryStats {
+            up: 5,
+            ..OdometryStats::default()
+        },
         ..StatsSnapshot::default()
     };
     s.stages[0] = StageStats {

@@ -197,9 +197,9 @@ fn an_old_stats_service_is_refused_by_name_by_stats_tap_and_list() {
         .expect("old service");
     let _old_publisher = old_service.publisher_builder().create().expect("publisher");
     let want = "service \"old/stats\" carries driftless::StatsSnapshot (layout v1, 904 bytes, \
-                from an older driftless); this driftless reads driftless::StatsSnapshot.v3 \
-                (layout v3, 952 bytes, with the stamp faults and the warm start): run the daemon \
-                and its subscribers from one release (docs/wire-types.md#versions)";
+                from an older driftless); this driftless reads driftless::StatsSnapshot.v4 \
+                (layout v4, 1024 bytes, with the odometry): run the daemon and its subscribers \
+                from one release (docs/wire-types.md#versions)";
 
     // `stats` of a pipeline named "old" reads "old/stats".
     let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/demo.toml"))

@@ -351,6 +351,32 @@ pub struct LastMissMessage {
     pub explained: bool,
 }
 
+/// What the odometry did for the bias filter, in a [`StatsMessage`] ([`crate::wire::OdometryStats`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OdometryMessage {
+    /// The gyro axis that is the vehicle's up (`+z`, ...).
+    pub up: String,
+    /// The mounting check's verdict, in words.
+    pub mounting: String,
+    /// Spans that passed the slip test.
+    pub spans_accepted: u64,
+    /// Spans rejected.
+    pub spans_rejected: u64,
+    /// Slips caught (runs of rejected spans).
+    pub slips: u64,
+    /// Measurements the bias filter took.
+    pub learnt: u64,
+    /// The odometry's scale correction.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub scale: f64,
+    /// Its sd.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub scale_sd: f64,
+    /// The bias learnt in motion, rad/s.
+    #[serde(deserialize_with = "nan_if_null")]
+    pub bias_learnt_rad_s: f64,
+}
+
 /// A [`StatsSnapshot`] as JSON, the one form: what `driftless stats --json` and `tap --format
 /// json` print (`stats` adds `pipeline`) and what a recording's statistics channel holds
 /// (since recording format 2; format 1 had times in s, ms and us). Every field; times in ns;
@@ -393,6 +419,10 @@ pub struct StatsMessage {
     pub end_to_end_ns: PercentilesNs,
     /// Per-stage statistics.
     pub stages: Vec<StageMessage>,
+    /// What the odometry did (`null`: no stage uses a yaw rate; absent before format 4's
+    /// statistics).
+    #[serde(default)]
+    pub odometry: Option<OdometryMessage>,
 }
 
 impl From<&StatsSnapshot> for StatsMessage {
@@ -430,6 +460,17 @@ impl From<&StatsSnapshot> for StatsMessage {
                     compute_ns: (&st.compute).into(),
                 })
                 .collect(),
+            odometry: (s.odometry.up != 0).then(|| OdometryMessage {
+                up: s.odometry.up_name().to_string(),
+                mounting: s.odometry.mounting_name().to_string(),
+                spans_accepted: s.odometry.spans_accepted,
+                spans_rejected: s.odometry.spans_rejected,
+                slips: s.odometry.slips,
+                learnt: s.odometry.learnt,
+                scale: s.odometry.scale,
+                scale_sd: s.odometry.scale_sd,
+                bias_learnt_rad_s: s.odometry.bias_learnt_rad_s,
+            }),
         }
     }
 }
@@ -539,7 +580,7 @@ pub fn gyro_schema() -> String {
 pub fn stats_schema() -> String {
     const P: &str = r#"{"type":"object","properties":{"count":{"type":"integer"},"p50":{"type":"integer"},"p99":{"type":"integer"},"p999":{"type":"integer"},"max":{"type":"integer"}}}"#;
     format!(
-        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot, as driftless stats --json prints it; times in ns","type":"object","properties":{{"uptime_ns":{{"type":"integer"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":["number","null"]}},"deadline_ns":{{"type":"integer"}},"deadline_misses":{{"type":"integer"}},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":["object","null"],"description":"the latest deadline miss; null before the first","properties":{{"uptime_ns":{{"type":"integer"}},"e2e_ns":{{"type":"integer"}},"off_cpu_ns":{{"type":["integer","null"],"description":"null: not measured"}},"explained":{{"type":"boolean"}}}}}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"stamp_faults":{{"type":"integer","description":"of flagged, samples whose stamp was not believed"}},"warm_start":{{"type":"string","description":"how the state-keeping stage started"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"algorithmic_delay_ns":{{"type":"integer"}},"end_to_end_ns":{P},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_ns":{P}}}}}}}}}}}"#
+        r#"{{"title":"{STATS_SCHEMA}","description":"The daemon's statistics snapshot, as driftless stats --json prints it; times in ns","type":"object","properties":{{"uptime_ns":{{"type":"integer"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"rate_hz":{{"type":["number","null"]}},"deadline_ns":{{"type":"integer"}},"deadline_misses":{{"type":"integer"}},"deadline_misses_explained":{{"type":"integer","description":"of deadline_misses, those the time the kernel kept the hot thread off a CPU explains"}},"last_miss":{{"type":["object","null"],"description":"the latest deadline miss; null before the first","properties":{{"uptime_ns":{{"type":"integer"}},"e2e_ns":{{"type":"integer"}},"off_cpu_ns":{{"type":["integer","null"],"description":"null: not measured"}},"explained":{{"type":"boolean"}}}}}},"lost":{{"type":"integer"}},"flagged":{{"type":"integer"}},"stamp_faults":{{"type":"integer","description":"of flagged, samples whose stamp was not believed"}},"warm_start":{{"type":"string","description":"how the state-keeping stage started"}},"gap_samples":{{"type":"integer"}},"metric_drops":{{"type":"integer"}},"algorithmic_delay_ns":{{"type":"integer"}},"end_to_end_ns":{P},"stages":{{"type":"array","items":{{"type":"object","properties":{{"name":{{"type":"string"}},"samples_in":{{"type":"integer"}},"samples_out":{{"type":"integer"}},"lost":{{"type":"integer"}},"compute_ns":{P}}}}}}},"odometry":{{"type":["object","null"],"description":"what the vehicle's odometry did for the bias filter; null: no stage uses a yaw rate","properties":{{"up":{{"type":"string"}},"mounting":{{"type":"string"}},"spans_accepted":{{"type":"integer"}},"spans_rejected":{{"type":"integer"}},"slips":{{"type":"integer"}},"learnt":{{"type":"integer"}},"scale":{{"type":["number","null"]}},"scale_sd":{{"type":["number","null"]}},"bias_learnt_rad_s":{{"type":["number","null"]}}}}}}}}}}"#
     )
 }
 
@@ -873,6 +914,7 @@ mod tests {
             "metric_drops": 6, "algorithmic_delay_ns": 64_000_000, "end_to_end_ns": p(100),
             "stages": [{"name": "denoise", "samples_in": 10, "samples_out": 9, "lost": 0,
                         "compute_ns": p(200)}],
+            "odometry": null,
         });
         assert_eq!(StatsMessage::json(&s), was);
         // A recording's message reads back to the same.
@@ -887,6 +929,33 @@ mod tests {
         assert_eq!(v["rate_hz"], serde_json::Value::Null);
         let back: StatsMessage = serde_json::from_str(&v.to_string()).unwrap();
         assert!(back.rate_hz.is_nan() && back.last_miss.is_none());
+        // With the odometry: every field, in words where it is a code.
+        s.rate_hz = 999.5;
+        s.odometry = crate::wire::OdometryStats {
+            up: 6,
+            mounting: crate::wire::MOUNTING_CONFIRMED,
+            spans_accepted: 40,
+            spans_rejected: 3,
+            slips: 1,
+            learnt: 38,
+            scale: -0.0125,
+            scale_sd: 0.002,
+            bias_learnt_rad_s: 0.0087,
+        };
+        let v = StatsMessage::json(&s);
+        assert_eq!(
+            v["odometry"],
+            serde_json::json!({"up": "-z", "mounting": "confirmed", "spans_accepted": 40,
+                "spans_rejected": 3, "slips": 1, "learnt": 38, "scale": -0.0125,
+                "scale_sd": 0.002, "bias_learnt_rad_s": 0.0087})
+        );
+        let back: StatsMessage = serde_json::from_str(&v.to_string()).unwrap();
+        assert_eq!(back, StatsMessage::from(&s));
+        // A recording from before the odometry reads as none.
+        let mut old = v.clone();
+        old.as_object_mut().unwrap().remove("odometry");
+        let back: StatsMessage = serde_json::from_str(&old.to_string()).unwrap();
+        assert_eq!(back.odometry, None);
     }
 
     #[test]

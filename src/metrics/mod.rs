@@ -18,7 +18,9 @@ use hdrhistogram::Histogram;
 use serde::Serialize;
 
 use crate::transport::Losses;
-use crate::wire::{Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES, OFF_CPU_NOT_MEASURED};
+use crate::wire::{
+    OdometryStats, Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES, OFF_CPU_NOT_MEASURED,
+};
 
 /// Most stages of a pipeline.
 pub const MAX_STAGES: usize = MAX_STATS_STAGES;
@@ -61,6 +63,8 @@ pub struct Batch {
     pub records: [Record; BATCH],
     /// The heading errors against the truth so far, when the ingest knows the truth.
     pub heading: Option<HeadingSummary>,
+    /// What the odometry did for a stage of the segment so far ([`crate::stages::Stage::odometry`]).
+    pub odometry: Option<OdometryStats>,
 }
 
 impl Default for Batch {
@@ -69,6 +73,7 @@ impl Default for Batch {
             len: 0,
             records: [Record::default(); BATCH],
             heading: None,
+            odometry: None,
         }
     }
 }
@@ -301,6 +306,8 @@ pub struct Reporter {
     stage_hist: Vec<Histogram<u64>>,
     e2e: Histogram<u64>,
     heading: Option<HeadingSummary>,
+    /// The odometry's, from the newest batch that had it.
+    odometry: OdometryStats,
     misses: Vec<Miss>,
     /// The latest miss, however many came before it (for the stats service): when (s), end
     /// to end and off a CPU (ns). No stage times, so that keeping it allocates nothing.
@@ -333,6 +340,7 @@ impl Reporter {
             stage_hist: (0..n).map(|_| histogram()).collect(),
             e2e: histogram(),
             heading: None,
+            odometry: OdometryStats::default(),
             misses: Vec::new(),
             last_miss: None,
             late: histogram(),
@@ -352,6 +360,9 @@ impl Reporter {
         }
         if let Some(h) = &b.heading {
             self.heading.get_or_insert_with(Default::default).merge(h);
+        }
+        if let Some(o) = b.odometry {
+            self.odometry = o;
         }
     }
 
@@ -519,6 +530,7 @@ impl Reporter {
                 .unwrap_or(OFF_CPU_NOT_MEASURED),
             stamp_faults: f.stamp_faults,
             warm_start: self.layout.warm_start_outcome,
+            odometry: self.odometry,
         }
     }
 
@@ -619,6 +631,21 @@ pub fn format_snapshot(name: &str, s: &StatsSnapshot) -> String {
         out.push_str(&format!(
             "warm start: {}\n",
             crate::wire::warm_start_name(s.warm_start)
+        ));
+    }
+    let o = &s.odometry;
+    if o.up != 0 {
+        out.push_str(&format!(
+            "odometry: up {} ({}); {} used, {} rejected, {} slips\n\
+             odometry: scale {:+.2} % +- {:.2} %; bias learnt in motion {:+.4} deg/s\n",
+            o.up_name(),
+            o.mounting_name(),
+            o.learnt,
+            o.spans_rejected,
+            o.slips,
+            o.scale * 100.0,
+            o.scale_sd * 100.0,
+            o.bias_learnt_rad_s.to_degrees()
         ));
     }
     if let Some(explained) = s.last_miss_explained() {
@@ -740,6 +767,27 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("flagged 1000 (3 stamp faults);"), "{text}");
+        assert!(!text.contains("odometry"), "no odometry: {text}");
+        s.odometry = crate::wire::OdometryStats {
+            up: 6,
+            mounting: crate::wire::MOUNTING_WRONG_SIGN,
+            spans_accepted: 99_999,
+            spans_rejected: 99_999,
+            slips: 99_999,
+            learnt: 99_999,
+            scale: -0.1234,
+            scale_sd: 0.0456,
+            bias_learnt_rad_s: -0.5f64.to_radians(),
+        };
+        let text = format_snapshot("demo", &s);
+        assert!(
+            text.contains(
+                "\nodometry: up -z (refused: wrong sign); 99999 used, 99999 rejected, 99999 \
+                 slips\nodometry: scale -12.34 % +- 4.56 %; bias learnt in motion -0.5000 \
+                 deg/s\n"
+            ),
+            "{text}"
+        );
         for line in text.lines() {
             assert!(line.len() <= 80, "{} columns: {line:?}", line.len());
         }

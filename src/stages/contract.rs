@@ -69,6 +69,13 @@ pub trait Stage {
         None
     }
 
+    /// What the vehicle's odometry has done for the stage so far (`predict.bias` fed a yaw
+    /// rate), for the stats service; called once per batch of samples. Must not allocate.
+    /// Default: None.
+    fn odometry(&self) -> Option<crate::wire::OdometryStats> {
+        None
+    }
+
     /// The newest value of side input `slot` (the index in [`Params::side_inputs`]), handed
     /// over before the sample it precedes whenever a new one arrived; never waited for. Must
     /// not allocate. Default: ignored.

@@ -40,8 +40,9 @@ use crate::stages::contract::{SideInput, SideValue};
 use crate::stages::schema::{Context, DefaultValue, Key, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::wire::{
-    GyroSample, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING, FLAG_VEHICLE_STOPPED,
-    SENSOR_ACCEL,
+    GyroSample, OdometryStats, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING,
+    FLAG_VEHICLE_STOPPED, MOUNTING_CONFIRMED, MOUNTING_UNKNOWN, MOUNTING_WRONG_AXIS,
+    MOUNTING_WRONG_SIGN, SENSOR_ACCEL,
 };
 #[cfg(doc)]
 use crate::wire::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
@@ -526,6 +527,7 @@ impl Params for BiasParams {
                     aid: OdometryAid::new(OdometryAidConfig::default(), r_gyro, cx.rate_hz)?,
                     last_t_ns: 0,
                     learnt: 0,
+                    bias_learnt: 0.0,
                 })
             }
             _ => None,
@@ -696,6 +698,8 @@ struct Odometry {
     last_t_ns: u64,
     /// Measurements the filter took.
     learnt: u64,
+    /// What they moved the axis's bias estimate by, summed, deg/s.
+    bias_learnt: f64,
 }
 
 impl Odometry {
@@ -737,8 +741,10 @@ impl Odometry {
         let (estimate, variance) = (self.sign * f.estimate(), f.variance());
         let judged = self.aid.mounting() != Mounting::Unknown;
         if let Some(z) = self.aid.push_odometry(sample, estimate, variance) {
+            let before = tracker.filter().estimate();
             if tracker.update_in_motion(self.sign * z.z, z.r) {
                 self.learnt += 1;
+                self.bias_learnt += tracker.filter().estimate() - before;
             }
         }
         if !judged {
@@ -773,6 +779,27 @@ impl Odometry {
                 up()
             )),
             Mounting::Unknown | Mounting::Confirmed { .. } => None,
+        }
+    }
+
+    /// What it did, for the stats service.
+    fn stats(&self) -> OdometryStats {
+        let d = self.aid.diagnostics();
+        OdometryStats {
+            up: OdometryStats::up_code(self.axis, self.sign),
+            mounting: match self.aid.mounting() {
+                Mounting::Unknown => MOUNTING_UNKNOWN,
+                Mounting::Confirmed { .. } => MOUNTING_CONFIRMED,
+                Mounting::WrongSign { .. } => MOUNTING_WRONG_SIGN,
+                Mounting::WrongAxis { .. } => MOUNTING_WRONG_AXIS,
+            },
+            spans_accepted: d.accepted,
+            spans_rejected: d.rejected,
+            slips: d.slips,
+            learnt: self.learnt,
+            scale: d.scale,
+            scale_sd: d.scale_sd,
+            bias_learnt_rad_s: self.bias_learnt.to_radians(),
         }
     }
 
@@ -889,6 +916,10 @@ impl Stage for BiasStage {
             .collect()
     }
 
+    fn odometry(&self) -> Option<OdometryStats> {
+        self.odometry.as_ref().map(Odometry::stats)
+    }
+
     fn side(&mut self, _slot: usize, value: &SideValue) {
         let SideValue::Stop(s) = value;
         self.signal = Some(*s);
@@ -1001,6 +1032,7 @@ mod tests {
             aid: OdometryAid::new(OdometryAidConfig::default(), r_gyro, rate).unwrap(),
             last_t_ns: 0,
             learnt: 0,
+            bias_learnt: 0.0,
         };
         for i in 0..2000u64 {
             let turn = if stands {

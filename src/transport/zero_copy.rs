@@ -39,7 +39,7 @@ mod tests {
         unsafe {
             assert_eq!(RawSample::type_name(), "driftless::RawSample.v2");
             assert_eq!(GyroSample::type_name(), "driftless::GyroSample.v4");
-            assert_eq!(StatsSnapshot::type_name(), "driftless::StatsSnapshot.v3");
+            assert_eq!(StatsSnapshot::type_name(), "driftless::StatsSnapshot.v4");
             assert_eq!(StopSignal::type_name(), "driftless::StopSignal.v2");
         }
         assert_eq!(std::mem::size_of::<StopSignal>(), 56);

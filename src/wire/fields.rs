@@ -12,7 +12,7 @@ use super::flags::{
     SENSOR_ORIENTATION,
 };
 use super::samples::{GyroSample, RawSample, StopSignal, DRIFT_STD_NOT_PROVIDED};
-use super::stats::{Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES};
+use super::stats::{OdometryStats, Percentiles, StageStats, StatsSnapshot, MAX_STATS_STAGES};
 use FieldKind::{F64, U32, U64, U8};
 use FieldUnit::{AccelUnits, Hz, InputUnits, MPerS, MPerS2, Ns, Rad, RadPerS, Tesla, Unitless};
 
@@ -548,8 +548,27 @@ pub const STAGE_STATS_FIELDS: FieldTable = FieldTable::of::<StageStats>(
     ],
 );
 
+/// The fields of [`OdometryStats`], a part of [`StatsSnapshot`].
+pub const ODOMETRY_STATS_FIELDS: FieldTable = FieldTable::of::<OdometryStats>(
+    "OdometryStats",
+    &[
+        Field::new("up", 0, U64, 1, Unitless, 1).json("up", ""),
+        Field::new("mounting", 8, U64, 1, Unitless, 1).json("mounting", ""),
+        count("spans_accepted", 16, 1),
+        count("spans_rejected", 24, 1),
+        count("slips", 32, 1),
+        count("learnt", 40, 1),
+        Field::new("scale", 48, F64, 1, Unitless, 1).json("scale", ""),
+        Field::new("scale_sd", 56, F64, 1, Unitless, 1).json("scale_sd", ""),
+        Field::new("bias_learnt_rad_s", 64, F64, 1, RadPerS, 1).json("bias_learnt_rad_s", ""),
+    ],
+);
+
 /// A [`StageStats`], as an element of a field.
 const STAGES: FieldKind = FieldKind::Struct(&STAGE_STATS_FIELDS);
+
+/// An [`OdometryStats`], as a field.
+const ODOMETRY: FieldKind = FieldKind::Struct(&ODOMETRY_STATS_FIELDS);
 
 /// The fields of [`StatsSnapshot`] (docs/wire-types.md, "Layouts"), with the keys of its JSON
 /// form (`stats --json`, a recording's statistics channel; `a.b`: key `b` of object `a`).
@@ -577,17 +596,19 @@ pub const STATS_FIELDS: FieldTable = FieldTable::of::<StatsSnapshot>(
         time("last_miss_off_cpu_ns", 928, 2, "last_miss.off_cpu_ns"),
         count("stamp_faults", 936, 3),
         Field::new("warm_start", 944, U64, 1, Unitless, 3).json("warm_start", ""),
+        Field::new("odometry", 952, ODOMETRY, 1, Unitless, 4).json("odometry", ""),
     ],
 );
 
 /// Every wire type's table, and its parts'.
-pub const TABLES: [&FieldTable; 6] = [
+pub const TABLES: [&FieldTable; 7] = [
     &RAW_FIELDS,
     &GYRO_FIELDS,
     &STOP_FIELDS,
     &STATS_FIELDS,
     &PERCENTILES_FIELDS,
     &STAGE_STATS_FIELDS,
+    &ODOMETRY_STATS_FIELDS,
 ];
 
 #[cfg(test)]
@@ -595,7 +616,8 @@ mod tests {
     use super::*;
     use crate::wire::{
         WireBytes, GYRO_V1_SIZE, GYRO_V2_SIZE, GYRO_V3_SIZE, GYRO_VERSION, RAW_V1_SIZE,
-        RAW_VERSION, STATS_V1_SIZE, STATS_V2_SIZE, STATS_VERSION, STOP_V1_SIZE, STOP_VERSION,
+        RAW_VERSION, STATS_V1_SIZE, STATS_V2_SIZE, STATS_V3_SIZE, STATS_VERSION, STOP_V1_SIZE,
+        STOP_VERSION,
     };
 
     /// The table of `$ty` holds exactly the fields listed, each at its `offset_of!` with its
@@ -691,7 +713,22 @@ mod tests {
                 last_miss_e2e_ns,
                 last_miss_off_cpu_ns,
                 stamp_faults,
-                warm_start
+                warm_start,
+                odometry
+            }
+        );
+        the_table_is_the_layout!(
+            ODOMETRY_STATS_FIELDS,
+            OdometryStats {
+                up,
+                mounting,
+                spans_accepted,
+                spans_rejected,
+                slips,
+                learnt,
+                scale,
+                scale_sd,
+                bias_learnt_rad_s
             }
         );
         the_table_is_the_layout!(
@@ -730,7 +767,7 @@ mod tests {
             (
                 &STATS_FIELDS,
                 STATS_VERSION,
-                &[STATS_V1_SIZE, STATS_V2_SIZE],
+                &[STATS_V1_SIZE, STATS_V2_SIZE, STATS_V3_SIZE],
             ),
             (&STOP_FIELDS, STOP_VERSION, &[STOP_V1_SIZE][..]),
         ] {

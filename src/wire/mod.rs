@@ -107,9 +107,9 @@ mod tests {
         assert_eq!(
             stats,
             "service \"d/stats\" carries driftless::StatsSnapshot (layout v1, 904 bytes, from \
-             an older driftless); this driftless reads driftless::StatsSnapshot.v3 (layout v3, \
-             952 bytes, with the stamp faults and the warm start): run the daemon and its \
-             subscribers from one release (docs/wire-types.md#versions)"
+             an older driftless); this driftless reads driftless::StatsSnapshot.v4 (layout v4, \
+             1024 bytes, with the odometry): run the daemon and its subscribers from one \
+             release (docs/wire-types.md#versions)"
         );
         assert_eq!(other_layout_of(STATS_V1_TYPE_NAME), Some("StatsSnapshot"));
         assert_eq!(other_layout_of(GYRO_V1_TYPE_NAME), Some("GyroSample"));
@@ -238,6 +238,9 @@ mod tests {
             std::mem::offset_of!(StatsSnapshot, stamp_faults),
             STATS_V2_SIZE
         );
-        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 952);
+        // Version 4 appended the odometry's 72 bytes.
+        assert_eq!(std::mem::offset_of!(StatsSnapshot, odometry), STATS_V3_SIZE);
+        assert_eq!(std::mem::size_of::<OdometryStats>(), 72);
+        assert_eq!(std::mem::size_of::<StatsSnapshot>(), 1024);
     }
 }

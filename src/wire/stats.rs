@@ -1,16 +1,18 @@
 //! The daemon's statistics on the wire ([`StatsSnapshot`]), published every report interval.
 
-/// Type name of [`StatsSnapshot`] on the wire; `.v3` names the layout, as for
+/// Type name of [`StatsSnapshot`] on the wire; `.v4` names the layout, as for
 /// [`super::GYRO_TYPE_NAME`].
-pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot.v3";
+pub const STATS_TYPE_NAME: &str = "driftless::StatsSnapshot.v4";
 /// The layout version of [`StatsSnapshot`] (the `.vN` of [`STATS_TYPE_NAME`]).
-pub const STATS_VERSION: u32 = 3;
+pub const STATS_VERSION: u32 = 4;
 /// The type name of [`StatsSnapshot`] version 1 (904 bytes, before the misses' explanation).
 pub const STATS_V1_TYPE_NAME: &str = "driftless::StatsSnapshot";
 /// Size of [`StatsSnapshot`] version 1, bytes.
 pub const STATS_V1_SIZE: usize = 904;
 /// Size of [`StatsSnapshot`] version 2, bytes (before the stamp faults and the warm start).
 pub const STATS_V2_SIZE: usize = 936;
+/// Size of [`StatsSnapshot`] version 3, bytes (before the odometry).
+pub const STATS_V3_SIZE: usize = 952;
 /// [`StatsSnapshot::last_miss_off_cpu_ns`] when it was not measured (an output after an
 /// `external` stage, whose sample crossed threads): the miss cannot be explained.
 pub const OFF_CPU_NOT_MEASURED: u64 = u64::MAX;
@@ -109,6 +111,76 @@ pub struct StatsSnapshot {
     pub stamp_faults: u64,
     /// How the pipeline's state-keeping stage started: one of the `WARM_START_*` codes.
     pub warm_start: u64,
+    /// What the vehicle's odometry did for the bias filter (version 4).
+    pub odometry: OdometryStats,
+}
+
+/// What the vehicle's odometry (a yaw rate on `predict.bias`'s `stop_input`) did for the bias
+/// filter so far: a part of [`StatsSnapshot`] (72 bytes). All zero (`up` 0) when no stage
+/// uses a yaw rate.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
+pub struct OdometryStats {
+    /// The gyro axis that is the vehicle's up: 1 +x, 2 -x, 3 +y, 4 -y, 5 +z, 6 -z; 0: no
+    /// stage uses a yaw rate ([`OdometryStats::up_name`]).
+    pub up: u64,
+    /// The mounting check's verdict: one of the `MOUNTING_*` codes.
+    pub mounting: u64,
+    /// Spans (0.5 s of messages) that passed the slip test.
+    pub spans_accepted: u64,
+    /// Spans rejected: slips, or a span that disagreed with the next.
+    pub spans_rejected: u64,
+    /// Runs of rejected spans: the slips caught.
+    pub slips: u64,
+    /// Measurements the bias filter took from the odometry.
+    pub learnt: u64,
+    /// The odometry's learnt scale correction (true yaw rate = (1 + scale) x the odometry's).
+    pub scale: f64,
+    /// Its standard deviation (1 sigma).
+    pub scale_sd: f64,
+    /// What the odometry's measurements moved the up axis's bias estimate by, summed, rad/s
+    /// (on the gyro's axis, its sign as the gyro's): the bias learnt in motion.
+    pub bias_learnt_rad_s: f64,
+}
+
+/// [`OdometryStats::mounting`]: not judged yet (too little turning).
+pub const MOUNTING_UNKNOWN: u64 = 0;
+/// [`OdometryStats::mounting`]: the gyro's up axis turns with the odometry.
+pub const MOUNTING_CONFIRMED: u64 = 1;
+/// [`OdometryStats::mounting`]: they turn against each other; the yaw rate is refused.
+pub const MOUNTING_WRONG_SIGN: u64 = 2;
+/// [`OdometryStats::mounting`]: the axis does not see the turns; the yaw rate is refused.
+pub const MOUNTING_WRONG_AXIS: u64 = 3;
+
+impl OdometryStats {
+    /// The code of gyro axis `axis` (0, 1, 2) pointing up with `sign` (> 0: +).
+    pub fn up_code(axis: usize, sign: f64) -> u64 {
+        1 + 2 * axis as u64 + u64::from(sign < 0.0)
+    }
+
+    /// The words of [`OdometryStats::up`]: `+z`, ...; `none`.
+    pub fn up_name(&self) -> &'static str {
+        match self.up {
+            1 => "+x",
+            2 => "-x",
+            3 => "+y",
+            4 => "-y",
+            5 => "+z",
+            6 => "-z",
+            _ => "none",
+        }
+    }
+
+    /// The words of [`OdometryStats::mounting`].
+    pub fn mounting_name(&self) -> &'static str {
+        match self.mounting {
+            MOUNTING_UNKNOWN => "not judged",
+            MOUNTING_CONFIRMED => "confirmed",
+            MOUNTING_WRONG_SIGN => "refused: wrong sign",
+            MOUNTING_WRONG_AXIS => "refused: wrong axis",
+            _ => "unknown",
+        }
+    }
 }
 
 /// [`StatsSnapshot::warm_start`]: no stage of the pipeline keeps state across runs.

@@ -6,7 +6,8 @@ use super::samples::{
     STOP_TYPE_NAME, STOP_V1_SIZE, STOP_V1_TYPE_NAME, STOP_VERSION,
 };
 use super::stats::{
-    StatsSnapshot, STATS_TYPE_NAME, STATS_V1_SIZE, STATS_V1_TYPE_NAME, STATS_V2_SIZE, STATS_VERSION,
+    StatsSnapshot, STATS_TYPE_NAME, STATS_V1_SIZE, STATS_V1_TYPE_NAME, STATS_V2_SIZE,
+    STATS_V3_SIZE, STATS_VERSION,
 };
 use super::StopSignal;
 
@@ -48,11 +49,11 @@ const VERSIONED: [Versioned; 4] = [
     Versioned {
         short: "StatsSnapshot",
         v1: STATS_V1_TYPE_NAME,
-        old_sizes: &[STATS_V1_SIZE, STATS_V2_SIZE],
+        old_sizes: &[STATS_V1_SIZE, STATS_V2_SIZE, STATS_V3_SIZE],
         name: STATS_TYPE_NAME,
         version: STATS_VERSION,
         size: std::mem::size_of::<StatsSnapshot>(),
-        added: "the stamp faults and the warm start",
+        added: "the odometry",
     },
     Versioned {
         short: "StopSignal",

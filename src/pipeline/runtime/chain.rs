@@ -254,6 +254,7 @@ impl Chain {
     /// Send the pending batch (never blocking) and store the counters this segment owns.
     pub(super) fn send_batch(&mut self) {
         self.batch.heading = self.heading.as_ref().map(HeadingTracker::summary);
+        self.batch.odometry = self.stages.iter().find_map(|s| s.odometry());
         if self.batch.len > 0 {
             if self.tx.try_send(self.batch).is_err() {
                 self.local.metric_drops += self.batch.len as u64;

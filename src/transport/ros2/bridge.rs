@@ -560,6 +560,7 @@ impl Diagnostics {
                     deadline_misses: s.deadline_misses,
                     lost: s.lost,
                     missing_in_input: s.gap_samples,
+                    odometry: s.odometry,
                 });
             }
         }

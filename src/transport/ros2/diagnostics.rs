@@ -6,7 +6,10 @@
 //! [`DiagnosticStatus`]. No I/O here: the bridge (`bridge.rs`) publishes what these make.
 
 use super::imu::{CdrError, Time};
-use crate::wire::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
+use crate::wire::{
+    OdometryStats, FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP, MOUNTING_WRONG_AXIS,
+    MOUNTING_WRONG_SIGN,
+};
 
 /// The ROS 2 type of the bias message.
 pub const VECTOR3_STAMPED_TYPE: &str = "geometry_msgs/msg/Vector3Stamped";
@@ -169,8 +172,8 @@ impl DiagnosticArray {
     }
 }
 
-/// What the pipeline's stats say of misses and losses (`StatsSnapshot`'s counts).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// What the pipeline's stats say of misses, losses and the odometry (`StatsSnapshot`'s).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PipelineCounts {
     /// Outputs past the deadline.
     pub deadline_misses: u64,
@@ -178,6 +181,8 @@ pub struct PipelineCounts {
     pub lost: u64,
     /// Samples missing from the input (sequence gaps).
     pub missing_in_input: u64,
+    /// What the vehicle's odometry did for the bias filter (`up` 0: none used).
+    pub odometry: OdometryStats,
 }
 
 /// One period's corrected samples, gathered for a [`DiagnosticStatus`] (allocation-free per
@@ -277,6 +282,33 @@ impl BiasWindow {
                     (Level::Ok, "OK".into())
                 }
             }
+        };
+        let (level, message) = match counts.map(|c| c.odometry).filter(|o| o.up != 0) {
+            Some(o) => {
+                put("vehicle_up", o.up_name().into());
+                put("odometry_mounting", o.mounting_name().into());
+                put("odometry_spans_used", o.learnt.to_string());
+                put("odometry_spans_rejected", o.spans_rejected.to_string());
+                put("odometry_slips_caught", o.slips.to_string());
+                put("odometry_scale", number(o.scale));
+                put("odometry_scale_sigma", number(o.scale_sd));
+                put("gyro_bias_learnt_in_motion", number(o.bias_learnt_rad_s));
+                let refused = matches!(o.mounting, MOUNTING_WRONG_SIGN | MOUNTING_WRONG_AXIS);
+                if refused && level < Level::Warn {
+                    (
+                        Level::Warn,
+                        format!(
+                            "the odometry's yaw rate is refused ({}: vehicle_up {}); the bias \
+                             learns at stops only (fix vehicle_up, see the daemon's log)",
+                            o.mounting_name(),
+                            o.up_name()
+                        ),
+                    )
+                } else {
+                    (level, message)
+                }
+            }
+            None => (level, message),
         };
         put("gyro_bias_threshold", number(settings.threshold));
         let stillness = match self.last {
@@ -483,6 +515,7 @@ mod tests {
             deadline_misses: 2,
             lost: 3,
             missing_in_input: 4,
+            ..PipelineCounts::default()
         };
         let s = w.report(&settings(), 1.0, Some(counts));
         assert_eq!((s.level, s.message.as_str()), (Level::Ok, "OK"));
@@ -531,6 +564,50 @@ mod tests {
         assert_eq!(s.level, Level::Ok);
         assert!(s.message.starts_with("warming up"), "{}", s.message);
         assert_eq!(value(&s, "stillness"), "unknown");
+        assert!(
+            s.values.iter().all(|(k, _)| !k.contains("odometry")),
+            "no odometry: none said"
+        );
+    }
+
+    #[test]
+    fn the_odometry_is_said_and_a_refused_mounting_warns() {
+        let mut w = BiasWindow::default();
+        let mut counts = PipelineCounts {
+            odometry: OdometryStats {
+                up: 6,
+                mounting: crate::wire::MOUNTING_CONFIRMED,
+                spans_accepted: 41,
+                spans_rejected: 5,
+                slips: 2,
+                learnt: 40,
+                scale: -0.0125,
+                scale_sd: 0.002,
+                bias_learnt_rad_s: 0.0087,
+            },
+            ..PipelineCounts::default()
+        };
+        w.observe([0.0, 0.0, 0.001], [1e-4; 3], FLAG_MOVING);
+        let s = w.report(&settings(), 1.0, Some(counts));
+        assert_eq!((s.level, s.message.as_str()), (Level::Ok, "OK"));
+        for (k, v) in [
+            ("vehicle_up", "-z"),
+            ("odometry_mounting", "confirmed"),
+            ("odometry_spans_used", "40"),
+            ("odometry_spans_rejected", "5"),
+            ("odometry_slips_caught", "2"),
+            ("odometry_scale", "-0.0125"),
+            ("odometry_scale_sigma", "0.002"),
+            ("gyro_bias_learnt_in_motion", "0.0087"),
+        ] {
+            assert_eq!(value(&s, k), v, "{k}");
+        }
+        counts.odometry.mounting = MOUNTING_WRONG_SIGN;
+        w.observe([0.0; 3], [1e-4; 3], FLAG_MOVING);
+        let s = w.report(&settings(), 1.0, Some(counts));
+        assert_eq!(s.level, Level::Warn);
+        assert!(s.message.contains("refused: wrong sign"), "{}", s.message);
+        assert!(s.message.contains("vehicle_up -z"), "{}", s.message);
     }
 
     #[test]
