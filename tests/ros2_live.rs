@@ -1395,3 +1395,87 @@ fn the_magnetometer_through_the_daemon_makes_the_navigators_yaw_absolute() {
         .unwrap_or_else(|| panic!("{err}"));
     assert!((9..=11).contains(&held), "{held} held: {err}");
 }
+
+/// A vehicle that never stops, in rclpy: a 1 kHz Imu driver whose gyro turns about +z with
+/// the vehicle, and a 50 Hz odometry node (its yaw rate with a covariance, 30 ms late). The
+/// stops teach nothing; the odometry teaches the z bias while driving, and it shows where a
+/// navigator looks: the Imu out's covariance shrinks on z alone, and /diagnostics says what
+/// the odometry did.
+#[test]
+fn an_odometry_nodes_yaw_rate_teaches_the_bias_while_driving() {
+    if !in_netns("an_odometry_nodes_yaw_rate_teaches_the_bias_while_driving") {
+        return;
+    }
+    let (dir, file) = ros2_pipeline_with(
+        "turn",
+        "diagnostics = { service = \"ros2/corrected\" }\ndiagnostics_period_s = 0.25",
+    );
+    let d = daemon_of(&file, "turn").spawn().unwrap();
+    let n = 10_000;
+    let nav = navigator(n);
+    let mut diagnostics = ready(peer("diagnostics", "/diagnostics", 100_000));
+    let mut driver = peer("turn", "/imu/data_raw", n);
+    assert!(driver.wait().unwrap().success());
+    let got = lines_of(nav);
+    // The last status that saw samples, once the daemon served them all (a STALE one after).
+    let mut last = None;
+    let out = diagnostics.stdout.take().unwrap();
+    for line in BufReader::new(out).lines().map_while(Result::ok) {
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        let Some(s) = v.get("status").and_then(|s| s.get(0)).cloned() else {
+            continue;
+        };
+        if s["level"] == 3 && last.is_some() {
+            break;
+        }
+        if s["level"] != 3 {
+            last = Some(s);
+        }
+    }
+    let _ = diagnostics.kill();
+    let _ = diagnostics.wait();
+    let err = stop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let imus: Vec<&serde_json::Value> = got.iter().filter(|v| v.get("stamp").is_some()).collect();
+    assert_eq!(imus.len(), n, "every sample: {err}");
+    let var = |i: usize, k: usize| imus[i]["angular_velocity_covariance"][k].as_f64().unwrap();
+    // The variance on z fell as its bias was learnt; on x (never learnt: no stop) it did not.
+    let (z0, z1) = (var(100, 8), var(n - 1, 8));
+    let (x0, x1) = (var(100, 0), var(n - 1, 0));
+    assert!(z1 < 0.75 * z0, "z variance {z0} -> {z1}: {err}");
+    assert!(x1 >= x0, "x variance {x0} -> {x1}");
+    // The corrected z rate during the last straight second is the vehicle's (0), not the bias.
+    let straight: Vec<f64> = imus[n - 3000 + 100..n - 2000]
+        .iter()
+        .map(|m| m["angular_velocity"][2].as_f64().unwrap())
+        .collect();
+    let mean = straight.iter().sum::<f64>() / straight.len() as f64;
+    assert!(
+        mean.abs() < 0.0015,
+        "z on the straight {mean} rad/s (bias 0.004): {err}"
+    );
+    let last = last.unwrap_or_else(|| panic!("no diagnostics: {err}"));
+    let v = &last["values"];
+    assert_eq!(v["vehicle_up"], "+z", "{last}");
+    assert_eq!(v["odometry_mounting"], "confirmed", "{last}");
+    let num = |k: &str| -> f64 { v[k].as_str().unwrap().parse().unwrap() };
+    assert!(num("odometry_spans_used") >= 5.0, "{last}");
+    assert!(
+        (num("gyro_bias_learnt_in_motion") - 0.004).abs() < 0.0015,
+        "{last}"
+    );
+    assert!((num("gyro_bias_z") - 0.004).abs() < 0.0015, "{last}");
+    assert!(err.contains("motion in"), "{err}");
+    assert!(
+        !err.contains("off this host's clock") && !err.contains("yaw rate is refused"),
+        "{err}"
+    );
+    eprintln!("z variance {z0:.3e} -> {z1:.3e}; straight z {mean:+.5} rad/s; diagnostics {v}");
+}
+
+fn lines_of(mut child: Child) -> Vec<serde_json::Value> {
+    let got = lines(&mut child);
+    assert!(child.wait().unwrap().success());
+    got
+}

@@ -21,7 +21,12 @@ of a level gyro at rest (gravity on z, with a covariance) and, before every 10th
 sensor_msgs/msg/MagneticField on /imu/mag with the same stamp: the field (tesla) of 20 uT north
 and 40 uT down seen by a body turned MAG_YAW_DEG (default 30) anticlockwise from east (ENU),
 until message PEER_MAG_UNTIL (default COUNT), then no more (the magnetometer stops); with
-PEER_MAG_NAN_AT=i,... the readings before those messages are NaN.
+PEER_MAG_NAN_AT=i,... the readings before those messages are NaN. `turn` is a vehicle that
+never stops: COUNT Imu messages at 1 kHz stamped with the system clock, a gyro with the bias
+TURN_BIAS (rad/s) whose z turns with the vehicle (up is +z: 1 s each of 0, 20, 0, -15, 10
+deg/s), and a nav_msgs/msg/Odometry at 50 Hz (2 m/s, `angular.z` the true mean yaw rate over
+its 20 ms, its covariance's yaw variance set) stamped with the end of its period and
+published 30 ms later, as a wheel odometry's latency.
 
 Runs inside the test's private network namespace only (DDS never leaves it).
 Versions: requirements-ros2.txt beside this file.
@@ -43,6 +48,9 @@ from sensor_msgs.msg import Imu, MagneticField
 
 
 ACCEL_COVARIANCE = [1e-4, 1e-6, 0.0, 1e-6, 2e-4, 0.0, 0.0, 0.0, 3e-4]
+
+# The `turn` mode's gyro bias, rad/s (tests/ros2_live.rs checks against it).
+TURN_BIAS = [0.002, -0.001, 0.004]
 
 
 def accel(i: int) -> list:
@@ -223,6 +231,45 @@ def main() -> int:
                 mag_pub.publish(f)
             pub.publish(m)
             time.sleep(0.001)
+        time.sleep(0.5)
+        print(json.dumps({"sent": count}), flush=True)
+    elif mode == "turn":
+        bias = TURN_BIAS
+        pub = node.create_publisher(Imu, topic, 10)
+        odom = node.create_publisher(Odometry, "/odom", 10)
+        while time.monotonic() < end and (
+            pub.get_subscription_count() == 0 or odom.get_subscription_count() == 0
+        ):
+            time.sleep(0.01)
+        time.sleep(0.5)
+        start = time.monotonic()
+        pending, turned = [], 0.0
+        for i in range(count):
+            stamp = time.time_ns()
+            w = math.radians([0.0, 20.0, 0.0, -15.0, 10.0][(i // 1000) % 5])
+            m = Imu()
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            m.header.frame_id = "peer_imu"
+            m.orientation_covariance[0] = -1.0
+            m.angular_velocity.x = bias[0] + 1e-3 * math.sin(0.7 * i)
+            m.angular_velocity.y = bias[1] + 1e-3 * math.sin(1.3 * i)
+            m.angular_velocity.z = bias[2] + w + 1e-3 * math.sin(2.9 * i)
+            m.linear_acceleration_covariance[0] = -1.0
+            pub.publish(m)
+            turned += w
+            if (i + 1) % 20 == 0:
+                o = Odometry()
+                o.header.stamp = m.header.stamp
+                o.twist.twist.linear.x = 2.0
+                o.twist.twist.angular.z = turned / 20
+                o.twist.covariance[35] = math.radians(0.1) ** 2
+                pending.append((i + 30, o))
+                turned = 0.0
+            while pending and pending[0][0] <= i:
+                odom.publish(pending.pop(0)[1])
+            ahead = start + (i + 1) / 1000.0 - time.monotonic()
+            if ahead > 0:
+                time.sleep(ahead)
         time.sleep(0.5)
         print(json.dumps({"sent": count}), flush=True)
     elif mode == "wrongtype":
