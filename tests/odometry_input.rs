@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use common::{collect, finish, qos, raw, report, signal, start, wait_ready, Dir, Prefix};
 use driftless::transport::{monotonic_ns, Transport};
-use driftless::wire::{GyroSample, OdometryStats, RawSample, StatsSnapshot, StopSignal};
+use driftless::wire::{GyroSample, OdometryStats, RawSample, StatsSnapshot, StopSignal, RAW_ACCEL};
 use libc::SIGTERM;
 
 const BIAS_DEG_S: f64 = 0.5;
@@ -37,6 +37,12 @@ struct Run {
 /// The daemon with `keys` in its predict.bias table, fed by this test; `yaw`: whether the
 /// signals carry the yaw rate.
 fn run(test: &str, keys: &str, yaw: bool) -> Run {
+    run_with(test, keys, yaw, 0)
+}
+
+/// [`run`], the vehicle standing for its first `stand` samples (and saying so) with an
+/// accelerometer level and upside down (the gyro's -z is up: it reads -g on z), then driving.
+fn run_with(test: &str, keys: &str, yaw: bool, stand: usize) -> Run {
     let prefix = Prefix::new(test);
     let dir = Dir::new();
     let text = format!(
@@ -99,23 +105,24 @@ output = "o/corrected"
     let started = Instant::now();
     let mut got = Vec::with_capacity(N);
     for i in 0..N {
-        let w = turn(i);
+        let stands = i < stand;
+        let w = if stands { 0.0 } else { turn(i - stand) };
         // The vehicle's up is the gyro's -z: a turn to the left reads negative there.
         let x = BIAS_DEG_S + noise(i);
         let z = BIAS_DEG_S - w + noise(i + 17);
-        assert_eq!(
-            sensor
-                .send(&raw(
-                    i as u64,
-                    i as u64 * 1_000_000_000 / RATE_HZ,
-                    [x, x, z]
-                ))
-                .unwrap(),
-            1
-        );
+        let mut sample = raw(i as u64, i as u64 * 1_000_000_000 / RATE_HZ, [x, x, z]);
+        if stand > 0 {
+            sample.flags |= RAW_ACCEL;
+            sample.accel = [0.05, -0.03, -9.80665];
+        }
+        assert_eq!(sensor.send(&sample).unwrap(), 1);
         if (i + 1) % PER_MESSAGE == 0 {
             // The mean yaw rate over the message's period, which ends now.
-            let mut s = StopSignal::new(monotonic_ns(), 3.0, 0);
+            let mut s = if stands {
+                StopSignal::new(monotonic_ns(), 0.0, 1)
+            } else {
+                StopSignal::new(monotonic_ns(), 3.0, 0)
+            };
             if yaw {
                 s.yaw_rate_rad_s = w.to_radians();
                 s.yaw_rate_std_rad_s = 0.1f64.to_radians();
@@ -275,4 +282,49 @@ fn a_yaw_rate_without_vehicle_up_is_refused_with_the_fix() {
         r.stderr
     );
     assert!(r.learnt.iter().all(|l| !l.contains("odometry")));
+}
+
+/// `vehicle_up = "gravity"`: the first rest's specific force names -z as up, and the turns
+/// after it teach that axis's bias, as a configured "-z" would.
+#[test]
+fn gravity_names_the_up_axis_at_the_first_rest() {
+    let r = run_with("odo-gravity", "vehicle_up = \"gravity\"", true, 600);
+    assert!(
+        r.stderr
+            .contains("vehicle_up from gravity: the gyro's -z points up"),
+        "{}",
+        r.stderr
+    );
+    let last = &r.got[N - 1];
+    assert!(
+        (drift_deg(last, 2) - BIAS_DEG_S).abs() < 0.1,
+        "z drift {}: {:?}",
+        drift_deg(last, 2),
+        r.learnt
+    );
+    assert_eq!(r.odometry.up_name(), "-z", "{:?}", r.odometry);
+    assert!(r.odometry.learnt > 5, "{:?}", r.odometry);
+    assert!(
+        r.learnt
+            .iter()
+            .any(|l| l.contains("vehicle_up = -z from gravity")),
+        "{:?}",
+        r.learnt
+    );
+}
+
+/// A configured axis that gravity contradicts: refused at the first rest, before any turn,
+/// with the fix; the turns teach nothing after.
+#[test]
+fn gravity_refuses_a_vehicle_up_it_contradicts_with_the_fix() {
+    let r = run_with("odo-gravity-no", "vehicle_up = \"+z\"", true, 600);
+    let said: Vec<_> = r
+        .stderr
+        .lines()
+        .filter(|l| l.contains("gravity says the gyro's -z points up"))
+        .collect();
+    assert_eq!(said.len(), 1, "{}", r.stderr);
+    assert!(said[0].contains("Set vehicle_up = \"-z\""), "{}", said[0]);
+    assert_eq!(r.odometry.mounting_name(), "refused: wrong sign");
+    assert_eq!(r.odometry.learnt, 0, "{:?}", r.odometry);
 }

@@ -30,8 +30,8 @@ use super::predict::motion_flags;
 use crate::drift::accel_rest::AccelRest;
 use crate::drift::bias::{
     accel_rest_from_terms, default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms,
-    BiasTracker, Instability, LearnWalk, Mounting, OdometryAid, OdometryAidConfig, OdometrySample,
-    TrackerConfig, DEFAULT_INITIAL_SD,
+    BiasTracker, GravityUp, Instability, LearnWalk, Mounting, OdometryAid, OdometryAidConfig,
+    OdometrySample, TrackerConfig, UpFromGravity, DEFAULT_INITIAL_SD, UP_MAX_TILT_DEG,
 };
 use crate::io::InputError;
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
@@ -42,7 +42,7 @@ use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::wire::{
     GyroSample, OdometryStats, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING,
     FLAG_VEHICLE_STOPPED, MOUNTING_CONFIRMED, MOUNTING_UNKNOWN, MOUNTING_WRONG_AXIS,
-    MOUNTING_WRONG_SIGN, SENSOR_ACCEL,
+    MOUNTING_WRONG_SIGN, SENSOR_ACCEL, UP_GRAVITY_PENDING,
 };
 #[cfg(doc)]
 use crate::wire::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
@@ -128,11 +128,11 @@ const STOP_INPUT: Key = Key {
 };
 const VEHICLE_UP: Key = Key {
     name: "vehicle_up",
-    ty: Type::Choice(&["+x", "-x", "+y", "-y", "+z", "-z"]),
+    ty: Type::Choice(&["+x", "-x", "+y", "-y", "+z", "-z", "gravity"]),
     default: DefaultValue::Absent(
         "none: a yaw rate on stop_input is refused (an error line at its first message), never used",
     ),
-    doc: "which gyro axis, and which way, is the vehicle's up: the yaw rate on stop_input (counter-clockwise seen from above positive) is that axis's rate times its sign",
+    doc: "which gyro axis, and which way, is the vehicle's up: the yaw rate on stop_input (counter-clockwise seen from above positive) is that axis's rate times its sign. \"gravity\": the axis nearest the accelerometer's specific force over the first second at rest (within 30 deg), the yaw rate unused until then. A configured axis is checked against gravity at the first rest and by the first turns: either disagreeing refuses the yaw rate, said once with the fix",
 };
 const ODOMETRY: Key = Key {
     name: "odometry",
@@ -240,10 +240,24 @@ pub struct StopConfig {
     pub service: String,
     /// How it is judged (`stop_speed`, `stop_max_age_s`).
     pub rule: StopRule,
-    /// `vehicle_up`: the gyro axis that is the vehicle's up, and its sign (+1 or -1).
-    pub up: Option<(usize, f64)>,
+    /// `vehicle_up`: the gyro axis that is the vehicle's up, or gravity's.
+    pub up: Option<VehicleUp>,
     /// `odometry`: whether a yaw rate (with `vehicle_up`) teaches the bias while moving.
     pub odometry: bool,
+}
+
+/// `vehicle_up`: how the vehicle's up is known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VehicleUp {
+    /// Gyro axis `axis` (0, 1, 2) points up, with `sign` (+1 or -1).
+    Axis {
+        /// The axis.
+        axis: usize,
+        /// +1 or -1.
+        sign: f64,
+    },
+    /// From the accelerometer at the first rest (`"gravity"`).
+    Gravity,
 }
 
 /// The word of `vehicle_up` for an axis and a sign.
@@ -350,7 +364,8 @@ fn stop(t: &mut Table<'_, '_>) -> Result<Option<StopConfig>, InputError> {
     let up = t.choice(&VEHICLE_UP, "vehicle_up", true)?;
     let odometry_given = t.has(&ODOMETRY);
     let odometry = t.bool_or_default(&ODOMETRY)?;
-    let up = match up {
+    let up = match up.as_deref() {
+        Some("gravity") => Some(VehicleUp::Gravity),
         Some(word) => {
             let axis = match &word[1..] {
                 "x" => 0,
@@ -364,10 +379,16 @@ fn stop(t: &mut Table<'_, '_>) -> Result<Option<StopConfig>, InputError> {
                     t.cx.axes
                 )));
             }
-            Some((axis, if word.starts_with('-') { -1.0 } else { 1.0 }))
+            let sign = if word.starts_with('-') { -1.0 } else { 1.0 };
+            Some(VehicleUp::Axis { axis, sign })
         }
         None => None,
     };
+    if up == Some(VehicleUp::Gravity) && t.cx.axes < 3 {
+        return Err(t.error(
+            "predict.bias: vehicle_up = \"gravity\" needs 3 axes (the up axis is any of them)",
+        ));
+    }
     Ok(match input {
         Some(v) => Some(StopConfig {
             service: src.service(&v)?,
@@ -516,19 +537,16 @@ impl Params for BiasParams {
             .map_err(|e| e.to_string())?;
         let odometry = match &self.stop {
             Some(StopConfig {
-                up: Some((axis, sign)),
+                up: Some(up),
                 odometry: true,
                 ..
             }) => {
-                let r_gyro = trackers[*axis].filter().model().measurement_variance();
-                Some(Odometry {
-                    axis: *axis,
-                    sign: *sign,
-                    aid: OdometryAid::new(OdometryAidConfig::default(), r_gyro, cx.rate_hz)?,
-                    last_t_ns: 0,
-                    learnt: 0,
-                    bias_learnt: 0.0,
-                })
+                let r = |k: usize| {
+                    trackers
+                        .get(k)
+                        .map_or(0.0, |t| t.filter().model().measurement_variance())
+                };
+                Some(Odometry::new(*up, [r(0), r(1), r(2)], cx.rate_hz)?)
             }
             _ => None,
         };
@@ -579,12 +597,16 @@ impl Params for BiasParams {
                 .map(|s| format!("stop signal: {} ({})", s.service, s.rule.describe())),
         )
         .chain(self.stop.iter().filter_map(|s| {
-            let (axis, sign) = s.up?;
-            let up = up_word(axis, sign);
+            let up = match s.up? {
+                VehicleUp::Axis { axis, sign } => format!("the gyro's {}", up_word(axis, sign)),
+                VehicleUp::Gravity => {
+                    "from gravity (the accelerometer over the first second at rest)".to_string()
+                }
+            };
             Some(if s.odometry {
                 format!(
-                    "odometry: the vehicle's up is the gyro's {up}: while it moves, its yaw rate \
-                     on {} teaches that axis's bias",
+                    "odometry: the vehicle's up is {up}: while it moves, its yaw rate on {} \
+                     teaches that axis's bias",
                     s.service
                 )
             } else {
@@ -690,9 +712,20 @@ fn cold_unusable(path: &std::path::Path, u: &bias_state::Unusable) -> WarmStart 
 
 /// The vehicle's yaw rate as a measurement of the up axis's bias while it moves.
 struct Odometry {
-    /// The gyro axis that is the vehicle's up, and its sign.
-    axis: usize,
-    sign: f64,
+    /// The gyro axis that is the vehicle's up, and its sign; `None` while gravity has not
+    /// told it yet (`vehicle_up = "gravity"`).
+    up: Option<(usize, f64)>,
+    /// How `vehicle_up` was set.
+    configured: VehicleUp,
+    /// The up axis from the accelerometer at the first rest: it checks a configured axis, or
+    /// (`"gravity"`) names it.
+    gravity: UpFromGravity,
+    /// Gravity's refusal of the configured axis (or, with `"gravity"`, of a tilted sensor):
+    /// the yaw rate is used no more.
+    gravity_refused: bool,
+    /// Each axis's white noise per sample, (deg/s)^2: the aid's weight of the gyro.
+    r_axes: [f64; 3],
+    rate_hz: f64,
     aid: OdometryAid,
     /// The stamp of the last message, ns (its period, when the message does not say it).
     last_t_ns: u64,
@@ -703,8 +736,103 @@ struct Odometry {
 }
 
 impl Odometry {
-    /// One sample of the up axis (`x` deg/s, the rate the filter sees) at ingest time `now_ns`,
-    /// and the message that came with it, if any; `tracker` is that axis's, after the sample.
+    /// The odometry of `configured`; `r_axes`: each axis's white noise per sample.
+    fn new(configured: VehicleUp, r_axes: [f64; 3], rate_hz: f64) -> Result<Odometry, String> {
+        let up = match configured {
+            VehicleUp::Axis { axis, sign } => Some((axis, sign)),
+            VehicleUp::Gravity => None,
+        };
+        let r = r_axes[up.map_or(2, |(axis, _)| axis)];
+        Ok(Odometry {
+            up,
+            configured,
+            // One second at rest.
+            gravity: UpFromGravity::new(rate_hz.round() as u64),
+            gravity_refused: false,
+            r_axes,
+            rate_hz,
+            aid: OdometryAid::new(OdometryAidConfig::default(), r, rate_hz)?,
+            last_t_ns: 0,
+            learnt: 0,
+            bias_learnt: 0.0,
+        })
+    }
+
+    /// A specific force read at rest: once gravity has judged, the configured axis is checked
+    /// (a disagreement refuses the yaw rate, said once with the fix) or, with `"gravity"`, the
+    /// up axis is taken from it.
+    fn at_rest(&mut self, f: [f64; 3]) {
+        let Some(g) = self.gravity.push(f) else {
+            return;
+        };
+        let said = match (self.configured, g) {
+            (
+                VehicleUp::Gravity,
+                GravityUp::Axis {
+                    axis,
+                    sign,
+                    tilt_deg,
+                },
+            ) => {
+                // The aid weighs the gyro axis it now reads.
+                if let Ok(aid) = OdometryAid::new(
+                    OdometryAidConfig::default(),
+                    self.r_axes[axis],
+                    self.rate_hz,
+                ) {
+                    self.aid = aid;
+                    self.up = Some((axis, sign));
+                }
+                format!(
+                    "vehicle_up from gravity: the gyro's {} points up ({tilt_deg:.1} deg from the \
+                     vertical); the odometry's yaw rate teaches its bias while moving",
+                    up_word(axis, sign)
+                )
+            }
+            (VehicleUp::Gravity, GravityUp::Tilted { tilt_deg }) => {
+                self.gravity_refused = true;
+                format!(
+                    "error: vehicle_up = \"gravity\", but no gyro axis is within \
+                     {UP_MAX_TILT_DEG} deg of the vertical (the nearest leans {tilt_deg:.0} deg): \
+                     the yaw rate is refused. Mount the IMU with an axis vertical and set \
+                     vehicle_up to it"
+                )
+            }
+            (VehicleUp::Axis { axis, sign }, GravityUp::Axis { .. })
+                if g.axis() == Some((axis, sign)) =>
+            {
+                return
+            }
+            (
+                VehicleUp::Axis { axis, sign },
+                GravityUp::Axis {
+                    axis: ga,
+                    sign: gs,
+                    tilt_deg,
+                },
+            ) => {
+                self.gravity_refused = true;
+                let up = up_word(ga, gs);
+                format!(
+                    "error: gravity says the gyro's {up} points up ({tilt_deg:.1} deg from the \
+                     vertical, the accelerometer at rest), but vehicle_up = \"{}\": the yaw rate \
+                     is refused from now on. Set vehicle_up = \"{up}\" (or \"gravity\")",
+                    up_word(axis, sign)
+                )
+            }
+            (VehicleUp::Axis { axis, sign }, GravityUp::Tilted { tilt_deg }) => format!(
+                "warning: no gyro axis is within {UP_MAX_TILT_DEG} deg of the vertical (the \
+                 nearest leans {tilt_deg:.0} deg): gravity cannot check vehicle_up = \"{}\"; \
+                 the turns will",
+                up_word(axis, sign)
+            ),
+        };
+        eprintln!("driftless: predict.bias: {said}");
+    }
+
+    /// One sample (`x` deg/s, the up axis's rate as the filter sees it) at ingest time
+    /// `now_ns`, and the message that came with it, if any; `tracker` is that axis's, after the
+    /// sample.
     fn push(
         &mut self,
         tracker: &mut BiasTracker,
@@ -712,7 +840,10 @@ impl Odometry {
         now_ns: u64,
         message: Option<&StopSignal>,
     ) {
-        self.aid.push_gyro(now_ns as f64 * 1e-9, self.sign * x);
+        let Some((_, sign)) = self.up.filter(|_| !self.gravity_refused) else {
+            return;
+        };
+        self.aid.push_gyro(now_ns as f64 * 1e-9, sign * x);
         let moving = !tracker.is_still();
         if !moving {
             self.aid.stop();
@@ -738,11 +869,11 @@ impl Odometry {
             yaw_rate_sd: m.yaw_rate_std_rad_s.to_degrees(),
         };
         let f = tracker.filter();
-        let (estimate, variance) = (self.sign * f.estimate(), f.variance());
+        let (estimate, variance) = (sign * f.estimate(), f.variance());
         let judged = self.aid.mounting() != Mounting::Unknown;
         if let Some(z) = self.aid.push_odometry(sample, estimate, variance) {
             let before = tracker.filter().estimate();
-            if tracker.update_in_motion(self.sign * z.z, z.r) {
+            if tracker.update_in_motion(sign * z.z, z.r) {
                 self.learnt += 1;
                 self.bias_learnt += tracker.filter().estimate() - before;
             }
@@ -757,12 +888,13 @@ impl Odometry {
     /// Why the yaw rate is refused, once the mounting check found it does not turn with the
     /// `vehicle_up` axis; the fix named.
     fn mounting_refused(&self) -> Option<String> {
+        let (axis, sign) = self.up?;
         // The words are built only for the one line said: this runs at each message until the
         // verdict.
-        let up = || up_word(self.axis, self.sign);
+        let up = || up_word(axis, sign);
         match self.aid.mounting() {
             Mounting::WrongSign { slope } => {
-                let other = up_word(self.axis, -self.sign);
+                let other = up_word(axis, -sign);
                 Some(format!(
                     "the yaw rate turns against the gyro's {} axis (slope {slope:+.2} over the \
                      first turns): one of the two has the other sign. The yaw rate is refused \
@@ -782,17 +914,49 @@ impl Odometry {
         }
     }
 
+    /// The `vehicle_up` words: the axis, or gravity's (and whether told yet).
+    fn up_text(&self) -> String {
+        match (self.configured, self.up) {
+            (VehicleUp::Axis { axis, sign }, _) => up_word(axis, sign),
+            (VehicleUp::Gravity, Some((axis, sign))) => {
+                format!("{} from gravity", up_word(axis, sign))
+            }
+            (VehicleUp::Gravity, None) => {
+                "gravity, not told (no rest with the accelerometer)".into()
+            }
+        }
+    }
+
+    /// What gravity said of the mounting, for the summary.
+    fn gravity_text(&self) -> &'static str {
+        match (self.gravity.verdict(), self.gravity_refused) {
+            (None, _) => "gravity: not judged",
+            (Some(_), true) => "gravity: refused",
+            (Some(GravityUp::Tilted { .. }), false) => "gravity: tilted, no check",
+            (Some(GravityUp::Axis { .. }), false) => "gravity: agrees",
+        }
+    }
+
     /// What it did, for the stats service.
     fn stats(&self) -> OdometryStats {
         let d = self.aid.diagnostics();
-        OdometryStats {
-            up: OdometryStats::up_code(self.axis, self.sign),
-            mounting: match self.aid.mounting() {
+        let mounting = match (self.gravity_refused, self.gravity.verdict(), self.up) {
+            (true, Some(GravityUp::Axis { axis, .. }), Some((up, _))) if axis == up => {
+                MOUNTING_WRONG_SIGN
+            }
+            (true, _, _) => MOUNTING_WRONG_AXIS,
+            _ => match self.aid.mounting() {
                 Mounting::Unknown => MOUNTING_UNKNOWN,
                 Mounting::Confirmed { .. } => MOUNTING_CONFIRMED,
                 Mounting::WrongSign { .. } => MOUNTING_WRONG_SIGN,
                 Mounting::WrongAxis { .. } => MOUNTING_WRONG_AXIS,
             },
+        };
+        OdometryStats {
+            up: self.up.map_or(UP_GRAVITY_PENDING, |(axis, sign)| {
+                OdometryStats::up_code(axis, sign)
+            }),
+            mounting,
             spans_accepted: d.accepted,
             spans_rejected: d.rejected,
             slips: d.slips,
@@ -806,18 +970,25 @@ impl Odometry {
     /// The summary line of what it did.
     fn learnt(&self) -> String {
         let d = self.aid.diagnostics();
-        let mounting = match self.aid.mounting() {
-            Mounting::Unknown => "not judged (too little turning)".to_string(),
-            Mounting::Confirmed { slope } => format!("confirmed by the turns (slope {slope:.2})"),
-            Mounting::WrongSign { .. } | Mounting::WrongAxis { .. } => {
-                "refused: it did not turn with the gyro".to_string()
+        let mounting = if self.gravity_refused {
+            "refused: gravity disagreed".to_string()
+        } else {
+            match self.aid.mounting() {
+                Mounting::Unknown => "not judged by the turns (too little turning)".to_string(),
+                Mounting::Confirmed { slope } => {
+                    format!("confirmed by the turns (slope {slope:.2})")
+                }
+                Mounting::WrongSign { .. } | Mounting::WrongAxis { .. } => {
+                    "refused: it did not turn with the gyro".to_string()
+                }
             }
         };
         format!(
-            "odometry (vehicle_up = {}, {mounting}): {} spans accepted ({} taught the filter), \
-             {} rejected in {} slips (longest {} spans), {} messages unmatched; odometry scale \
-             {:+.2} % +- {:.2} %",
-            up_word(self.axis, self.sign),
+            "odometry (vehicle_up = {}, {mounting}, {}): {} spans accepted ({} taught the \
+             filter), {} rejected in {} slips (longest {} spans), {} messages unmatched; \
+             odometry scale {:+.2} % +- {:.2} %",
+            self.up_text(),
+            self.gravity_text(),
             d.accepted,
             self.learnt,
             d.rejected,
@@ -988,13 +1159,13 @@ impl Stage for BiasStage {
         }
         let fresh = self.fresh.take();
         if let Some(o) = &mut self.odometry {
-            let x = input.denoised[o.axis].to_degrees();
-            o.push(
-                &mut self.trackers[o.axis],
-                x,
-                input.ingest_ns,
-                fresh.as_ref(),
-            );
+            if let Some(f) = accel.filter(|_| still) {
+                o.at_rest(f);
+            }
+            if let Some((axis, _)) = o.up {
+                let x = input.denoised[axis].to_degrees();
+                o.push(&mut self.trackers[axis], x, input.ingest_ns, fresh.as_ref());
+            }
         }
         out.flags |= motion_flags(still, moving, warming);
         self.samples += 1;
@@ -1026,14 +1197,15 @@ mod tests {
         let rate = 200.0;
         let mut tracker = BiasTracker::for_profile("adis16405", rate).unwrap();
         let r_gyro = tracker.filter().model().measurement_variance();
-        let mut odo = Odometry {
-            axis: 2,
-            sign: -1.0,
-            aid: OdometryAid::new(OdometryAidConfig::default(), r_gyro, rate).unwrap(),
-            last_t_ns: 0,
-            learnt: 0,
-            bias_learnt: 0.0,
-        };
+        let mut odo = Odometry::new(
+            VehicleUp::Axis {
+                axis: 2,
+                sign: -1.0,
+            },
+            [r_gyro; 3],
+            rate,
+        )
+        .unwrap();
         for i in 0..2000u64 {
             let turn = if stands {
                 0.0
@@ -1063,6 +1235,46 @@ mod tests {
         let (_, odo) = drive(true);
         assert_eq!(odo.learnt, 0);
         assert_eq!(odo.aid.diagnostics().accepted, 0);
+    }
+
+    #[test]
+    fn gravity_names_checks_or_cannot_check_the_up_axis() {
+        let at_rest = |up: VehicleUp, f: [f64; 3]| {
+            let mut o = Odometry::new(up, [1e-2; 3], 100.0).unwrap();
+            for _ in 0..100 {
+                o.at_rest(f);
+            }
+            o
+        };
+        let minus_z = VehicleUp::Axis {
+            axis: 2,
+            sign: -1.0,
+        };
+        let down = [0.1, 0.0, -9.8];
+        let tilted = [6.9, 0.0, 6.9];
+        // Named: -z, and no longer pending in the stats.
+        let o = at_rest(VehicleUp::Gravity, down);
+        assert_eq!((o.up, o.gravity_refused), (Some((2, -1.0)), false));
+        assert_eq!(o.stats().up_name(), "-z");
+        assert_eq!(
+            Odometry::new(VehicleUp::Gravity, [1e-2; 3], 100.0)
+                .unwrap()
+                .stats()
+                .up,
+            UP_GRAVITY_PENDING
+        );
+        // Checked: agrees, or refuses (the sign, or the axis).
+        assert!(!at_rest(minus_z, down).gravity_refused);
+        let o = at_rest(VehicleUp::Axis { axis: 2, sign: 1.0 }, down);
+        assert!(o.gravity_refused);
+        assert_eq!(o.stats().mounting, MOUNTING_WRONG_SIGN);
+        let o = at_rest(VehicleUp::Axis { axis: 0, sign: 1.0 }, down);
+        assert_eq!(o.stats().mounting, MOUNTING_WRONG_AXIS);
+        // Tilted 45 deg: a configured axis is left to the turns; "gravity" is refused.
+        assert!(!at_rest(minus_z, tilted).gravity_refused);
+        let o = at_rest(VehicleUp::Gravity, tilted);
+        assert!(o.gravity_refused && o.up.is_none());
+        assert_eq!(o.stats().mounting, MOUNTING_WRONG_AXIS);
     }
 
     #[test]

@@ -121,8 +121,9 @@ pub struct StatsSnapshot {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[repr(C)]
 pub struct OdometryStats {
-    /// The gyro axis that is the vehicle's up: 1 +x, 2 -x, 3 +y, 4 -y, 5 +z, 6 -z; 0: no
-    /// stage uses a yaw rate ([`OdometryStats::up_name`]).
+    /// The gyro axis that is the vehicle's up: 1 +x, 2 -x, 3 +y, 4 -y, 5 +z, 6 -z;
+    /// [`UP_GRAVITY_PENDING`]: from gravity, not told yet; 0: no stage uses a yaw rate
+    /// ([`OdometryStats::up_name`]).
     pub up: u64,
     /// The mounting check's verdict: one of the `MOUNTING_*` codes.
     pub mounting: u64,
@@ -142,6 +143,9 @@ pub struct OdometryStats {
     /// (on the gyro's axis, its sign as the gyro's): the bias learnt in motion.
     pub bias_learnt_rad_s: f64,
 }
+
+/// [`OdometryStats::up`]: `vehicle_up = "gravity"`, and no rest with the accelerometer yet.
+pub const UP_GRAVITY_PENDING: u64 = 7;
 
 /// [`OdometryStats::mounting`]: not judged yet (too little turning).
 pub const MOUNTING_UNKNOWN: u64 = 0;
@@ -167,6 +171,7 @@ impl OdometryStats {
             4 => "-y",
             5 => "+z",
             6 => "-z",
+            UP_GRAVITY_PENDING => "gravity, not told yet",
             _ => "none",
         }
     }

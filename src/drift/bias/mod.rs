@@ -93,8 +93,9 @@ pub use accel::{
 };
 pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
 pub use odometry::{
-    Measurement, Mounting, OdometryAid, OdometryAidConfig, OdometryDiagnostics, OdometrySample,
-    MOUNT_MIN_SLOPE, MOUNT_MIN_SPANS, MOUNT_SPREAD_DEG_S,
+    GravityUp, Measurement, Mounting, OdometryAid, OdometryAidConfig, OdometryDiagnostics,
+    OdometrySample, UpFromGravity, MOUNT_MIN_SLOPE, MOUNT_MIN_SPANS, MOUNT_SPREAD_DEG_S,
+    UP_MAX_TILT_DEG,
 };
 pub use own_terms::{
     accel_stage_key, combined_as, own_accel_terms, own_terms, stage_key, Choice, ColumnFit,

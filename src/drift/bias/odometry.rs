@@ -461,6 +461,100 @@ impl OdometryAid {
     }
 }
 
+/// The most an axis may lean from the vertical and still be taken for the vehicle's up, deg.
+pub const UP_MAX_TILT_DEG: f64 = 30.0;
+
+/// What gravity says of the vehicle's up ([`UpFromGravity`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GravityUp {
+    /// Gyro axis `axis` (0, 1, 2) points up with `sign`, leaning `tilt_deg` from the vertical.
+    Axis {
+        /// The axis.
+        axis: usize,
+        /// +1 or -1.
+        sign: f64,
+        /// Its angle from the vertical, deg (at most [`UP_MAX_TILT_DEG`]).
+        tilt_deg: f64,
+    },
+    /// No axis is within [`UP_MAX_TILT_DEG`] of the vertical: the sensor is mounted tilted.
+    Tilted {
+        /// The least angle of an axis from the vertical, deg.
+        tilt_deg: f64,
+    },
+}
+
+impl GravityUp {
+    /// The axis and sign, when one points up.
+    pub fn axis(self) -> Option<(usize, f64)> {
+        match self {
+            GravityUp::Axis { axis, sign, .. } => Some((axis, sign)),
+            GravityUp::Tilted { .. } => None,
+        }
+    }
+}
+
+/// The vehicle's up from the accelerometer at rest: at rest the specific force points up (it
+/// is the reaction to gravity), so the body axis nearest to it, with its sign, is up. Judged
+/// once, from the mean over `need` readings taken at rest (the caller's stillness verdict).
+#[derive(Debug, Clone)]
+pub struct UpFromGravity {
+    sum: [f64; 3],
+    n: u64,
+    need: u64,
+    verdict: Option<GravityUp>,
+}
+
+impl UpFromGravity {
+    /// Judge from `need` readings at rest (at least 1).
+    pub fn new(need: u64) -> UpFromGravity {
+        UpFromGravity {
+            sum: [0.0; 3],
+            n: 0,
+            need: need.max(1),
+            verdict: None,
+        }
+    }
+
+    /// One specific force `f` (any unit) read at rest; returns the verdict at the reading that
+    /// makes it, once. A non-finite reading is left out.
+    pub fn push(&mut self, f: [f64; 3]) -> Option<GravityUp> {
+        if self.verdict.is_some() || f.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        for (s, v) in self.sum.iter_mut().zip(f) {
+            *s += v;
+        }
+        self.n += 1;
+        if self.n < self.need {
+            return None;
+        }
+        let norm = self.sum.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            return None;
+        }
+        let axis = (0..3)
+            .max_by(|&a, &b| self.sum[a].abs().total_cmp(&self.sum[b].abs()))
+            .unwrap_or(2);
+        let tilt_deg = (self.sum[axis].abs() / norm).min(1.0).acos().to_degrees();
+        let verdict = if tilt_deg <= UP_MAX_TILT_DEG {
+            GravityUp::Axis {
+                axis,
+                sign: self.sum[axis].signum(),
+                tilt_deg,
+            }
+        } else {
+            GravityUp::Tilted { tilt_deg }
+        };
+        self.verdict = Some(verdict);
+        Some(verdict)
+    }
+
+    /// The verdict, once made.
+    pub fn verdict(&self) -> Option<GravityUp> {
+        self.verdict
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::{BiasFilter, BiasModel, BiasTerms, Instability};
@@ -733,6 +827,42 @@ mod tests {
         for sd in [0.0, -1.0, f64::INFINITY] {
             assert_eq!(first(sd), unsaid, "{sd}");
         }
+    }
+
+    #[test]
+    fn gravity_names_the_up_axis_with_its_sign_or_says_the_sensor_is_tilted() {
+        let judge = |f: [f64; 3]| {
+            let mut g = UpFromGravity::new(3);
+            assert_eq!(g.push(f), None);
+            assert_eq!(g.push([f64::NAN; 3]), None, "left out");
+            assert_eq!(g.push(f), None);
+            let v = g.push(f).expect("judged at the third reading");
+            assert_eq!(g.push(f), None, "once");
+            assert_eq!(g.verdict(), Some(v));
+            v
+        };
+        // Level, z down (a gyro mounted upside down): -z is up.
+        assert_eq!(judge([0.0, 0.0, -9.81]).axis(), Some((2, -1.0)));
+        // On a 20 deg slope about x, y up: +y, leaning 20 deg.
+        let a = 20f64.to_radians();
+        let v = judge([0.0, 9.81 * a.cos(), 9.81 * a.sin()]);
+        let GravityUp::Axis {
+            axis,
+            sign,
+            tilt_deg,
+        } = v
+        else {
+            panic!("{v:?}")
+        };
+        assert_eq!((axis, sign), (1, 1.0));
+        assert!((tilt_deg - 20.0).abs() < 1e-9);
+        // 45 deg between x and z: no axis is up.
+        let v = judge([6.94, 0.0, 6.94]);
+        assert!(
+            matches!(v, GravityUp::Tilted { tilt_deg } if (tilt_deg - 45.0).abs() < 1e-9),
+            "{v:?}"
+        );
+        assert_eq!(v.axis(), None);
     }
 
     #[test]
