@@ -30,8 +30,10 @@
 //!    corrected service; N daemons against one daemon;
 //! 7. fed by a sensor driver, as deployed: this process publishes a raw sample each 1 ms on
 //!    "sensor/raw" and reads the corrected service; the consumer is the bare chain of the same
-//!    hops in its own process (this binary again), `pipelines/navigator.toml`,
-//!    `pipelines/navigator-attitude.toml` (one hop more), `pipelines/external-sensor.toml`, then
+//!    hops in its own process (this binary again), `pipelines/navigator.toml`, the same with
+//!    the vehicle's odometry (this process also publishes a `StopSignal` with a yaw rate each
+//!    20 ms, which the bias filter takes while moving), `pipelines/navigator-attitude.toml`
+//!    (one hop more), `pipelines/external-sensor.toml`, then
 //!    the bare chain again. Their CPU and p50 are judged against the mean of the two bare runs,
 //!    and the attitude stage's compute time against its budget.
 
@@ -49,7 +51,7 @@ use support::{
 };
 
 use driftless::transport::{monotonic_ns, Qos, Transport, WakeSet};
-use driftless::wire::{GyroSample, RawSample, StatsSnapshot, FLAG_FLUSHED, RAW_ACCEL};
+use driftless::wire::{GyroSample, RawSample, StatsSnapshot, StopSignal, FLAG_FLUSHED, RAW_ACCEL};
 use hdrhistogram::Histogram;
 use serde_json::Value;
 
@@ -996,6 +998,9 @@ enum Fed<'a> {
     Bare,
     /// A daemon of this pipeline file; its corrected service and its denoiser's lag (samples).
     Daemon(&'a Path, &'a str, u64),
+    /// [`Fed::Daemon`], and the vehicle's odometry at 50 Hz on "vehicle/stop" (moving, with
+    /// the yaw rate the gyro's z reads).
+    WithOdometry(&'a Path, &'a str),
 }
 
 /// What run 7 measured of one consumer.
@@ -1029,11 +1034,17 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
             0,
         ),
         Fed::Daemon(file, service, lag) => (start_daemon(file, &p, &report, &[]), service, lag),
+        Fed::WithOdometry(file, service) => (start_daemon(file, &p, &report, &[]), service, 0),
     };
     let driver = Transport::new(&p, "driver", Qos::default()).expect("driver node");
     let out = driver
         .output::<RawSample>("sensor/raw", true)
         .expect("driver's service");
+    let odometry = matches!(fed, Fed::WithOdometry(..)).then(|| {
+        driver
+            .output::<StopSignal>("vehicle/stop", false)
+            .expect("the odometry's service")
+    });
     let ticks = (secs * 1000.0) as u64;
     let sent: Arc<Vec<AtomicU64>> = Arc::new((0..ticks).map(|_| AtomicU64::new(0)).collect());
     let (stop, ready) = (
@@ -1099,6 +1110,12 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
             ..RawSample::default()
         });
         out.notify();
+        if let Some(o) = odometry.as_ref().filter(|_| k % 20 == 19) {
+            let mut s = StopSignal::new(t_ns, 2.0, 0);
+            s.yaw_rate_rad_s = (0.1 * (7.0 * t).sin()).to_radians();
+            s.period_ns = 20_000_000;
+            let _ = o.send(&s);
+        }
     }
     let cpu = (cpu_seconds(child.id()) - cpu0) / start.elapsed().as_secs_f64();
     std::thread::sleep(Duration::from_millis(200));
@@ -1111,7 +1128,7 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
         cpu,
         sub,
         lost,
-        report: matches!(fed, Fed::Daemon(..)).then(|| read_report(&report)),
+        report: (!matches!(fed, Fed::Bare)).then(|| read_report(&report)),
     }
 }
 
@@ -1123,12 +1140,27 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
     let nav = root().join("pipelines/navigator.toml");
     let att = root().join("pipelines/navigator-attitude.toml");
     let ext = root().join("pipelines/external-sensor.toml");
+    // navigator.toml whose bias filter takes the vehicle's odometry, its yaw rate included.
+    let odo = dir.join("navigator-odometry.toml");
+    let text = std::fs::read_to_string(&nav).expect("navigator.toml");
+    let with = text.replacen(
+        "profile = \"adis16405\"\n",
+        "profile = \"adis16405\"\nstop_input = \"vehicle/stop\"\nstop_speed = 0.05\nvehicle_up = \"+z\"\n",
+        1,
+    );
+    assert_ne!(with, text, "navigator.toml's predict.bias table");
+    std::fs::write(&odo, with).expect("write the odometry's pipeline");
     let runs = [
         ("bare iceoryx2 chain, 4 hops", Fed::Bare, "fedbare"),
         (
             "navigator.toml (bias filter, no denoiser)",
             Fed::Daemon(&nav, "nav/corrected", 0),
             "fednav",
+        ),
+        (
+            "navigator.toml + the odometry's yaw rate at 50 Hz (stop_input, vehicle_up)",
+            Fed::WithOdometry(&odo, "nav/corrected"),
+            "fedodo",
         ),
         (
             "navigator-attitude.toml (bias filter, attitude.6d; 5 hops)",
@@ -1146,7 +1178,7 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
     println!();
     println!("| 1 kHz, fed by a sensor driver | CPU | x the bare chain's (mean of both runs) | send to receipt p50 / p99 / p99.9 / max us | misses (the kernel's) | lost |");
     println!("|---|---:|---:|---:|---:|---:|");
-    let bare_cpu = ((runs[0].1.cpu + runs[4].1.cpu) / 2.0).max(1e-9);
+    let bare_cpu = ((runs[0].1.cpu + runs[5].1.cpu) / 2.0).max(1e-9);
     for (label, r) in &runs {
         let misses = r.report.as_ref().map_or("-".into(), |v| {
             format!(
@@ -1183,13 +1215,18 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
             1.5,
         ),
         (
-            "driver-fed navigator-attitude.toml CPU <= 1.5x the bare chain's",
+            "driver-fed navigator.toml with the odometry CPU <= 1.5x the bare chain's",
             &runs[2].1,
             1.5,
         ),
         (
-            "driver-fed external-sensor.toml CPU <= 2.5x the bare chain's",
+            "driver-fed navigator-attitude.toml CPU <= 1.5x the bare chain's",
             &runs[3].1,
+            1.5,
+        ),
+        (
+            "driver-fed external-sensor.toml CPU <= 2.5x the bare chain's",
+            &runs[4].1,
             2.5,
         ),
     ] {
@@ -1202,15 +1239,22 @@ fn driver_fed_rows(secs: f64, dir: &Path) {
         );
     }
     // The attitude stage's own cost, and what it adds to the sample's way to a navigator.
-    let (nav_run, att_run) = (&runs[1].1, &runs[2].1);
+    let (nav_run, odo_run, att_run) = (&runs[1].1, &runs[2].1, &runs[3].1);
     let p50 = |r: &FedRun| r.sub.value_at_quantile(0.5).max(1) as f64;
-    let bare_p50 = (p50(&runs[0].1) + p50(&runs[4].1)) / 2.0;
+    let bare_p50 = (p50(&runs[0].1) + p50(&runs[5].1)) / 2.0;
     println!(
         "  goal driver-fed navigator-attitude.toml p50 <= 2x the bare chain's: {} (x{:.2}; \
          navigator.toml x{:.2})",
         p50(att_run) <= 2.0 * bare_p50,
         p50(att_run) / bare_p50,
         p50(nav_run) / bare_p50
+    );
+    println!(
+        "  goal driver-fed navigator.toml with the odometry p50 <= 2x the bare chain's: {} \
+         (x{:.2}; CPU {:+.1} points over navigator.toml's)",
+        p50(odo_run) <= 2.0 * bare_p50,
+        p50(odo_run) / bare_p50,
+        (odo_run.cpu - nav_run.cpu) * 100.0
     );
     // Every stage's time (its compute and the publish of its output), for scale.
     if let Some(stages) = att_run
