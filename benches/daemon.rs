@@ -1122,7 +1122,7 @@ fn driver_fed(fed: Fed<'_>, tag: &str, secs: f64, dir: &Path) -> FedRun {
     stop.store(true, Ordering::Relaxed);
     let (sub, lost) = reader.join().expect("subscriber thread");
     sigterm_and_wait(&mut child);
-    drop((out, driver));
+    drop((odometry, out, driver));
     clean(&p);
     FedRun {
         cpu,

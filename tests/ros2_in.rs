@@ -690,3 +690,155 @@ fn ingest_mcap_joins_a_bags_magnetometer_to_the_samples_by_stamp() {
         assert!(err.contains(want), "{to}: {err}");
     }
 }
+
+/// `nav_msgs/msg/Odometry` in little-endian CDR, written field by field (the layout rosbags
+/// writes: `tests/ros2_bag.rs` reads its odometry): a speed along x, a yaw rate and its variance.
+fn odometry_cdr(stamp: Time, speed: f64, yaw_rate: f64, yaw_var: f64) -> Vec<u8> {
+    let mut b = vec![0, 1, 0, 0];
+    let string = |b: &mut Vec<u8>, s: &str| {
+        while (b.len() - 4) % 4 != 0 {
+            b.push(0);
+        }
+        b.extend_from_slice(&((s.len() + 1) as u32).to_le_bytes());
+        b.extend_from_slice(s.as_bytes());
+        b.push(0);
+    };
+    let doubles = |b: &mut Vec<u8>, v: &[f64]| {
+        while (b.len() - 4) % 8 != 0 {
+            b.push(0);
+        }
+        for x in v {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+    };
+    b.extend_from_slice(&stamp.sec.to_le_bytes());
+    b.extend_from_slice(&stamp.nanosec.to_le_bytes());
+    string(&mut b, "odom");
+    string(&mut b, "base_link");
+    doubles(&mut b, &[0.0; 7 + 36]);
+    doubles(&mut b, &[speed, 0.0, 0.0, 0.0, 0.0, yaw_rate]);
+    let mut cov = [0.0; 36];
+    cov[35] = yaw_var;
+    doubles(&mut b, &cov);
+    b
+}
+
+/// A bag of a vehicle that never stops: its Imu at 100 Hz (rad/s, the gyro's z up, a bias of
+/// 0.5 deg/s on every axis) and its wheel odometry at 50 Hz (the true yaw rate, logged 30 ms
+/// after its stamp), replayed as fast as possible. With `motion_output` the odometry reaches
+/// `predict.bias` on the samples' clock and teaches the z bias while driving; without it, only
+/// the stops would, and there are none.
+#[test]
+fn ingest_mcap_publishes_a_bags_odometry_and_the_bias_learns_it_while_driving() {
+    const N: usize = 3000;
+    const BIAS_DEG_S: f64 = 0.5;
+    let turn = |k: usize| [0.0, 15.0, 0.0, -10.0, 5.0][(k / 200) % 5];
+    let t0 = 1_700_000_000_000_000_000i64;
+    let stamp = |k: usize| Time::from_ns(t0 + k as i64 * 10_000_000).unwrap();
+    let noise = |k: usize| 0.2 * (((k * 7919) % 101) as f64 / 101.0 - 0.5);
+    let imu: Vec<Imu> = (0..N)
+        .map(|k| {
+            let w = [
+                BIAS_DEG_S + noise(k),
+                BIAS_DEG_S + noise(k + 3),
+                BIAS_DEG_S + turn(k) + noise(k + 7),
+            ];
+            imu(stamp(k).ns(), w.map(f64::to_radians))
+        })
+        .collect();
+    let dir = Dir::new();
+    let file = dir.path("drive.mcap");
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .create(BufWriter::new(File::create(&file).unwrap()))
+        .unwrap();
+    let mut channel = |topic: &str, ty: &str| {
+        let schema = w.add_schema(ty, "ros2msg", b"").unwrap();
+        w.add_channel(schema, topic, "cdr", &BTreeMap::new())
+            .unwrap()
+    };
+    let (imu_ch, odo_ch) = (
+        channel("/imu", IMU_TYPE),
+        channel("/odom", "nav_msgs/msg/Odometry"),
+    );
+    let mut all: Vec<(u16, u64, Vec<u8>)> = imu
+        .iter()
+        .map(|m| (imu_ch, m.stamp.ns() as u64, m.to_cdr().unwrap()))
+        .collect();
+    for k in (1..N).step_by(2) {
+        // The mean over its 20 ms: samples k - 1 and k.
+        let yaw = ((turn(k - 1) + turn(k)) / 2.0).to_radians();
+        let cdr = odometry_cdr(stamp(k), 2.0, yaw, 0.1f64.to_radians().powi(2));
+        all.push((odo_ch, stamp(k).ns() as u64 + 30_000_000, cdr));
+    }
+    all.sort_by_key(|&(c, t, _)| (t, c));
+    for (c, t, data) in all {
+        let header = mcap::records::MessageHeader {
+            channel_id: c,
+            sequence: 0,
+            log_time: t,
+            publish_time: t,
+        };
+        w.write_to_known_channel(&header, &data).unwrap();
+    }
+    w.finish().unwrap();
+
+    let run = |tag: &str, motion: bool| {
+        let prefix = Prefix::new(tag);
+        let stages = format!(
+            "pace = \"asap\"\nstop_topic = \"/odom\"\nstop_speed = 0.05\n{}\n\
+             [[stage]]\nname = \"predict\"\nkind = \"predict.bias\"\ninput = \"{tag}/raw\"\n\
+             output = \"{tag}/predicted\"\nprofile = \"adis16405\"\n\
+             stop_input = \"{tag}/stop\"\nvehicle_up = \"+z\"\n",
+            if motion {
+                format!("motion_output = \"{tag}/stop\"")
+            } else {
+                String::new()
+            }
+        );
+        let text_ = std::fs::read_to_string(bag_pipeline(&dir, tag, &file))
+            .unwrap()
+            .replace("pace = \"asap\"\n", &stages)
+            .replace(
+                &format!("input = \"{tag}/raw\"\noutput = \"{tag}/corrected\""),
+                &format!("input = \"{tag}/predicted\"\noutput = \"{tag}/corrected\""),
+            );
+        let pipeline = dir.write(&format!("{tag}.toml"), &text_);
+        let o = driftless(&["validate", pipeline.to_str().unwrap()]);
+        let (out, err) = text(&o);
+        assert_eq!(o.status.code(), Some(0), "{out}{err}");
+        assert_eq!(
+            out.contains(&format!("motion out: {tag}/stop")),
+            motion,
+            "{out}"
+        );
+        let me = Transport::new(&prefix.0, "reader", qos(4096)).expect("node");
+        let sub = me
+            .input::<GyroSample>(&format!("{tag}/corrected"))
+            .expect("subscriber");
+        let daemon = start(&pipeline, &prefix, &[]);
+        let got = collect(&sub, N, Duration::from_secs(60));
+        let (code, err) = finish(daemon, Duration::from_secs(20));
+        assert_eq!(code, Some(0), "{err}");
+        assert_eq!(got.len(), N, "every sample once: {err}");
+        (got, err)
+    };
+    let (got, err) = run("bagodo", true);
+    let drift = |s: &GyroSample, a: usize| s.drift[a].to_degrees();
+    let last = &got[N - 1];
+    assert!(
+        (drift(last, 2) - BIAS_DEG_S).abs() < 0.1,
+        "z drift {}: {err}",
+        drift(last, 2)
+    );
+    assert!(drift(last, 0).abs() < 0.05, "x was never told: {err}");
+    assert!(
+        err.contains("odometry (vehicle_up = +z, confirmed by the turns"),
+        "{err}"
+    );
+    let (got, err) = run("bagnoodo", false);
+    assert!(
+        drift(&got[N - 1], 2).abs() < 0.05,
+        "nothing learnt without it: {err}"
+    );
+}

@@ -123,6 +123,15 @@ pub trait Source {
     fn waker(&self) -> Option<(&crate::transport::Waker, std::time::Duration)> {
         None
     }
+
+    /// The vehicle's motion logged beside the samples (a bag's odometry), one message at a
+    /// time, due by the sample [`poll`](Self::poll) returned last: the runtime publishes each
+    /// on the stage's [`Params::motion_output`] before that sample runs through the chain, so a
+    /// stage reading it there has it first. Stamped on the samples' clock
+    /// ([`crate::wire::STOP_CLOCK_SAMPLES`]). Must not allocate. Default: none.
+    fn logged_motion(&mut self) -> Option<crate::wire::StopSignal> {
+        None
+    }
 }
 
 pub use crate::sim::TrueRate;
@@ -192,6 +201,12 @@ pub trait Params: std::fmt::Debug + Send + Sync {
     /// process publishes them (a vehicle's stop signal). Default: none.
     fn side_inputs(&self) -> Vec<(String, SideInput)> {
         Vec::new()
+    }
+
+    /// The service an ingest publishes the motion logged beside its samples on
+    /// ([`Source::logged_motion`]; `ingest.mcap`'s `motion_output`). Default: none.
+    fn motion_output(&self) -> Option<&str> {
+        None
     }
 
     /// The gyro's white rate noise this stage assumes, N in deg/sqrt(s) (`predict.bias`: its

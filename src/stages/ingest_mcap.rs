@@ -32,6 +32,7 @@
 //! # stop_topic = "/odom"     # a bag's vehicle motion (Odometry, twists) as logged stops
 //! # stop_speed = 0.02        # m/s: stands at or below (default 0.02)
 //! # stop_max_age_s = 0.5     # the last motion message older than this: unknown
+//! # motion_output = "vehicle/stop"  # the motion as StopSignals too (its yaw rate), for predict.bias
 //! # mag_topic = "/imu/mag"   # a bag's sensor_msgs/msg/MagneticField, joined by stamp
 //! # mag_max_age_s = 0.1      # a reading older than this joins no sample
 //! ```
@@ -41,8 +42,16 @@
 //! clock of the replay): `vehicle_stopped` at or below `stop_speed`, `vehicle_moving` above,
 //! neither when that message is older than `stop_max_age_s` or there is none.
 //! `predict.bias` takes them as its stop signal at the sample's own time, as it takes a CSV's
-//! `stop_column`. The motion messages are read before the replay starts (16 bytes each: 30 MB
+//! `stop_column`. The motion messages are read before the replay starts (32 bytes each: 58 MB
 //! for 10 hours of 50 Hz odometry), sorted by stamp.
+//!
+//! **The bag's odometry while driving.** With `motion_output` too, each motion message is also
+//! published there as a `StopSignal` stamped with its `header.stamp` on the samples' clock
+//! ([`crate::wire::STOP_CLOCK_SAMPLES`]): its speed, its yaw rate (`angular.z`) and the yaw
+//! rate's sd from the twist covariance. It goes out just before the first sample stamped at
+//! or after it, so a `predict.bias` whose `stop_input` it is (with `vehicle_up`) learns the
+//! bias in motion from the bag as it would live, at any pace: the stage times the gyro by the
+//! samples' own stamps for such a signal. On the first pass of a loop only.
 //!
 //! **The magnetometer from a bag.** With `mag_topic`, each Imu sample carries the field
 //! (tesla, `RAW_MAG`) of the reading [`MagJoinRule`] picks by stamp, the rule of the live ROS 2
@@ -52,15 +61,18 @@
 //! replay starts (32 bytes each: 115 MB for 10 hours at 100 Hz), sorted by stamp.
 
 use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, OnceLock};
 
 use toml::Spanned;
 
+use crate::clock::PaceClock;
 use crate::io::content::{sniff, Content};
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::InputError;
 use crate::io::{BagError, BagErrorKind};
 use crate::rate_log::{Stamps, RATE_TOLERANCE};
-use crate::stages::contract::{Kind, Params, Role, Source};
+use crate::stages::contract::{Kind, Params, Poll, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Src, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
@@ -68,7 +80,8 @@ use crate::transport::ros2::bag::Bag;
 use crate::transport::ros2::{carry_mag, MagJoinRule, MagReading, DEFAULT_MAG_MAX_AGE_S, IMU_TYPE};
 use crate::units::{AccelUnit, RateUnit};
 use crate::wire::{
-    RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+    RawSample, StopSignal, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING,
+    RAW_VEHICLE_STOPPED, STOP_CLOCK_SAMPLES,
 };
 
 const FILE: Key = Key {
@@ -91,6 +104,12 @@ const STOP_TOPIC: Key = Key {
     ty: Type::Str("a bag's topic of nav_msgs/msg/Odometry, geometry_msgs/msg/TwistStamped or geometry_msgs/msg/TwistWithCovarianceStamped"),
     default: DefaultValue::Absent("none"),
     doc: "the vehicle's motion logged in the bag (wheel odometry): each Imu sample carries whether it stands, from the last motion message by stamp, so `predict.bias` takes the stops by sample time",
+};
+const MOTION_OUTPUT: Key = Key {
+    name: "motion_output",
+    ty: Type::Str("a service name: \"vehicle/stop\""),
+    default: DefaultValue::Absent("none: the motion gives the samples their stop flags only"),
+    doc: "the `stop_topic`'s messages also published here as `StopSignal`s on the samples' clock, with their yaw rate (`angular.z`) and its sd: name it as `predict.bias`'s `stop_input` (with `vehicle_up`) and the bag's odometry teaches the bias while the vehicle drives, at any pace. On the first pass of a loop only",
 };
 const MAG_TOPIC: Key = Key {
     name: "mag_topic",
@@ -118,6 +137,7 @@ pub const KIND: Kind = Kind {
         STOP_TOPIC,
         STOP_SPEED_OF_TOPIC,
         STOP_MAX_AGE_S,
+        MOTION_OUTPUT,
         MAG_TOPIC,
         MAG_MAX_AGE_S,
     ],
@@ -142,6 +162,8 @@ pub struct McapParams {
     pub replay: Replay,
     /// A bag's motion topic as logged stops.
     pub stops: Option<StopTopic>,
+    /// Where the motion topic's messages go as stop signals (`motion_output`).
+    pub motion_output: Option<String>,
     /// A bag's magnetometer topic, joined to the samples.
     pub mag: Option<MagTopic>,
     /// One line when the file's name claims another format than MCAP (it is read by what it
@@ -194,6 +216,16 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
     if stop_key.is_none() && set.is_some() {
         return Err(t.error("stop_speed and stop_max_age_s need a stop_topic"));
     }
+    let motion_key = t.get::<String>(&MOTION_OUTPUT)?;
+    let motion_output = match (&motion_key, &stop_key) {
+        (Some(k), None) => {
+            return Err(t
+                .src
+                .span(k, "motion_output needs a stop_topic (the bag's motion)"))
+        }
+        (Some(k), Some(_)) => Some(t.src.service(k)?),
+        (None, _) => None,
+    };
     let mag_key = t.get::<String>(&MAG_TOPIC)?;
     let mag_age_given = t.has(&MAG_MAX_AGE_S);
     let mag_max_age_s = t.float_or_default(&MAG_MAX_AGE_S)?;
@@ -224,7 +256,8 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
     let sniffed = sniff(&file).map_err(|e| src.span(&file_key, e.to_string()))?;
     match sniffed.content {
         Content::Directory => {
-            return parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops, mag);
+            let p = parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops, mag)?;
+            return Ok(McapParams { motion_output, ..p });
         }
         Content::Mcap => {}
         _ => return Err(src.span(&file_key, sniffed.refuse(MCAP_TAKES).to_string())),
@@ -242,7 +275,11 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
     };
     if bag {
         let p = parse_bag(t, file, &file_key, topic_key.as_ref(), replay, stops, mag)?;
-        return Ok(McapParams { note, ..p });
+        return Ok(McapParams {
+            note,
+            motion_output,
+            ..p
+        });
     }
     if let Some((k, _)) = &stops {
         return Err(src.span(
@@ -282,6 +319,7 @@ fn parse_file(t: &mut Table<'_, '_>) -> Result<McapParams, InputError> {
         messages: channel.messages,
         replay,
         stops: None,
+        motion_output: None,
         mag: None,
         note,
     })
@@ -441,13 +479,25 @@ impl Params for McapParams {
 
     fn local_source(&self, cx: &Context) -> Result<Box<dyn Source>, String> {
         let (params, period_ns) = (self.clone(), (1e9 / cx.rate_hz).round() as u64);
+        // The motion, once the reader thread has read it (before its first sample).
+        let logged = Arc::new(OnceLock::new());
+        let shared = self.motion_output.is_some().then(|| Arc::clone(&logged));
         let replay = BlockReplay::spawn("driftless-mcap", self.replay, move |sink| {
             match params.format {
                 Format::Recording => read_messages(&params, period_ns, sink),
-                Format::Ros2Bag => read_bag(&params, period_ns, sink),
+                Format::Ros2Bag => read_bag(&params, period_ns, sink, shared.as_deref()),
             }
         })?;
-        Ok(Box::new(replay))
+        Ok(Box::new(McapSource {
+            replay,
+            motion: self.motion_output.is_some().then_some(logged),
+            at: 0,
+            t_ns: None,
+        }))
+    }
+
+    fn motion_output(&self) -> Option<&str> {
+        self.motion_output.as_deref()
     }
 
     fn describe(&self, _input: Option<&str>, _output: &str) -> Vec<String> {
@@ -459,6 +509,11 @@ impl Params for McapParams {
         )];
         if let Some(s) = &self.stops {
             lines.push(format!("stops from {}: {}", s.topic, s.rule.describe()));
+        }
+        if let Some(out) = &self.motion_output {
+            lines.push(format!(
+                "motion out: {out} (StopSignal on the samples' clock: speed, yaw rate and its sd)"
+            ));
         }
         if let Some(m) = &self.mag {
             lines.push(format!(
@@ -571,6 +626,8 @@ fn parse_bag(
         messages,
         replay,
         stops: stops.map(|(_, s)| s),
+        // Set by the caller.
+        motion_output: None,
         mag: mag.map(|(_, m)| m),
         note: None,
     })
@@ -606,7 +663,12 @@ fn check_topic<M>(
 /// the time; a message that does not decode as an invalid sample, its time held; `seq` and
 /// `t_ns` shifted on later passes. Ends at the end of the bag (without `loop`), at a corrupt
 /// chunk (on stderr), or when the replay is dropped.
-fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
+fn read_bag(
+    params: &McapParams,
+    period_ns: u64,
+    sink: &mut BlockSink,
+    motion: Option<&OnceLock<Arc<Stops>>>,
+) {
     let shown = params.file.display();
     let bag = match Bag::open(&params.file) {
         Ok(b) => b,
@@ -617,7 +679,13 @@ fn read_bag(params: &McapParams, period_ns: u64, sink: &mut BlockSink) {
     };
     let stops = match &params.stops {
         Some(s) => match Stops::read(&bag, s) {
-            Ok(stops) => Some(stops),
+            Ok(stops) => {
+                let stops = Arc::new(stops);
+                if let Some(m) = motion {
+                    let _ = m.set(Arc::clone(&stops));
+                }
+                Some(stops)
+            }
             Err(e) => {
                 eprintln!("driftless: error: {e} (the replay ends here)");
                 return;
@@ -749,9 +817,37 @@ fn mag_readings(bag: &Bag, topic: &str) -> Result<Vec<MagReading>, BagError> {
     Ok(at)
 }
 
-/// A bag's motion topic, read whole and sorted by stamp: (stamp ns, speed m/s).
+/// One message of a bag's motion topic, as kept for the replay (32 bytes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Logged {
+    /// `header.stamp`, ns.
+    stamp: i64,
+    /// The norm of the linear velocity, m/s.
+    speed: f64,
+    /// `angular.z`, rad/s.
+    yaw_rate: f64,
+    /// Its variance from the twist covariance, (rad/s)^2 (NaN: none).
+    yaw_var: f64,
+}
+
+impl Logged {
+    /// As a stop signal on the samples' clock (the stop judged by the samples' flags).
+    fn signal(&self) -> StopSignal {
+        let mut s = StopSignal::new(self.stamp as u64, self.speed, u32::MAX);
+        s.clock = STOP_CLOCK_SAMPLES;
+        s.yaw_rate_rad_s = self.yaw_rate;
+        s.yaw_rate_std_rad_s = if self.yaw_var > 0.0 {
+            self.yaw_var.sqrt()
+        } else {
+            f64::NAN
+        };
+        s
+    }
+}
+
+/// A bag's motion topic, read whole and sorted by stamp.
 struct Stops {
-    at: Vec<(i64, f64)>,
+    at: Vec<Logged>,
     rule: StopRule,
 }
 
@@ -762,7 +858,12 @@ impl Stops {
         let mut bad = 0u64;
         for m in bag.motion_messages(&s.topic)? {
             match m {
-                Ok(m) => at.push((m.msg.stamp.ns(), m.msg.speed())),
+                Ok(m) => at.push(Logged {
+                    stamp: m.msg.stamp.ns(),
+                    speed: m.msg.speed(),
+                    yaw_rate: m.msg.yaw_rate,
+                    yaw_var: m.msg.variance[5],
+                }),
                 Err(e) if e.kind == BagErrorKind::Cdr => {
                     bad += 1;
                     if bad <= REPORTED_BAD_MESSAGES {
@@ -778,7 +879,7 @@ impl Stops {
                 s.topic
             );
         }
-        at.sort_by_key(|&(t, _)| t);
+        at.sort_by_key(|m| m.stamp);
         Ok(Stops { at, rule: s.rule })
     }
 
@@ -786,21 +887,62 @@ impl Stops {
     /// that is at most `max_age_ns` old. `at` (0 at the start of a pass) moves forward with
     /// the stamps; a stamp that goes back is searched for.
     fn flags_at(&self, at: &mut usize, t: i64) -> u32 {
-        if *at > 0 && self.at.get(*at - 1).is_some_and(|&(s, _)| s > t) {
-            *at = self.at.partition_point(|&(s, _)| s <= t);
+        if *at > 0 && self.at.get(*at - 1).is_some_and(|m| m.stamp > t) {
+            *at = self.at.partition_point(|m| m.stamp <= t);
         }
-        while self.at.get(*at).is_some_and(|&(s, _)| s <= t) {
+        while self.at.get(*at).is_some_and(|m| m.stamp <= t) {
             *at += 1;
         }
         let said = (*at)
             .checked_sub(1)
             .map(|i| self.at[i])
-            .and_then(|(s, speed)| self.rule.judge(t.abs_diff(s), speed, None));
+            .and_then(|m| self.rule.judge(t.abs_diff(m.stamp), m.speed, None));
         match said {
             Some(true) => RAW_VEHICLE_STOPPED,
             Some(false) => RAW_VEHICLE_MOVING,
             None => 0,
         }
+    }
+}
+
+/// The replay, and with `motion_output` the bag's motion as stop signals on the samples'
+/// clock, each handed over with the first sample stamped at or after it (first pass only).
+struct McapSource {
+    replay: BlockReplay,
+    /// The motion, set by the reader thread before its first sample.
+    motion: Option<Arc<OnceLock<Arc<Stops>>>>,
+    /// The next motion message to hand over.
+    at: usize,
+    /// The time of the sample `poll` returned last.
+    t_ns: Option<u64>,
+}
+
+impl Source for McapSource {
+    fn poll(&mut self, stop: &AtomicBool) -> Poll {
+        let p = self.replay.poll(stop);
+        if let Poll::Sample(s, ..) = &p {
+            self.t_ns = Some(s.t_ns);
+        }
+        p
+    }
+
+    fn next_due(&self) -> Option<std::time::Instant> {
+        self.replay.next_due()
+    }
+
+    fn share_clock(&mut self, clock: PaceClock) {
+        self.replay.share_clock(clock);
+    }
+
+    fn logged_motion(&mut self) -> Option<StopSignal> {
+        let t = self.t_ns?;
+        let stops = self.motion.as_ref()?.get()?;
+        let m = stops
+            .at
+            .get(self.at)
+            .filter(|m| i64::try_from(t).map_or(true, |t| m.stamp <= t))?;
+        self.at += 1;
+        Some(m.signal())
     }
 }
 

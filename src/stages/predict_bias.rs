@@ -42,7 +42,8 @@ use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_SIGNAL};
 use crate::wire::{
     GyroSample, OdometryStats, StopSignal, FLAG_STOP_CONTRADICTED, FLAG_VEHICLE_MOVING,
     FLAG_VEHICLE_STOPPED, MOUNTING_CONFIRMED, MOUNTING_UNKNOWN, MOUNTING_WRONG_AXIS,
-    MOUNTING_WRONG_SIGN, SENSOR_ACCEL, UP_GRAVITY_PENDING,
+    MOUNTING_WRONG_SIGN, SENSOR_ACCEL, STOP_CLOCK_MONOTONIC, STOP_CLOCK_SAMPLES,
+    UP_GRAVITY_PENDING,
 };
 #[cfg(doc)]
 use crate::wire::{FLAG_MOVING, FLAG_STILL, FLAG_WARMING_UP};
@@ -270,8 +271,9 @@ fn up_word(axis: usize, sign: f64) -> String {
 }
 
 impl StopConfig {
-    /// What `signal` says at ingest time `now_ns`: stands, moves, or unknown (stale, from the
-    /// future by more than its age, or not said).
+    /// What `signal` says at time `now_ns` on its clock (the sample's ingest, or its own time
+    /// for a replay's logged signal): stands, moves, or unknown (stale, from the future by
+    /// more than its age, or not said).
     pub fn judge(&self, signal: &StopSignal, now_ns: u64) -> Option<bool> {
         if signal.t_ns == 0 {
             return None;
@@ -729,6 +731,8 @@ struct Odometry {
     aid: OdometryAid,
     /// The stamp of the last message, ns (its period, when the message does not say it).
     last_t_ns: u64,
+    /// The clock the messages (and so the gyro's history) are on ([`StopSignal::clock`]).
+    clock: u32,
     /// Measurements the filter took.
     learnt: u64,
     /// What they moved the axis's bias estimate by, summed, deg/s.
@@ -753,6 +757,7 @@ impl Odometry {
             rate_hz,
             aid: OdometryAid::new(OdometryAidConfig::default(), r, rate_hz)?,
             last_t_ns: 0,
+            clock: STOP_CLOCK_MONOTONIC,
             learnt: 0,
             bias_learnt: 0.0,
         })
@@ -831,17 +836,29 @@ impl Odometry {
     }
 
     /// One sample (`x` deg/s, the up axis's rate as the filter sees it) at ingest time
-    /// `now_ns`, and the message that came with it, if any; `tracker` is that axis's, after the
-    /// sample.
+    /// `ingest_ns` and sample time `t_ns`, and the message that came with it, if any; `tracker`
+    /// is that axis's, after the sample. The gyro is timed on the clock of the messages
+    /// ([`StopSignal::clock`]); a message on the other one switches it, and the gyro's history
+    /// starts again.
     fn push(
         &mut self,
         tracker: &mut BiasTracker,
         x: f64,
-        now_ns: u64,
+        (ingest_ns, t_ns): (u64, u64),
         message: Option<&StopSignal>,
     ) {
         let Some((_, sign)) = self.up.filter(|_| !self.gravity_refused) else {
             return;
+        };
+        if let Some(m) = message.filter(|m| m.clock != self.clock) {
+            self.clock = m.clock;
+            self.aid.restart_history();
+            self.last_t_ns = 0;
+        }
+        let now_ns = if self.clock == STOP_CLOCK_SAMPLES {
+            t_ns
+        } else {
+            ingest_ns
         };
         self.aid.push_gyro(now_ns as f64 * 1e-9, sign * x);
         let moving = !tracker.is_still();
@@ -1001,6 +1018,15 @@ impl Odometry {
     }
 }
 
+/// The time of `sample` on the clock of `signal` ([`StopSignal::clock`]).
+fn now_of(signal: &StopSignal, sample: &GyroSample) -> u64 {
+    if signal.clock == STOP_CLOCK_SAMPLES {
+        sample.t_ns
+    } else {
+        sample.ingest_ns
+    }
+}
+
 /// One [`BiasTracker`] per axis, in deg/s; samples arrive in rad/s.
 pub struct BiasStage {
     /// The vehicle's yaw rate, with `vehicle_up` and `odometry` on.
@@ -1125,7 +1151,7 @@ impl Stage for BiasStage {
         };
         self.logged_stops |= logged.is_some();
         let stopped = logged.or_else(|| match (&self.stop, &self.signal) {
-            (Some(cfg), Some(s)) => cfg.judge(s, input.ingest_ns),
+            (Some(cfg), Some(s)) => cfg.judge(s, now_of(s, input)),
             _ => None,
         });
         let given = self.stop.is_some() || self.logged_stops;
@@ -1164,7 +1190,8 @@ impl Stage for BiasStage {
             }
             if let Some((axis, _)) = o.up {
                 let x = input.denoised[axis].to_degrees();
-                o.push(&mut self.trackers[axis], x, input.ingest_ns, fresh.as_ref());
+                let now = (input.ingest_ns, input.t_ns);
+                o.push(&mut self.trackers[axis], x, now, fresh.as_ref());
             }
         }
         out.flags |= motion_flags(still, moving, warming);
@@ -1218,7 +1245,7 @@ mod tests {
             let mut m = StopSignal::new(t_ns, 2.0, u32::from(stands));
             m.yaw_rate_rad_s = turn.to_radians();
             let message = (i % 4 == 3).then_some(&m);
-            odo.push(&mut tracker, x, t_ns, message);
+            odo.push(&mut tracker, x, (t_ns, 0), message);
         }
         (tracker, odo)
     }

@@ -39,6 +39,13 @@ pub const STOP_V1_TYPE_NAME: &str = "driftless::StopSignal";
 /// Size of [`StopSignal`] version 1, bytes.
 pub const STOP_V1_SIZE: usize = 24;
 
+/// [`StopSignal::clock`]: `t_ns` is CLOCK_MONOTONIC ns, the clock of `ingest_ns` (a live
+/// publisher).
+pub const STOP_CLOCK_MONOTONIC: u32 = 0;
+/// [`StopSignal::clock`]: `t_ns` is on the clock of the samples' own `t_ns` (a replay's motion
+/// logged beside the rates, e.g. a bag's odometry by its header stamps).
+pub const STOP_CLOCK_SAMPLES: u32 = 1;
+
 /// Whether the vehicle stands, and how it moves, as its own sensors say (wheel odometry, a
 /// speed over ground, the drive's state): what a vehicle's process publishes for
 /// `predict.bias`'s `stop_input` (56 bytes, 8-byte aligned; type name [`STOP_TYPE_NAME`],
@@ -49,10 +56,10 @@ pub const STOP_V1_SIZE: usize = 24;
 ///
 /// | offset | type | field |
 /// |---:|---|---|
-/// | 0 | u64 | `t_ns` CLOCK_MONOTONIC ns when the state was measured ([`monotonic_ns`](crate::clock::monotonic_ns)) |
+/// | 0 | u64 | `t_ns` when the state was measured: CLOCK_MONOTONIC ns ([`monotonic_ns`](crate::clock::monotonic_ns)), or the samples' own `t_ns` (`clock`) |
 /// | 8 | f64 | `speed_m_s` speed, m/s (NaN: not measured) |
 /// | 16 | u32 | `stopped` 1: stands, 0: moves, anything else: unknown |
-/// | 20 | u32 | `reserved` 0 |
+/// | 20 | u32 | `clock` of `t_ns`: [`STOP_CLOCK_MONOTONIC`] (0) or [`STOP_CLOCK_SAMPLES`] (1) |
 /// | 24 | f64 | `yaw_rate_rad_s` the vehicle's yaw rate about its up axis, rad/s, counter-clockwise seen from above positive (REP 103) (NaN: not measured) |
 /// | 32 | f64 | `speed_std_m_s` 1-sigma of `speed_m_s`, m/s (NaN: not known) |
 /// | 40 | f64 | `yaw_rate_std_rad_s` 1-sigma of `yaw_rate_rad_s`, rad/s (NaN: not known) |
@@ -62,14 +69,17 @@ pub const STOP_V1_SIZE: usize = 24;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct StopSignal {
-    /// CLOCK_MONOTONIC nanoseconds when the state was measured (the clock of `ingest_ns`).
+    /// When the state was measured, ns: on CLOCK_MONOTONIC (the clock of `ingest_ns`), or on
+    /// the samples' own `t_ns` clock (`clock`).
     pub t_ns: u64,
     /// Speed, m/s; NaN when not measured.
     pub speed_m_s: f64,
     /// 1: the vehicle stands; 0: it moves; anything else: unknown.
     pub stopped: u32,
-    /// Reserved, 0.
-    pub reserved: u32,
+    /// The clock of `t_ns`: [`STOP_CLOCK_MONOTONIC`] (0, a live publisher's: what version 2
+    /// wrote here before it had a name), or [`STOP_CLOCK_SAMPLES`] (a replay's logged motion,
+    /// stamped as the samples it was logged beside).
+    pub clock: u32,
     /// The vehicle's yaw rate about its up axis, rad/s (counter-clockwise seen from above is
     /// positive, REP 103); NaN when not measured.
     pub yaw_rate_rad_s: f64,
@@ -89,7 +99,7 @@ impl StopSignal {
             t_ns,
             speed_m_s,
             stopped,
-            reserved: 0,
+            clock: STOP_CLOCK_MONOTONIC,
             yaw_rate_rad_s: f64::NAN,
             speed_std_m_s: f64::NAN,
             yaw_rate_std_rad_s: f64::NAN,

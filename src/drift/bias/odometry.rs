@@ -292,6 +292,14 @@ impl OdometryAid {
         self.pending = None;
     }
 
+    /// The gyro's times change clock (a replay's logged odometry after a live one): the
+    /// history is forgotten with the spans; the scale, the mounting and the counts are kept.
+    pub fn restart_history(&mut self) {
+        self.stop();
+        self.head = 0;
+        self.filled = 0;
+    }
+
     fn clear_span(&mut self) {
         self.g_sum = 0.0;
         self.g_n = 0;

@@ -72,6 +72,8 @@ pub(super) struct Local {
 pub(super) struct Chain {
     /// The ingest hop (segment 1 only).
     pub(super) head: Option<Output<RawSample>>,
+    /// Where the source's logged motion goes ([`crate::stages::Params::motion_output`]).
+    pub(super) motion_out: Option<Output<StopSignal>>,
     pub(super) guard: Guard,
     /// Chain position of `stages[0]`.
     pub(super) first: usize,
@@ -130,6 +132,14 @@ impl Chain {
             h.raw(&s);
         }
         self.record(rec, end);
+        Ok(())
+    }
+
+    /// Publish a motion message the source logged beside its next sample.
+    pub(super) fn logged_motion(&self, m: &StopSignal) -> Result<(), TransportError> {
+        if let Some(out) = &self.motion_out {
+            out.send(m)?;
+        }
         Ok(())
     }
 
@@ -440,6 +450,7 @@ pub(super) fn build_segment(
     let end_in = if span.is_final { span.hi } else { span.hi + 1 };
     let chain = Chain {
         head: None,
+        motion_out: None,
         guard: Guard::new(
             p.input_units,
             p.accel_units,

@@ -17,7 +17,7 @@ use crate::pipeline::config::Pipeline;
 use crate::stages::contract::{Poll, Source};
 use crate::stages::WarmStart;
 use crate::transport::{monotonic_ns, Losses, Qos, Transport, TransportError, WakeSet, Waker};
-use crate::wire::{RawSample, StatsSnapshot};
+use crate::wire::{RawSample, StatsSnapshot, StopSignal};
 
 /// Capacity of the metrics channel (batches of [`BATCH`] records): 2 minutes at 1 kHz.
 const METRICS_CAPACITY: usize = 1 << 12;
@@ -251,6 +251,10 @@ impl<'a> Running<'a> {
         let mut lost: Vec<Arc<Losses>> = vec![raw_out.losses()];
         lost.extend(head_lost);
         chain.head = Some(raw_out);
+        chain.motion_out = match p.stages[0].params.motion_output() {
+            Some(service) => Some(transport.output::<StopSignal>(service, false)?),
+            None => None,
+        };
         chain.connect()?;
         let mut r = Running {
             p,
@@ -355,7 +359,9 @@ impl<'a> Running<'a> {
         let poll = source.poll(stop);
         self.more = matches!(poll, Poll::Sample(..));
         match poll {
-            Poll::Sample(raw, ingest_ns, late_ns) => match chain.ingest(&raw, ingest_ns, late_ns) {
+            Poll::Sample(raw, ingest_ns, late_ns) => match logged_motion(source.as_mut(), chain)
+                .and_then(|()| chain.ingest(&raw, ingest_ns, late_ns))
+            {
                 Ok(()) => Some(ingest_ns.saturating_sub(late_ns.unwrap_or(0))),
                 Err(e) => {
                     self.fail(e.into());
@@ -598,4 +604,12 @@ fn layout(
             .max()
             .unwrap_or(crate::wire::WARM_START_NONE),
     }
+}
+
+/// Publish what the source logged beside the sample it just gave, before that sample runs.
+fn logged_motion(source: &mut dyn Source, chain: &Chain) -> Result<(), TransportError> {
+    while let Some(m) = source.logged_motion() {
+        chain.logged_motion(&m)?;
+    }
+    Ok(())
 }
