@@ -948,6 +948,9 @@ impl Odometry {
     fn gravity_text(&self) -> &'static str {
         match (self.gravity.verdict(), self.gravity_refused) {
             (None, _) => "gravity: not judged",
+            (Some(GravityUp::Axis { .. }), false) if self.configured == VehicleUp::Gravity => {
+                "gravity: named it"
+            }
             (Some(_), true) => "gravity: refused",
             (Some(GravityUp::Tilted { .. }), false) => "gravity: tilted, no check",
             (Some(GravityUp::Axis { .. }), false) => "gravity: agrees",

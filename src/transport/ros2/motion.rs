@@ -100,7 +100,7 @@ impl Motion {
     /// gives them (a variance not > 0 says nothing). Its time is the header stamp on the
     /// monotonic clock (`realtime_offset_ns`: the system clock minus the monotonic one), so the
     /// odometry's own latency is not taken for motion; a stamp later than the receipt, or more
-    /// than [`MAX_MOTION_STAMP_AGE_NS`] before it, is on another clock, and the receipt stands
+    /// than `MAX_MOTION_STAMP_AGE_NS` (1 s) before it, is on another clock, and the receipt stands
     /// in (the `bool` says which).
     pub fn stop_signal(&self, received_ns: u64, realtime_offset_ns: i128) -> (StopSignal, bool) {
         let mapped = i128::from(self.stamp.ns()) - realtime_offset_ns;
