@@ -61,28 +61,25 @@
 //! replay starts (32 bytes each: 115 MB for 10 hours at 100 Hz), sorted by stamp.
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, OnceLock};
 
 use toml::Spanned;
 
-use crate::clock::PaceClock;
 use crate::io::content::{sniff, Content};
 use crate::io::recording::{self, RawMessage, Recording, RAW_SCHEMA};
 use crate::io::InputError;
 use crate::io::{BagError, BagErrorKind};
 use crate::rate_log::{Stamps, RATE_TOLERANCE};
-use crate::stages::contract::{Kind, Params, Poll, Role, Source};
+pub use crate::stages::bag_motion::StopTopic;
+use crate::stages::bag_motion::{McapSource, Stops, REPORTED_BAD_MESSAGES};
+use crate::stages::contract::{Kind, Params, Role, Source};
 use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DELAY_S};
 use crate::stages::schema::{Context, DefaultValue, Key, Src, Table, Type};
 use crate::stages::stop_rule::{StopRule, STOP_MAX_AGE_S, STOP_SPEED_OF_TOPIC};
 use crate::transport::ros2::bag::Bag;
 use crate::transport::ros2::{carry_mag, MagJoinRule, MagReading, DEFAULT_MAG_MAX_AGE_S, IMU_TYPE};
 use crate::units::{AccelUnit, RateUnit};
-use crate::wire::{
-    RawSample, StopSignal, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT, RAW_VEHICLE_MOVING,
-    RAW_VEHICLE_STOPPED, STOP_CLOCK_SAMPLES,
-};
+use crate::wire::{RawSample, RAW_ACCEL, RAW_INVALID, RAW_STAMP_FAULT};
 
 const FILE: Key = Key {
     name: "file",
@@ -169,15 +166,6 @@ pub struct McapParams {
     /// One line when the file's name claims another format than MCAP (it is read by what it
     /// holds).
     pub note: Option<String>,
-}
-
-/// A bag's motion topic read as the vehicle's stops (`stop_topic`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct StopTopic {
-    /// The topic.
-    pub topic: String,
-    /// How its messages are judged.
-    pub rule: StopRule,
 }
 
 /// A bag's magnetometer topic joined to its Imu samples (`mag_topic`).
@@ -677,31 +665,8 @@ fn read_bag(
             return;
         }
     };
-    let stops = match &params.stops {
-        Some(s) => match Stops::read(&bag, s) {
-            Ok(stops) => {
-                let stops = Arc::new(stops);
-                if let Some(m) = motion {
-                    let _ = m.set(Arc::clone(&stops));
-                }
-                Some(stops)
-            }
-            Err(e) => {
-                eprintln!("driftless: error: {e} (the replay ends here)");
-                return;
-            }
-        },
-        None => None,
-    };
-    let mag = match &params.mag {
-        Some(m) => match mag_readings(&bag, &m.topic) {
-            Ok(readings) => Some((readings, m.rule)),
-            Err(e) => {
-                eprintln!("driftless: error: {e} (the replay ends here)");
-                return;
-            }
-        },
-        None => None,
+    let Some((stops, mag)) = side_topics(&bag, params, motion) else {
+        return;
     };
     let (mut seq_offset, mut t_offset, mut bad) = (0u64, 0u64, 0u64);
     // The last time replayed: what an invalid sample holds.
@@ -786,6 +751,47 @@ fn read_bag(
     }
 }
 
+/// A bag's magnetometer readings, sorted by stamp, and how they join the samples.
+type MagSide = (Vec<MagReading>, MagJoinRule);
+
+/// The bag's topics beside the Imu, read whole before the replay: the stops (shared with the
+/// hot thread for `motion_output`) and the magnetometer's readings. `None` (said on stderr)
+/// when one cannot be read: the replay ends.
+fn side_topics(
+    bag: &Bag,
+    params: &McapParams,
+    motion: Option<&OnceLock<Arc<Stops>>>,
+) -> Option<(Option<Arc<Stops>>, Option<MagSide>)> {
+    let fail = |e: BagError| eprintln!("driftless: error: {e} (the replay ends here)");
+    let stops = match &params.stops {
+        Some(s) => match Stops::read(bag, s) {
+            Ok(stops) => {
+                let stops = Arc::new(stops);
+                if let Some(m) = motion {
+                    let _ = m.set(Arc::clone(&stops));
+                }
+                Some(stops)
+            }
+            Err(e) => {
+                fail(e);
+                return None;
+            }
+        },
+        None => None,
+    };
+    let mag = match &params.mag {
+        Some(m) => match mag_readings(bag, &m.topic) {
+            Ok(readings) => Some((readings, m.rule)),
+            Err(e) => {
+                fail(e);
+                return None;
+            }
+        },
+        None => None,
+    };
+    Some((stops, mag))
+}
+
 /// A bag's magnetometer topic, read whole and sorted by stamp (a stable sort: of equal stamps
 /// the later in the file wins, as live); a message that does not decode or has no stamp is
 /// left out (counted on stderr).
@@ -816,138 +822,6 @@ fn mag_readings(bag: &Bag, topic: &str) -> Result<Vec<MagReading>, BagError> {
     at.sort_by_key(|r| r.stamp_ns);
     Ok(at)
 }
-
-/// One message of a bag's motion topic, as kept for the replay (32 bytes).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Logged {
-    /// `header.stamp`, ns.
-    stamp: i64,
-    /// The norm of the linear velocity, m/s.
-    speed: f64,
-    /// `angular.z`, rad/s.
-    yaw_rate: f64,
-    /// Its variance from the twist covariance, (rad/s)^2 (NaN: none).
-    yaw_var: f64,
-}
-
-impl Logged {
-    /// As a stop signal on the samples' clock (the stop judged by the samples' flags).
-    fn signal(&self) -> StopSignal {
-        let mut s = StopSignal::new(self.stamp as u64, self.speed, u32::MAX);
-        s.clock = STOP_CLOCK_SAMPLES;
-        s.yaw_rate_rad_s = self.yaw_rate;
-        s.yaw_rate_std_rad_s = if self.yaw_var > 0.0 {
-            self.yaw_var.sqrt()
-        } else {
-            f64::NAN
-        };
-        s
-    }
-}
-
-/// A bag's motion topic, read whole and sorted by stamp.
-struct Stops {
-    at: Vec<Logged>,
-    rule: StopRule,
-}
-
-impl Stops {
-    /// Read `s.topic` of `bag`; a message that does not decode is left out (counted on stderr).
-    fn read(bag: &Bag, s: &StopTopic) -> Result<Stops, BagError> {
-        let mut at = Vec::new();
-        let mut bad = 0u64;
-        for m in bag.motion_messages(&s.topic)? {
-            match m {
-                Ok(m) => at.push(Logged {
-                    stamp: m.msg.stamp.ns(),
-                    speed: m.msg.speed(),
-                    yaw_rate: m.msg.yaw_rate,
-                    yaw_var: m.msg.variance[5],
-                }),
-                Err(e) if e.kind == BagErrorKind::Cdr => {
-                    bad += 1;
-                    if bad <= REPORTED_BAD_MESSAGES {
-                        eprintln!("driftless: warning: {e} (left out of the stops)");
-                    }
-                }
-                Err(e) => return Err(e),
-            }
-        }
-        if bad > REPORTED_BAD_MESSAGES {
-            eprintln!(
-                "driftless: warning: topic {}: {bad} messages that do not decode left out of the stops",
-                s.topic
-            );
-        }
-        at.sort_by_key(|m| m.stamp);
-        Ok(Stops { at, rule: s.rule })
-    }
-
-    /// The raw flags of a sample stamped `t`: from the last motion message at or before it, if
-    /// that is at most `max_age_ns` old. `at` (0 at the start of a pass) moves forward with
-    /// the stamps; a stamp that goes back is searched for.
-    fn flags_at(&self, at: &mut usize, t: i64) -> u32 {
-        if *at > 0 && self.at.get(*at - 1).is_some_and(|m| m.stamp > t) {
-            *at = self.at.partition_point(|m| m.stamp <= t);
-        }
-        while self.at.get(*at).is_some_and(|m| m.stamp <= t) {
-            *at += 1;
-        }
-        let said = (*at)
-            .checked_sub(1)
-            .map(|i| self.at[i])
-            .and_then(|m| self.rule.judge(t.abs_diff(m.stamp), m.speed, None));
-        match said {
-            Some(true) => RAW_VEHICLE_STOPPED,
-            Some(false) => RAW_VEHICLE_MOVING,
-            None => 0,
-        }
-    }
-}
-
-/// The replay, and with `motion_output` the bag's motion as stop signals on the samples'
-/// clock, each handed over with the first sample stamped at or after it (first pass only).
-struct McapSource {
-    replay: BlockReplay,
-    /// The motion, set by the reader thread before its first sample.
-    motion: Option<Arc<OnceLock<Arc<Stops>>>>,
-    /// The next motion message to hand over.
-    at: usize,
-    /// The time of the sample `poll` returned last.
-    t_ns: Option<u64>,
-}
-
-impl Source for McapSource {
-    fn poll(&mut self, stop: &AtomicBool) -> Poll {
-        let p = self.replay.poll(stop);
-        if let Poll::Sample(s, ..) = &p {
-            self.t_ns = Some(s.t_ns);
-        }
-        p
-    }
-
-    fn next_due(&self) -> Option<std::time::Instant> {
-        self.replay.next_due()
-    }
-
-    fn share_clock(&mut self, clock: PaceClock) {
-        self.replay.share_clock(clock);
-    }
-
-    fn logged_motion(&mut self) -> Option<StopSignal> {
-        let t = self.t_ns?;
-        let stops = self.motion.as_ref()?.get()?;
-        let m = stops
-            .at
-            .get(self.at)
-            .filter(|m| i64::try_from(t).map_or(true, |t| m.stamp <= t))?;
-        self.at += 1;
-        Some(m.signal())
-    }
-}
-
-/// Undecodable messages of a bag named one by one on stderr; the rest are counted.
-const REPORTED_BAD_MESSAGES: u64 = 10;
 
 /// The reader thread: the topic's messages as raw samples, as recorded on the first pass,
 /// `seq` and `t_ns` shifted on later ones. Ends at the end of the file (without `loop`), at a

@@ -40,6 +40,8 @@
 //! --kinds` and `docs/reference/pipeline-file.md` (generated from it) list the new keys.
 
 pub mod accel_terms;
+pub mod bag_motion;
+pub mod bias_odometry;
 pub mod bias_state;
 pub mod contract;
 pub mod schema;
