@@ -886,31 +886,14 @@ fn the_bias_and_its_diagnostics_reach_rclpy_and_warn_past_the_threshold() {
     let d = daemon_of(&file, "diag").spawn().unwrap();
     let n = 4000;
     let mut bias = ready(peer("bias", "/imu/gyro_bias", n));
-    let mut diagnostics = ready(peer("diagnostics", "/diagnostics", 100_000));
+    let diagnostics = ready(peer("diagnostics", "/diagnostics", 100_000));
     // A gyro at rest with a bias of 0.002, -0.001, 0.0005 rad/s; the vehicle moves for the
     // first half, then stands.
     let mut driver = peer("drive", "/imu/data_raw", n);
     assert!(driver.wait().unwrap().success());
     let got = lines(&mut bias);
     assert!(bias.wait().unwrap().success());
-    // The diagnostics as they come, until the daemon has served every sample: after statuses
-    // of samples, one of a period without any (STALE).
-    let mut statuses: Vec<serde_json::Value> = Vec::new();
-    let out = diagnostics.stdout.take().unwrap();
-    for line in BufReader::new(out).lines().map_while(Result::ok) {
-        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
-        let Some(s) = v.get("status").and_then(|s| s.get(0)).cloned() else {
-            continue;
-        };
-        let stale = s["level"] == 3;
-        let served = statuses.iter().any(|s| s["level"] != 3);
-        statuses.push(s);
-        if stale && served {
-            break;
-        }
-    }
-    let _ = diagnostics.kill();
-    let _ = diagnostics.wait();
+    let statuses = statuses_until_served(diagnostics);
     let err = stop(d);
     let _ = std::fs::remove_dir_all(&dir);
 
@@ -1413,27 +1396,14 @@ fn an_odometry_nodes_yaw_rate_teaches_the_bias_while_driving() {
     let d = daemon_of(&file, "turn").spawn().unwrap();
     let n = 10_000;
     let nav = navigator(n);
-    let mut diagnostics = ready(peer("diagnostics", "/diagnostics", 100_000));
+    let diagnostics = ready(peer("diagnostics", "/diagnostics", 100_000));
     let mut driver = peer("turn", "/imu/data_raw", n);
     assert!(driver.wait().unwrap().success());
     let got = lines_of(nav);
-    // The last status that saw samples, once the daemon served them all (a STALE one after).
-    let mut last = None;
-    let out = diagnostics.stdout.take().unwrap();
-    for line in BufReader::new(out).lines().map_while(Result::ok) {
-        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
-        let Some(s) = v.get("status").and_then(|s| s.get(0)).cloned() else {
-            continue;
-        };
-        if s["level"] == 3 && last.is_some() {
-            break;
-        }
-        if s["level"] != 3 {
-            last = Some(s);
-        }
-    }
-    let _ = diagnostics.kill();
-    let _ = diagnostics.wait();
+    // The last status that saw samples.
+    let last = statuses_until_served(diagnostics)
+        .into_iter()
+        .rfind(|s| s["level"] != 3);
     let err = stop(d);
     let _ = std::fs::remove_dir_all(&dir);
 
@@ -1472,6 +1442,29 @@ fn an_odometry_nodes_yaw_rate_teaches_the_bias_while_driving() {
         "{err}"
     );
     eprintln!("z variance {z0:.3e} -> {z1:.3e}; straight z {mean:+.5} rad/s; diagnostics {v}");
+}
+
+/// The statuses the rclpy `diagnostics` peer prints as they come, until the daemon has served
+/// every sample: after statuses of samples, one of a period without any (STALE); the peer is
+/// stopped then.
+fn statuses_until_served(mut diagnostics: Child) -> Vec<serde_json::Value> {
+    let mut statuses: Vec<serde_json::Value> = Vec::new();
+    let out = diagnostics.stdout.take().unwrap();
+    for line in BufReader::new(out).lines().map_while(Result::ok) {
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        let Some(s) = v.get("status").and_then(|s| s.get(0)).cloned() else {
+            continue;
+        };
+        let stale = s["level"] == 3;
+        let served = statuses.iter().any(|s| s["level"] != 3);
+        statuses.push(s);
+        if stale && served {
+            break;
+        }
+    }
+    let _ = diagnostics.kill();
+    let _ = diagnostics.wait();
+    statuses
 }
 
 fn lines_of(mut child: Child) -> Vec<serde_json::Value> {
