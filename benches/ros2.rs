@@ -26,7 +26,11 @@
 //! 4. **Through the daemon** (`pipelines/ros2.toml`): the rclpy driver on `/imu/data_raw`, the
 //!    rclpy subscriber on `/imu/corrected`. The daemon keeps the driver's stamp, so receipt minus
 //!    stamp is driver publish to navigator receipt.
-//! 5. **ROS 2 output off:** the same daemon fed the same way with no `[[ros2.imu_out]]`, and
+//! 5. **With the odometry:** path 4 with the driver also publishing a moving vehicle's
+//!    `nav_msgs/msg/Odometry` at 50 Hz on `/odom` (its yaw rate and covariance), which the
+//!    shipped pipeline's bias filter takes while moving: what the odometry adds to the ROS 2
+//!    side's CPU (issue 62's goal: at most 1 point of a core).
+//! 6. **ROS 2 output off:** the same daemon fed the same way with no `[[ros2.imu_out]]`, and
 //!    beside it the same rclpy subscriber fed at 1 kHz by this process (so the machine carries
 //!    the same load): the reference for the iceoryx2 path's p99.9 and misses.
 //!
@@ -36,7 +40,7 @@
 //! other than the hot thread and the reporter (the ROS 2 side: our bridge thread and RustDDS's)
 //! as a share of one core, beside the relay process's (every thread). Goals (issue 39): 0 lost;
 //! p50 <= bare + 100 us; p99 <= bare + 300 us; the daemon's p99.9 with output on within the
-//! noise of output off, 0 misses; CPU <= 10%.
+//! noise of output off, 0 misses; CPU <= 10%, and at most 1 point more with the odometry.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -105,8 +109,9 @@ fn main() {
             bare: bare_floor(n),
             hop_in: bare_in(n),
             relay: bare_relay(n),
-            through: through_daemon(n, true),
-            output_off: through_daemon(n, false),
+            through: through_daemon(n, true, false),
+            odometry: through_daemon(n, true, true),
+            output_off: through_daemon(n, false, false),
         };
         println!("run {run} (load {}):", loadavg());
         r.print(n);
@@ -141,15 +146,22 @@ fn main() {
             med(&|r| r.through.1.ros2_cpu_pct),
             med(&|r| f(&r.relay, "cpu_pct")),
         );
+        println!(
+            "  with the odometry at 50 Hz: ROS 2 side CPU {:+.2} points of a core (goal <= +1); \
+             the bias filter accepted {} of its spans",
+            med(&|r| r.odometry.1.ros2_cpu_pct - r.through.1.ros2_cpu_pct),
+            med(&|r| r.odometry.1.odometry_spans as f64),
+        );
     }
 }
 
-/// One run's five paths.
+/// One run's six paths.
 struct Run {
     bare: Value,
     hop_in: Value,
     relay: Value,
     through: (Value, DaemonSide),
+    odometry: (Value, DaemonSide),
     output_off: (Value, DaemonSide),
 }
 
@@ -183,11 +195,12 @@ impl Run {
         );
         for (label, d) in [
             ("ROS 2 out on ", &self.through.1),
+            ("+ odometry   ", &self.odometry.1),
             ("ROS 2 out off", &self.output_off.1),
         ] {
             println!(
-                "  daemon, {label}: ingest to publish p99.9 {:.1} us, {} deadline misses of {}; ROS 2 side CPU {:.1}% of a core",
-                d.p999_us, d.misses, d.outputs, d.ros2_cpu_pct
+                "  daemon, {label}: ingest to publish p99.9 {:.1} us, {} deadline misses of {}; ROS 2 side CPU {:.1}% of a core; {} odometry spans",
+                d.p999_us, d.misses, d.outputs, d.ros2_cpu_pct, d.odometry_spans
             );
         }
     }
@@ -358,6 +371,22 @@ struct DaemonSide {
     misses: u64,
     outputs: u64,
     ros2_cpu_pct: f64,
+    /// The odometry's spans the bias filter accepted (its `learnt:` line), 0 without.
+    odometry_spans: u64,
+}
+
+/// The spans of the odometry the report's `learnt` lines say the bias filter accepted.
+fn odometry_spans(report: &Value) -> u64 {
+    let lines = report["learnt"].as_array().cloned().unwrap_or_default();
+    lines
+        .iter()
+        .filter_map(|l| l.as_str())
+        .find_map(|l| {
+            let (_, rest) = l.split_once("odometry (")?;
+            let (_, counts) = rest.split_once("): ")?;
+            counts.split_whitespace().next()?.parse().ok()
+        })
+        .unwrap_or(0)
 }
 
 /// CPU seconds of each thread of `pid` by name.
@@ -382,9 +411,13 @@ fn thread_cpu(pid: u32) -> Vec<(String, f64)> {
 
 /// The daemon on `pipelines/ros2.toml`, fed by the rclpy driver; with `output`, the rclpy
 /// subscriber on its `/imu/corrected`, else the same pipeline with no `[[ros2.imu_out]]`.
-fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
+fn through_daemon(n: usize, output: bool, odometry: bool) -> (Value, DaemonSide) {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines/ros2.toml");
-    let prefix = prefix(if output { "ros2" } else { "ros2off" });
+    let prefix = prefix(match (output, odometry) {
+        (true, false) => "ros2",
+        (true, true) => "ros2odo",
+        (false, _) => "ros2off",
+    });
     let report = std::env::temp_dir().join(format!("{prefix}report.json"));
     let off = std::env::temp_dir().join(format!("{prefix}pipeline.toml"));
     // DRIFTLESS_BENCH_CPU: the hot thread pinned there (`cpu`), the ROS 2 side beside it.
@@ -438,7 +471,8 @@ fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
     // Output off, the same load beside the daemon: the rclpy navigator still receives 1 kHz
     // (from this process), so only the daemon's ROS 2 output differs between the two runs.
     let load = (!output).then(|| std::thread::spawn(move || bare_on("/bench/load", n)));
-    let mut driver = peer("pace", "/imu/data_raw", n);
+    let mode = if odometry { "pace-odom" } else { "pace" };
+    let mut driver = peer(mode, "/imu/data_raw", n);
     assert!(driver.wait().unwrap().success());
     if let Some(load) = load {
         let _ = load.join();
@@ -455,6 +489,7 @@ fn through_daemon(n: usize, output: bool) -> (Value, DaemonSide) {
         misses: r["deadline_misses"].as_u64().unwrap_or(0),
         outputs: r["samples_out"].as_u64().unwrap_or(0),
         ros2_cpu_pct: 100.0 * (cpu1 - cpu0) / (t1 - t0).as_secs_f64(),
+        odometry_spans: odometry_spans(&r),
     };
     (through, side)
 }

@@ -15,7 +15,8 @@ with a covariance for each field (orientation still not provided). `bias` prints
 geometry_msgs/msg/Vector3Stamped it receives on TOPIC as a JSON line, `diagnostics` each
 diagnostic_msgs/msg/DiagnosticArray, until COUNT came. PEER_NODE names the node. For benches/ros2.rs: `pace`
 publishes COUNT messages at PEER_RATE Hz (default 1000) stamped with the system clock just
-before each publish; `latency` receives COUNT and prints, as one JSON line, how many came, in
+before each publish (`pace-odom`: and a moving, straight nav_msgs/msg/Odometry on /odom at 50
+Hz with a yaw-rate covariance); `latency` receives COUNT and prints, as one JSON line, how many came, in
 order, and the percentiles of receipt minus stamp (us). `mag` publishes COUNT Imu messages
 of a level gyro at rest (gravity on z, with a covariance) and, before every 10th, a
 sensor_msgs/msg/MagneticField on /imu/mag with the same stamp: the field (tesla) of 20 uT north
@@ -185,18 +186,28 @@ def main() -> int:
             "p50_us": pct(0.5), "p99_us": pct(0.99), "p999_us": pct(0.999),
             "max_us": ordered[-1] if ordered else None,
         }), flush=True)
-    elif mode == "pace":
+    elif mode in ("pace", "pace-odom"):
         rate = float(os.environ.get("PEER_RATE", "1000"))
         pub = node.create_publisher(Imu, topic, 10)
-        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+        odom = node.create_publisher(Odometry, "/odom", 10) if mode == "pace-odom" else None
+        while time.monotonic() < end and (
+            pub.get_subscription_count() == 0
+            or (odom is not None and odom.get_subscription_count() == 0)
+        ):
             time.sleep(0.01)
         time.sleep(0.5)
         start = time.monotonic()
         m = message(0, still=True)
+        o = Odometry()
+        o.twist.twist.linear.x = 2.0
+        o.twist.covariance[35] = math.radians(0.1) ** 2
         for i in range(count):
             stamp = time.time_ns()
             m.header.stamp.sec, m.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             pub.publish(m)
+            if odom is not None and i % round(rate / 50) == 0:
+                o.header.stamp = m.header.stamp
+                odom.publish(o)
             ahead = start + (i + 1) / rate - time.monotonic()
             if ahead > 0:
                 time.sleep(ahead)
