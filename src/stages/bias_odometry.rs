@@ -10,7 +10,7 @@ use crate::drift::bias::{
 };
 use crate::wire::{
     OdometryStats, StopSignal, MOUNTING_CONFIRMED, MOUNTING_UNKNOWN, MOUNTING_WRONG_AXIS,
-    MOUNTING_WRONG_SIGN, STOP_CLOCK_MONOTONIC, STOP_CLOCK_SAMPLES, UP_GRAVITY_PENDING,
+    MOUNTING_WRONG_SIGN, STOP_CLOCK_MONOTONIC, STOP_CLOCK_SAMPLES, UP_AXES, UP_GRAVITY_PENDING,
 };
 
 /// `vehicle_up`: how the vehicle's up is known.
@@ -28,12 +28,8 @@ pub enum VehicleUp {
 }
 
 /// The word of `vehicle_up` for an axis and a sign.
-pub(crate) fn up_word(axis: usize, sign: f64) -> String {
-    format!(
-        "{}{}",
-        if sign < 0.0 { '-' } else { '+' },
-        ["x", "y", "z"][axis]
-    )
+pub(crate) fn up_word(axis: usize, sign: f64) -> &'static str {
+    UP_AXES[OdometryStats::up_code(axis, sign) as usize]
 }
 
 /// The vehicle's yaw rate as a measurement of the up axis's bias while it moves.
@@ -262,7 +258,7 @@ impl Odometry {
     /// The `vehicle_up` words: the axis, or gravity's (and whether told yet).
     fn up_text(&self) -> String {
         match (self.configured, self.up) {
-            (VehicleUp::Axis { axis, sign }, _) => up_word(axis, sign),
+            (VehicleUp::Axis { axis, sign }, _) => up_word(axis, sign).to_string(),
             (VehicleUp::Gravity, Some((axis, sign))) => {
                 format!("{} from gravity", up_word(axis, sign))
             }

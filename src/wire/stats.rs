@@ -156,6 +156,9 @@ pub const MOUNTING_WRONG_SIGN: u64 = 2;
 /// [`OdometryStats::mounting`]: the axis does not see the turns; the yaw rate is refused.
 pub const MOUNTING_WRONG_AXIS: u64 = 3;
 
+/// The words of [`OdometryStats::up`]'s codes 0 to 6, as `vehicle_up` writes them.
+pub const UP_AXES: [&str; 7] = ["none", "+x", "-x", "+y", "-y", "+z", "-z"];
+
 impl OdometryStats {
     /// The code of gyro axis `axis` (0, 1, 2) pointing up with `sign` (> 0: +).
     pub fn up_code(axis: usize, sign: f64) -> u64 {
@@ -165,14 +168,8 @@ impl OdometryStats {
     /// The words of [`OdometryStats::up`]: `+z`, ...; `none`.
     pub fn up_name(&self) -> &'static str {
         match self.up {
-            1 => "+x",
-            2 => "-x",
-            3 => "+y",
-            4 => "-y",
-            5 => "+z",
-            6 => "-z",
             UP_GRAVITY_PENDING => "gravity, not told yet",
-            _ => "none",
+            code => UP_AXES.get(code as usize).copied().unwrap_or("none"),
         }
     }
 
