@@ -175,6 +175,18 @@ output = "o/corrected"
     }
 }
 
+/// The one line of `stderr` that says `what`; fails unless there is exactly one.
+fn said_once<'a>(stderr: &'a str, what: &str) -> &'a str {
+    let said: Vec<&str> = stderr.lines().filter(|l| l.contains(what)).collect();
+    assert_eq!(
+        said.len(),
+        1,
+        "{what:?} said {} times: {stderr}",
+        said.len()
+    );
+    said[0]
+}
+
 fn drift_deg(s: &GyroSample, axis: usize) -> f64 {
     s.drift[axis].to_degrees()
 }
@@ -232,13 +244,8 @@ fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
 #[test]
 fn a_yaw_rate_of_the_wrong_sign_is_found_and_refused_with_the_fix() {
     let r = run("odo-sign", "vehicle_up = \"+z\"", true);
-    let said: Vec<_> = r
-        .stderr
-        .lines()
-        .filter(|l| l.contains("the yaw rate turns against the gyro's +z axis"))
-        .collect();
-    assert_eq!(said.len(), 1, "{}", r.stderr);
-    assert!(said[0].contains("set vehicle_up = \"-z\""), "{}", said[0]);
+    let said = said_once(&r.stderr, "the yaw rate turns against the gyro's +z axis");
+    assert!(said.contains("set vehicle_up = \"-z\""), "{said}");
     // Before the turns told, the straights taught it (a sign does not matter there); the
     // turns, of the wrong sign, never pulled it off: the truth, or nothing learnt.
     let z = drift_deg(&r.got[N - 1], 2);
@@ -318,13 +325,8 @@ fn gravity_names_the_up_axis_at_the_first_rest() {
 #[test]
 fn gravity_refuses_a_vehicle_up_it_contradicts_with_the_fix() {
     let r = run_with("odo-gravity-no", "vehicle_up = \"+z\"", true, 600);
-    let said: Vec<_> = r
-        .stderr
-        .lines()
-        .filter(|l| l.contains("gravity says the gyro's -z points up"))
-        .collect();
-    assert_eq!(said.len(), 1, "{}", r.stderr);
-    assert!(said[0].contains("Set vehicle_up = \"-z\""), "{}", said[0]);
+    let said = said_once(&r.stderr, "gravity says the gyro's -z points up");
+    assert!(said.contains("Set vehicle_up = \"-z\""), "{said}");
     assert_eq!(r.odometry.mounting_name(), "refused: wrong sign");
     assert_eq!(r.odometry.learnt, 0, "{:?}", r.odometry);
 }
