@@ -228,8 +228,9 @@ buffer_size = 4096
         "{err}"
     );
     assert!(
-        warnings[1]
-            .contains("1 row(s) with an unreadable accelerometer, magnetometer or stop cell"),
+        warnings[1].contains(
+            "1 row(s) with an unreadable accelerometer, magnetometer, stop or odometry cell"
+        ),
         "{err}"
     );
     for (i, s) in got.iter().enumerate() {

@@ -330,3 +330,114 @@ fn gravity_refuses_a_vehicle_up_it_contradicts_with_the_fix() {
     assert_eq!(r.odometry.mounting_name(), "refused: wrong sign");
     assert_eq!(r.odometry.learnt, 0, "{:?}", r.odometry);
 }
+
+/// A CSV log of the same drive (its stop column: never stands), replayed as fast as possible:
+/// `yaw_rate_column` holds the odometry's message on every fourth row (empty between), `motion_output` publishes it, and
+/// `predict.bias` learns the up axis's bias from it as from a live odometry. Without the
+/// column nothing is learnt in motion.
+#[test]
+fn a_csv_logs_yaw_rate_teaches_the_bias_while_driving() {
+    let dir = Dir::new();
+    let noise = |i: usize| 0.3 * (((i * 7919) % 101) as f64 / 101.0 - 0.5);
+    let mut csv = String::from("t,x,y,z,stopped,wz,wz_sd\n");
+    for i in 0..N {
+        let (x, z) = (BIAS_DEG_S + noise(i), BIAS_DEG_S - turn(i) + noise(i + 17));
+        // The message stamped at the end of its period, on its last row.
+        let (wz, sd) = if (i + 1) % PER_MESSAGE == 0 {
+            let mean = (i + 1 - PER_MESSAGE..=i).map(turn).sum::<f64>() / PER_MESSAGE as f64;
+            (mean.to_string(), "0.1".to_string())
+        } else {
+            (String::new(), String::new())
+        };
+        let t = i as f64 / RATE_HZ as f64;
+        csv += &format!("{t},{x},{x},{z},0,{wz},{sd}\n");
+    }
+    dir.write("drive.csv", &csv);
+    let run = |tag: &str, yaw: bool| {
+        let prefix = Prefix::new(tag);
+        let odometry = if yaw {
+            format!(
+                "yaw_rate_column = \"wz\"\nyaw_rate_std_column = \"wz_sd\"\n\
+                 motion_output = \"{tag}/stop\""
+            )
+        } else {
+            String::new()
+        };
+        let text = format!(
+            r#"
+name = "{tag}"
+rate_hz = {RATE_HZ}.0
+axes = 3
+input_units = "deg/s"
+
+[iceoryx2]
+buffer_size = 4096
+
+[[stage]]
+name = "sensor"
+kind = "ingest.csv"
+output = "{tag}/raw"
+file = "drive.csv"
+time_column = "t"
+stop_column = "stopped"
+pace = "asap"
+{odometry}
+
+[[stage]]
+name = "predict"
+kind = "predict.bias"
+input = "{tag}/raw"
+output = "{tag}/predicted"
+profile = "adis16405"
+stop_input = "{tag}/stop"
+vehicle_up = "-z"
+
+[[stage]]
+name = "publish"
+kind = "publish"
+input = "{tag}/predicted"
+output = "{tag}/corrected"
+"#
+        );
+        let file = dir.write(&format!("{tag}.toml"), &text);
+        let me = Transport::new(&prefix.0, "reader", qos(4096)).expect("node");
+        let sub = me
+            .input::<GyroSample>(&format!("{tag}/corrected"))
+            .expect("subscriber");
+        let child = start(
+            &file,
+            &prefix,
+            &["--report", dir.path("report.json").to_str().unwrap()],
+        );
+        let got = collect(&sub, N, Duration::from_secs(60));
+        let (code, stderr) = finish(child, Duration::from_secs(20));
+        assert_eq!(code, Some(0), "{stderr}");
+        assert_eq!(got.len(), N, "every sample once: {stderr}");
+        let learnt: Vec<String> = report(&dir)["learnt"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l.as_str().unwrap().to_string())
+            .collect();
+        (got, learnt)
+    };
+    let (got, learnt) = run("csvodo", true);
+    let last = &got[N - 1];
+    assert!(
+        (drift_deg(last, 2) - BIAS_DEG_S).abs() < 0.1,
+        "z drift {}: {learnt:?}",
+        drift_deg(last, 2)
+    );
+    assert!(drift_deg(last, 0).abs() < 0.05, "x was never told");
+    assert!(
+        learnt
+            .iter()
+            .any(|l| l.contains("odometry (vehicle_up = -z, confirmed by the turns")),
+        "{learnt:?}"
+    );
+    let (got, _) = run("csvnoodo", false);
+    assert!(
+        drift_deg(&got[N - 1], 2).abs() < 0.05,
+        "nothing learnt in motion without the yaw rate"
+    );
+}

@@ -498,9 +498,10 @@ fn check_cell(
     }
 }
 
-/// Whether a cell reads as NaN (any spelling `str::parse::<f64>` takes: `nan`, `NaN`, `-nan`).
+/// Whether a cell says "not known": empty, or NaN (any spelling `str::parse::<f64>` takes:
+/// `nan`, `NaN`, `-nan`).
 fn nan_cell(cell: &[u8]) -> bool {
-    parse_cell(cell).is_some_and(f64::is_nan)
+    cell.trim_ascii().is_empty() || parse_cell(cell).is_some_and(f64::is_nan)
 }
 
 /// Reads `inner` with every `\r\n` turned into `\n`, so that the csv crate counts lines right
@@ -679,10 +680,11 @@ impl RowReader {
         })
     }
 
-    /// Take a NaN cell (`nan`, `NaN`, `-nan`: any spelling `str::parse::<f64>` reads as NaN) in
-    /// selected column `k` as an unknown value: written as NaN, the row good. For a column whose
-    /// NaN means "not known" (a replay's stop column); in every other column it stays a bad
-    /// cell, and an infinity or a cell that is no number stays one in this column too.
+    /// Take an empty or NaN cell (`nan`, `NaN`, `-nan`: any spelling `str::parse::<f64>` reads
+    /// as NaN) in selected column `k` as an unknown value: written as NaN, the row good. For a
+    /// column whose NaN means "not known" (a replay's stop column, an odometry logged at its
+    /// own rate); in every other column it stays a bad cell, and an infinity or a cell that is
+    /// no number stays one in this column too.
     pub fn nan_unknown(mut self, k: usize) -> Self {
         if let Some(u) = self.nan_unknown.get_mut(k) {
             *u = true;
@@ -1317,8 +1319,8 @@ mod tests {
         assert_eq!(t.columns[0], x);
     }
 
-    /// A column read with `nan_unknown` takes each spelling of NaN as an unknown value (a good
-    /// row), in the first data row and later ones, by the fast path and beside a cell that sends
+    /// A column read with `nan_unknown` takes each spelling of NaN, and an empty cell, as an
+    /// unknown value (a good row), in the first data row and later ones, by the fast path and beside a cell that sends
     /// the row to the reference path; an infinity or a word there, and a NaN in any other
     /// column, stay bad cells with their positions.
     #[test]
@@ -1327,7 +1329,7 @@ mod tests {
         let p = dir.path().join("t.csv");
         std::fs::write(
             &p,
-            "x,stop\n1,nan\n2,NaN\n3, -nan \n4,1\nabc,NAN\n6,inf\n7,abc\nnan,0\n",
+            "x,stop\n1,nan\n2,NaN\n3, -nan \n4,1\nabc,NAN\n6,inf\n7,abc\nnan,0\n10,\n11, \n",
         )
         .unwrap();
         let wanted = ["x".to_string(), "stop".to_string()];
@@ -1354,6 +1356,8 @@ mod tests {
                 "[1] t.csv:7:3: column 'stop': inf is not a finite sample",
                 "[1] t.csv:8:3: column 'stop': 'abc' is not a number",
                 "[0] t.csv:9:1: column 'x': NaN is not a finite sample",
+                "10 NaN",
+                "11 NaN",
             ]
             .map(|s| s.replace("t.csv", &p.display().to_string()))
         );

@@ -7,8 +7,15 @@
 //! stays bounded however long the log. A bad row found while replaying is not dropped: it is
 //! replayed as a sample marked invalid (the guard holds the last good rate, flags and counts it)
 //! and its file:line:col is printed on stderr. A row whose only bad cells are the
-//! accelerometer's, the magnetometer's or the stop's keeps its rates: only the unreadable reading
-//! is flagged.
+//! accelerometer's, the magnetometer's, the stop's or the odometry's keeps its rates: only the
+//! unreadable reading is flagged.
+//!
+//! **A logged odometry while driving.** With `yaw_rate_column` and `motion_output`, each row
+//! whose yaw rate cell holds a number is one odometry message (empty or `nan` between them, as
+//! an odometry at 50 Hz beside a gyro at 100 Hz or more logs it): it is published on
+//! `motion_output` as a `StopSignal` on the samples' clock just before its row's sample, so a
+//! `predict.bias` with that `stop_input` (and `vehicle_up`) learns the bias while the vehicle
+//! drives, at any pace, on every pass of a loop.
 //!
 //! ```toml
 //! [[stage]]
@@ -22,6 +29,9 @@
 //! mag_units = "uT"                    # of mag_columns: "T", "gauss" or "uT" (default)
 //! time_column = "t"              # seconds (default: i / rate_hz)
 //! stop_column = "stopped"        # 1 stands, 0 moves, nan unknown (default: none)
+//! yaw_rate_column = "odom_wz"    # the odometry's yaw rate, input_units (default: none)
+//! yaw_rate_std_column = "odom_wz_sd"  # its 1-sigma, input_units (default: none)
+//! motion_output = "vehicle/stop" # the yaw rate as StopSignals, for predict.bias's stop_input
 //! pace = "asap"                  # or "realtime" (default), or 10.0: ten times real time
 //! loop = false
 //! ```
@@ -38,7 +48,8 @@ use crate::stages::replay::{BlockReplay, BlockSink, Replay, LOOP, PACE, START_DE
 use crate::stages::schema::{Context, DefaultValue, Key, Src, Table, Type};
 use crate::units::MagUnit;
 use crate::wire::{
-    RawSample, RAW_ACCEL, RAW_INVALID, RAW_MAG, RAW_VEHICLE_MOVING, RAW_VEHICLE_STOPPED,
+    RawSample, StopSignal, RAW_ACCEL, RAW_INVALID, RAW_MAG, RAW_VEHICLE_MOVING,
+    RAW_VEHICLE_STOPPED, STOP_CLOCK_SAMPLES,
 };
 
 const FILE: Key = Key {
@@ -96,6 +107,24 @@ const STOP_COLUMN: Key = Key {
     default: DefaultValue::Absent("none"),
     doc: "the vehicle's stops logged beside the rates (wheel odometry): carried with each sample, so `predict.bias` takes them by sample time, in any replay speed",
 };
+const YAW_RATE_COLUMN: Key = Key {
+    name: "yaw_rate_column",
+    ty: Type::Str("a column name; the pipeline's input_units, empty or nan between messages"),
+    default: DefaultValue::Absent("none"),
+    doc: "the vehicle's yaw rate logged beside the rates (wheel odometry, a car's yaw-rate sensor), counter-clockwise seen from above positive (REP 103): one message per row that holds a number, on the row of its stamp (the end of the period it measured). Needs `motion_output`",
+};
+const YAW_RATE_STD_COLUMN: Key = Key {
+    name: "yaw_rate_std_column",
+    ty: Type::Str("a column name; the pipeline's input_units"),
+    default: DefaultValue::Absent("none: predict.bias assumes 0.1 deg/s per message"),
+    doc: "each message's 1-sigma, on the same rows as `yaw_rate_column` (a value not > 0 says nothing): `predict.bias` weighs each message by it",
+};
+const MOTION_OUTPUT: Key = Key {
+    name: "motion_output",
+    ty: Type::Str("a service name: \"vehicle/stop\""),
+    default: DefaultValue::Absent("none"),
+    doc: "where each `yaw_rate_column` message is published, as a `StopSignal` on the samples' clock just before its row's sample: name it as `predict.bias`'s `stop_input` (with `vehicle_up`) and the log's odometry teaches the bias while the vehicle drives, at any pace. Needs `yaw_rate_column`",
+};
 /// `ingest.csv`.
 pub const KIND: Kind = Kind {
     name: "ingest.csv",
@@ -110,6 +139,9 @@ pub const KIND: Kind = Kind {
         MAG_UNITS,
         TIME_COLUMN,
         STOP_COLUMN,
+        YAW_RATE_COLUMN,
+        YAW_RATE_STD_COLUMN,
+        MOTION_OUTPUT,
         PACE,
         LOOP,
         START_DELAY_S,
@@ -135,6 +167,14 @@ pub struct CsvParams {
     pub time_column: Option<String>,
     /// The stop column (1 stands, 0 moves, NaN unknown), if any.
     pub stop_column: Option<String>,
+    /// The odometry's yaw rate column (input units; empty or NaN: no message on the row).
+    pub yaw_rate_column: Option<String>,
+    /// Its 1-sigma column (input units), if any.
+    pub yaw_rate_std_column: Option<String>,
+    /// Where the yaw rate goes as stop signals (`motion_output`).
+    pub motion_output: Option<String>,
+    /// rad/s per input unit, for the yaw rate's stop signals.
+    pub rad_per_unit: f64,
     /// The rate's step in the checked rows, input units ([`step_of`]).
     pub step: Option<f64>,
     /// Pacing, looping, delay.
@@ -193,7 +233,19 @@ impl Params for CsvParams {
                 self.mag_units
             ));
         }
+        if let (Some(c), Some(out)) = (&self.yaw_rate_column, &self.motion_output) {
+            lines.push(format!(
+                "motion out: {out} (StopSignal on the samples' clock: the yaw rate of {c}{})",
+                self.yaw_rate_std_column
+                    .as_ref()
+                    .map_or(String::new(), |sd| format!(", its sd {sd}"))
+            ));
+        }
         lines
+    }
+
+    fn motion_output(&self) -> Option<&str> {
+        self.motion_output.as_deref()
     }
 
     fn local_source(&self, cx: &Context) -> Result<Box<dyn Source>, String> {
@@ -217,8 +269,31 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let mag_units_key = t.get::<String>(&MAG_UNITS)?;
     let time_key = t.get::<String>(&TIME_COLUMN)?;
     let stop_key = t.get::<String>(&STOP_COLUMN)?;
+    let yaw_key = t.get::<String>(&YAW_RATE_COLUMN)?;
+    let yaw_sd_key = t.get::<String>(&YAW_RATE_STD_COLUMN)?;
+    let motion_key = t.get::<String>(&MOTION_OUTPUT)?;
     let replay = Replay::parse(t)?;
     let (src, axes, rate_hz) = (t.src, t.cx.axes, t.cx.rate_hz);
+    let motion_output = match (&motion_key, &yaw_key) {
+        (Some(k), None) => {
+            return Err(src.span(
+                k,
+                "motion_output needs a yaw_rate_column (what it publishes)",
+            ))
+        }
+        (None, Some(k)) => {
+            return Err(src.span(
+                k,
+                "yaw_rate_column needs a motion_output (the service predict.bias's stop_input \
+                 reads it from)",
+            ))
+        }
+        (Some(k), Some(_)) => Some(src.service(k)?),
+        (None, None) => None,
+    };
+    if let (Some(k), None) = (&yaw_sd_key, &yaw_key) {
+        return Err(src.span(k, "yaw_rate_std_column needs a yaw_rate_column"));
+    }
     let file = src.resolve(file_key.get_ref());
     if !file.exists() {
         return Err(src.span(&file_key, format!("no such file: {}", file.display())));
@@ -250,32 +325,37 @@ fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
     let accel_columns = three_columns(src, accel_key, ACCEL_COLUMNS.name)?;
     let mag_columns = three_columns(src, mag_key, MAG_COLUMNS.name)?;
     let mag_units = read_mag_units(src, mag_units_key, mag_columns.is_some())?;
-    let time_column = time_key.as_ref().map(|t| t.get_ref().clone());
-    let stop_column = stop_key.map(Spanned::into_inner);
-    let layout = Layout::of(
-        &columns,
-        &accel_columns,
-        &mag_columns,
-        &time_column,
-        &stop_column,
-    );
-    let (times_ns, rates) = check_rows(src, &layout, &file, &file_key, time_key.as_ref(), axes)?;
-    // The file's own times must give the pipeline's rate, as a bag's stamps must.
-    if let Some(t) = &time_key {
-        check_time_rate(src, t, &file, &times_ns, rate_hz)?;
-    }
-    Ok(Box::new(CsvParams {
+    let mut params = CsvParams {
         file,
         columns,
         accel_columns,
         mag_columns,
         mag_units,
-        time_column,
-        stop_column,
-        step: rates.into_iter().filter_map(step_of).reduce(f64::min),
+        time_column: time_key.as_ref().map(|t| t.get_ref().clone()),
+        stop_column: stop_key.map(Spanned::into_inner),
+        yaw_rate_column: yaw_key.map(Spanned::into_inner),
+        yaw_rate_std_column: yaw_sd_key.map(Spanned::into_inner),
+        motion_output,
+        rad_per_unit: t.cx.units.to_rad_per_s(),
+        step: None,
         replay,
         note: sniffed.csv_note(),
-    }))
+    };
+    let layout = Layout::of(&params);
+    let (times_ns, rates) = check_rows(
+        src,
+        &layout,
+        &params.file,
+        &file_key,
+        time_key.as_ref(),
+        axes,
+    )?;
+    // The file's own times must give the pipeline's rate, as a bag's stamps must.
+    if let Some(t) = &time_key {
+        check_time_rate(src, t, &params.file, &times_ns, rate_hz)?;
+    }
+    params.step = rates.into_iter().filter_map(step_of).reduce(f64::min);
+    Ok(Box::new(params))
 }
 
 /// A sensor's column names (`accel_columns`, `mag_columns`): three (x, y, z), or none given.
@@ -389,56 +469,79 @@ fn check_time_rate(
 }
 
 /// Where each column a replay reads sits in a row of values: the rates, then the
-/// accelerometer, the magnetometer, the time and the stop.
+/// accelerometer, the magnetometer, the time, the stop, the yaw rate and its sd.
 struct Layout {
     wanted: Vec<String>,
     accel: Option<usize>,
     mag: Option<usize>,
     time: Option<usize>,
     stop: Option<usize>,
+    yaw: Option<usize>,
+    yaw_sd: Option<usize>,
 }
 
 impl Layout {
-    fn of(
-        columns: &[String],
-        accel: &Option<Vec<String>>,
-        mag: &Option<Vec<String>>,
-        time: &Option<String>,
-        stop: &Option<String>,
-    ) -> Layout {
-        let mut wanted = columns.to_vec();
+    fn of(p: &CsvParams) -> Layout {
+        let mut wanted = p.columns.clone();
         let mut at = |names: &[String]| {
             let i = wanted.len();
             wanted.extend_from_slice(names);
             i
         };
-        let accel = accel.as_deref().map(&mut at);
-        let mag = mag.as_deref().map(&mut at);
-        let time = time.as_ref().map(|t| at(std::slice::from_ref(t)));
-        let stop = stop.as_ref().map(|s| at(std::slice::from_ref(s)));
+        let accel = p.accel_columns.as_deref().map(&mut at);
+        let mag = p.mag_columns.as_deref().map(&mut at);
+        let mut one = |name: &Option<String>| name.as_ref().map(|c| at(std::slice::from_ref(c)));
+        let time = one(&p.time_column);
+        let stop = one(&p.stop_column);
+        let yaw = one(&p.yaw_rate_column);
+        let yaw_sd = one(&p.yaw_rate_std_column);
         Layout {
             wanted,
             accel,
             mag,
             time,
             stop,
+            yaw,
+            yaw_sd,
         }
     }
 
-    /// Whether selected column `k` is read beside the rates (the accelerometer, the
-    /// magnetometer, the stop): a bad cell there leaves the row's rates good.
-    fn beside_rates(&self, k: usize) -> bool {
-        let within = |first: Option<usize>| first.is_some_and(|a| (a..a + 3).contains(&k));
-        within(self.accel) || within(self.mag) || self.stop == Some(k)
+    /// The columns whose empty or NaN cell is unknown, not bad: the stop, the yaw rate, its sd.
+    fn sparse(&self) -> impl Iterator<Item = usize> {
+        [self.stop, self.yaw, self.yaw_sd].into_iter().flatten()
     }
 
-    /// The rows of `file` in this layout: a NaN in the stop column is unknown, not a bad cell.
+    /// Whether selected column `k` is read beside the rates (the accelerometer, the
+    /// magnetometer, the stop, the yaw rate): a bad cell there leaves the row's rates good.
+    fn beside_rates(&self, k: usize) -> bool {
+        let within = |first: Option<usize>| first.is_some_and(|a| (a..a + 3).contains(&k));
+        within(self.accel) || within(self.mag) || self.sparse().any(|s| s == k)
+    }
+
+    /// The rows of `file` in this layout: an empty or NaN cell in a sparse column is unknown,
+    /// not a bad cell.
     fn open(&self, file: &std::path::Path) -> Result<RowReader, InputError> {
-        let rows = RowReader::open(file, &self.wanted)?;
-        Ok(match self.stop {
-            Some(k) => rows.nan_unknown(k),
-            None => rows,
-        })
+        Ok(self
+            .sparse()
+            .fold(RowReader::open(file, &self.wanted)?, RowReader::nan_unknown))
+    }
+
+    /// The odometry message logged on a row of `values` stamped `t_ns` (the samples' clock), if
+    /// its yaw rate cell holds one; `rad_per_unit` converts from the input units.
+    fn motion(&self, values: &[f64], t_ns: u64, rad_per_unit: f64) -> Option<StopSignal> {
+        let yaw = values[self.yaw?];
+        if !yaw.is_finite() {
+            return None;
+        }
+        let mut s = StopSignal::new(t_ns, f64::NAN, u32::MAX);
+        s.clock = STOP_CLOCK_SAMPLES;
+        s.yaw_rate_rad_s = yaw * rad_per_unit;
+        s.yaw_rate_std_rad_s = self
+            .yaw_sd
+            .map(|k| values[k])
+            .filter(|sd| *sd > 0.0 && sd.is_finite())
+            .map_or(f64::NAN, |sd| sd * rad_per_unit);
+        Some(s)
     }
 }
 
@@ -521,13 +624,7 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     let period_ns = (1e9 / rate_hz).round() as u64;
     let axes = params.columns.len().min(3);
     let mag_to_t = params.mag_units.to_tesla();
-    let layout = Layout::of(
-        &params.columns,
-        &params.accel_columns,
-        &params.mag_columns,
-        &params.time_column,
-        &params.stop_column,
-    );
+    let layout = Layout::of(params);
     let wanted = &layout.wanted;
     let mut values = vec![0.0; wanted.len()];
     let (mut seq, mut loop_offset_ns, mut bad, mut pass) = (0u64, 0u64, 0u64, 0u32);
@@ -560,7 +657,9 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                 None => i as f64 / rate_hz,
             };
             // A row whose bad cells are only beside the rates (the accelerometer, the
-            // magnetometer, the stop) keeps its rates: only what is unreadable is flagged.
+            // magnetometer, the stop, the odometry) keeps its rates: only what is unreadable
+            // is flagged.
+            let mut motion = None;
             let usable = match &read {
                 RowRead::Row => true,
                 RowRead::BadCells { bad, .. } => bad.iter().all(|&k| layout.beside_rates(k)),
@@ -575,8 +674,8 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                             beside_bad += 1;
                             if beside_bad <= REPORTED_BAD_ROWS {
                                 eprintln!(
-                                    "driftless: warning: {error} (the rates kept; the \
-                                     unreadable cells flagged)"
+                                    "driftless: warning: {error} (the rates kept; an \
+                                     unreadable reading flagged, an odometry cell no message)"
                                 );
                             }
                         }
@@ -586,6 +685,8 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
                     } else {
                         (i as f64 * 1e9 / rate_hz).round() as u64
                     };
+                    motion =
+                        layout.motion(&values, sample.t_ns + loop_offset_ns, params.rad_per_unit);
                 }
                 // Not dropped: the sample is replayed marked invalid (the guard holds the last
                 // good rate, flags and counts it), its time held, its position on stderr.
@@ -602,6 +703,9 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
             sample.t_ns += loop_offset_ns;
             i += 1;
             seq += 1;
+            if let Some(m) = motion {
+                sink.push_motion(m);
+            }
             if !sink.push(sample) {
                 return;
             }
@@ -619,7 +723,7 @@ fn read_rows(params: &CsvParams, rate_hz: f64, sink: &mut BlockSink) {
     if beside_bad > 0 {
         eprintln!(
             "driftless: warning: {shown}: {beside_bad} row(s) with an unreadable accelerometer, \
-             magnetometer or stop cell: rates kept, the cell flagged"
+             magnetometer, stop or odometry cell: rates kept, each such cell flagged or no message"
         );
     }
 }
@@ -781,5 +885,108 @@ mod tests {
         let early = csv.replacen(",-40.25\n", ",nan\n", 3);
         let e = refused(&early, "mag_columns = [\"mx\", \"my\", \"mz\"]");
         assert!(e.contains("column 'mz'"), "{e}");
+    }
+
+    /// The odometry's yaw rate on row `i` (deg/s), logged on even rows only.
+    fn wz(i: usize) -> f64 {
+        5.0 + (i % 11) as f64 * 0.25
+    }
+
+    #[test]
+    fn a_logged_yaw_rate_is_handed_out_after_its_rows_sample_in_rad_s() {
+        // Odd rows: no message (empty, or `nan` on row 3); an unreadable cell past the checked
+        // rows: the rates kept, no message.
+        let mut csv = String::from("x,y,z,wz,wz_sd\n");
+        for i in 0..ROWS {
+            let (w, sd) = match i {
+                3 => ("nan".into(), "nan".into()),
+                BAD => ("fast".into(), "0.2".into()),
+                _ if i % 2 == 1 => (String::new(), String::new()),
+                _ => (
+                    wz(i).to_string(),
+                    if i % 4 == 0 { "0.2" } else { "0" }.into(),
+                ),
+            };
+            csv += &format!("{i},0,0,{w},{sd}\n");
+        }
+        let keys = "yaw_rate_column = \"wz\"\nyaw_rate_std_column = \"wz_sd\"\n\
+                    motion_output = \"vehicle/stop\"";
+        let (_dir, params) = parse_csv(&csv, keys);
+        let params = params.unwrap();
+        assert_eq!(params.motion_output(), Some("vehicle/stop"));
+        let cx = Context {
+            rate_hz: 100.0,
+            axes: 3,
+            units: RateUnit::DegPerS,
+            accel_units: AccelUnit::MPerS2,
+            white_noise: None,
+        };
+        let mut source = params.local_source(&cx).unwrap();
+        let (stop, mut samples, mut motion) = (AtomicBool::new(false), Vec::new(), Vec::new());
+        loop {
+            match source.poll(&stop) {
+                Poll::Sample(s, ..) => {
+                    samples.push(s);
+                    // Asked after every sample, as the runtime does.
+                    while let Some(m) = source.logged_motion() {
+                        motion.push((samples.len() - 1, m));
+                    }
+                }
+                Poll::Idle => {}
+                Poll::End => break,
+            }
+        }
+        assert_eq!(samples.len(), ROWS);
+        for (i, s) in samples.iter().enumerate() {
+            assert_eq!((s.rate[0], s.flags), (i as f64, 0), "row {i}");
+        }
+        let rows: Vec<usize> = motion.iter().map(|(row, _)| *row).collect();
+        assert_eq!(rows, (0..ROWS).step_by(2).collect::<Vec<_>>());
+        for (row, m) in motion {
+            assert_eq!((m.t_ns, m.clock), (samples[row].t_ns, STOP_CLOCK_SAMPLES));
+            assert!(
+                (m.yaw_rate_rad_s - wz(row).to_radians()).abs() < 1e-15,
+                "row {row}"
+            );
+            let sd = m.yaw_rate_std_rad_s;
+            match row % 4 {
+                0 => assert!((sd - 0.2f64.to_radians()).abs() < 1e-15, "row {row}: {sd}"),
+                _ => assert!(sd.is_nan(), "row {row}: a sd of 0 says nothing, got {sd}"),
+            }
+            assert!(m.speed_m_s.is_nan() && m.stopped == u32::MAX);
+        }
+    }
+
+    #[test]
+    fn the_yaw_rate_keys_come_together() {
+        let csv = "x,y,z,wz,sd\n1,2,3,4,0.1\n";
+        for (keys, want) in [
+            (
+                "motion_output = \"vehicle/stop\"",
+                "motion_output needs a yaw_rate_column",
+            ),
+            (
+                "yaw_rate_column = \"wz\"",
+                "yaw_rate_column needs a motion_output",
+            ),
+            (
+                "yaw_rate_std_column = \"sd\"",
+                "yaw_rate_std_column needs a yaw_rate_column",
+            ),
+            (
+                "yaw_rate_column = \"yaw\"\nmotion_output = \"vehicle/stop\"",
+                "no column named 'yaw'",
+            ),
+        ] {
+            let (_dir, params) = parse_csv(csv, keys);
+            let e = params.err().map(|e| e.to_string()).unwrap_or_default();
+            assert!(e.contains(want), "{keys}: {e}");
+        }
+        let (_dir, params) = parse_csv(csv, "yaw_rate_column = \"wz\"\nmotion_output = \"v/s\"");
+        let lines = params.unwrap().describe(None, "c/raw");
+        assert_eq!(
+            lines,
+            ["motion out: v/s (StopSignal on the samples' clock: the yaw rate of wz)"]
+        );
     }
 }

@@ -4,7 +4,9 @@
 //! sample and memory stays bounded whatever the file's length; the hot thread paces the samples
 //! by their timestamps (`realtime`), a factor faster (`pace = 10.0`), or not at all (`asap`).
 //! The pace changes when a sample is taken, never what it is: every pace publishes the same
-//! samples, bit for bit.
+//! samples, bit for bit. A block also carries the motion logged beside its rows (a CSV's yaw
+//! rate column), each message handed out after the sample of its row
+//! ([`Source::logged_motion`]).
 
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
@@ -15,7 +17,7 @@ use crate::clock::{Pace, PaceClock};
 use crate::io::InputError;
 use crate::stages::contract::{Poll, Source};
 use crate::stages::schema::{DefaultValue, Key, Table, Type, WordOr};
-use crate::wire::RawSample;
+use crate::wire::{RawSample, StopSignal};
 
 /// Samples per block the reader thread hands to the hot thread.
 const BLOCK_ROWS: usize = 4096;
@@ -90,31 +92,56 @@ impl Replay {
     }
 }
 
+/// A block of samples and the motion logged beside them: each message with the index of the
+/// sample of its row.
+#[derive(Default)]
+struct Block {
+    samples: Vec<RawSample>,
+    motion: Vec<(usize, StopSignal)>,
+}
+
+impl Block {
+    fn with_capacity() -> Block {
+        Block {
+            samples: Vec::with_capacity(BLOCK_ROWS),
+            motion: Vec::new(),
+        }
+    }
+}
+
 /// The reader thread's end of a replay: samples go in, full blocks go to the hot thread.
 pub struct BlockSink {
-    tx: Sender<Vec<RawSample>>,
-    spare: Receiver<Vec<RawSample>>,
-    block: Vec<RawSample>,
+    tx: Sender<Block>,
+    spare: Receiver<Block>,
+    block: Block,
 }
 
 impl BlockSink {
     /// Queue one sample; false when the replay is gone (stop reading).
     pub fn push(&mut self, sample: RawSample) -> bool {
-        self.block.push(sample);
-        self.block.len() < BLOCK_ROWS || self.send()
+        self.block.samples.push(sample);
+        self.block.samples.len() < BLOCK_ROWS || self.send()
+    }
+
+    /// Queue a motion message logged on the row of the next sample pushed: the hot thread hands
+    /// it out once it has taken that sample.
+    pub fn push_motion(&mut self, signal: StopSignal) {
+        let row = self.block.samples.len();
+        self.block.motion.push((row, signal));
     }
 
     /// Hand the filled block to the hot thread and take an empty one; false when the replay is
     /// gone.
     fn send(&mut self) -> bool {
-        if self.block.is_empty() {
+        if self.block.samples.is_empty() {
             return true;
         }
         let mut next = self
             .spare
             .try_recv()
-            .unwrap_or_else(|_| Vec::with_capacity(BLOCK_ROWS));
-        next.clear();
+            .unwrap_or_else(|_| Block::with_capacity());
+        next.samples.clear();
+        next.motion.clear();
         self.tx
             .send(std::mem::replace(&mut self.block, next))
             .is_ok()
@@ -130,10 +157,12 @@ impl Drop for BlockSink {
 
 /// The hot thread's end of a replay: a [`Source`] over the reader thread's blocks.
 pub struct BlockReplay {
-    blocks: Receiver<Vec<RawSample>>,
-    spent: Sender<Vec<RawSample>>,
-    block: Vec<RawSample>,
+    blocks: Receiver<Block>,
+    spent: Sender<Block>,
+    block: Block,
     next: usize,
+    /// The block's next motion message to hand out.
+    next_motion: usize,
     pace: Pace,
     start: Option<(PaceClock, u64)>,
     /// The clock to start from at the first sample (a shared hot thread's), or none: now.
@@ -163,7 +192,7 @@ impl BlockReplay {
                 let mut sink = BlockSink {
                     tx,
                     spare,
-                    block: Vec::with_capacity(BLOCK_ROWS),
+                    block: Block::with_capacity(),
                 };
                 read(&mut sink);
             })
@@ -171,8 +200,9 @@ impl BlockReplay {
         Ok(BlockReplay {
             blocks,
             spent,
-            block: Vec::new(),
+            block: Block::default(),
             next: 0,
+            next_motion: 0,
             pace: replay.pace,
             start: None,
             shared: None,
@@ -195,12 +225,12 @@ impl Source for BlockReplay {
             }
             self.delay = Duration::ZERO;
         }
-        if self.next == self.block.len() {
+        if self.next == self.block.samples.len() {
             let spent = std::mem::take(&mut self.block);
-            if spent.capacity() > 0 {
+            if spent.samples.capacity() > 0 {
                 let _ = self.spent.try_send(spent);
             }
-            self.next = 0;
+            (self.next, self.next_motion) = (0, 0);
             // Normally a block is waiting; flat out the reader may be behind for a moment.
             self.block = match self.blocks.try_recv() {
                 Ok(b) => b,
@@ -213,11 +243,11 @@ impl Source for BlockReplay {
                     }
                 }
             };
-            if self.block.is_empty() {
+            if self.block.samples.is_empty() {
                 return Poll::Idle;
             }
         }
-        let sample = self.block[self.next];
+        let sample = self.block.samples[self.next];
         let first_t = self.start.map_or(sample.t_ns, |(_, t)| t);
         let due_ns = match self.pace.due_after(sample.t_ns.saturating_sub(first_t)) {
             None => None,
@@ -247,7 +277,7 @@ impl Source for BlockReplay {
     fn next_due(&self) -> Option<std::time::Instant> {
         // Unknown at a block's end: the next block may not have come yet.
         let (clock, first_t) = self.start?;
-        let t_ns = self.block.get(self.next)?.t_ns;
+        let t_ns = self.block.samples.get(self.next)?.t_ns;
         Some(clock.at(self.pace.due_after(t_ns.saturating_sub(first_t))?))
     }
 
@@ -256,6 +286,15 @@ impl Source for BlockReplay {
             Some((start, _)) => *start = clock,
             None => self.shared = Some(clock),
         }
+    }
+
+    fn logged_motion(&mut self) -> Option<StopSignal> {
+        // Its row's sample was taken: the poll that took it advanced `next` past it.
+        let &(row, signal) = self.block.motion.get(self.next_motion)?;
+        (row < self.next).then(|| {
+            self.next_motion += 1;
+            signal
+        })
     }
 }
 
@@ -330,5 +369,61 @@ mod tests {
         let mut r = replay(40, Pace::Asap);
         assert!(drain(&mut r).iter().all(|(_, _, late)| late.is_none()));
         assert_eq!(r.next_due(), None);
+    }
+
+    #[test]
+    fn logged_motion_follows_its_rows_sample_across_blocks() {
+        let replay = Replay {
+            pace: Pace::Asap,
+            looped: false,
+            start_delay: Duration::ZERO,
+        };
+        // Three blocks and a part; a message before every third sample, two on the last row
+        // of the first block.
+        let n = 3 * BLOCK_ROWS as u64 + 7;
+        let mut r = BlockReplay::spawn("replay-test", replay, move |sink| {
+            for k in 0..n {
+                let extra = u64::from(k == BLOCK_ROWS as u64 - 1);
+                for m in 0..=extra {
+                    if k % 3 == 0 || extra == 1 {
+                        sink.push_motion(StopSignal::new(k, m as f64, 0));
+                    }
+                }
+                if !sink.push(RawSample {
+                    t_ns: k,
+                    seq: k,
+                    ..RawSample::default()
+                }) {
+                    return;
+                }
+            }
+        })
+        .unwrap();
+        let stop = AtomicBool::new(false);
+        let (mut taken, mut handed) = (Vec::new(), Vec::new());
+        assert_eq!(r.logged_motion(), None, "nothing before the first sample");
+        loop {
+            match r.poll(&stop) {
+                Poll::Sample(s, ..) => {
+                    taken.push(s.seq);
+                    while let Some(m) = r.logged_motion() {
+                        handed.push((s.seq, m.t_ns, m.speed_m_s));
+                    }
+                }
+                Poll::Idle => {}
+                Poll::End => break,
+            }
+        }
+        assert_eq!(taken, (0..n).collect::<Vec<_>>());
+        let mut want = Vec::new();
+        for k in 0..n {
+            if k % 3 == 0 || k == BLOCK_ROWS as u64 - 1 {
+                want.push((k, k, 0.0));
+            }
+            if k == BLOCK_ROWS as u64 - 1 {
+                want.push((k, k, 1.0));
+            }
+        }
+        assert_eq!(handed, want);
     }
 }
