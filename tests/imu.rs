@@ -148,7 +148,8 @@ fn the_accelerometer_rides_beside_the_corrected_rate_sample_for_sample() {
     for want in [
         format!(":{}:", BAD_ROW + 2),
         "column 'az': NaN is not a finite sample".to_string(),
-        "1 row(s) with an unreadable accelerometer, magnetometer, stop or odometry cell".to_string(),
+        "1 row(s) with an unreadable accelerometer, magnetometer, stop or odometry cell"
+            .to_string(),
     ] {
         assert!(err.contains(&want), "{want} in {err}");
     }
@@ -194,7 +195,8 @@ fn the_magnetometer_arrives_in_tesla_and_a_bad_cell_is_held_and_flagged() {
     for want in [
         format!(":{}:", BAD_MAG_ROW + 2),
         "column 'my': '' is not a number".to_string(),
-        "2 row(s) with an unreadable accelerometer, magnetometer, stop or odometry cell".to_string(),
+        "2 row(s) with an unreadable accelerometer, magnetometer, stop or odometry cell"
+            .to_string(),
     ] {
         assert!(err.contains(&want), "{want} in {err}");
     }

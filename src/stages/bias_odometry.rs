@@ -1,8 +1,13 @@
 //! `predict.bias`'s odometry: the vehicle's yaw rate on its `stop_input` as a measurement of
 //! the up axis's bias while the vehicle drives ([`crate::drift::bias::OdometryAid`], the
-//! maths), which gyro axis is up (`vehicle_up`: configured, or from gravity at the first
-//! rest, and checked by both gravity and the turns), the clock its messages are on, and what
-//! it says of itself (the run's summary, the stats service).
+//! maths), which gyro axis is up (`vehicle_up`, or `mount`'s rotation, or from gravity at the
+//! first rest, and checked by both gravity and the turns), the clock its messages are on, and
+//! what it says of itself (the run's summary, the stats service).
+//!
+//! The up axis reads `c` times the vehicle's yaw rate: its sign for an axis named, the up's
+//! component along it for a mount rotation or gravity (the cosine of its tilt, signed). The
+//! aid works on the axis's rate divided by `c` (the vehicle's yaw rate plus the bias over
+//! `c`), and what it measures goes back to the axis times `c`.
 
 use crate::drift::bias::{
     BiasTracker, GravityUp, Mounting, OdometryAid, OdometryAidConfig, OdometrySample,
@@ -13,7 +18,7 @@ use crate::wire::{
     MOUNTING_WRONG_SIGN, STOP_CLOCK_MONOTONIC, STOP_CLOCK_SAMPLES, UP_AXES, UP_GRAVITY_PENDING,
 };
 
-/// `vehicle_up`: how the vehicle's up is known.
+/// `vehicle_up` or `mount`: how the vehicle's up is known.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum VehicleUp {
     /// Gyro axis `axis` (0, 1, 2) points up, with `sign` (+1 or -1).
@@ -23,21 +28,59 @@ pub enum VehicleUp {
         /// +1 or -1.
         sign: f64,
     },
+    /// A mount rotation (`mount`, [`crate::drift::bias::up_from_mount`]): gyro axis `axis`
+    /// reads `c` times the vehicle's yaw rate.
+    Mount {
+        /// The axis nearest the vehicle's up.
+        axis: usize,
+        /// The up's component along it: signed, at least cos 30 deg in size.
+        c: f64,
+    },
     /// From the accelerometer at the first rest (`"gravity"`).
     Gravity,
 }
 
-/// The word of `vehicle_up` for an axis and a sign.
+impl VehicleUp {
+    /// The configured axis and its share `c` of the yaw rate; none for gravity.
+    pub fn axis(self) -> Option<(usize, f64)> {
+        match self {
+            VehicleUp::Axis { axis, sign } => Some((axis, sign)),
+            VehicleUp::Mount { axis, c } => Some((axis, c)),
+            VehicleUp::Gravity => None,
+        }
+    }
+
+    /// The words of it, as the summary and the messages give them: `vehicle_up = "-z"`, or
+    /// the mount's axis and tilt.
+    pub fn describe(self) -> String {
+        match self {
+            VehicleUp::Axis { axis, sign } => format!("vehicle_up = \"{}\"", up_word(axis, sign)),
+            VehicleUp::Mount { axis, c } => format!(
+                "mount (its up along the gyro's {}, {:.1} deg from it)",
+                up_word(axis, c),
+                tilt_deg(c)
+            ),
+            VehicleUp::Gravity => "vehicle_up = \"gravity\"".into(),
+        }
+    }
+}
+
+/// The tilt of an axis whose share of the yaw rate is `c`, deg.
+fn tilt_deg(c: f64) -> f64 {
+    c.abs().min(1.0).acos().to_degrees()
+}
+
+/// The word of `vehicle_up` for an axis and a sign (or a share, by its sign).
 pub(crate) fn up_word(axis: usize, sign: f64) -> &'static str {
     UP_AXES[OdometryStats::up_code(axis, sign) as usize]
 }
 
 /// The vehicle's yaw rate as a measurement of the up axis's bias while it moves.
 pub(crate) struct Odometry {
-    /// The gyro axis that is the vehicle's up, and its sign; `None` while gravity has not
-    /// told it yet (`vehicle_up = "gravity"`).
+    /// The gyro axis that is the vehicle's up, and its share `c` of the yaw rate; `None`
+    /// while gravity has not told it yet (`vehicle_up = "gravity"`).
     pub(crate) up: Option<(usize, f64)>,
-    /// How `vehicle_up` was set.
+    /// How the up was set.
     configured: VehicleUp,
     /// The up axis from the accelerometer at the first rest: it checks a configured axis, or
     /// (`"gravity"`) names it.
@@ -66,11 +109,9 @@ impl Odometry {
         r_axes: [f64; 3],
         rate_hz: f64,
     ) -> Result<Odometry, String> {
-        let up = match configured {
-            VehicleUp::Axis { axis, sign } => Some((axis, sign)),
-            VehicleUp::Gravity => None,
-        };
-        let r = r_axes[up.map_or(2, |(axis, _)| axis)];
+        let up = configured.axis();
+        // The aid reads the axis divided by c: its noise grows by 1/c^2.
+        let r = up.map_or(r_axes[2], |(axis, c)| r_axes[axis] / (c * c));
         Ok(Odometry {
             up,
             configured,
@@ -94,23 +135,24 @@ impl Odometry {
         let Some(g) = self.gravity.push(f) else {
             return;
         };
-        let said = match (self.configured, g) {
+        let said = match (self.configured.axis(), g) {
             (
-                VehicleUp::Gravity,
+                None,
                 GravityUp::Axis {
                     axis,
                     sign,
                     tilt_deg,
                 },
             ) => {
-                // The aid weighs the gyro axis it now reads.
+                // The up's share along the axis; the aid weighs the gyro axis it now reads.
+                let c = sign * tilt_deg.to_radians().cos();
                 if let Ok(aid) = OdometryAid::new(
                     OdometryAidConfig::default(),
-                    self.r_axes[axis],
+                    self.r_axes[axis] / (c * c),
                     self.rate_hz,
                 ) {
                     self.aid = aid;
-                    self.up = Some((axis, sign));
+                    self.up = Some((axis, c));
                 }
                 format!(
                     "vehicle_up from gravity: the gyro's {} points up ({tilt_deg:.1} deg from the \
@@ -118,22 +160,20 @@ impl Odometry {
                     up_word(axis, sign)
                 )
             }
-            (VehicleUp::Gravity, GravityUp::Tilted { tilt_deg }) => {
+            (None, GravityUp::Tilted { tilt_deg }) => {
                 self.gravity_refused = true;
                 format!(
                     "error: vehicle_up = \"gravity\", but no gyro axis is within \
                      {UP_MAX_TILT_DEG} deg of the vertical (the nearest leans {tilt_deg:.0} deg): \
-                     the yaw rate is refused. Mount the IMU with an axis vertical and set \
-                     vehicle_up to it"
+                     the yaw rate is refused. Give the mount rotation (mount), or mount the IMU \
+                     with an axis vertical and set vehicle_up to it"
                 )
             }
-            (VehicleUp::Axis { axis, sign }, GravityUp::Axis { .. })
-                if g.axis() == Some((axis, sign)) =>
-            {
+            (Some((axis, c)), GravityUp::Axis { .. }) if g.axis() == Some((axis, c.signum())) => {
                 return
             }
             (
-                VehicleUp::Axis { axis, sign },
+                Some(_),
                 GravityUp::Axis {
                     axis: ga,
                     sign: gs,
@@ -144,16 +184,15 @@ impl Odometry {
                 let up = up_word(ga, gs);
                 format!(
                     "error: gravity says the gyro's {up} points up ({tilt_deg:.1} deg from the \
-                     vertical, the accelerometer at rest), but vehicle_up = \"{}\": the yaw rate \
-                     is refused from now on. Set vehicle_up = \"{up}\" (or \"gravity\")",
-                    up_word(axis, sign)
+                     vertical, the accelerometer at rest), but {}: the yaw rate is refused from \
+                     now on. Set vehicle_up = \"{up}\" (or \"gravity\")",
+                    self.configured.describe()
                 )
             }
-            (VehicleUp::Axis { axis, sign }, GravityUp::Tilted { tilt_deg }) => format!(
+            (Some(_), GravityUp::Tilted { tilt_deg }) => format!(
                 "warning: no gyro axis is within {UP_MAX_TILT_DEG} deg of the vertical (the \
-                 nearest leans {tilt_deg:.0} deg): gravity cannot check vehicle_up = \"{}\"; \
-                 the turns will",
-                up_word(axis, sign)
+                 nearest leans {tilt_deg:.0} deg): gravity cannot check {}; the turns will",
+                self.configured.describe()
             ),
         };
         eprintln!("driftless: predict.bias: {said}");
@@ -171,7 +210,7 @@ impl Odometry {
         (ingest_ns, t_ns): (u64, u64),
         message: Option<&StopSignal>,
     ) {
-        let Some((_, sign)) = self.up.filter(|_| !self.gravity_refused) else {
+        let Some((_, c)) = self.up.filter(|_| !self.gravity_refused) else {
             return;
         };
         if let Some(m) = message.filter(|m| m.clock != self.clock) {
@@ -184,7 +223,7 @@ impl Odometry {
         } else {
             ingest_ns
         };
-        self.aid.push_gyro(now_ns as f64 * 1e-9, sign * x);
+        self.aid.push_gyro(now_ns as f64 * 1e-9, x / c);
         let moving = !tracker.is_still();
         if !moving {
             self.aid.stop();
@@ -210,11 +249,11 @@ impl Odometry {
             yaw_rate_sd: m.yaw_rate_std_rad_s.to_degrees(),
         };
         let f = tracker.filter();
-        let (estimate, variance) = (sign * f.estimate(), f.variance());
+        let (estimate, variance) = (f.estimate() / c, f.variance() / (c * c));
         let judged = self.aid.mounting() != Mounting::Unknown;
         if let Some(z) = self.aid.push_odometry(sample, estimate, variance) {
             let before = tracker.filter().estimate();
-            if tracker.update_in_motion(sign * z.z, z.r) {
+            if tracker.update_in_motion(c * z.z, c * c * z.r) {
                 self.learnt += 1;
                 self.bias_learnt += tracker.filter().estimate() - before;
             }
@@ -255,15 +294,22 @@ impl Odometry {
         }
     }
 
-    /// The `vehicle_up` words: the axis, or gravity's (and whether told yet).
+    /// The up's words: the axis, the mount's, or gravity's (and whether told yet).
     fn up_text(&self) -> String {
         match (self.configured, self.up) {
-            (VehicleUp::Axis { axis, sign }, _) => up_word(axis, sign).to_string(),
-            (VehicleUp::Gravity, Some((axis, sign))) => {
-                format!("{} from gravity", up_word(axis, sign))
-            }
+            (VehicleUp::Axis { axis, sign }, _) => format!("vehicle_up = {}", up_word(axis, sign)),
+            (VehicleUp::Mount { axis, c }, _) => format!(
+                "{} from mount, {:.1} deg from it",
+                up_word(axis, c),
+                tilt_deg(c)
+            ),
+            (VehicleUp::Gravity, Some((axis, c))) => format!(
+                "vehicle_up = {} from gravity, {:.1} deg from it",
+                up_word(axis, c),
+                tilt_deg(c)
+            ),
             (VehicleUp::Gravity, None) => {
-                "gravity, not told (no rest with the accelerometer)".into()
+                "vehicle_up = gravity, not told (no rest with the accelerometer)".into()
             }
         }
     }
@@ -328,7 +374,7 @@ impl Odometry {
             }
         };
         format!(
-            "odometry (vehicle_up = {}, {mounting}, {}): {} spans accepted ({} taught the \
+            "odometry ({}, {mounting}, {}): {} spans accepted ({} taught the \
              filter), {} rejected in {} slips (longest {} spans), {} messages unmatched; \
              odometry scale {:+.2} % +- {:.2} %",
             self.up_text(),
@@ -352,25 +398,26 @@ mod tests {
     /// A vehicle driving at 200 Hz with the gyro's up its -z (bias 0.5 deg/s), its odometry
     /// at 50 Hz without a period (taken from the stamps); `stands`: it stands still, and says so.
     fn drive(stands: bool) -> (BiasTracker, Odometry) {
+        let minus_z = VehicleUp::Axis {
+            axis: 2,
+            sign: -1.0,
+        };
+        drive_mounted(stands, minus_z, -1.0)
+    }
+
+    /// [`drive`], the gyro's z reading `c` times the yaw rate, the odometry told `up`.
+    fn drive_mounted(stands: bool, up: VehicleUp, c: f64) -> (BiasTracker, Odometry) {
         let rate = 200.0;
         let mut tracker = BiasTracker::for_profile("adis16405", rate).unwrap();
         let r_gyro = tracker.filter().model().measurement_variance();
-        let mut odo = Odometry::new(
-            VehicleUp::Axis {
-                axis: 2,
-                sign: -1.0,
-            },
-            [r_gyro; 3],
-            rate,
-        )
-        .unwrap();
+        let mut odo = Odometry::new(up, [r_gyro; 3], rate).unwrap();
         for i in 0..2000u64 {
             let turn = if stands {
                 0.0
             } else {
                 [0.0, 12.0, -6.0][(i / 300 % 3) as usize]
             };
-            let x = 0.5 - turn + 0.2 * ((i * 7919 % 101) as f64 / 101.0 - 0.5);
+            let x = 0.5 + c * turn + 0.2 * ((i * 7919 % 101) as f64 / 101.0 - 0.5);
             let t_ns = 1_000_000_000 + i * 5_000_000;
             tracker.push_signal_with(x, Some(stands), crate::drift::stillness::Aid::Unknown);
             let mut m = StopSignal::new(t_ns, 2.0, u32::from(stands));
@@ -395,6 +442,32 @@ mod tests {
         assert_eq!(odo.aid.diagnostics().accepted, 0);
     }
 
+    /// Tilted 25 deg, upside down: the mount's share of the yaw rate on -z teaches the bias in
+    /// turns and straights alike. Told only the axis, the turns' missing 9 % looks like slip:
+    /// they are rejected, and only the straights teach.
+    #[test]
+    fn a_mounts_share_of_the_yaw_rate_teaches_a_tilted_axis_in_turns_too() {
+        let c = -(25f64.to_radians().cos());
+        let (tracker, odo) = drive_mounted(false, VehicleUp::Mount { axis: 2, c }, c);
+        let b = tracker.filter().estimate();
+        let d = odo.aid.diagnostics();
+        assert!((b - 0.5).abs() < 0.05, "bias {b}: {}", odo.learnt());
+        assert!(d.accepted > 15 && d.rejected == 0, "{}", odo.learnt());
+        assert!(d.scale.abs() < 0.005, "{}", odo.learnt());
+        assert!(
+            odo.learnt().contains("-z from mount, 25.0 deg from it"),
+            "{}",
+            odo.learnt()
+        );
+        let minus_z = VehicleUp::Axis {
+            axis: 2,
+            sign: -1.0,
+        };
+        let (_, odo) = drive_mounted(false, minus_z, c);
+        let d = odo.aid.diagnostics();
+        assert!(d.rejected > d.accepted, "{}", odo.learnt());
+    }
+
     #[test]
     fn gravity_names_checks_or_cannot_check_the_up_axis() {
         let at_rest = |up: VehicleUp, f: [f64; 3]| {
@@ -412,7 +485,13 @@ mod tests {
         let tilted = [6.9, 0.0, 6.9];
         // Named: -z, and no longer pending in the stats.
         let o = at_rest(VehicleUp::Gravity, down);
-        assert_eq!((o.up, o.gravity_refused), (Some((2, -1.0)), false));
+        let (axis, c) = o.up.unwrap();
+        // The up's share along -z: the cosine of its 0.6 deg tilt.
+        assert_eq!((axis, o.gravity_refused), (2, false));
+        assert!(
+            (c + 9.8 / (0.01f64 + 9.8 * 9.8).sqrt()).abs() < 1e-12,
+            "{c}"
+        );
         assert_eq!(o.stats().up_name(), "-z");
         assert_eq!(
             Odometry::new(VehicleUp::Gravity, [1e-2; 3], 100.0)

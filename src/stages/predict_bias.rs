@@ -28,6 +28,7 @@
 use super::accel_terms::{self, ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
 use super::predict::motion_flags;
 use crate::drift::accel_rest::AccelRest;
+use crate::drift::bias::up_from_mount;
 use crate::drift::bias::{
     accel_rest_from_terms, default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms,
     BiasTracker, Instability, LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
@@ -134,6 +135,12 @@ const VEHICLE_UP: Key = Key {
     ),
     doc: "which gyro axis, and which way, is the vehicle's up: the yaw rate on stop_input (counter-clockwise seen from above positive) is that axis's rate times its sign. \"gravity\": the axis nearest the accelerometer's specific force over the first second at rest (within 30 deg), the yaw rate unused until then. A configured axis is checked against gravity at the first rest and by the first turns: either disagreeing refuses the yaw rate, said once with the fix",
 };
+const MOUNT: Key = Key {
+    name: "mount",
+    ty: Type::Str("a rotation as the Linux IIO mount matrix prints it: \"x0, y0, z0; x1, y1, z1; x2, y2, z2\""),
+    default: DefaultValue::Absent("none: vehicle_up says it"),
+    doc: "instead of vehicle_up: the rotation from the gyro's frame to the vehicle's (x forward, y left, z up), row by row. Its third row is the vehicle's up in the gyro's frame: the axis nearest it (within 30 deg) takes the yaw rate times the up's component along it. Checked against gravity at the first rest and by the first turns, as vehicle_up is",
+};
 const ODOMETRY: Key = Key {
     name: "odometry",
     ty: Type::Bool,
@@ -193,6 +200,7 @@ pub const KIND: Kind = Kind {
         STOP_MAX_AGE_S,
         STOP_SPEED_OF_SIGNAL,
         VEHICLE_UP,
+        MOUNT,
         ODOMETRY,
         STATE_FILE,
         STATE_EVERY_S,
@@ -240,7 +248,7 @@ pub struct StopConfig {
     pub service: String,
     /// How it is judged (`stop_speed`, `stop_max_age_s`).
     pub rule: StopRule,
-    /// `vehicle_up`: the gyro axis that is the vehicle's up, or gravity's.
+    /// `vehicle_up` or `mount`: the gyro axis that is the vehicle's up, or gravity's.
     pub up: Option<VehicleUp>,
     /// `odometry`: whether a yaw rate (with `vehicle_up`) teaches the bias while moving.
     pub odometry: bool,
@@ -339,34 +347,11 @@ fn stop(t: &mut Table<'_, '_>) -> Result<Option<StopConfig>, InputError> {
     let src = t.src;
     let input = t.get::<String>(&STOP_INPUT)?;
     let (rule, set) = StopRule::parse(t, &STOP_SPEED_OF_SIGNAL)?;
-    let up = t.choice(&VEHICLE_UP, "vehicle_up", true)?;
+    let word = t.choice(&VEHICLE_UP, "vehicle_up", true)?;
+    let mount = t.get::<String>(&MOUNT)?;
     let odometry_given = t.has(&ODOMETRY);
     let odometry = t.bool_or_default(&ODOMETRY)?;
-    let up = match up.as_deref() {
-        Some("gravity") => Some(VehicleUp::Gravity),
-        Some(word) => {
-            let axis = match &word[1..] {
-                "x" => 0,
-                "y" => 1,
-                _ => 2,
-            };
-            if axis >= t.cx.axes {
-                return Err(t.error(format!(
-                    "predict.bias: vehicle_up = \"{word}\" but the pipeline has {} axis(es): \
-                     name one of its axes",
-                    t.cx.axes
-                )));
-            }
-            let sign = if word.starts_with('-') { -1.0 } else { 1.0 };
-            Some(VehicleUp::Axis { axis, sign })
-        }
-        None => None,
-    };
-    if up == Some(VehicleUp::Gravity) && t.cx.axes < 3 {
-        return Err(t.error(
-            "predict.bias: vehicle_up = \"gravity\" needs 3 axes (the up axis is any of them)",
-        ));
-    }
+    let up = vehicle_up(t, word.as_deref(), mount.as_ref())?;
     Ok(match input {
         Some(v) => Some(StopConfig {
             service: src.service(&v)?,
@@ -376,7 +361,8 @@ fn stop(t: &mut Table<'_, '_>) -> Result<Option<StopConfig>, InputError> {
         }),
         None => {
             let needs = set
-                .or(up.map(|_| VEHICLE_UP.name))
+                .or(word.map(|_| VEHICLE_UP.name))
+                .or(mount.map(|_| MOUNT.name))
                 .or(odometry_given.then_some(ODOMETRY.name));
             match needs {
                 Some(key) => {
@@ -388,6 +374,78 @@ fn stop(t: &mut Table<'_, '_>) -> Result<Option<StopConfig>, InputError> {
             }
         }
     })
+}
+
+/// The vehicle's up from `vehicle_up`'s `word` or from `mount`, checked against the
+/// pipeline's axes.
+fn vehicle_up(
+    t: &Table<'_, '_>,
+    word: Option<&str>,
+    mount: Option<&toml::Spanned<String>>,
+) -> Result<Option<VehicleUp>, InputError> {
+    let axes = t.cx.axes;
+    let up =
+        match (word, mount) {
+            (Some(_), Some(m)) => {
+                return Err(t.src.span(
+                    m,
+                    "predict.bias: give vehicle_up or mount, not both (each says where the up is)",
+                ))
+            }
+            (Some("gravity"), None) if axes < 3 => return Err(t.error(
+                "predict.bias: vehicle_up = \"gravity\" needs 3 axes (the up axis is any of them)",
+            )),
+            (Some("gravity"), None) => VehicleUp::Gravity,
+            (Some(word), None) => {
+                let axis = match &word[1..] {
+                    "x" => 0,
+                    "y" => 1,
+                    _ => 2,
+                };
+                let sign = if word.starts_with('-') { -1.0 } else { 1.0 };
+                VehicleUp::Axis { axis, sign }
+            }
+            (None, Some(m)) => {
+                let (axis, c) = read_mount(m.get_ref()).map_err(|e| t.src.span(m, e))?;
+                VehicleUp::Mount { axis, c }
+            }
+            (None, None) => return Ok(None),
+        };
+    match up.axis() {
+        Some((axis, _)) if axis >= axes => Err(t.error(format!(
+            "predict.bias: {} but the pipeline has {axes} axis(es): name one of its axes",
+            up.describe(),
+        ))),
+        _ => Ok(Some(up)),
+    }
+}
+
+/// `mount`'s text, as the Linux IIO mount matrix prints it (`"x0, y0, z0; x1, y1, z1; x2, y2,
+/// z2"`), as the up axis and its share of the yaw rate ([`up_from_mount`]).
+fn read_mount(text: &str) -> Result<(usize, f64), String> {
+    let rows: Vec<&str> = text.split(';').collect();
+    let mut m = [[0.0; 3]; 3];
+    if rows.len() != 3 {
+        return Err(format!(
+            "mount: three rows separated by ';', got {}",
+            rows.len()
+        ));
+    }
+    for (row, text) in m.iter_mut().zip(rows) {
+        let cells: Vec<&str> = text.split(',').map(str::trim).collect();
+        if cells.len() != 3 {
+            return Err(format!(
+                "mount: each row three numbers separated by ',', got {:?}",
+                text.trim()
+            ));
+        }
+        for (v, cell) in row.iter_mut().zip(cells) {
+            *v = cell
+                .parse()
+                .map_err(|_| format!("mount: {cell:?} is not a number"))?;
+        }
+    }
+    up_from_mount(m).map_err(|e| format!("mount: {e}"))
 }
 
 fn parse(t: &mut Table<'_, '_>) -> Result<Box<dyn Params>, InputError> {
@@ -577,6 +635,11 @@ impl Params for BiasParams {
         .chain(self.stop.iter().filter_map(|s| {
             let up = match s.up? {
                 VehicleUp::Axis { axis, sign } => format!("the gyro's {}", up_word(axis, sign)),
+                VehicleUp::Mount { axis, c } => format!(
+                    "along the gyro's {} ({:.1} deg from it, by mount)",
+                    up_word(axis, c),
+                    c.abs().min(1.0).acos().to_degrees()
+                ),
                 VehicleUp::Gravity => {
                     "from gravity (the accelerometer over the first second at rest)".to_string()
                 }

@@ -501,6 +501,52 @@ impl GravityUp {
     }
 }
 
+/// The vehicle's up from a mount rotation, as the Linux IIO mount matrix gives it: `m` takes a
+/// vector from the gyro's frame into the vehicle's (REP 103: x forward, y left, z up), so its
+/// third row is the vehicle's up in the gyro's frame. Returns the gyro axis nearest the up and
+/// the up's component along it, `c` (signed, |c| = the cosine of their angle): a vehicle that
+/// only yaws turns that axis at `c` times its yaw rate. Refused: a matrix that is not a
+/// rotation (rows orthonormal to 0.01, determinant +1), or an up more than
+/// [`UP_MAX_TILT_DEG`] from every axis (its roll and pitch rates would leak into the axis).
+pub fn up_from_mount(m: [[f64; 3]; 3]) -> Result<(usize, f64), String> {
+    if m.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("the mount matrix holds a value that is not a finite number".into());
+    }
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| m[i][k] * m[j][k]).sum();
+            let want = if i == j { 1.0 } else { 0.0 };
+            if (dot - want).abs() > 0.01 {
+                return Err(format!(
+                    "the mount matrix is not a rotation: rows {} and {} have a dot product of \
+                     {dot:.3}, not {want}",
+                    i + 1,
+                    j + 1
+                ));
+            }
+        }
+    }
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if det < 0.0 {
+        return Err("the mount matrix is a mirror (determinant -1), not a rotation".into());
+    }
+    let up = m[2];
+    let axis = (0..3)
+        .max_by(|&a, &b| up[a].abs().total_cmp(&up[b].abs()))
+        .unwrap_or(2);
+    let tilt_deg = up[axis].abs().min(1.0).acos().to_degrees();
+    if tilt_deg > UP_MAX_TILT_DEG {
+        return Err(format!(
+            "the vehicle's up is {tilt_deg:.0} deg from the nearest gyro axis: \
+             beyond {UP_MAX_TILT_DEG} deg its roll and pitch rates leak into that axis, so the \
+             yaw rate cannot teach its bias"
+        ));
+    }
+    Ok((axis, up[axis]))
+}
+
 /// The vehicle's up from the accelerometer at rest: at rest the specific force points up (it
 /// is the reaction to gravity), so the body axis nearest to it, with its sign, is up. Judged
 /// once, from the mean over `need` readings taken at rest (the caller's stillness verdict).
@@ -835,6 +881,33 @@ mod tests {
         for sd in [0.0, -1.0, f64::INFINITY] {
             assert_eq!(first(sd), unsaid, "{sd}");
         }
+    }
+
+    #[test]
+    fn a_mount_rotation_gives_the_up_axis_and_its_share_or_is_refused() {
+        // The IIO documentation's example: x and y swapped, z down (a half turn).
+        let flipped = [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]];
+        assert_eq!(up_from_mount(flipped), Ok((2, -1.0)));
+        let mirror = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]];
+        assert!(up_from_mount(mirror).unwrap_err().contains("mirror"));
+        // Pitched 20 deg about y: the up leans toward x.
+        let (c, s) = (20f64.to_radians().cos(), 20f64.to_radians().sin());
+        let pitched = [[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]];
+        let (axis, share) = up_from_mount(pitched).unwrap();
+        assert_eq!(axis, 2);
+        assert!((share - c).abs() < 1e-12);
+        // The vehicle's x up (the sensor on its side), and 40 deg: refused.
+        assert_eq!(
+            up_from_mount([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+            Ok((0, 1.0))
+        );
+        let (c, s) = (40f64.to_radians().cos(), 40f64.to_radians().sin());
+        let e = up_from_mount([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]).unwrap_err();
+        assert!(e.contains("up is 40 deg from the nearest gyro axis"), "{e}");
+        let e = up_from_mount([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.5, 1.0]]).unwrap_err();
+        assert!(e.contains("not a rotation"), "{e}");
+        let e = up_from_mount([[f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        assert!(e.unwrap_err().contains("finite"));
     }
 
     #[test]
