@@ -220,6 +220,7 @@ pub fn evaluate_odometry(
     let mut tracker = BiasTracker::new(&setup.terms, rate, &cfg)?;
     let r_gyro = tracker.filter().model().measurement_variance();
     let mut aid = OdometryAid::new(*aid, r_gyro, rate).map_err(EvalError::Odometry)?;
+    tracker.add_scale(aid.scale_prior());
     let mut acc = HeadingAccumulator::new(1.0 / rate);
     let mut next = 0;
     for (k, ((&x, &t), &s)) in measured.iter().zip(truth).zip(still).enumerate() {
@@ -235,9 +236,9 @@ pub fn evaluate_odometry(
             if !moving {
                 continue;
             }
-            let f = tracker.filter();
-            if let Some(z) = aid.push_odometry(m.sample, f.estimate(), f.variance()) {
-                if tracker.update_in_motion(z.z, z.r) {
+            let now = tracker.filter().scaled_view();
+            if let Some(z) = aid.push_odometry(m.sample, now) {
+                if tracker.update_in_motion(z) {
                     bias = tracker.filter().estimate();
                 }
             }

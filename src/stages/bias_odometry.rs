@@ -10,7 +10,7 @@
 //! `c`), and what it measures goes back to the axis times `c`.
 
 use crate::drift::bias::{
-    BiasTracker, GravityUp, Mounting, OdometryAid, OdometryAidConfig, OdometrySample,
+    BiasTracker, GravityUp, Measurement, Mounting, OdometryAid, OdometryAidConfig, OdometrySample,
     UpFromGravity, UP_MAX_TILT_DEG,
 };
 use crate::wire::{
@@ -248,12 +248,18 @@ impl Odometry {
             yaw_rate: m.yaw_rate_rad_s.to_degrees(),
             yaw_rate_sd: m.yaw_rate_std_rad_s.to_degrees(),
         };
-        let f = tracker.filter();
-        let (estimate, variance) = (f.estimate() / c, f.variance() / (c * c));
+        tracker.add_scale(self.aid.scale_prior());
+        let now = tracker.filter().scaled_view().over(c);
         let judged = self.aid.mounting() != Mounting::Unknown;
-        if let Some(z) = self.aid.push_odometry(sample, estimate, variance) {
+        if let Some(z) = self.aid.push_odometry(sample, now) {
             let before = tracker.filter().estimate();
-            if tracker.update_in_motion(c * z.z, c * c * z.r) {
+            // Back on the gyro axis: y and w times c, r times c^2; the scale is the same.
+            let z = Measurement {
+                y: c * z.y,
+                w: c * z.w,
+                r: c * c * z.r,
+            };
+            if tracker.update_in_motion(z) {
                 self.learnt += 1;
                 self.bias_learnt += tracker.filter().estimate() - before;
             }

@@ -201,6 +201,60 @@ impl FilterSnapshot {
     }
 }
 
+/// The odometry's scale correction s as one more state of the filter ([`BiasFilter::add_scale`]):
+/// a span of the odometry measures y = b + s w (w its mean yaw rate), a stop b alone. Kept
+/// beside the bias's states, with its covariance with each of them: a stop that moves the bias
+/// moves the scale learnt in the turns before it by as much as they were correlated, and a
+/// turn's error of the scale is one error shared by every span, not white per span.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScaleState {
+    /// The estimate of s.
+    pub s: f64,
+    /// Its variance.
+    pub var: f64,
+    /// Its covariance with each bias state, deg/s.
+    pub cov: [f64; MAX_STATES],
+    /// Its random walk per sample (variance).
+    walk: f64,
+}
+
+/// What the filter predicts of an odometry span of mean rate w, and how sure it is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaledView {
+    /// The bias estimate, deg/s.
+    pub estimate: f64,
+    /// Its variance, (deg/s)^2.
+    pub variance: f64,
+    /// The scale's estimate (0 without a scale state).
+    pub scale: f64,
+    /// Its variance (0 without a scale state).
+    pub scale_var: f64,
+    /// The covariance of the bias with the scale, deg/s.
+    pub cov: f64,
+}
+
+impl ScaledView {
+    /// The bias and scale's prediction of y = b + s w, and its variance.
+    pub fn predict(&self, w: f64) -> (f64, f64) {
+        (
+            self.estimate + self.scale * w,
+            (self.variance + 2.0 * w * self.cov + w * w * self.scale_var).max(0.0),
+        )
+    }
+
+    /// The same view of a rate divided by `c` (the gyro axis reads `c` times the vehicle's
+    /// yaw rate: its sign, or the up's component along it): the bias over `c`, its variance
+    /// over `c^2`, its covariance with the scale over `c`; the scale is the same.
+    pub fn over(self, c: f64) -> ScaledView {
+        ScaledView {
+            estimate: self.estimate / c,
+            variance: self.variance / (c * c),
+            cov: self.cov / c,
+            ..self
+        }
+    }
+}
+
 /// The Kalman filter of a [`BiasModel`]: predict every sample, update with still samples.
 #[derive(Debug, Clone)]
 pub struct BiasFilter {
@@ -211,6 +265,7 @@ pub struct BiasFilter {
     p: Box<[[f64; MAX_STATES]; MAX_STATES]>,
     phi2: Box<[[f64; MAX_STATES]; MAX_STATES]>,
     updates: u64,
+    scale: Option<Box<ScaleState>>,
 }
 
 impl BiasFilter {
@@ -231,9 +286,79 @@ impl BiasFilter {
             p: Box::new([[0.0; MAX_STATES]; MAX_STATES]),
             phi2,
             updates: 0,
+            scale: None,
         };
         f.reset();
         f
+    }
+
+    /// Add the odometry's scale correction as a state ([`ScaleState`]): prior 0 with sd
+    /// `sd`, its random walk `walk` (variance per sample). Without it (or before the first
+    /// span) every result is the bias filter's alone: the state is not correlated with the
+    /// bias until a span correlates them. A second call changes nothing.
+    pub fn add_scale(&mut self, sd: f64, walk: f64) {
+        if self.scale.is_none() {
+            self.scale = Some(Box::new(ScaleState {
+                s: 0.0,
+                var: sd * sd,
+                cov: [0.0; MAX_STATES],
+                walk,
+            }));
+        }
+    }
+
+    /// The scale state, if added.
+    pub fn scale(&self) -> Option<&ScaleState> {
+        self.scale.as_deref()
+    }
+
+    /// The bias and the scale as an odometry span sees them.
+    pub fn scaled_view(&self) -> ScaledView {
+        let (scale, scale_var, cov) = self.scale.as_ref().map_or((0.0, 0.0, 0.0), |sc| {
+            let n = self.model.states;
+            (sc.s, sc.var, sc.cov[..n].iter().sum())
+        });
+        ScaledView {
+            estimate: self.estimate(),
+            variance: self.variance(),
+            scale,
+            scale_var,
+            cov,
+        }
+    }
+
+    /// Measurement update with an odometry span: y = b + s w of variance `r` (H = [1, ..., 1,
+    /// w] on the bias's states and the scale's). Without a scale state, y - w is taken as a
+    /// measurement of the bias. Like [`BiasFilter::update_with_variance`] it does not feed the
+    /// walk learner. Returns the innovation; NaN (ignored) for a non-finite y or w or an r
+    /// that is not a finite number > 0.
+    pub fn update_scaled(&mut self, y: f64, w: f64, r: f64) -> f64 {
+        if !(y.is_finite() && w.is_finite() && r.is_finite() && r > 0.0) {
+            return f64::NAN;
+        }
+        let Some(sc) = self.scale.as_deref_mut() else {
+            return self.update_with_variance(y - w, r);
+        };
+        let n = self.model.states;
+        // P H^T: the bias's states, then the scale's.
+        let mut ph = [0.0; MAX_STATES];
+        for (i, v) in ph.iter_mut().enumerate().take(n) {
+            *v = self.p[i][..n].iter().sum::<f64>() + w * sc.cov[i];
+        }
+        let ph_s = sc.cov[..n].iter().sum::<f64>() + w * sc.var;
+        let s = (ph[..n].iter().sum::<f64>() + w * ph_s).max(0.0) + r;
+        let innovation = y - self.x[..n].iter().sum::<f64>() - sc.s * w;
+        for i in 0..n {
+            self.x[i] += ph[i] / s * innovation;
+            for j in 0..n {
+                self.p[i][j] -= ph[i] * ph[j] / s;
+            }
+            sc.cov[i] -= ph[i] * ph_s / s;
+        }
+        sc.s += ph_s / s * innovation;
+        sc.var = (sc.var - ph_s * ph_s / s).max(0.0);
+        self.updates += 1;
+        innovation
     }
 
     /// A filter that learns its random walk from the stops ([`WalkLearner`]), starting from
@@ -323,6 +448,9 @@ impl BiasFilter {
             };
             self.p[i][i] += q * grown;
         }
+        if let Some(sc) = &mut self.scale {
+            sc.cov = [0.0; MAX_STATES];
+        }
         self.updates = self.updates.max(1);
         Ok(())
     }
@@ -339,6 +467,10 @@ impl BiasFilter {
         }
         for i in 0..self.model.states {
             self.p[i][i] = self.model.p0[i];
+        }
+        // The scale is the odometry's: kept, but no longer correlated with the bias's prior.
+        if let Some(sc) = &mut self.scale {
+            sc.cov = [0.0; MAX_STATES];
         }
         self.updates = 0;
     }
@@ -360,6 +492,12 @@ impl BiasFilter {
                 self.p[i][j] *= self.phi2[i][j];
             }
             self.p[i][i] += self.model.q[i];
+        }
+        if let Some(sc) = &mut self.scale {
+            for i in 0..n {
+                sc.cov[i] *= self.model.phi[i];
+            }
+            sc.var += sc.walk;
         }
     }
 
@@ -404,6 +542,15 @@ impl BiasFilter {
                 self.p[i][j] -= pu[i] * pu[j] / s;
             }
         }
+        // The scale follows the bias as far as they are correlated (H's scale entry is 0).
+        if let Some(sc) = &mut self.scale {
+            let ph_s: f64 = sc.cov[..n].iter().sum();
+            sc.s += ph_s / s * innovation;
+            for (c, pui) in sc.cov[..n].iter_mut().zip(&pu[..n]) {
+                *c -= pui * ph_s / s;
+            }
+            sc.var = (sc.var - ph_s * ph_s / s).max(0.0);
+        }
         self.updates += 1;
         innovation
     }
@@ -439,5 +586,74 @@ impl BiasFilter {
         let r = self.model.r / count as f64;
         let g = v / (v + r);
         (b + g * (mean - b), (1.0 - g) * v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> BiasModel {
+        let t = BiasTerms {
+            n: 0.04,
+            b: 0.005,
+            k: 0.0,
+            q: 0.0,
+            lsb: 0.0,
+            initial_sd: 1.0,
+        };
+        BiasModel::new(&t, 100.0, Instability::from_terms(&t)).unwrap()
+    }
+
+    #[test]
+    fn a_scale_state_without_spans_changes_nothing() {
+        let mut a = BiasFilter::new(model());
+        let mut b = BiasFilter::new(model());
+        b.add_scale(0.01, 1e-10);
+        for k in 0..5000 {
+            a.predict();
+            b.predict();
+            if k % 3 != 0 {
+                let z = 0.3 + 0.01 * ((k * 7919) % 13) as f64;
+                a.update(z);
+                b.update(z);
+            }
+        }
+        assert_eq!(a.estimate(), b.estimate());
+        assert_eq!(a.variance(), b.variance());
+        let sc = b.scale().unwrap();
+        assert_eq!(sc.s, 0.0);
+        assert!((sc.var - (1e-4 + 5000.0 * 1e-10)).abs() < 1e-15, "{sc:?}");
+    }
+
+    /// A turn one way only, from the bias's prior, sees b + s w; the stop after it tells b,
+    /// and with it s.
+    #[test]
+    fn a_stop_after_a_turn_corrects_the_scale_learnt_in_it() {
+        let (bias, s, w) = (0.3, 0.01, 10.0);
+        let mut f = BiasFilter::new(model());
+        f.add_scale(0.01, 0.0);
+        let stop = |f: &mut BiasFilter, n: usize| {
+            for _ in 0..n {
+                f.predict();
+                f.update(bias);
+            }
+        };
+        for k in 0..4000 {
+            f.predict();
+            if k % 50 == 0 {
+                f.update_scaled(bias + s * w, w, 1e-3);
+            }
+        }
+        let v = f.scaled_view();
+        // The spans agree with the bias and the scale together.
+        assert!((v.predict(w).0 - (bias + s * w)).abs() < 1e-3, "{v:?}");
+        // Correlated: a bias too high goes with a scale too low.
+        assert!(v.cov < 0.0, "{v:?}");
+        let before = (v.scale - s).abs();
+        stop(&mut f, 2000);
+        let after = (f.scaled_view().scale - s).abs();
+        assert!(after < 0.1 * before, "{before} then {after}");
+        assert!(f.scaled_view().scale_var < v.scale_var);
     }
 }

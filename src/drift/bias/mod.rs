@@ -91,7 +91,7 @@ mod walk;
 pub use accel::{
     AccelTerms, ADIS16405_BIAS_INSTABILITY_MG, ADIS16405_VRW_PER_HOUR, MG_PER_M_S2, VRW_PER_HOUR,
 };
-pub use filter::{BiasFilter, BiasModel, FilterSnapshot, DEFAULT_MATCH_S};
+pub use filter::{BiasFilter, BiasModel, FilterSnapshot, ScaleState, ScaledView, DEFAULT_MATCH_S};
 pub use odometry::up_from_mount;
 pub use odometry::{
     GravityUp, Measurement, Mounting, OdometryAid, OdometryAidConfig, OdometryDiagnostics,

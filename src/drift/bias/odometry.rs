@@ -7,15 +7,15 @@
 //! that period are kept in a short history ([`OdometryAidConfig::history_s`]), so a late
 //! message is matched to the gyro of its own stamp, not to the gyro of its arrival. Messages
 //! are pooled over a span ([`OdometryAidConfig::span_s`], 0.5 s) and the span gives one
-//! measurement of the bias:
+//! measurement of the bias and the odometry's scale:
 //!
 //! ```text
-//! z = mean(gyro over the span's periods) - (1 + s) mean(odometry over the span)
+//! y = mean(gyro over the span's periods) - mean(odometry over the span) = b + s w
 //! ```
 //!
-//! with the true rate w = (1 + s) w_odo: s is the odometry's scale error as a correction
-//! (tyre radius, track width; it also absorbs the gyro's own scale error: only the ratio of
-//! the two is observable without a third reference). Pooling over a span, not one message:
+//! with w the span's mean odometry and the true rate (1 + s) w: s is the odometry's scale
+//! error as a correction (tyre radius, track width; it also absorbs the gyro's own scale
+//! error: only the ratio of the two is observable without a third reference). Pooling over a span, not one message:
 //! encoder ticks quantise the odometry's *angle*, so one message's rate is noisy (a tick per
 //! period: 0.02 deg in 20 ms is 1 deg/s) while the angle over a span is exact to two ticks;
 //! and a slip burst of 1-3 s stands out of a 0.5 s mean far better than of one message.
@@ -27,32 +27,35 @@
 //!   + sum(sd_i^2) / n^2          the odometry's white noise over its n messages (each
 //!                                message's own sd where it says one, else `white_sd`)
 //!   + tick^2 / 6 / span^2        the angle's quantisation at the span's two ends
-//!   + (sd_s * mean odometry)^2   what the scale's estimate does not know
 //! ```
 //!
 //! A span is a measurement only while the bias filter's stop gate says the vehicle moves
 //! (at a stop the same gyro samples measure the bias already).
 //!
-//! # The scale: a separate term, not a state of the bias filter
-//! s is estimated by its own scalar Kalman filter (a random walk, prior `scale_sd`), from the
-//! accepted spans' residual y = mean gyro - mean odometry - b_hat = s mean odometry + e, with
-//! Var e = r (without its scale term) + the bias's variance. Why not a state: the bias filter
-//! keeps its model and its H = [1, ..., 1] (stops and every result without odometry are
-//! unchanged by construction); s is seen only in turns and the bias mostly on straights and
-//! at stops, so the cross-covariance the split ignores is small; and the bias update carries
-//! the scale's uncertainty honestly in r.
+//! # The scale: a state of the bias filter
+//! s is one more state of the bias filter ([`super::ScaleState`]: a random walk, prior
+//! `scale_sd`), with H = [1, ..., 1, w] for a span and [1, ..., 1, 0] for a stop
+//! ([`super::BiasFilter::update_scaled`]). The filter carries the covariance of the bias with
+//! the scale: where the vehicle turns one way all the time it drives (bias and scale seen
+//! only as b + s w), a span's error of the scale is one error shared by every span of the
+//! turn, not white noise per span, and the next stop, which measures b alone, corrects the
+//! scale learnt in the turn before it. Without spans the scale stays uncorrelated with the
+//! bias and every result is the bias filter's alone.
 //!
 //! # Slip: an innovation test, and a span waits for the next
 //! Slip (the wheels turn, the vehicle does not follow: skid-steer turns, ice) makes the
-//! odometry wrong for seconds. Each span's innovation against the filter, nu = z - b_hat, is
-//! tested as the stop rule tests a stop signal against the gyro: chi-square with one degree of
-//! freedom, nu^2 / (P + r) > `gate` rejects it. A span that passes still waits: it enters the
-//! filter only when the next span passes too and agrees with it ((z1 - z2)^2 / (r1 + r2) <=
-//! `gate`), so a slip that began at the end of a span (too little of it there to fail the
-//! test) is dropped with the span after it. A slip never teaches the bias, nor the scale.
+//! odometry wrong for seconds. Each span's innovation against the filter, nu = y - b_hat -
+//! s_hat w, is tested as the stop rule tests a stop signal against the gyro: chi-square with
+//! one degree of freedom, nu^2 / (H P H^T + r) > `gate` rejects it. A span that passes still
+//! waits: it enters the filter only when the next span passes too and agrees with it (z = y -
+//! s_hat w; (z1 - z2)^2 / (r1 + r2 + P_s (w1 - w2)^2) <= `gate`: the scale's error is one,
+//! shared by the two), so a slip that began at the end of a span (too little of it there to
+//! fail the test) is dropped with the span after it. A slip never teaches the bias, nor the scale.
 //! Rejected spans are counted, and so are runs of them ([`OdometryDiagnostics`]).
 //!
 //! Pure: no I/O, fixed buffers sized at construction, nothing allocated per sample.
+
+use super::ScaledView;
 
 /// One odometry message: its yaw rate over its period, stamped with the period's end.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -81,8 +84,6 @@ pub struct OdometryAidConfig {
     pub scale_sd: f64,
     /// The scale's random walk, per sqrt(s).
     pub scale_walk: f64,
-    /// The least |mean odometry rate| (deg/s) a span must have to teach the scale.
-    pub scale_min_rate: f64,
     /// Chi-square bound of the innovation tests (one degree of freedom).
     pub gate: f64,
     /// How far back the gyro is kept for matching a late message, s.
@@ -93,9 +94,9 @@ pub struct OdometryAidConfig {
 
 impl Default for OdometryAidConfig {
     /// A 0.5 s span; a 50 Hz odometry with 0.1 deg/s white noise per message and ticks of
-    /// 0.02 deg; a scale error of sd 1% (0.5-2% is usual), walking 1e-4 per sqrt(s); spans
-    /// from 2 deg/s teach the scale; the tests at 10.83 (chi-square, 1 dof, 99.9%); 0.5 s of
-    /// gyro history (room for 0.4 s of latency at a 50 Hz odometry).
+    /// 0.02 deg; a scale error of sd 1% (0.5-2% is usual), walking 1e-4 per sqrt(s); the
+    /// tests at 10.83 (chi-square, 1 dof, 99.9%); 0.5 s of gyro history (room for 0.4 s of
+    /// latency at a 50 Hz odometry).
     fn default() -> Self {
         OdometryAidConfig {
             span_s: 0.5,
@@ -103,7 +104,6 @@ impl Default for OdometryAidConfig {
             tick_deg: 0.02,
             scale_sd: 0.01,
             scale_walk: 1e-4,
-            scale_min_rate: 2.0,
             gate: 10.83,
             history_s: 0.5,
             test: true,
@@ -166,29 +166,21 @@ pub const MOUNT_MIN_SPANS: f64 = 6.0;
 /// of percent passes; an axis 60 deg off the vertical sees half the turn).
 pub const MOUNT_MIN_SLOPE: f64 = 0.5;
 
-/// A span's measurement of the bias.
+/// A span's measurement of the bias and the scale: y = b + s w.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measurement {
-    /// The bias it measures, deg/s.
-    pub z: f64,
-    /// Its variance, (deg/s)^2.
+    /// Mean gyro - mean odometry over the span, deg/s.
+    pub y: f64,
+    /// The odometry's mean rate over the span, deg/s.
+    pub w: f64,
+    /// The variance of y given b and s, (deg/s)^2.
     pub r: f64,
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Span {
-    gyro_mean: f64,
-    odo_mean: f64,
-    /// r without the scale's term.
-    r_noise: f64,
-}
-
-impl Span {
-    fn measurement(&self, scale: f64, scale_var: f64) -> Measurement {
-        Measurement {
-            z: self.gyro_mean - (1.0 + scale) * self.odo_mean,
-            r: self.r_noise + scale_var * self.odo_mean * self.odo_mean,
-        }
+impl Measurement {
+    /// The bias it measures with the scale `s`: y - s w.
+    fn bias(&self, s: f64) -> f64 {
+        self.y - s * self.w
     }
 }
 
@@ -211,9 +203,9 @@ pub struct OdometryAid {
     o_n: usize,
     /// The sum of the pooled messages' variances, (deg/s)^2.
     o_var: f64,
-    pending: Option<Span>,
-    scale: f64,
-    scale_var: f64,
+    pending: Option<Measurement>,
+    /// The scale's random walk per sample (variance): the filter's scale state's.
+    scale_walk: f64,
     run: u64,
     diag: OdometryDiagnostics,
     // The mounting check: sums over spans of 1, gyro, odometry, their product, odometry^2.
@@ -242,7 +234,6 @@ impl OdometryAid {
             ("tick_deg", cfg.tick_deg),
             ("scale_sd", cfg.scale_sd),
             ("scale_walk", cfg.scale_walk),
-            ("scale_min_rate", cfg.scale_min_rate),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("{name} must be a finite number >= 0, not {v}"));
@@ -264,8 +255,7 @@ impl OdometryAid {
             o_n: 0,
             o_var: 0.0,
             pending: None,
-            scale: 0.0,
-            scale_var: cfg.scale_sd * cfg.scale_sd,
+            scale_walk: cfg.scale_walk * cfg.scale_walk / rate_hz,
             run: 0,
             diag: OdometryDiagnostics {
                 scale_sd: cfg.scale_sd,
@@ -309,15 +299,17 @@ impl OdometryAid {
         self.o_var = 0.0;
     }
 
-    /// One odometry message, arrived now, while the vehicle moves; `estimate` and `variance`
-    /// are the bias filter's now. Returns the measurement the filter takes now, if a span
+    /// The scale state the filter is to add at the first span
+    /// ([`super::BiasTracker::update_in_motion`]): its prior sd and its walk per sample.
+    pub fn scale_prior(&self) -> (f64, f64) {
+        (self.cfg.scale_sd, self.scale_walk)
+    }
+
+    /// One odometry message, arrived now, while the vehicle moves; `now` is the bias filter's
+    /// bias and scale now ([`super::BiasFilter::scaled_view`], with the scale's prior until
+    /// the filter has the state). Returns the measurement the filter takes now, if a span
     /// waiting for confirmation has just been confirmed (module documentation).
-    pub fn push_odometry(
-        &mut self,
-        m: OdometrySample,
-        estimate: f64,
-        variance: f64,
-    ) -> Option<Measurement> {
+    pub fn push_odometry(&mut self, m: OdometrySample, now: ScaledView) -> Option<Measurement> {
         if !(m.stamp_s.is_finite() && m.period_s > 0.0 && m.yaw_rate.is_finite()) {
             self.diag.unmatched += 1;
             return None;
@@ -362,30 +354,30 @@ impl OdometryAid {
             return None;
         }
         let tick = self.cfg.tick_deg;
-        let span = Span {
-            gyro_mean: self.g_sum / self.g_n as f64,
-            odo_mean: self.o_angle / self.o_time,
-            r_noise: self.r_gyro / self.g_n as f64
+        let (gyro, w) = (self.g_sum / self.g_n as f64, self.o_angle / self.o_time);
+        let span = Measurement {
+            y: gyro - w,
+            w,
+            r: self.r_gyro / self.g_n as f64
                 + self.o_var / (self.o_n * self.o_n) as f64
                 + tick * tick / 6.0 / (self.o_time * self.o_time),
         };
-        // The scale walks over the span.
-        self.scale_var += self.cfg.scale_walk * self.cfg.scale_walk * self.o_time;
         self.clear_span();
-        self.check_mounting(&span);
+        self.check_mounting(gyro, w);
+        self.diag.scale = now.scale;
+        self.diag.scale_sd = now.scale_var.sqrt();
         match self.mounting {
             Mounting::WrongSign { .. } | Mounting::WrongAxis { .. } => None,
-            _ => self.judge(span, estimate, variance),
+            _ => self.judge(span, now),
         }
     }
 
     /// The mounting check's sums from a span, and its verdict once the odometry spread
     /// enough (judged once).
-    fn check_mounting(&mut self, span: &Span) {
+    fn check_mounting(&mut self, g: f64, o: f64) {
         if self.mounting != Mounting::Unknown {
             return;
         }
-        let (g, o) = (span.gyro_mean, span.odo_mean);
         for (sum, add) in self.mount_sums.iter_mut().zip([1.0, g, o, g * o, o * o]) {
             *sum += add;
         }
@@ -409,26 +401,27 @@ impl OdometryAid {
         self.mounting
     }
 
-    fn judge(&mut self, span: Span, estimate: f64, variance: f64) -> Option<Measurement> {
+    fn judge(&mut self, span: Measurement, now: ScaledView) -> Option<Measurement> {
         let gate = self.cfg.gate;
-        let now = span.measurement(self.scale, self.scale_var);
-        let nu = now.z - estimate;
-        if self.cfg.test && nu * nu > gate * (variance.max(0.0) + now.r) {
+        let (predicted, variance) = now.predict(span.w);
+        let nu = span.y - predicted;
+        if self.cfg.test && nu * nu > gate * (variance + span.r) {
             self.reject(true);
             return None;
         }
         let prev = self.pending.replace(span)?;
-        let before = prev.measurement(self.scale, self.scale_var);
-        let d = now.z - before.z;
-        if self.cfg.test && d * d > gate * (now.r + before.r) {
+        // The two spans share the bias and the scale's error: only the scale's part that
+        // their rates do not share is left in the difference.
+        let d = span.bias(now.scale) - prev.bias(now.scale);
+        let dw = span.w - prev.w;
+        if self.cfg.test && d * d > gate * (span.r + prev.r + now.scale_var * dw * dw) {
             // They disagree: the older one may hold the start of a slip; the newer waits.
             self.reject(false);
             return None;
         }
         self.run = 0;
         self.diag.accepted += 1;
-        self.learn_scale(&prev, estimate, variance);
-        Some(prev.measurement(self.scale, self.scale_var))
+        Some(prev)
     }
 
     /// A span rejected (`both`: the new one failed against the filter, so the waiting one,
@@ -445,27 +438,10 @@ impl OdometryAid {
         self.diag.longest_run = self.diag.longest_run.max(self.run);
     }
 
-    /// The scale's scalar update from an accepted span in a turn.
-    fn learn_scale(&mut self, span: &Span, estimate: f64, variance: f64) {
-        let w = span.odo_mean;
-        if w.abs() < self.cfg.scale_min_rate || self.cfg.scale_sd == 0.0 {
-            return;
-        }
-        let y = span.gyro_mean - w - estimate;
-        let e = span.r_noise + variance.max(0.0);
-        let s = w * w * self.scale_var + e;
-        let k = self.scale_var * w / s;
-        self.scale += k * (y - self.scale * w);
-        self.scale_var -= k * w * self.scale_var;
-    }
-
     /// What it has done so far, and the scale now.
+    /// The scale and its sd are the filter's as the last span saw them.
     pub fn diagnostics(&self) -> OdometryDiagnostics {
-        OdometryDiagnostics {
-            scale: self.scale,
-            scale_sd: self.scale_var.max(0.0).sqrt(),
-            ..self.diag
-        }
+        self.diag
     }
 }
 
@@ -658,6 +634,7 @@ mod tests {
             }
         }
         let mut aid = OdometryAid::new(cfg, r, RATE).unwrap();
+        f.add_scale(aid.scale_prior().0, aid.scale_prior().1);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let sd = (t.n * t.n * RATE).sqrt();
         let n = (secs * RATE) as usize;
@@ -689,8 +666,8 @@ mod tests {
             aid.push_gyro(tt, x);
             while queue.first().is_some_and(|(a, _)| *a <= k) {
                 let (_, m) = queue.remove(0);
-                if let Some(z) = aid.push_odometry(m, f.estimate(), f.variance()) {
-                    f.update_with_variance(z.z, z.r);
+                if let Some(z) = aid.push_odometry(m, f.scaled_view()) {
+                    f.update_scaled(z.y, z.w, z.r);
                 }
             }
         }
@@ -796,13 +773,22 @@ mod tests {
         assert!((d.scale - s).abs() < 0.003, "{d:?}");
         assert!(d.scale_sd < 0.003, "{d:?}");
         assert!((f.estimate() - BIAS).abs() < 0.02, "{}", f.estimate());
-        // Not learning it (a prior of 0) takes the scale error as bias in every turn.
+        // Not learning it (a prior of 0) takes the scale error for slip in the turns (most
+        // spans refused) and for bias in the rest: the bias ends further off.
         let cfg = OdometryAidConfig {
             scale_sd: 0.0,
+            scale_walk: 0.0,
             ..Default::default()
         };
-        let (g, _) = drive(300.0, turning, 0.02, no_slip, 0.03, true, true, cfg);
-        assert!((g.estimate() - BIAS).abs() > 2.0 * (f.estimate() - BIAS).abs());
+        let (g, blind) = drive(300.0, turning, 0.02, no_slip, 0.03, true, true, cfg);
+        let e = blind.diagnostics();
+        assert!(e.rejected > 10 * d.rejected.max(1), "{e:?}");
+        assert!(
+            (g.estimate() - BIAS).abs() > (f.estimate() - BIAS).abs(),
+            "{} {}",
+            g.estimate(),
+            f.estimate()
+        );
     }
 
     /// The mounting check: an odometry that turns with the gyro is confirmed (slope near 1);
@@ -865,13 +851,20 @@ mod tests {
                         yaw_rate: 0.0,
                         yaw_rate_sd: sd,
                     };
-                    out.extend(aid.push_odometry(m, BIAS, 1e-4));
+                    let now = ScaledView {
+                        estimate: BIAS,
+                        variance: 1e-4,
+                        scale: 0.0,
+                        scale_var: 1e-4,
+                        cov: 0.0,
+                    };
+                    out.extend(aid.push_odometry(m, now));
                 }
             }
             out[0]
         };
         let (unsaid, said) = (first(f64::NAN), first(1.0));
-        assert_eq!(unsaid.z, said.z);
+        assert_eq!(unsaid.y, said.y);
         let want = (1.0 - 0.01) / 25.0;
         assert!(
             ((said.r - unsaid.r) - want).abs() < 1e-9,

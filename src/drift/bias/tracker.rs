@@ -778,15 +778,23 @@ impl BiasTracker {
         step
     }
 
-    /// A measurement `z` of the bias with variance `r` from a reference while the body moves
-    /// (the vehicle's odometry, [`super::OdometryAid`]), taken only between stops: during a
-    /// stop the same gyro samples already measure the bias, and taking them twice would count
-    /// their noise twice. Returns whether it was taken.
-    pub fn update_in_motion(&mut self, z: f64, r: f64) -> bool {
+    /// Add the odometry's scale to the filter's states ([`BiasFilter::add_scale`]; `scale`:
+    /// its prior sd and its walk per sample, [`super::OdometryAid::scale_prior`]); once.
+    pub fn add_scale(&mut self, scale: (f64, f64)) {
+        self.filter.add_scale(scale.0, scale.1);
+    }
+
+    /// An odometry span while the body moves ([`super::OdometryAid`]): y = mean gyro - mean
+    /// odometry = b + s w of variance r, w the odometry's mean rate
+    /// ([`BiasFilter::update_scaled`]; the scale a state once [`Self::add_scale`] added it),
+    /// taken only between stops: during a stop the same gyro samples already measure the
+    /// bias, and taking them twice would count their noise twice. Returns whether it was taken.
+    pub fn update_in_motion(&mut self, m: Measurement) -> bool {
         if self.mode == BiasMode::Still || self.delay.pending > 0 {
             return false;
         }
-        self.filter.update_with_variance(z, r).is_finite()
+        let Measurement { y, w, r } = m;
+        self.filter.update_scaled(y, w, r).is_finite()
     }
 
     /// The estimate and its variance as output now: the filter's, with the waiting samples'
