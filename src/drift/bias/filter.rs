@@ -266,6 +266,9 @@ pub struct BiasFilter {
     phi2: Box<[[f64; MAX_STATES]; MAX_STATES]>,
     updates: u64,
     scale: Option<Box<ScaleState>>,
+    /// Whether a reference other than a stop (the odometry) measured the bias since the last
+    /// stop ended: the stop after such a gap does not teach the walk ([`BiasFilter::end_stop`]).
+    aided: bool,
 }
 
 impl BiasFilter {
@@ -287,6 +290,7 @@ impl BiasFilter {
             phi2,
             updates: 0,
             scale: None,
+            aided: false,
         };
         f.reset();
         f
@@ -348,6 +352,7 @@ impl BiasFilter {
         let ph_s = sc.cov[..n].iter().sum::<f64>() + w * sc.var;
         let s = (ph[..n].iter().sum::<f64>() + w * ph_s).max(0.0) + r;
         let innovation = y - self.x[..n].iter().sum::<f64>() - sc.s * w;
+        self.aided = true;
         for i in 0..n {
             self.x[i] += ph[i] / s * innovation;
             for j in 0..n {
@@ -386,8 +391,16 @@ impl BiasFilter {
     /// A stop ended. If it `teaches`, the walk learner takes its innovation and the walk it
     /// returns is used from now on; if not, the learner only notes where the estimate stands
     /// (the next stop's innovation is measured from here). Nothing without a learner.
+    ///
+    /// A stop after a gap in which the odometry measured the bias does not teach: the learner
+    /// fits the walk to the gaps between stops, the time a filter on stops alone carries the
+    /// bias across; a filter that takes a span every 0.5 s carries it only over its own memory
+    /// (seconds), and the walk it needs is the one matched there (the configured walk,
+    /// [`DEFAULT_MATCH_S`]), not the one the gaps show.
     pub fn end_stop(&mut self, teaches: bool) {
         let (v, r) = (self.variance(), self.model.r);
+        let teaches = teaches && !self.aided;
+        self.aided = false;
         if let Some(l) = &mut self.learner {
             self.model.q[0] = l.end_stop(v, r, teaches) * self.dt;
         }
@@ -472,6 +485,7 @@ impl BiasFilter {
         if let Some(sc) = &mut self.scale {
             sc.cov = [0.0; MAX_STATES];
         }
+        self.aided = false;
         self.updates = 0;
     }
 
@@ -523,6 +537,7 @@ impl BiasFilter {
         if !(z.is_finite() && r.is_finite() && r > 0.0) {
             return f64::NAN;
         }
+        self.aided = true;
         self.correct(z, r)
     }
 
@@ -655,5 +670,38 @@ mod tests {
         let after = (f.scaled_view().scale - s).abs();
         assert!(after < 0.1 * before, "{before} then {after}");
         assert!(f.scaled_view().scale_var < v.scale_var);
+    }
+
+    #[test]
+    fn a_stop_after_odometry_does_not_teach_the_walk() {
+        let m = model();
+        let walk = WalkConfig {
+            configured: m.walk_per_s(100.0),
+            lo: m.walk_per_s(100.0) / 100.0,
+            hi: m.walk_per_s(100.0) * 100.0,
+        };
+        let mut f = BiasFilter::learning(m, walk, 0.01).unwrap();
+        let stops = |f: &BiasFilter| f.walk().unwrap().stops;
+        for gap_aided in [false, false, true, false] {
+            for _ in 0..500 {
+                f.predict();
+                f.update(0.3);
+            }
+            f.end_stop(true);
+            for k in 0..1000 {
+                f.predict();
+                if gap_aided && k == 500 {
+                    f.update_scaled(0.3, 0.0, 1e-3);
+                }
+            }
+        }
+        // The first stop has nothing to compare; the fourth came after an aided gap.
+        assert_eq!(stops(&f), 2);
+        for _ in 0..500 {
+            f.predict();
+            f.update(0.3);
+        }
+        f.end_stop(true);
+        assert_eq!(stops(&f), 3);
     }
 }
