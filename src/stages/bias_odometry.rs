@@ -66,7 +66,7 @@ impl VehicleUp {
 }
 
 /// The tilt of an axis whose share of the yaw rate is `c`, deg.
-fn tilt_deg(c: f64) -> f64 {
+pub(crate) fn tilt_deg(c: f64) -> f64 {
     c.abs().min(1.0).acos().to_degrees()
 }
 

@@ -35,7 +35,7 @@ use crate::drift::bias::{
 };
 use crate::io::InputError;
 pub use crate::stages::bias_odometry::VehicleUp;
-use crate::stages::bias_odometry::{up_word, Odometry};
+use crate::stages::bias_odometry::{tilt_deg, up_word, Odometry};
 use crate::stages::bias_state::{self, Loaded, Owner, Saved, StateWriter, WarmStart};
 use crate::stages::contract::{Kind, Params, Role, Stage};
 use crate::stages::contract::{SideInput, SideValue};
@@ -638,7 +638,7 @@ impl Params for BiasParams {
                 VehicleUp::Mount { axis, c } => format!(
                     "along the gyro's {} ({:.1} deg from it, by mount)",
                     up_word(axis, c),
-                    c.abs().min(1.0).acos().to_degrees()
+                    tilt_deg(c)
                 ),
                 VehicleUp::Gravity => {
                     "from gravity (the accelerometer over the first second at rest)".to_string()
