@@ -241,6 +241,37 @@ fn the_yaw_rate_teaches_the_up_axis_bias_while_driving() {
 /// The wrong sign: the gyro's up is -z, the file says +z. The first turns show it, the daemon
 /// says so once with the fix, and the yaw rate teaches nothing after (the summary says it was
 /// refused).
+/// The scale learnt in the turns is saved with the bias (`state_file`), on the up axis only,
+/// and the next start resumes that axis (the others, never told anything, start cold).
+#[test]
+fn the_learnt_odometry_scale_is_kept_in_the_state_file() {
+    let dir = Dir::new();
+    let state = dir.path("bias.toml");
+    let keys = format!("vehicle_up = \"-z\"\nstate_file = \"{}\"", state.display());
+    run("odo-state", &keys, true);
+    let text = std::fs::read_to_string(&state).expect("the state saved");
+    let file: toml::Table = text.parse().expect("TOML");
+    let axes = file["axis"].as_array().expect("axes");
+    let z = axes[2].as_table().unwrap();
+    let sd = z["odometry_scale_sd"]
+        .as_float()
+        .expect("z keeps its scale");
+    let scale = z["odometry_scale"].as_float().unwrap();
+    // Learnt from the 1 % prior: the odometry here is exact.
+    assert!(
+        sd < 0.005 && scale.abs() < 2.0 * sd + 1e-3,
+        "{scale} +- {sd}"
+    );
+    assert!(!axes[0].as_table().unwrap().contains_key("odometry_scale"));
+    // x and y never learnt (no stop): they start cold, z resumes.
+    let r = run("odo-state2", &keys, true);
+    let line = said_once(&r.stderr, "warm start from state_file");
+    assert!(
+        line.contains("(x, y cold: no better than the prior by now)"),
+        "{line}"
+    );
+}
+
 #[test]
 fn a_yaw_rate_of_the_wrong_sign_is_found_and_refused_with_the_fix() {
     let r = run("odo-sign", "vehicle_up = \"+z\"", true);

@@ -128,6 +128,11 @@ impl Odometry {
         })
     }
 
+    /// The scale state the trackers carry ([`OdometryAid::scale_prior`]).
+    pub(crate) fn scale_prior(&self) -> (f64, f64) {
+        self.aid.scale_prior()
+    }
+
     /// A specific force read at rest: once gravity has judged, the configured axis is checked
     /// (a disagreement refuses the yaw rate, said once with the fix) or, with `"gravity"`, the
     /// up axis is taken from it.

@@ -21,7 +21,8 @@
 //! ([`crate::stages::Stage::warm_start`]) for `run`'s report.
 //!
 //! The file is TOML, one table per axis; `bias_deg_s` and `sd_deg_s` are there for a reader
-//! and are not read back.
+//! and are not read back. An axis that takes the odometry's yaw rate keeps its learnt scale
+//! too (`odometry_scale`, `odometry_scale_sd`), resumed with its walk over the gap.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -101,6 +102,12 @@ struct AxisFile {
     p: Vec<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     walk: Option<WalkFile>,
+    /// The odometry's scale correction and its sd (`OdometryAid`), where the stage takes a
+    /// yaw rate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    odometry_scale: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    odometry_scale_sd: Option<f64>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -180,6 +187,13 @@ fn read(path: &Path, owner: &Owner) -> Result<Option<Saved>, Unusable> {
             x: [0.0; MAX_STATES],
             p: [[0.0; MAX_STATES]; MAX_STATES],
             learner: None,
+            scale: match (a.odometry_scale, a.odometry_scale_sd) {
+                (Some(s), Some(sd)) if s.is_finite() && sd.is_finite() && sd >= 0.0 => {
+                    Some((s, sd * sd))
+                }
+                (None, None) => None,
+                _ => return Err(bad("its odometry scale is not a value with its sd")),
+            },
         };
         snap.x[..n].copy_from_slice(&a.x);
         for (row, saved) in snap.p.iter_mut().zip(&a.p) {
@@ -233,6 +247,8 @@ fn render(owner: &Owner, filters: &[FilterSnapshot], saved_unix_ns: u64) -> Stri
                     end_var: l.end_var,
                     ll: l.ll.to_vec(),
                 }),
+                odometry_scale: f.scale.map(|(s, _)| s),
+                odometry_scale_sd: f.scale.map(|(_, var)| var.max(0.0).sqrt()),
             }
         })
         .collect();
@@ -302,6 +318,7 @@ mod tests {
         }
     }
 
+    /// Two axes, the second carrying an odometry scale.
     fn learnt() -> Vec<FilterSnapshot> {
         let o = owner();
         (0..2)
@@ -311,7 +328,11 @@ mod tests {
                 for i in 0..3000 {
                     t.push(0.3 * (k as f64 + 1.0) + 0.01 * ((i * 7919) % 13) as f64);
                 }
-                t.snapshot()
+                let mut snap = t.snapshot();
+                if k == 1 {
+                    snap.scale = Some((0.0123, 0.002f64.powi(2)));
+                }
+                snap
             })
             .collect()
     }
@@ -330,7 +351,12 @@ mod tests {
         let Loaded::Saved(saved) = load(&path, &owner()) else {
             panic!("its own state")
         };
-        assert_eq!(saved.filters, filters);
+        assert_eq!(saved.filters[0], filters[0]);
+        let (s, var) = saved.filters[1].scale.unwrap();
+        assert!(s == 0.0123 && (var - 4e-6).abs() < 1e-18, "{s} {var}");
+        let mut rest = saved.filters[1].clone();
+        rest.scale = filters[1].scale;
+        assert_eq!(rest, filters[1]);
         assert_eq!(saved.saved_unix_ns, 1_700_000_000_000_000_000);
         // Another owner's: refused, naming why.
         for (other, why) in [

@@ -552,6 +552,30 @@ impl Params for BiasParams {
                     .map_err(|e| e.to_string())?,
             );
         }
+        let odometry = match &self.stop {
+            Some(StopConfig {
+                up: Some(up),
+                odometry: true,
+                ..
+            }) => {
+                let r = |k: usize| {
+                    trackers
+                        .get(k)
+                        .map_or(0.0, |t| t.filter().model().measurement_variance())
+                };
+                let odometry = Odometry::new(*up, [r(0), r(1), r(2)], cx.rate_hz)?;
+                // The up axis carries the scale from the start (every axis while gravity has
+                // not named it), so that a saved one is resumed; it stays apart from the bias
+                // until a span.
+                for (k, t) in trackers.iter_mut().enumerate() {
+                    if up.axis().is_none_or(|(axis, _)| axis == k) {
+                        t.add_scale(odometry.scale_prior());
+                    }
+                }
+                Some(odometry)
+            }
+            _ => None,
+        };
         let mut writer = None;
         let mut warm = WarmStart::NotConfigured;
         if let Some(st) = &self.state {
@@ -571,21 +595,6 @@ impl Params for BiasParams {
         }
         let rest = accel_rest_from_terms(&self.accel, cx.rate_hz, &self.tracker)
             .map_err(|e| e.to_string())?;
-        let odometry = match &self.stop {
-            Some(StopConfig {
-                up: Some(up),
-                odometry: true,
-                ..
-            }) => {
-                let r = |k: usize| {
-                    trackers
-                        .get(k)
-                        .map_or(0.0, |t| t.filter().model().measurement_variance())
-                };
-                Some(Odometry::new(*up, [r(0), r(1), r(2)], cx.rate_hz)?)
-            }
-            _ => None,
-        };
         Ok(Box::new(BiasStage {
             odometry,
             fresh: None,
@@ -724,25 +733,48 @@ fn resume(
             return cold_unusable(&st.path, &u);
         }
     }
-    let now: Vec<_> = fresh.iter().map(BiasTracker::snapshot).collect();
-    let worth = fresh
+    // Per axis: one that never learnt (a vehicle that never stopped teaches its up axis
+    // alone, by the odometry) starts cold, and the others still resume.
+    let worth: Vec<bool> = fresh
         .iter()
         .zip(trackers.iter())
-        .all(|(f, cold)| f.filter().variance() < cold.filter().variance());
-    if !worth {
+        .map(|(f, cold)| f.filter().variance() < cold.filter().variance())
+        .collect();
+    let ago = humantime::format_duration(Duration::from_secs(age.as_secs()));
+    if !worth.contains(&true) {
         eprintln!(
-            "driftless: state_file {shown} is {} old: no better than the prior by now, so the \
-             filter starts cold",
-            humantime::format_duration(Duration::from_secs(age.as_secs()))
+            "driftless: state_file {shown} is {ago} old: no better than the prior by now, so \
+             the filter starts cold"
         );
         return WarmStart::ColdTooOld { path, age };
     }
+    for ((t, f), _) in trackers
+        .iter_mut()
+        .zip(fresh)
+        .zip(&worth)
+        .filter(|(_, w)| **w)
+    {
+        *t = f;
+    }
+    let now: Vec<_> = trackers.iter().map(BiasTracker::snapshot).collect();
+    let cold: Vec<&str> = ["x", "y", "z"]
+        .iter()
+        .zip(&worth)
+        .filter(|(_, w)| !**w)
+        .map(|(a, _)| *a)
+        .collect();
+    let cold = if cold.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " ({} cold: no better than the prior by now)",
+            cold.join(", ")
+        )
+    };
     eprintln!(
-        "driftless: warm start from state_file {shown}, saved {} ago: {}",
-        humantime::format_duration(Duration::from_secs(age.as_secs())),
+        "driftless: warm start from state_file {shown}, saved {ago} ago: {}{cold}",
         bias_state::describe(&now)
     );
-    trackers.clone_from_slice(&fresh);
     WarmStart::Warm { path, age }
 }
 

@@ -182,6 +182,8 @@ pub struct FilterSnapshot {
     pub p: [[f64; MAX_STATES]; MAX_STATES],
     /// The walk learner's, if the filter learns its walk.
     pub learner: Option<LearnerSnapshot>,
+    /// The odometry's scale and its variance, if the filter carries one ([`ScaleState`]).
+    pub scale: Option<(f64, f64)>,
 }
 
 impl FilterSnapshot {
@@ -413,6 +415,7 @@ impl BiasFilter {
             x: self.x,
             p: *self.p,
             learner: self.learner.as_ref().map(WalkLearner::snapshot),
+            scale: self.scale.as_ref().map(|sc| (sc.s, sc.var)),
         }
     }
 
@@ -462,6 +465,12 @@ impl BiasFilter {
             self.p[i][i] += q * grown;
         }
         if let Some(sc) = &mut self.scale {
+            // The scale is the vehicle's: resumed where saved (its walk over the gap added),
+            // no longer correlated with the bias.
+            if let Some((s, var)) = snap.scale.filter(|(s, v)| s.is_finite() && v.is_finite()) {
+                sc.s = s;
+                sc.var = var.max(0.0) + sc.walk * k;
+            }
             sc.cov = [0.0; MAX_STATES];
         }
         self.updates = self.updates.max(1);
@@ -703,5 +712,34 @@ mod tests {
         }
         f.end_stop(true);
         assert_eq!(stops(&f), 3);
+    }
+
+    /// The scale is kept across a restart: resumed where it was, its walk over the gap added;
+    /// a filter without a scale state takes the bias alone.
+    #[test]
+    fn a_resumed_filter_keeps_its_scale_grown_by_the_gap() {
+        let mut f = BiasFilter::new(model());
+        f.add_scale(0.01, 1e-9);
+        for k in 0..2000 {
+            f.predict();
+            let w = if k % 400 < 200 { 10.0 } else { 2.0 };
+            if k % 50 == 0 {
+                f.update_scaled(0.3 + 0.02 * w, w, 1e-4);
+            }
+        }
+        let snap = f.snapshot();
+        let (s, var) = snap.scale.unwrap();
+        assert!((s - 0.02).abs() < 0.005 && var < 1e-5, "{s} {var}");
+        let mut g = BiasFilter::new(model());
+        g.add_scale(0.01, 1e-9);
+        g.resume(&snap, 1000).unwrap();
+        let sc = g.scale().unwrap();
+        assert_eq!(sc.s, s);
+        assert!((sc.var - (var + 1e-6)).abs() < 1e-15, "{sc:?}");
+        assert_eq!(g.scaled_view().cov, 0.0);
+        let mut bare = BiasFilter::new(model());
+        bare.resume(&snap, 1000).unwrap();
+        assert!(bare.scale().is_none());
+        assert!((bare.estimate() - g.estimate()).abs() < 1e-12);
     }
 }
