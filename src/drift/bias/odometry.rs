@@ -15,10 +15,11 @@
 //!
 //! with w the span's mean odometry and the true rate (1 + s) w: s is the odometry's scale
 //! error as a correction (tyre radius, track width; it also absorbs the gyro's own scale
-//! error: only the ratio of the two is observable without a third reference). Pooling over a span, not one message:
-//! encoder ticks quantise the odometry's *angle*, so one message's rate is noisy (a tick per
-//! period: 0.02 deg in 20 ms is 1 deg/s) while the angle over a span is exact to two ticks;
-//! and a slip burst of 1-3 s stands out of a 0.5 s mean far better than of one message.
+//! error: only the ratio of the two is observable without a third reference). Pooling over a
+//! span, not one message: encoder ticks quantise the odometry's *angle*, so one message's
+//! rate is noisy (a tick per period: 0.02 deg in 20 ms is 1 deg/s) while the angle over a span
+//! is exact to two ticks; and a slip burst of 1-3 s stands out of a 0.5 s mean far better
+//! than of one message.
 //!
 //! Its variance, each term independent:
 //!
@@ -50,7 +51,8 @@
 //! waits: it enters the filter only when the next span passes too and agrees with it (z = y -
 //! s_hat w; (z1 - z2)^2 / (r1 + r2 + P_s (w1 - w2)^2) <= `gate`: the scale's error is one,
 //! shared by the two), so a slip that began at the end of a span (too little of it there to
-//! fail the test) is dropped with the span after it. A slip never teaches the bias, nor the scale.
+//! fail the test) is dropped with the span after it. A slip never teaches the bias, nor the
+//! scale.
 //! Rejected spans are counted, and so are runs of them ([`OdometryDiagnostics`]).
 //!
 //! Pure: no I/O, fixed buffers sized at construction, nothing allocated per sample.
@@ -299,8 +301,8 @@ impl OdometryAid {
         self.o_var = 0.0;
     }
 
-    /// The scale state the filter is to add at the first span
-    /// ([`super::BiasTracker::update_in_motion`]): its prior sd and its walk per sample.
+    /// The scale state the bias filter carries ([`super::BiasTracker::add_scale`]): its prior
+    /// sd and its walk per sample.
     pub fn scale_prior(&self) -> (f64, f64) {
         (self.cfg.scale_sd, self.scale_walk)
     }
@@ -438,8 +440,8 @@ impl OdometryAid {
         self.diag.longest_run = self.diag.longest_run.max(self.run);
     }
 
-    /// What it has done so far, and the scale now.
-    /// The scale and its sd are the filter's as the last span saw them.
+    /// What it has done so far, and the scale and its sd as the filter had them at the last
+    /// span.
     pub fn diagnostics(&self) -> OdometryDiagnostics {
         self.diag
     }
