@@ -762,15 +762,20 @@ mod tests {
         (dir, parsed)
     }
 
-    /// Every raw sample the replay of `params` gives, in order.
-    fn replay(params: &dyn Params) -> Vec<RawSample> {
-        let cx = Context {
+    /// The pipeline the tables are read under: 100 Hz, 3 axes, deg/s.
+    fn context() -> Context {
+        Context {
             rate_hz: 100.0,
             axes: 3,
             units: RateUnit::DegPerS,
             accel_units: AccelUnit::MPerS2,
             white_noise: None,
-        };
+        }
+    }
+
+    /// Every raw sample the replay of `params` gives, in order.
+    fn replay(params: &dyn Params) -> Vec<RawSample> {
+        let cx = context();
         let mut source = params.local_source(&cx).unwrap();
         let stop = AtomicBool::new(false);
         let mut got = Vec::new();
@@ -914,13 +919,7 @@ mod tests {
         let (_dir, params) = parse_csv(&csv, keys);
         let params = params.unwrap();
         assert_eq!(params.motion_output(), Some("vehicle/stop"));
-        let cx = Context {
-            rate_hz: 100.0,
-            axes: 3,
-            units: RateUnit::DegPerS,
-            accel_units: AccelUnit::MPerS2,
-            white_noise: None,
-        };
+        let cx = context();
         let mut source = params.local_source(&cx).unwrap();
         let (stop, mut samples, mut motion) = (AtomicBool::new(false), Vec::new(), Vec::new());
         loop {

@@ -618,14 +618,7 @@ mod tests {
     use super::*;
 
     fn model() -> BiasModel {
-        let t = BiasTerms {
-            n: 0.04,
-            b: 0.005,
-            k: 0.0,
-            q: 0.0,
-            lsb: 0.0,
-            initial_sd: 1.0,
-        };
+        let t = crate::drift::bias::tests::terms();
         BiasModel::new(&t, 100.0, Instability::from_terms(&t)).unwrap()
     }
 

@@ -322,10 +322,11 @@ impl Instability {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn terms() -> BiasTerms {
+    /// Terms of the bias module's tests: N 0.04, B 0.005, a prior of 1 deg/s.
+    pub(crate) fn terms() -> BiasTerms {
         BiasTerms {
             n: 0.04,
             b: 0.005,

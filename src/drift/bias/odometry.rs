@@ -589,24 +589,14 @@ impl UpFromGravity {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{BiasFilter, BiasModel, BiasTerms, Instability};
+    use super::super::tests::terms;
+    use super::super::{BiasFilter, BiasModel, Instability};
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_distr::StandardNormal;
 
     const RATE: f64 = 100.0;
     const BIAS: f64 = 0.3;
-
-    fn terms() -> BiasTerms {
-        BiasTerms {
-            n: 0.04,
-            b: 0.005,
-            k: 0.0,
-            q: 0.0,
-            lsb: 0.0,
-            initial_sd: 1.0,
-        }
-    }
 
     /// A drive for `secs`: the true rate `w(t)`, the gyro = w + BIAS + white noise of the
     /// terms, a 50 Hz odometry reading (1 + e) w (1 + slip(t)) + 0.1 deg/s white, arriving
