@@ -28,10 +28,9 @@
 use super::accel_terms::{self, ACCEL_BIAS_INSTABILITY, ACCEL_VRW};
 use super::predict::motion_flags;
 use crate::drift::accel_rest::AccelRest;
-use crate::drift::bias::up_from_mount;
 use crate::drift::bias::{
-    accel_rest_from_terms, default_walk_bounds, AccelTerms, BiasMode, BiasModel, BiasTerms,
-    BiasTracker, Instability, LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
+    accel_rest_from_terms, default_walk_bounds, up_from_mount, AccelTerms, BiasMode, BiasModel,
+    BiasTerms, BiasTracker, Instability, LearnWalk, TrackerConfig, DEFAULT_INITIAL_SD,
 };
 use crate::io::InputError;
 pub use crate::stages::bias_odometry::VehicleUp;
