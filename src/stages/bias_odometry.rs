@@ -253,7 +253,6 @@ impl Odometry {
             yaw_rate: m.yaw_rate_rad_s.to_degrees(),
             yaw_rate_sd: m.yaw_rate_std_rad_s.to_degrees(),
         };
-        tracker.add_scale(self.aid.scale_prior());
         let now = tracker.filter().scaled_view().over(c);
         let judged = self.aid.mounting() != Mounting::Unknown;
         if let Some(z) = self.aid.push_odometry(sample, now) {
@@ -422,6 +421,8 @@ mod tests {
         let mut tracker = BiasTracker::for_profile("adis16405", rate).unwrap();
         let r_gyro = tracker.filter().model().measurement_variance();
         let mut odo = Odometry::new(up, [r_gyro; 3], rate).unwrap();
+        // As the stage builds it: the tracker carries the scale from the start.
+        tracker.add_scale(odo.scale_prior());
         for i in 0..2000u64 {
             let turn = if stands {
                 0.0

@@ -334,38 +334,16 @@ impl BiasFilter {
     }
 
     /// Measurement update with an odometry span: y = b + s w of variance `r` (H = [1, ..., 1,
-    /// w] on the bias's states and the scale's). Without a scale state, y - w is taken as a
-    /// measurement of the bias. Like [`BiasFilter::update_with_variance`] it does not feed the
-    /// walk learner. Returns the innovation; NaN (ignored) for a non-finite y or w or an r
-    /// that is not a finite number > 0.
+    /// w] on the bias's states and the scale's). Without a scale state, s is 0: y measures the
+    /// bias. Like [`BiasFilter::update_with_variance`] it does not feed the walk learner.
+    /// Returns the innovation; NaN (ignored) for a non-finite y or w or an r that is not a
+    /// finite number > 0.
     pub fn update_scaled(&mut self, y: f64, w: f64, r: f64) -> f64 {
         if !(y.is_finite() && w.is_finite() && r.is_finite() && r > 0.0) {
             return f64::NAN;
         }
-        let Some(sc) = self.scale.as_deref_mut() else {
-            return self.update_with_variance(y - w, r);
-        };
-        let n = self.model.states;
-        // P H^T: the bias's states, then the scale's.
-        let mut ph = [0.0; MAX_STATES];
-        for (i, v) in ph.iter_mut().enumerate().take(n) {
-            *v = self.p[i][..n].iter().sum::<f64>() + w * sc.cov[i];
-        }
-        let ph_s = sc.cov[..n].iter().sum::<f64>() + w * sc.var;
-        let s = (ph[..n].iter().sum::<f64>() + w * ph_s).max(0.0) + r;
-        let innovation = y - self.x[..n].iter().sum::<f64>() - sc.s * w;
         self.aided = true;
-        for i in 0..n {
-            self.x[i] += ph[i] / s * innovation;
-            for j in 0..n {
-                self.p[i][j] -= ph[i] * ph[j] / s;
-            }
-            sc.cov[i] -= ph[i] * ph_s / s;
-        }
-        sc.s += ph_s / s * innovation;
-        sc.var = (sc.var - ph_s * ph_s / s).max(0.0);
-        self.updates += 1;
-        innovation
+        self.correct(y, w, r)
     }
 
     /// A filter that learns its random walk from the stops ([`WalkLearner`]), starting from
@@ -533,7 +511,7 @@ impl BiasFilter {
         if let Some(l) = &mut self.learner {
             l.sample(z, self.x[..self.model.states].iter().sum());
         }
-        self.correct(z, self.model.r)
+        self.correct(z, 0.0, self.model.r)
     }
 
     /// Measurement update with a measurement `z` of the bias (deg/s) of variance `r`
@@ -547,32 +525,37 @@ impl BiasFilter {
             return f64::NAN;
         }
         self.aided = true;
-        self.correct(z, r)
+        self.correct(z, 0.0, r)
     }
 
-    /// The Kalman update with H = [1, ..., 1]: `z` of variance `r`; the innovation.
-    fn correct(&mut self, z: f64, r: f64) -> f64 {
+    /// The Kalman update with H = [1, ..., 1, w] (w on the scale's state: 0 for a stop, and
+    /// nothing without a scale state): `y` of variance `r`; the innovation. The scale follows
+    /// the bias as far as they are correlated.
+    fn correct(&mut self, y: f64, w: f64, r: f64) -> f64 {
         let n = self.model.states;
-        let mut pu = [0.0; MAX_STATES];
-        for (i, pui) in pu.iter_mut().enumerate().take(n) {
-            *pui = self.p[i][..n].iter().sum();
+        let (s_hat, s_var, s_cov) = self
+            .scale
+            .as_deref()
+            .map_or((0.0, 0.0, [0.0; MAX_STATES]), |sc| (sc.s, sc.var, sc.cov));
+        // P H^T: the bias's states, then the scale's.
+        let mut ph = [0.0; MAX_STATES];
+        for (i, v) in ph.iter_mut().enumerate().take(n) {
+            *v = self.p[i][..n].iter().sum::<f64>() + w * s_cov[i];
         }
-        let v: f64 = pu[..n].iter().sum::<f64>().max(0.0);
-        let s = v + r;
-        let innovation = z - self.estimate();
+        let ph_s = s_cov[..n].iter().sum::<f64>() + w * s_var;
+        let s = (ph[..n].iter().sum::<f64>() + w * ph_s).max(0.0) + r;
+        let innovation = y - self.estimate() - s_hat * w;
         for i in 0..n {
-            self.x[i] += pu[i] / s * innovation;
+            self.x[i] += ph[i] / s * innovation;
             for j in 0..n {
-                self.p[i][j] -= pu[i] * pu[j] / s;
+                self.p[i][j] -= ph[i] * ph[j] / s;
             }
         }
-        // The scale follows the bias as far as they are correlated (H's scale entry is 0).
-        if let Some(sc) = &mut self.scale {
-            let ph_s: f64 = sc.cov[..n].iter().sum();
-            sc.s += ph_s / s * innovation;
-            for (c, pui) in sc.cov[..n].iter_mut().zip(&pu[..n]) {
-                *c -= pui * ph_s / s;
+        if let Some(sc) = self.scale.as_deref_mut() {
+            for (c, phi) in sc.cov[..n].iter_mut().zip(&ph[..n]) {
+                *c -= phi * ph_s / s;
             }
+            sc.s += ph_s / s * innovation;
             sc.var = (sc.var - ph_s * ph_s / s).max(0.0);
         }
         self.updates += 1;
